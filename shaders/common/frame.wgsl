@@ -1,0 +1,29 @@
+// Per-frame uniforms shared by every pass: camera, spotlight and light-space bounds.
+// Keep in sync with `FrameUniforms` in src/render/gpu_data.rs.
+
+struct Frame {
+    clip_from_world: mat4x4<f32>,
+    world_from_clip: mat4x4<f32>,
+    light_clip_from_world: mat4x4<f32>,
+    // xyz: eye position (m); w: near clip distance (m).
+    camera_pos: vec4<f32>,
+    // xyz: unit view direction; w: far clip distance (m).
+    camera_forward: vec4<f32>,
+    // width, height, 1/width, 1/height of the render target (px).
+    viewport: vec4<f32>,
+    // xyz: spotlight position (m); w: cos of the cone half-angle (edge of the penumbra).
+    light_pos: vec4<f32>,
+    // xyz: unit cone axis; w: cos of the inner angle where the penumbra starts.
+    light_dir: vec4<f32>,
+    // rgb: colour x radiant intensity; w: Henyey-Greenstein g.
+    light_radiance: vec4<f32>,
+    // Radial distance from the light bounding the smoke this frame:
+    // x: near (m), y: far (m), z: 1 / (far - near), w: unused.
+    light_depth: vec4<f32>,
+    // rgb: ambient radiance; w: exposure.
+    ambient: vec4<f32>,
+    // rgb: background radiance; w: unused.
+    background: vec4<f32>,
+};
+
+@group(0) @binding(0) var<uniform> frame: Frame;

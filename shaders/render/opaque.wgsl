@@ -1,0 +1,41 @@
+// Opaque pass: the ground and the boxes, lit by the spotlight and shadowed by the smoke through
+// the active technique's `shadow_transmittance`.
+#import common/lighting.wgsl
+#import shadow_technique
+
+struct VertexIn {
+    @location(0) position: vec3<f32>,
+    @location(1) normal: vec3<f32>,
+    @location(2) albedo: vec3<f32>,
+};
+
+struct VertexOut {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) world: vec3<f32>,
+    @location(1) normal: vec3<f32>,
+    @location(2) albedo: vec3<f32>,
+};
+
+@vertex
+fn vs_main(v: VertexIn) -> VertexOut {
+    var out: VertexOut;
+    out.clip = frame.clip_from_world * vec4<f32>(v.position, 1.0);
+    out.world = v.position;
+    out.normal = v.normal;
+    out.albedo = v.albedo;
+    return out;
+}
+
+@fragment
+fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
+    let n = normalize(in.normal);
+    let to_light = normalize(frame.light_pos.xyz - in.world);
+    let lambert = max(dot(n, to_light), 0.0);
+    var direct = vec3<f32>(0.0);
+    if lambert > 0.0 {
+        direct = spot_irradiance(in.world) * lambert * shadow_transmittance(in.world);
+    }
+    let radiance = in.albedo * (direct / PI + frame.ambient.rgb);
+    // Alpha 0: the HDR target's alpha channel accumulates smoke opacity only.
+    return vec4<f32>(radiance, 0.0);
+}

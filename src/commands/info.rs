@@ -1,0 +1,51 @@
+//! `smokeshadow info`: which adapters exist, which one is used, and whether it has what the tool
+//! needs.
+
+use crate::gpu::{self, AdapterPreference, Gpu};
+use crate::shadow;
+
+pub fn run(preference: &AdapterPreference) -> anyhow::Result<()> {
+    let adapters = pollster::block_on(gpu::ranked_adapters(&gpu::instance()));
+    println!("adapters (in selection order):");
+    for a in &adapters {
+        println!("  {}", gpu::describe_adapter(&a.get_info()));
+    }
+    let gpu = Gpu::new(preference)?;
+    let yes_no = |b: bool| if b { "yes" } else { "no" };
+    let l = &gpu.limits;
+    println!("selected ({preference}): {}", gpu.describe());
+    println!(
+        "  timestamp queries (GPU pass times): {}",
+        yes_no(gpu.has_timestamps())
+    );
+    println!(
+        "  FLOAT32_BLENDABLE: {}",
+        yes_no(gpu.features.contains(wgpu::Features::FLOAT32_BLENDABLE))
+    );
+    println!(
+        "  colour attachments: {} (32-channel budgets need {})",
+        l.max_color_attachments,
+        gpu::REQUIRED_COLOR_ATTACHMENTS
+    );
+    println!(
+        "  colour bytes per sample: {} (32 channels of RGBA16F need {})",
+        l.max_color_attachment_bytes_per_sample,
+        gpu::REQUIRED_BYTES_PER_SAMPLE
+    );
+    println!("  max 2D texture size: {}", l.max_texture_dimension_2d);
+    let ok = l.max_color_attachments >= gpu::REQUIRED_COLOR_ATTACHMENTS
+        && l.max_color_attachment_bytes_per_sample >= gpu::REQUIRED_BYTES_PER_SAMPLE;
+    println!(
+        "  every budget 1..={} usable: {}",
+        shadow::MAX_CHANNELS,
+        yes_no(ok)
+    );
+    println!("techniques:");
+    for e in shadow::REGISTRY {
+        println!(
+            "  {:<10} min {} channels  {}",
+            e.name, e.min_channels, e.description
+        );
+    }
+    Ok(())
+}

@@ -1,0 +1,100 @@
+//! The CLI's commands. `main.rs` parses and dispatches; each command lives in its own file.
+
+pub mod info;
+pub mod render;
+
+use crate::shadow::{SplatMode, TechniqueParams};
+
+/// Options shared by every command that renders a scene with a technique.
+#[derive(Clone, Debug, clap::Args)]
+pub struct TechniqueArgs {
+    /// Shadow technique (see `smokeshadow info` for the list).
+    #[arg(long, short = 't', default_value = "osm")]
+    pub technique: String,
+    /// Channel budget (render-target components), 1..=32.
+    #[arg(long, short = 'c', default_value_t = 24)]
+    pub channels: u32,
+    /// Shadow-map resolution in pixels (default: the scene's `shadow.resolution_px`).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=8192))]
+    pub shadow_res: Option<u32>,
+    /// How layered techniques place a particle's optical depth along the light ray.
+    #[arg(long, value_enum, default_value_t = SplatMode::Point)]
+    pub splat: SplatMode,
+}
+
+impl TechniqueArgs {
+    /// The validated technique configuration for `scene`.
+    pub fn config(
+        &self,
+        scene: &crate::scene::Scene,
+    ) -> anyhow::Result<crate::render::TechniqueConfig> {
+        let entry = crate::shadow::find(&self.technique)?;
+        crate::shadow::check_channels(entry, self.channels)?;
+        Ok(crate::render::TechniqueConfig {
+            name: entry.name.to_owned(),
+            params: TechniqueParams {
+                channels: self.channels,
+                resolution_px: self.shadow_res.unwrap_or(scene.shadow.resolution_px),
+                splat: self.splat,
+            },
+        })
+    }
+}
+
+/// An image size given as `WxH`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Size {
+    pub width: u32,
+    pub height: u32,
+}
+
+impl std::str::FromStr for Size {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        let max = crate::scene::LIMITS.max_size_px;
+        let (w, h) = s
+            .split_once(['x', 'X'])
+            .ok_or_else(|| format!("\"{s}\" is not WIDTHxHEIGHT (e.g. 1024x768)"))?;
+        let parse = |v: &str| -> Result<u32, String> {
+            let n: u32 = v
+                .trim()
+                .parse()
+                .map_err(|_| format!("\"{s}\" is not WIDTHxHEIGHT (e.g. 1024x768)"))?;
+            if (1..=max).contains(&n) {
+                Ok(n)
+            } else {
+                Err(format!(
+                    "size {n} in \"{s}\" is out of range: allowed 1..={max}"
+                ))
+            }
+        };
+        Ok(Self {
+            width: parse(w)?,
+            height: parse(h)?,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Size;
+
+    #[test]
+    fn sizes_parse_and_reject_out_of_range() {
+        assert_eq!(
+            "640x480".parse::<Size>(),
+            Ok(Size {
+                width: 640,
+                height: 480
+            })
+        );
+        assert!(
+            "0x480"
+                .parse::<Size>()
+                .unwrap_err()
+                .contains("out of range")
+        );
+        assert!("9000x10".parse::<Size>().unwrap_err().contains("1..=8192"));
+        assert!("640".parse::<Size>().unwrap_err().contains("WIDTHxHEIGHT"));
+    }
+}

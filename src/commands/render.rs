@@ -1,0 +1,186 @@
+//! `smokeshadow render`: one frame of a scene with a technique, written to PNG; with `--bench N`
+//! also N timed frames after a warm-up, reporting GPU pass times from timestamp queries.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::Context;
+
+use super::{Size, TechniqueArgs};
+use crate::gpu::{AdapterPreference, Gpu};
+use crate::render::{OUTPUT_FORMAT, OffscreenTarget, RenderOptions, Renderer};
+use crate::scene::Scene;
+
+#[derive(Clone, Debug, clap::Args)]
+pub struct RenderArgs {
+    /// Scene file (TOML); the embedded thesis scene when omitted.
+    pub scene: Option<PathBuf>,
+    #[command(flatten)]
+    pub technique: TechniqueArgs,
+    /// Output size as WIDTHxHEIGHT (default: the scene's output size).
+    #[arg(long)]
+    pub size: Option<Size>,
+    /// Draw flat billboards with a hard depth test instead of spherical billboards.
+    #[arg(long)]
+    pub no_spherical: bool,
+    /// Output PNG.
+    #[arg(long, short = 'o', default_value = "smoke.png")]
+    pub output: PathBuf,
+    /// Render this many timed frames after the warm-up and print per-pass times.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=100_000))]
+    pub bench: Option<u32>,
+    /// Warm-up frames before timing (the first frames compile shaders).
+    #[arg(long, default_value_t = 5)]
+    pub warmup: u32,
+}
+
+pub fn run(args: &RenderArgs, adapter: &AdapterPreference) -> anyhow::Result<()> {
+    let mut scene = Scene::load_or_default(args.scene.as_deref())?;
+    if let Some(size) = args.size {
+        scene.output.width_px = size.width;
+        scene.output.height_px = size.height;
+    }
+    let technique = args.technique.config(&scene)?;
+    if args.output.is_dir() {
+        anyhow::bail!(
+            "output {} is a folder; give a .png file path",
+            args.output.display()
+        );
+    }
+    let gpu = Gpu::new(adapter)?;
+    log::info!("adapter: {}", gpu.describe());
+
+    let sim_start = Instant::now();
+    let particles = crate::sim::simulate(&scene);
+    let sim_ms = sim_start.elapsed().as_secs_f64() * 1e3;
+
+    let options = RenderOptions {
+        spherical: !args.no_spherical,
+    };
+    let (w, h) = (scene.output.width_px, scene.output.height_px);
+    let mut renderer = Renderer::new(&gpu, w, h, OUTPUT_FORMAT, &technique)?;
+    let target = OffscreenTarget::new(&gpu, w, h);
+
+    if let Some(frames) = args.bench {
+        bench(
+            &gpu,
+            &mut renderer,
+            &scene,
+            &particles,
+            &options,
+            &target,
+            args.warmup,
+            frames,
+        )?;
+    }
+    renderer.render(&gpu, &scene, &particles, &options, &target.view);
+    let image = crate::gpu::read_texture_rgba8(&gpu, &target.texture)?;
+    crate::output::write_png(&args.output, &image)?;
+    let t = renderer.technique();
+    println!(
+        "wrote {} ({w}x{h}, {} particles simulated to t = {} s in {sim_ms:.0} ms, technique {} with {} channels, {} bytes of shadow memory, {} billboards)",
+        args.output.display(),
+        particles.len(),
+        scene.sim.duration_s,
+        t.name(),
+        t.channels_used(),
+        t.memory().total_bytes(),
+        if options.spherical {
+            "spherical"
+        } else {
+            "flat"
+        },
+    );
+    Ok(())
+}
+
+#[allow(clippy::too_many_arguments)]
+fn bench(
+    gpu: &Gpu,
+    renderer: &mut Renderer,
+    scene: &Scene,
+    particles: &[crate::sim::Particle],
+    options: &RenderOptions,
+    target: &OffscreenTarget,
+    warmup: u32,
+    frames: u32,
+) -> anyhow::Result<()> {
+    for _ in 0..warmup {
+        renderer.render(gpu, scene, particles, options, &target.view);
+        gpu.wait_idle()?;
+    }
+    let mut pass_samples: Vec<(&'static str, Vec<f64>)> = Vec::new();
+    let mut sort = Vec::new();
+    let mut gpu_total = Vec::new();
+    let mut wall = Vec::new();
+    for _ in 0..frames {
+        let start = Instant::now();
+        let stats = renderer.render(gpu, scene, particles, options, &target.view);
+        let times = renderer.gpu_times(gpu).context("reading GPU timestamps")?;
+        wall.push(start.elapsed().as_secs_f64() * 1e3);
+        sort.push(stats.sort_ms);
+        gpu_total.push(times.total_ms());
+        for (name, ms) in times.passes {
+            match pass_samples.iter_mut().find(|(n, _)| *n == name) {
+                Some((_, v)) => v.push(ms),
+                None => pass_samples.push((name, vec![ms])),
+            }
+        }
+    }
+    let t = renderer.technique();
+    println!(
+        "bench: {} x {} ({} particles), technique {} / {} channels, {} bytes; {frames} frames after {warmup} warm-up",
+        scene.output.width_px,
+        scene.output.height_px,
+        particles.len(),
+        t.name(),
+        t.channels_used(),
+        t.memory().total_bytes()
+    );
+    if !gpu.has_timestamps() {
+        println!("  GPU pass times: not available (the adapter has no timestamp queries)");
+    }
+    println!("  {:<22} {:>9} {:>9} {:>9}", "ms", "median", "min", "max");
+    let row = |name: &str, v: &mut Vec<f64>| {
+        let s = Summary::of(v);
+        println!(
+            "  {:<22} {:>9.3} {:>9.3} {:>9.3}",
+            name, s.median, s.min, s.max
+        );
+    };
+    for (name, v) in &mut pass_samples {
+        row(&format!("gpu {name}"), v);
+    }
+    if gpu.has_timestamps() {
+        row("gpu frame (all passes)", &mut gpu_total);
+    }
+    row("cpu sort", &mut sort);
+    row("wall frame", &mut wall);
+    Ok(())
+}
+
+/// Median, min and max of a sample.
+pub struct Summary {
+    pub median: f64,
+    pub min: f64,
+    pub max: f64,
+}
+
+impl Summary {
+    pub fn of(v: &mut [f64]) -> Self {
+        v.sort_by(f64::total_cmp);
+        let n = v.len();
+        let median = if n == 0 {
+            f64::NAN
+        } else if n % 2 == 1 {
+            v[n / 2]
+        } else {
+            0.5 * (v[n / 2 - 1] + v[n / 2])
+        };
+        Self {
+            median,
+            min: v.first().copied().unwrap_or(f64::NAN),
+            max: v.last().copied().unwrap_or(f64::NAN),
+        }
+    }
+}

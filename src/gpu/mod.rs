@@ -1,0 +1,208 @@
+//! The GPU context: adapter selection, device creation with the limits the techniques need,
+//! readback, timestamp timing and memory accounting.
+//!
+//! Adapter choice is deterministic: adapters are ranked by a fixed order (see
+//! [`AdapterPreference`]) and then by name, so a result never depends on enumeration order.
+//! Tests ask for [`AdapterPreference::Cpu`] (lavapipe) so they run the same everywhere.
+
+mod memory;
+mod readback;
+mod timing;
+
+pub use memory::MemoryLedger;
+pub use readback::{Rgba16fImage, read_texture_rgba8, read_texture_rgba16f};
+pub use timing::{GpuTimer, PassTimes};
+
+use std::fmt;
+
+/// Errors from GPU setup. Each renders as one line for the user.
+#[derive(Debug, thiserror::Error)]
+pub enum GpuError {
+    #[error(
+        "no GPU adapter found{detail}: install a Vulkan driver (on a machine without a GPU, Mesa's \
+         lavapipe: `apt-get install mesa-vulkan-drivers libvulkan1`)"
+    )]
+    NoAdapter { detail: String },
+    #[error("cannot create a device on adapter \"{adapter}\": {source}")]
+    Device {
+        adapter: String,
+        source: wgpu::RequestDeviceError,
+    },
+    #[error("GPU readback failed: {0}")]
+    Readback(String),
+}
+
+/// Which adapter to use when several are present.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub enum AdapterPreference {
+    /// Discrete GPU, then integrated, then virtual, then CPU (software).
+    #[default]
+    Auto,
+    /// A CPU adapter (lavapipe / llvmpipe) only: deterministic, what tests and CI use.
+    Cpu,
+    /// The first adapter whose name contains this text (case-insensitive).
+    Named(String),
+}
+
+impl std::str::FromStr for AdapterPreference {
+    type Err = std::convert::Infallible;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        Ok(match s.to_ascii_lowercase().as_str() {
+            "auto" => Self::Auto,
+            "cpu" => Self::Cpu,
+            _ => Self::Named(s.to_owned()),
+        })
+    }
+}
+
+impl fmt::Display for AdapterPreference {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Auto => f.write_str("auto"),
+            Self::Cpu => f.write_str("cpu"),
+            Self::Named(name) => write!(f, "\"{name}\""),
+        }
+    }
+}
+
+/// Features the renderer uses when the adapter has them; none is required.
+pub const OPTIONAL_FEATURES: wgpu::Features =
+    wgpu::Features::TIMESTAMP_QUERY.union(wgpu::Features::FLOAT32_BLENDABLE);
+
+/// Minimum colour attachments: 8 RGBA targets carry a 32-channel budget.
+pub const REQUIRED_COLOR_ATTACHMENTS: u32 = 8;
+/// Minimum bytes per sample: 8 RGBA16F targets.
+pub const REQUIRED_BYTES_PER_SAMPLE: u32 = 64;
+
+/// The device, queue and what we learnt about the adapter.
+pub struct Gpu {
+    pub device: wgpu::Device,
+    pub queue: wgpu::Queue,
+    pub info: wgpu::AdapterInfo,
+    pub features: wgpu::Features,
+    pub limits: wgpu::Limits,
+}
+
+impl Gpu {
+    /// Picks an adapter by `preference` and creates a device with the adapter's own limits (the
+    /// defaults allow only 32 bytes per sample, too few for 8 RGBA16F targets).
+    pub fn new(preference: &AdapterPreference) -> Result<Self, GpuError> {
+        let adapter = pollster::block_on(select_adapter(&instance(), preference))?;
+        Self::from_adapter(&adapter)
+    }
+
+    /// Creates the device on a given adapter (the viewer passes the one eframe chose).
+    pub fn from_adapter(adapter: &wgpu::Adapter) -> Result<Self, GpuError> {
+        let info = adapter.get_info();
+        let features = adapter.features() & OPTIONAL_FEATURES;
+        let limits = adapter.limits();
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("smokeshadow.device"),
+            required_features: features,
+            required_limits: limits.clone(),
+            ..Default::default()
+        }))
+        .map_err(|source| GpuError::Device {
+            adapter: info.name.clone(),
+            source,
+        })?;
+        Ok(Self {
+            device,
+            queue,
+            info,
+            features,
+            limits,
+        })
+    }
+
+    /// Whether GPU pass times can be measured on this adapter.
+    pub fn has_timestamps(&self) -> bool {
+        self.features.contains(wgpu::Features::TIMESTAMP_QUERY)
+    }
+
+    /// One line: adapter name, type, backend and driver.
+    pub fn describe(&self) -> String {
+        describe_adapter(&self.info)
+    }
+
+    /// Blocks until all submitted work is done.
+    pub fn wait_idle(&self) -> Result<(), GpuError> {
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map(|_| ())
+            .map_err(|e| GpuError::Readback(e.to_string()))
+    }
+}
+
+/// A wgpu instance on the native backends (Vulkan, Metal, DX12; not GL, whose GLSL path lacks
+/// what the renderer uses); `WGPU_BACKEND` overrides.
+pub fn instance() -> wgpu::Instance {
+    let mut desc = wgpu::InstanceDescriptor::new_without_display_handle();
+    desc.backends = wgpu::Backends::PRIMARY;
+    wgpu::Instance::new(desc.with_env())
+}
+
+/// One line describing an adapter.
+pub fn describe_adapter(info: &wgpu::AdapterInfo) -> String {
+    format!(
+        "{} ({:?}, {:?}, driver {} {})",
+        info.name, info.device_type, info.backend, info.driver, info.driver_info
+    )
+}
+
+fn type_rank(t: wgpu::DeviceType) -> u8 {
+    match t {
+        wgpu::DeviceType::DiscreteGpu => 0,
+        wgpu::DeviceType::IntegratedGpu => 1,
+        wgpu::DeviceType::VirtualGpu => 2,
+        wgpu::DeviceType::Other => 3,
+        wgpu::DeviceType::Cpu => 4,
+    }
+}
+
+fn backend_rank(b: wgpu::Backend) -> u8 {
+    match b {
+        wgpu::Backend::Vulkan => 0,
+        wgpu::Backend::Metal => 1,
+        wgpu::Backend::Dx12 => 2,
+        _ => 3,
+    }
+}
+
+/// All adapters, in the deterministic order used for selection.
+pub async fn ranked_adapters(instance: &wgpu::Instance) -> Vec<wgpu::Adapter> {
+    let mut adapters = instance.enumerate_adapters(wgpu::Backends::all()).await;
+    adapters.sort_by_key(|a| {
+        let info = a.get_info();
+        (
+            type_rank(info.device_type),
+            backend_rank(info.backend),
+            info.name,
+        )
+    });
+    adapters
+}
+
+async fn select_adapter(
+    instance: &wgpu::Instance,
+    preference: &AdapterPreference,
+) -> Result<wgpu::Adapter, GpuError> {
+    let adapters = ranked_adapters(instance).await;
+    let found = adapters.into_iter().find(|a| {
+        let info = a.get_info();
+        match preference {
+            AdapterPreference::Auto => true,
+            AdapterPreference::Cpu => info.device_type == wgpu::DeviceType::Cpu,
+            AdapterPreference::Named(name) => info
+                .name
+                .to_ascii_lowercase()
+                .contains(&name.to_ascii_lowercase()),
+        }
+    });
+    found.ok_or_else(|| GpuError::NoAdapter {
+        detail: match preference {
+            AdapterPreference::Auto => String::new(),
+            other => format!(" matching {other}"),
+        },
+    })
+}

@@ -1,0 +1,12 @@
+//! smokeshadow: particle smoke with interchangeable volumetric self-shadowing techniques, all
+//! measured under the same channel budget (Giuliatti 2013, *Rendering Techniques for Cloud
+//! Volume Densities with Shadows*). See ARCHITECTURE.md for the data flow and the file map.
+
+pub mod commands;
+pub mod gpu;
+pub mod output;
+pub mod render;
+pub mod scene;
+pub mod shaders;
+pub mod shadow;
+pub mod sim;

@@ -1,0 +1,70 @@
+//! The `smokeshadow` command line: parses arguments and dispatches to `smokeshadow::commands`.
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+use smokeshadow::commands;
+use smokeshadow::gpu::AdapterPreference;
+
+/// Particle smoke with interchangeable volumetric self-shadowing techniques, compared under one
+/// channel budget.
+#[derive(Parser)]
+#[command(version, about, propagate_version = true)]
+struct Cli {
+    /// Which GPU adapter to use: auto (hardware first), cpu (lavapipe), or part of a name.
+    #[arg(
+        long,
+        global = true,
+        default_value = "auto",
+        env = "SMOKESHADOW_ADAPTER"
+    )]
+    adapter: AdapterPreference,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Render one frame of a scene to PNG (and optionally benchmark it).
+    Render(commands::render::RenderArgs),
+    /// Show the GPU adapters, the selected one's capabilities, and the techniques.
+    Info,
+}
+
+fn main() -> ExitCode {
+    env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("warn")).init();
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(err) => {
+            use clap::error::ErrorKind;
+            if matches!(
+                err.kind(),
+                ErrorKind::DisplayHelp
+                    | ErrorKind::DisplayVersion
+                    | ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand
+            ) {
+                let _ = err.print();
+                return ExitCode::SUCCESS;
+            }
+            // One line: clap's first line names the argument and the problem.
+            let text = err.render().to_string();
+            let line = text
+                .lines()
+                .find(|l| !l.trim().is_empty())
+                .unwrap_or("invalid arguments");
+            eprintln!("{line}");
+            return ExitCode::from(2);
+        }
+    };
+    let result = match &cli.command {
+        Command::Render(args) => commands::render::run(args, &cli.adapter),
+        Command::Info => commands::info::run(&cli.adapter),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(err) => {
+            eprintln!("error: {}", format!("{err:#}").replace('\n', " "));
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -1,0 +1,86 @@
+//! CPU-side mirrors of the WGSL structs, `#[repr(C)]` + `Pod`, with explicit padding.
+
+use bytemuck::{Pod, Zeroable};
+
+/// Keep in sync with `Frame` in shaders/common/frame.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct FrameUniforms {
+    pub clip_from_world: [[f32; 4]; 4],
+    pub world_from_clip: [[f32; 4]; 4],
+    pub light_clip_from_world: [[f32; 4]; 4],
+    /// xyz eye position, w near clip (m).
+    pub camera_pos: [f32; 4],
+    /// xyz unit view direction, w far clip (m).
+    pub camera_forward: [f32; 4],
+    /// width, height, 1/width, 1/height.
+    pub viewport: [f32; 4],
+    /// xyz light position, w cos(cone half-angle).
+    pub light_pos: [f32; 4],
+    /// xyz unit cone axis, w cos(inner angle).
+    pub light_dir: [f32; 4],
+    /// rgb colour x intensity, w Henyey-Greenstein g.
+    pub light_radiance: [f32; 4],
+    /// near, far, 1/(far - near) of the smoke's radial distance from the light; w unused.
+    pub light_depth: [f32; 4],
+    /// rgb ambient, w exposure.
+    pub ambient: [f32; 4],
+    /// rgb background.
+    pub background: [f32; 4],
+}
+
+/// One particle as the GPU sees it. Keep in sync with `ParticleIn` in
+/// shaders/common/particle.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct ParticleInstance {
+    /// xyz centre (m), w radius (m).
+    pub center_radius: [f32; 4],
+    /// rgb albedo, a extinction τ (1/m).
+    pub albedo_density: [f32; 4],
+}
+
+impl ParticleInstance {
+    pub const LAYOUT: wgpu::VertexBufferLayout<'static> = wgpu::VertexBufferLayout {
+        array_stride: std::mem::size_of::<ParticleInstance>() as u64,
+        step_mode: wgpu::VertexStepMode::Instance,
+        attributes: &wgpu::vertex_attr_array![0 => Float32x4, 1 => Float32x4],
+    };
+
+    pub fn from_particle(p: &crate::sim::Particle) -> Self {
+        Self {
+            center_radius: p.position.extend(p.radius_m).to_array(),
+            albedo_density: p.albedo.extend(p.density_per_m).to_array(),
+        }
+    }
+}
+
+/// A vertex of the opaque geometry. Keep in sync with `VertexIn` in shaders/render/opaque.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct OpaqueVertex {
+    pub position: [f32; 3],
+    pub normal: [f32; 3],
+    pub albedo: [f32; 3],
+}
+
+impl OpaqueVertex {
+    pub const LAYOUT: wgpu::VertexBufferLayout<'static> = wgpu::VertexBufferLayout {
+        array_stride: std::mem::size_of::<OpaqueVertex>() as u64,
+        step_mode: wgpu::VertexStepMode::Vertex,
+        attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x3],
+    };
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sizes_match_the_wgsl_layouts() {
+        // 3 mat4x4 + 9 vec4.
+        assert_eq!(std::mem::size_of::<FrameUniforms>(), 3 * 64 + 9 * 16);
+        assert_eq!(std::mem::size_of::<ParticleInstance>(), 32);
+        assert_eq!(std::mem::size_of::<OpaqueVertex>(), 36);
+    }
+}

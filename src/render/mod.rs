@@ -1,0 +1,857 @@
+//! The frame: one render path for the CLI, the tests, the sweep and the viewer.
+//!
+//! [`Renderer::render`] draws one frame into a caller's `wgpu::TextureView`:
+//! 1. the active shadow technique builds its maps from the particles in light space;
+//! 2. opaque pass: ground and boxes, lit by the spotlight and shadowed by the smoke, into an HDR
+//!    colour target (alpha 0) and a depth texture;
+//! 3. particle pass: billboards sorted back to front on the CPU (timed), composited with
+//!    premultiplied "over" (thesis Eq. 1.5); spherical billboards (thesis 3.2.2.3) read the opaque
+//!    depth to clip each particle's chord, or, with `spherical = false`, flat billboards use a hard
+//!    depth test; the HDR alpha channel ends up holding the smoke's opacity;
+//! 4. tone map (exposure + ACES fit) into the caller's sRGB target.
+//!
+//! Long-lived state (pipelines, layouts, targets, buffers) is built in [`Renderer::new`] and when
+//! the technique or size changes; a frame only uploads uniforms and particles and records passes.
+
+pub mod geometry;
+pub mod gpu_data;
+
+use std::time::Instant;
+
+use glam::{Mat4, Vec3};
+
+use crate::gpu::{Gpu, GpuError, GpuTimer, PassTimes};
+use crate::scene::Scene;
+use crate::shaders;
+use crate::shadow::{
+    self, LightSpace, ShadowError, ShadowTechnique, TechniqueContext, TechniqueParams,
+};
+use crate::sim::Particle;
+use gpu_data::{FrameUniforms, OpaqueVertex, ParticleInstance};
+
+/// Format of the HDR frame (premultiplied radiance; alpha = smoke opacity).
+pub const HDR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
+/// Format of the opaque depth.
+pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+/// Format of the tone-mapped output the CLI writes to PNG.
+pub const OUTPUT_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
+
+/// Per-frame switches.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RenderOptions {
+    /// Spherical billboards (soft contact with opaque geometry) or flat ones with a depth test.
+    pub spherical: bool,
+}
+
+impl Default for RenderOptions {
+    fn default() -> Self {
+        Self { spherical: true }
+    }
+}
+
+/// Which technique to render with.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TechniqueConfig {
+    pub name: String,
+    pub params: TechniqueParams,
+}
+
+/// CPU-side measurements of one frame.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FrameStats {
+    /// Time to sort the particles back to front, milliseconds (CPU wall time of the sort only).
+    pub sort_ms: f64,
+    pub particle_count: u32,
+    pub light: LightSpace,
+}
+
+/// Pipelines that depend on the technique's lookup shader.
+struct TechniquePipelines {
+    opaque: wgpu::RenderPipeline,
+    particles_spherical: wgpu::RenderPipeline,
+    particles_flat: wgpu::RenderPipeline,
+}
+
+/// Size-dependent targets.
+struct Targets {
+    width: u32,
+    height: u32,
+    hdr: wgpu::Texture,
+    hdr_view: wgpu::TextureView,
+    depth_view: wgpu::TextureView,
+    depth_bind_group: wgpu::BindGroup,
+    tonemap_bind_group: wgpu::BindGroup,
+}
+
+/// Everything needed to draw frames; see the module docs.
+pub struct Renderer {
+    frame_layout: wgpu::BindGroupLayout,
+    frame_buffer: wgpu::Buffer,
+    frame_bind_group: wgpu::BindGroup,
+    depth_layout: wgpu::BindGroupLayout,
+    hdr_layout: wgpu::BindGroupLayout,
+    tonemap_pipeline: wgpu::RenderPipeline,
+    targets: Targets,
+    opaque_vertices: wgpu::Buffer,
+    opaque_vertex_count: u32,
+    opaque_source: Vec<OpaqueVertex>,
+    particles: wgpu::Buffer,
+    particle_capacity: u64,
+    instances: Vec<ParticleInstance>,
+    technique: Box<dyn ShadowTechnique>,
+    technique_config: TechniqueConfig,
+    pipelines: TechniquePipelines,
+    timer: GpuTimer,
+}
+
+impl Renderer {
+    /// Builds pipelines and targets for `width` x `height` output in `output_format`.
+    pub fn new(
+        gpu: &Gpu,
+        width: u32,
+        height: u32,
+        output_format: wgpu::TextureFormat,
+        technique: &TechniqueConfig,
+    ) -> Result<Self, ShadowError> {
+        let device = &gpu.device;
+        let frame_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("frame.layout"),
+            entries: &[wgpu::BindGroupLayoutEntry {
+                binding: 0,
+                visibility: wgpu::ShaderStages::VERTEX_FRAGMENT | wgpu::ShaderStages::COMPUTE,
+                ty: wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Uniform,
+                    has_dynamic_offset: false,
+                    min_binding_size: None,
+                },
+                count: None,
+            }],
+        });
+        let frame_buffer = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("frame.uniforms"),
+            size: std::mem::size_of::<FrameUniforms>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let frame_bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("frame.bind_group"),
+            layout: &frame_layout,
+            entries: &[wgpu::BindGroupEntry {
+                binding: 0,
+                resource: frame_buffer.as_entire_binding(),
+            }],
+        });
+        let depth_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("particles.depth_layout"),
+            entries: &[wgpu::BindGroupLayoutEntry {
+                binding: 0,
+                visibility: wgpu::ShaderStages::FRAGMENT,
+                ty: wgpu::BindingType::Texture {
+                    sample_type: wgpu::TextureSampleType::Depth,
+                    view_dimension: wgpu::TextureViewDimension::D2,
+                    multisampled: false,
+                },
+                count: None,
+            }],
+        });
+        let hdr_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("tonemap.layout"),
+            entries: &[wgpu::BindGroupLayoutEntry {
+                binding: 0,
+                visibility: wgpu::ShaderStages::FRAGMENT,
+                ty: wgpu::BindingType::Texture {
+                    sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                    view_dimension: wgpu::TextureViewDimension::D2,
+                    multisampled: false,
+                },
+                count: None,
+            }],
+        });
+        let tonemap_pipeline = {
+            let module = shaders::module(
+                device,
+                "tonemap",
+                &shaders::compose("render/tonemap.wgsl", &[]),
+            );
+            let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some("tonemap.pipeline_layout"),
+                bind_group_layouts: &[Some(&frame_layout), Some(&hdr_layout)],
+                immediate_size: 0,
+            });
+            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some("tonemap.pipeline"),
+                layout: Some(&layout),
+                vertex: wgpu::VertexState {
+                    module: &module,
+                    entry_point: Some("vs_main"),
+                    compilation_options: Default::default(),
+                    buffers: &[],
+                },
+                primitive: wgpu::PrimitiveState::default(),
+                depth_stencil: None,
+                multisample: wgpu::MultisampleState::default(),
+                fragment: Some(wgpu::FragmentState {
+                    module: &module,
+                    entry_point: Some("fs_main"),
+                    compilation_options: Default::default(),
+                    targets: &[Some(output_format.into())],
+                }),
+                multiview_mask: None,
+                cache: None,
+            })
+        };
+        let targets = Targets::new(device, &depth_layout, &hdr_layout, width, height);
+
+        let technique_impl = shadow::create(
+            &TechniqueContext {
+                gpu,
+                frame_layout: &frame_layout,
+            },
+            &technique.name,
+            &technique.params,
+        )?;
+        let pipelines = TechniquePipelines::new(
+            device,
+            &frame_layout,
+            &depth_layout,
+            technique_impl.as_ref(),
+        );
+
+        let particle_capacity = 1024;
+        Ok(Self {
+            opaque_vertices: device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("opaque.vertices"),
+                size: 4,
+                usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }),
+            opaque_vertex_count: 0,
+            opaque_source: Vec::new(),
+            particles: particle_buffer(device, particle_capacity),
+            particle_capacity,
+            instances: Vec::new(),
+            frame_layout,
+            frame_buffer,
+            frame_bind_group,
+            depth_layout,
+            hdr_layout,
+            tonemap_pipeline,
+            targets,
+            technique: technique_impl,
+            technique_config: technique.clone(),
+            pipelines,
+            timer: GpuTimer::new(gpu),
+        })
+    }
+
+    /// Switches technique or parameters; builds pipelines only when something changed.
+    pub fn set_technique(
+        &mut self,
+        gpu: &Gpu,
+        config: &TechniqueConfig,
+    ) -> Result<(), ShadowError> {
+        if *config == self.technique_config {
+            return Ok(());
+        }
+        let technique = shadow::create(
+            &TechniqueContext {
+                gpu,
+                frame_layout: &self.frame_layout,
+            },
+            &config.name,
+            &config.params,
+        )?;
+        self.pipelines = TechniquePipelines::new(
+            &gpu.device,
+            &self.frame_layout,
+            &self.depth_layout,
+            technique.as_ref(),
+        );
+        self.technique = technique;
+        self.technique_config = config.clone();
+        Ok(())
+    }
+
+    /// Resizes the internal targets (the caller's output view must match).
+    pub fn resize(&mut self, gpu: &Gpu, width: u32, height: u32) {
+        if (width, height) != (self.targets.width, self.targets.height) {
+            self.targets = Targets::new(
+                &gpu.device,
+                &self.depth_layout,
+                &self.hdr_layout,
+                width,
+                height,
+            );
+        }
+    }
+
+    /// The active technique.
+    pub fn technique(&self) -> &dyn ShadowTechnique {
+        self.technique.as_ref()
+    }
+
+    /// The HDR frame of the last render (premultiplied radiance, alpha = smoke opacity).
+    pub fn hdr_texture(&self) -> &wgpu::Texture {
+        &self.targets.hdr
+    }
+
+    /// Output size in pixels.
+    pub fn size(&self) -> (u32, u32) {
+        (self.targets.width, self.targets.height)
+    }
+
+    /// GPU pass times of the last frame (blocks until it finished); empty without timestamps.
+    pub fn gpu_times(&self, gpu: &Gpu) -> Result<PassTimes, GpuError> {
+        self.timer.read(gpu)
+    }
+
+    /// Renders one frame of `scene` with `particles` into `output` (size = [`Renderer::size`]).
+    pub fn render(
+        &mut self,
+        gpu: &Gpu,
+        scene: &Scene,
+        particles: &[Particle],
+        options: &RenderOptions,
+        output: &wgpu::TextureView,
+    ) -> FrameStats {
+        let device = &gpu.device;
+        let (width, height) = self.size();
+        self.upload_opaque(gpu, scene);
+
+        let camera = CameraMatrices::new(scene, width, height);
+        let light = LightSpace::fit(&scene.light, particles);
+        gpu.queue.write_buffer(
+            &self.frame_buffer,
+            0,
+            bytemuck::bytes_of(&frame_uniforms(scene, &camera, &light, width, height)),
+        );
+
+        // Back-to-front by view depth; ties keep pool order so the result is deterministic.
+        let sort_start = Instant::now();
+        let mut order: Vec<(f32, u32)> = particles
+            .iter()
+            .enumerate()
+            .map(|(i, p)| ((p.position - camera.position).dot(camera.forward), i as u32))
+            .collect();
+        order.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+        let sort_ms = sort_start.elapsed().as_secs_f64() * 1e3;
+        self.instances.clear();
+        self.instances.extend(
+            order
+                .iter()
+                .map(|&(_, i)| ParticleInstance::from_particle(&particles[i as usize])),
+        );
+        self.upload_particles(gpu);
+        let particle_count = particles.len() as u32;
+
+        self.timer.begin_frame();
+        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("frame.encoder"),
+        });
+        self.technique.build(
+            gpu,
+            shadow::BuildInputs {
+                encoder: &mut encoder,
+                timer: &mut self.timer,
+                frame_bind_group: &self.frame_bind_group,
+                particles: &self.particles,
+                particle_count,
+                light: &light,
+            },
+        );
+
+        let bg = scene.shading.background;
+        {
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("opaque"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: &self.targets.hdr_view,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color {
+                            r: f64::from(bg.x),
+                            g: f64::from(bg.y),
+                            b: f64::from(bg.z),
+                            a: 0.0,
+                        }),
+                        store: wgpu::StoreOp::Store,
+                    },
+                })],
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &self.targets.depth_view,
+                    depth_ops: Some(wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(1.0),
+                        store: wgpu::StoreOp::Store,
+                    }),
+                    stencil_ops: None,
+                }),
+                timestamp_writes: self.timer.pass("opaque"),
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_pipeline(&self.pipelines.opaque);
+            pass.set_bind_group(0, &self.frame_bind_group, &[]);
+            pass.set_bind_group(1, self.technique.bind_group(), &[]);
+            pass.set_vertex_buffer(0, self.opaque_vertices.slice(..));
+            pass.draw(0..self.opaque_vertex_count, 0..1);
+        }
+        {
+            let depth_attachment =
+                (!options.spherical).then_some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &self.targets.depth_view,
+                    depth_ops: Some(wgpu::Operations {
+                        load: wgpu::LoadOp::Load,
+                        store: wgpu::StoreOp::Store,
+                    }),
+                    stencil_ops: None,
+                });
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("particles"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: &self.targets.hdr_view,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Load,
+                        store: wgpu::StoreOp::Store,
+                    },
+                })],
+                depth_stencil_attachment: depth_attachment,
+                timestamp_writes: self.timer.pass("particles"),
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            if options.spherical {
+                pass.set_pipeline(&self.pipelines.particles_spherical);
+                pass.set_bind_group(2, &self.targets.depth_bind_group, &[]);
+            } else {
+                pass.set_pipeline(&self.pipelines.particles_flat);
+            }
+            pass.set_bind_group(0, &self.frame_bind_group, &[]);
+            pass.set_bind_group(1, self.technique.bind_group(), &[]);
+            if particle_count > 0 {
+                pass.set_vertex_buffer(0, self.particles.slice(..));
+                pass.draw(0..6, 0..particle_count);
+            }
+        }
+        {
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("tonemap"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: output,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
+                        store: wgpu::StoreOp::Store,
+                    },
+                })],
+                depth_stencil_attachment: None,
+                timestamp_writes: self.timer.pass("tonemap"),
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_pipeline(&self.tonemap_pipeline);
+            pass.set_bind_group(0, &self.frame_bind_group, &[]);
+            pass.set_bind_group(1, &self.targets.tonemap_bind_group, &[]);
+            pass.draw(0..3, 0..1);
+        }
+        self.timer.resolve(&mut encoder);
+        gpu.queue.submit([encoder.finish()]);
+
+        FrameStats {
+            sort_ms,
+            particle_count,
+            light,
+        }
+    }
+
+    fn upload_opaque(&mut self, gpu: &Gpu, scene: &Scene) {
+        let mesh = geometry::opaque_mesh(scene);
+        if bytemuck::cast_slice::<_, u8>(&mesh)
+            == bytemuck::cast_slice::<_, u8>(&self.opaque_source)
+        {
+            return;
+        }
+        let bytes: &[u8] = bytemuck::cast_slice(&mesh);
+        if self.opaque_vertices.size() < bytes.len() as u64 {
+            self.opaque_vertices = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("opaque.vertices"),
+                size: bytes.len() as u64,
+                usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+        }
+        gpu.queue.write_buffer(&self.opaque_vertices, 0, bytes);
+        self.opaque_vertex_count = mesh.len() as u32;
+        self.opaque_source = mesh;
+    }
+
+    fn upload_particles(&mut self, gpu: &Gpu) {
+        let needed = self.instances.len() as u64;
+        if needed > self.particle_capacity {
+            self.particle_capacity = needed.next_power_of_two();
+            self.particles = particle_buffer(&gpu.device, self.particle_capacity);
+        }
+        if needed > 0 {
+            gpu.queue
+                .write_buffer(&self.particles, 0, bytemuck::cast_slice(&self.instances));
+        }
+    }
+}
+
+fn particle_buffer(device: &wgpu::Device, capacity: u64) -> wgpu::Buffer {
+    device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("particles.instances"),
+        size: capacity * std::mem::size_of::<ParticleInstance>() as u64,
+        usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    })
+}
+
+impl Targets {
+    fn new(
+        device: &wgpu::Device,
+        depth_layout: &wgpu::BindGroupLayout,
+        hdr_layout: &wgpu::BindGroupLayout,
+        width: u32,
+        height: u32,
+    ) -> Self {
+        let size = wgpu::Extent3d {
+            width,
+            height,
+            depth_or_array_layers: 1,
+        };
+        let texture = |label, format| {
+            device.create_texture(&wgpu::TextureDescriptor {
+                label: Some(label),
+                size,
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage: wgpu::TextureUsages::RENDER_ATTACHMENT
+                    | wgpu::TextureUsages::TEXTURE_BINDING
+                    | wgpu::TextureUsages::COPY_SRC,
+                view_formats: &[],
+            })
+        };
+        let hdr = texture("frame.hdr", HDR_FORMAT);
+        let depth = texture("frame.depth", DEPTH_FORMAT);
+        let hdr_view = hdr.create_view(&Default::default());
+        let depth_view = depth.create_view(&Default::default());
+        let depth_bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("particles.depth_bind_group"),
+            layout: depth_layout,
+            entries: &[wgpu::BindGroupEntry {
+                binding: 0,
+                resource: wgpu::BindingResource::TextureView(&depth_view),
+            }],
+        });
+        let tonemap_bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("tonemap.bind_group"),
+            layout: hdr_layout,
+            entries: &[wgpu::BindGroupEntry {
+                binding: 0,
+                resource: wgpu::BindingResource::TextureView(&hdr_view),
+            }],
+        });
+        Self {
+            width,
+            height,
+            hdr,
+            hdr_view,
+            depth_view,
+            depth_bind_group,
+            tonemap_bind_group,
+        }
+    }
+}
+
+impl TechniquePipelines {
+    fn new(
+        device: &wgpu::Device,
+        frame_layout: &wgpu::BindGroupLayout,
+        depth_layout: &wgpu::BindGroupLayout,
+        technique: &dyn ShadowTechnique,
+    ) -> Self {
+        let entry = shadow::find(technique.name()).expect("a live technique is registered");
+        let lookup =
+            shaders::source(entry.lookup_shader).expect("registered lookup shader is embedded");
+        let virtuals = [(shaders::SHADOW_TECHNIQUE, lookup)];
+        let name = technique.name();
+        let opaque_module = shaders::module(
+            device,
+            &format!("opaque[{name}]"),
+            &shaders::compose("render/opaque.wgsl", &virtuals),
+        );
+        let particle_module = shaders::module(
+            device,
+            &format!("particles[{name}]"),
+            &shaders::compose("render/particles.wgsl", &virtuals),
+        );
+        let tech_layout = technique.bind_group_layout();
+        let layout = |label, groups: &[Option<&wgpu::BindGroupLayout>]| {
+            device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some(label),
+                bind_group_layouts: groups,
+                immediate_size: 0,
+            })
+        };
+        let opaque_layout = layout(
+            "opaque.pipeline_layout",
+            &[Some(frame_layout), Some(tech_layout)],
+        );
+        let spherical_layout = layout(
+            "particles.spherical.pipeline_layout",
+            &[Some(frame_layout), Some(tech_layout), Some(depth_layout)],
+        );
+        let flat_layout = layout(
+            "particles.flat.pipeline_layout",
+            &[Some(frame_layout), Some(tech_layout)],
+        );
+
+        let opaque = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("opaque.pipeline"),
+            layout: Some(&opaque_layout),
+            vertex: wgpu::VertexState {
+                module: &opaque_module,
+                entry_point: Some("vs_main"),
+                compilation_options: Default::default(),
+                buffers: &[Some(OpaqueVertex::LAYOUT)],
+            },
+            primitive: wgpu::PrimitiveState {
+                cull_mode: Some(wgpu::Face::Back),
+                ..Default::default()
+            },
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: DEPTH_FORMAT,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::Less),
+                stencil: Default::default(),
+                bias: Default::default(),
+            }),
+            multisample: Default::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &opaque_module,
+                entry_point: Some("fs_main"),
+                compilation_options: Default::default(),
+                targets: &[Some(HDR_FORMAT.into())],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        // Premultiplied "over": C = C_src + (1 - α_src) C_dst, and the same for alpha.
+        let over = wgpu::BlendComponent {
+            src_factor: wgpu::BlendFactor::One,
+            dst_factor: wgpu::BlendFactor::OneMinusSrcAlpha,
+            operation: wgpu::BlendOperation::Add,
+        };
+        let particle_target = [Some(wgpu::ColorTargetState {
+            format: HDR_FORMAT,
+            blend: Some(wgpu::BlendState {
+                color: over,
+                alpha: over,
+            }),
+            write_mask: wgpu::ColorWrites::ALL,
+        })];
+        let particles =
+            |label, layout: &wgpu::PipelineLayout, fs, depth: Option<wgpu::DepthStencilState>| {
+                device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                    label: Some(label),
+                    layout: Some(layout),
+                    vertex: wgpu::VertexState {
+                        module: &particle_module,
+                        entry_point: Some("vs_main"),
+                        compilation_options: Default::default(),
+                        buffers: &[Some(ParticleInstance::LAYOUT)],
+                    },
+                    primitive: wgpu::PrimitiveState::default(),
+                    depth_stencil: depth,
+                    multisample: Default::default(),
+                    fragment: Some(wgpu::FragmentState {
+                        module: &particle_module,
+                        entry_point: Some(fs),
+                        compilation_options: Default::default(),
+                        targets: &particle_target,
+                    }),
+                    multiview_mask: None,
+                    cache: None,
+                })
+            };
+        let particles_spherical = particles(
+            "particles.spherical.pipeline",
+            &spherical_layout,
+            "fs_spherical",
+            None,
+        );
+        let particles_flat = particles(
+            "particles.flat.pipeline",
+            &flat_layout,
+            "fs_flat",
+            Some(wgpu::DepthStencilState {
+                format: DEPTH_FORMAT,
+                depth_write_enabled: Some(false),
+                depth_compare: Some(wgpu::CompareFunction::Less),
+                stencil: Default::default(),
+                bias: Default::default(),
+            }),
+        );
+        Self {
+            opaque,
+            particles_spherical,
+            particles_flat,
+        }
+    }
+}
+
+/// The camera's matrices and frame.
+#[derive(Clone, Copy, Debug)]
+pub struct CameraMatrices {
+    pub position: Vec3,
+    pub forward: Vec3,
+    pub view_from_world: Mat4,
+    pub clip_from_view: Mat4,
+}
+
+impl CameraMatrices {
+    pub fn new(scene: &Scene, width: u32, height: u32) -> Self {
+        let cam = &scene.camera;
+        let forward = (cam.target - cam.position).normalize();
+        let up = if forward.y.abs() > 0.999 {
+            Vec3::Z
+        } else {
+            Vec3::Y
+        };
+        Self {
+            position: cam.position,
+            forward,
+            view_from_world: Mat4::look_at_rh(cam.position, cam.target, up),
+            clip_from_view: Mat4::perspective_rh(
+                cam.fov_y_deg.to_radians(),
+                width as f32 / height as f32,
+                cam.near_m,
+                cam.far_m,
+            ),
+        }
+    }
+
+    pub fn clip_from_world(&self) -> Mat4 {
+        self.clip_from_view * self.view_from_world
+    }
+
+    /// Pixel coordinates (x right, y down, pixel centres at +0.5) of a world point, if in front.
+    pub fn project_to_pixel(&self, p: Vec3, width: u32, height: u32) -> Option<glam::Vec2> {
+        let clip = self.clip_from_world() * p.extend(1.0);
+        if clip.w <= 0.0 {
+            return None;
+        }
+        let ndc = clip.truncate() / clip.w;
+        Some(glam::Vec2::new(
+            (ndc.x * 0.5 + 0.5) * width as f32,
+            (0.5 - ndc.y * 0.5) * height as f32,
+        ))
+    }
+}
+
+fn frame_uniforms(
+    scene: &Scene,
+    camera: &CameraMatrices,
+    light: &LightSpace,
+    width: u32,
+    height: u32,
+) -> FrameUniforms {
+    let l = &scene.light;
+    let cone = l.cone_angle_deg.to_radians();
+    let cos_outer = cone.cos();
+    let cos_inner = (cone * (1.0 - l.penumbra)).cos().max(cos_outer + 1e-4);
+    let axis = (l.target - l.position).normalize();
+    let clip_from_world = camera.clip_from_world();
+    let s = &scene.shading;
+    FrameUniforms {
+        clip_from_world: clip_from_world.to_cols_array_2d(),
+        world_from_clip: clip_from_world.inverse().to_cols_array_2d(),
+        light_clip_from_world: light.clip_from_world.to_cols_array_2d(),
+        camera_pos: camera.position.extend(scene.camera.near_m).to_array(),
+        camera_forward: camera.forward.extend(scene.camera.far_m).to_array(),
+        viewport: [
+            width as f32,
+            height as f32,
+            1.0 / width as f32,
+            1.0 / height as f32,
+        ],
+        light_pos: l.position.extend(cos_outer).to_array(),
+        light_dir: axis.extend(cos_inner).to_array(),
+        light_radiance: (l.color * l.intensity).extend(s.hg_g).to_array(),
+        light_depth: [
+            light.near_m,
+            light.far_m,
+            1.0 / (light.far_m - light.near_m),
+            0.0,
+        ],
+        ambient: s.ambient.extend(s.exposure).to_array(),
+        background: s.background.extend(0.0).to_array(),
+    }
+}
+
+/// An offscreen output texture the CLI and tests render into and read back.
+pub struct OffscreenTarget {
+    pub texture: wgpu::Texture,
+    pub view: wgpu::TextureView,
+}
+
+impl OffscreenTarget {
+    pub fn new(gpu: &Gpu, width: u32, height: u32) -> Self {
+        let texture = gpu.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("output"),
+            size: wgpu::Extent3d {
+                width,
+                height,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: OUTPUT_FORMAT,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT
+                | wgpu::TextureUsages::COPY_SRC
+                | wgpu::TextureUsages::TEXTURE_BINDING,
+            view_formats: &[],
+        });
+        let view = texture.create_view(&Default::default());
+        Self { texture, view }
+    }
+}
+
+/// The result of [`render_offscreen`].
+pub struct OffscreenFrame {
+    /// The tone-mapped sRGB frame.
+    pub image: image::RgbaImage,
+    /// The HDR frame: premultiplied linear radiance, alpha = smoke opacity.
+    pub hdr: crate::gpu::Rgba16fImage,
+    pub stats: FrameStats,
+    pub times: PassTimes,
+}
+
+/// Renders one frame offscreen at the scene's output size and reads it back: the path the CLI's
+/// `render` and the GPU tests share.
+pub fn render_offscreen(
+    gpu: &Gpu,
+    scene: &Scene,
+    particles: &[Particle],
+    technique: &TechniqueConfig,
+    options: &RenderOptions,
+) -> anyhow::Result<OffscreenFrame> {
+    let (w, h) = (scene.output.width_px, scene.output.height_px);
+    let mut renderer = Renderer::new(gpu, w, h, OUTPUT_FORMAT, technique)?;
+    let target = OffscreenTarget::new(gpu, w, h);
+    let stats = renderer.render(gpu, scene, particles, options, &target.view);
+    let times = renderer.gpu_times(gpu)?;
+    Ok(OffscreenFrame {
+        image: crate::gpu::read_texture_rgba8(gpu, &target.texture)?,
+        hdr: crate::gpu::read_texture_rgba16f(gpu, renderer.hdr_texture())?,
+        stats,
+        times,
+    })
+}

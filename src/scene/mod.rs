@@ -1,0 +1,409 @@
+//! Scene files: the typed, validated description of one experiment.
+//!
+//! A scene is a TOML file (see `scenes/README.md` for every field with its unit, default and
+//! range). It fixes everything that reaches pixels: output size, camera, the spotlight, the
+//! opaque geometry, the smoke emitter (thesis chapter 4: 2500 particles, 1024x768, 512x512 shadow
+//! map, one spotlight, fixed camera and light), the wind gust, the simulation clock and the
+//! shading constants. Parsing denies unknown fields; [`Scene::validate`] checks every range and
+//! names the field, the value and the allowed range when one is wrong.
+//!
+//! To add a field: add it to the struct with a `///` doc line giving unit and range, give it a
+//! default in the `Default` impl, check it in `validate`, and document it in `scenes/README.md`.
+
+mod validate;
+
+use std::path::{Path, PathBuf};
+
+use glam::Vec3;
+use serde::{Deserialize, Serialize};
+
+pub use validate::LIMITS;
+
+/// The thesis experiment (chapter 4), embedded so the binary runs without any file.
+pub const THESIS_PLUME_TOML: &str = include_str!("../../scenes/thesis_plume.toml");
+/// The same plume after a wind gust.
+pub const THESIS_WIND_TOML: &str = include_str!("../../scenes/thesis_wind.toml");
+
+/// Errors from loading or validating a scene. Each renders as one line for the user.
+#[derive(Debug, thiserror::Error)]
+pub enum SceneError {
+    #[error("cannot read scene file {path}: {source}")]
+    Read {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{origin}: line {line}, column {column}: {message}")]
+    Parse {
+        origin: String,
+        line: usize,
+        column: usize,
+        message: String,
+    },
+    #[error("{origin}: {message}")]
+    Invalid { origin: String, message: String },
+}
+
+/// One experiment: everything that reaches the pixels of a frame.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Scene {
+    /// A short name used in file names and reports.
+    pub name: String,
+    pub output: Output,
+    pub camera: Camera,
+    pub light: Spotlight,
+    pub ground: Ground,
+    /// Axis-aligned boxes standing on (or above) the ground.
+    pub boxes: Vec<BoxShape>,
+    pub emitter: Emitter,
+    pub wind: Wind,
+    pub sim: SimClock,
+    pub shadow: ShadowSettings,
+    pub shading: Shading,
+}
+
+/// Output image size.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Output {
+    /// Width in pixels, 1..=8192. Default 1024 (the thesis screen).
+    pub width_px: u32,
+    /// Height in pixels, 1..=8192. Default 768.
+    pub height_px: u32,
+}
+
+/// A pinhole camera.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Camera {
+    /// Eye position in world metres (y is up).
+    pub position: Vec3,
+    /// Point the camera looks at, world metres; must differ from `position`.
+    pub target: Vec3,
+    /// Vertical field of view in degrees, (1, 170).
+    pub fov_y_deg: f32,
+    /// Near clip distance in metres, (0, far_m).
+    pub near_m: f32,
+    /// Far clip distance in metres.
+    pub far_m: f32,
+}
+
+/// The one spotlight that lights (and shadows) the scene.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Spotlight {
+    /// Light position, world metres.
+    pub position: Vec3,
+    /// Point the cone axis aims at, world metres; must differ from `position`.
+    pub target: Vec3,
+    /// Half-angle of the cone in degrees, (0, 80).
+    pub cone_angle_deg: f32,
+    /// Fraction of the cone (from its edge inwards) over which intensity falls smoothly to 0, [0, 1].
+    pub penumbra: f32,
+    /// Linear RGB colour of the light, each component >= 0.
+    pub color: Vec3,
+    /// Radiant intensity on the axis (W/sr-like units; irradiance = intensity / distance²), >= 0.
+    pub intensity: f32,
+}
+
+/// The ground plane: a square centred under the origin.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Ground {
+    /// Height of the plane (world y) in metres.
+    pub height_m: f32,
+    /// Edge length of the square in metres, > 0.
+    pub size_m: f32,
+    /// Diffuse albedo (linear RGB), each component in [0, 1].
+    pub albedo: Vec3,
+}
+
+/// An opaque axis-aligned box.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BoxShape {
+    /// Centre in world metres.
+    pub center: Vec3,
+    /// Edge lengths in metres, each > 0.
+    pub size: Vec3,
+    /// Diffuse albedo (linear RGB), each component in [0, 1].
+    pub albedo: Vec3,
+}
+
+/// The smoke emitter: a fixed pool of particles born at a steady rate and recycled when they die.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Emitter {
+    /// Number of particles in the pool, 1..=1_000_000. The thesis uses 2500.
+    pub count: u32,
+    /// Seed of the emitter's PRNG (PCG-32); same seed, same smoke.
+    pub seed: u64,
+    /// Centre of the source disc, world metres.
+    pub position: Vec3,
+    /// Radius of the source disc (horizontal) in metres, >= 0.
+    pub source_radius_m: f32,
+    /// Mean initial velocity in m/s.
+    pub velocity_m_per_s: Vec3,
+    /// Random spread added to the initial velocity (per axis, uniform ±), m/s, >= 0.
+    pub velocity_spread_m_per_s: f32,
+    /// Upward acceleration while the particle is young and hot, m/s², >= 0.
+    pub buoyancy_m_per_s2: f32,
+    /// Age over which buoyancy decays to 1/e, seconds, > 0.
+    pub buoyancy_decay_s: f32,
+    /// Strength of the turbulent acceleration field, m/s², >= 0.
+    pub turbulence_m_per_s2: f32,
+    /// Length scale of the turbulent field's largest eddies, metres, > 0.
+    pub turbulence_scale_m: f32,
+    /// Drag rate towards the air velocity (wind), 1/s, >= 0.
+    pub drag_per_s: f32,
+    /// Life of a particle in seconds, > 0. The pool emits `count / lifetime_s` particles per second.
+    pub lifetime_s: f32,
+    /// Radius at birth in metres, > 0.
+    pub radius_birth_m: f32,
+    /// Radius growth rate in m/s, >= 0.
+    pub growth_m_per_s: f32,
+    /// Extinction coefficient τ inside a particle (thesis 3.2.2.3), 1/m, >= 0.
+    pub density_per_m: f32,
+    /// Fraction of the life over which a particle fades in (start) and out (end), each in [0, 0.5].
+    pub fade_in: f32,
+    pub fade_out: f32,
+    /// Single-scattering albedo (linear RGB), each component in [0, 1].
+    pub albedo: Vec3,
+    /// Per-particle random brightness variation of the albedo, [0, 1).
+    pub albedo_jitter: f32,
+}
+
+/// A wind gust: the air starts moving at `start_s` and ramps up over `ramp_s`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Wind {
+    /// Direction the air moves towards (normalised on use; ignored when strength is 0).
+    pub direction: Vec3,
+    /// Air speed once the gust is established, m/s, >= 0. 0 disables wind.
+    pub strength_m_per_s: f32,
+    /// Simulation time at which the gust starts, seconds, >= 0.
+    pub start_s: f32,
+    /// Time for the gust to ramp from 0 to full strength, seconds, >= 0.
+    pub ramp_s: f32,
+}
+
+/// The simulation clock: fixed steps from t = 0 to `duration_s`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SimClock {
+    /// Simulated time at which the frame is rendered, seconds, [0, 600].
+    pub duration_s: f32,
+    /// Fixed time step, seconds, (0, 1].
+    pub step_s: f32,
+}
+
+/// Shadow-map settings shared by every technique.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ShadowSettings {
+    /// Shadow-map resolution (square), pixels, 1..=8192. The thesis uses 512.
+    pub resolution_px: u32,
+}
+
+/// Shading constants.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Shading {
+    /// Henyey–Greenstein asymmetry g of the smoke's phase function, (-1, 1).
+    pub hg_g: f32,
+    /// Ambient (sky) radiance added to every surface and particle, linear RGB, each >= 0.
+    pub ambient: Vec3,
+    /// Background radiance where nothing is drawn, linear RGB, each >= 0.
+    pub background: Vec3,
+    /// Exposure multiplier applied before tone mapping, > 0.
+    pub exposure: f32,
+}
+
+impl Default for Scene {
+    fn default() -> Self {
+        Self {
+            name: "untitled".into(),
+            output: Output::default(),
+            camera: Camera::default(),
+            light: Spotlight::default(),
+            ground: Ground::default(),
+            boxes: Vec::new(),
+            emitter: Emitter::default(),
+            wind: Wind::default(),
+            sim: SimClock::default(),
+            shadow: ShadowSettings::default(),
+            shading: Shading::default(),
+        }
+    }
+}
+
+impl Default for Output {
+    fn default() -> Self {
+        Self {
+            width_px: 1024,
+            height_px: 768,
+        }
+    }
+}
+
+impl Default for Camera {
+    fn default() -> Self {
+        Self {
+            position: Vec3::new(0.0, 2.5, 10.0),
+            target: Vec3::new(0.0, 2.0, 0.0),
+            fov_y_deg: 45.0,
+            near_m: 0.1,
+            far_m: 100.0,
+        }
+    }
+}
+
+impl Default for Spotlight {
+    fn default() -> Self {
+        Self {
+            position: Vec3::new(-6.0, 8.0, 4.0),
+            target: Vec3::new(0.0, 2.0, 0.0),
+            cone_angle_deg: 30.0,
+            penumbra: 0.25,
+            color: Vec3::ONE,
+            intensity: 100.0,
+        }
+    }
+}
+
+impl Default for Ground {
+    fn default() -> Self {
+        Self {
+            height_m: 0.0,
+            size_m: 40.0,
+            albedo: Vec3::splat(0.5),
+        }
+    }
+}
+
+impl Default for Emitter {
+    fn default() -> Self {
+        Self {
+            count: 2500,
+            seed: 1,
+            position: Vec3::ZERO,
+            source_radius_m: 0.3,
+            velocity_m_per_s: Vec3::new(0.0, 1.0, 0.0),
+            velocity_spread_m_per_s: 0.2,
+            buoyancy_m_per_s2: 0.5,
+            buoyancy_decay_s: 2.0,
+            turbulence_m_per_s2: 0.5,
+            turbulence_scale_m: 1.5,
+            drag_per_s: 0.5,
+            lifetime_s: 6.0,
+            radius_birth_m: 0.2,
+            growth_m_per_s: 0.08,
+            density_per_m: 2.0,
+            fade_in: 0.1,
+            fade_out: 0.4,
+            albedo: Vec3::splat(0.8),
+            albedo_jitter: 0.1,
+        }
+    }
+}
+
+impl Default for Wind {
+    fn default() -> Self {
+        Self {
+            direction: Vec3::X,
+            strength_m_per_s: 0.0,
+            start_s: 0.0,
+            ramp_s: 1.0,
+        }
+    }
+}
+
+impl Default for SimClock {
+    fn default() -> Self {
+        Self {
+            duration_s: 8.0,
+            step_s: 1.0 / 60.0,
+        }
+    }
+}
+
+impl Default for ShadowSettings {
+    fn default() -> Self {
+        Self { resolution_px: 512 }
+    }
+}
+
+impl Default for Shading {
+    fn default() -> Self {
+        Self {
+            hg_g: 0.3,
+            ambient: Vec3::splat(0.05),
+            background: Vec3::new(0.02, 0.025, 0.035),
+            exposure: 1.0,
+        }
+    }
+}
+
+impl Scene {
+    /// The embedded thesis experiment (`scenes/thesis_plume.toml`).
+    pub fn thesis_plume() -> Self {
+        Self::from_toml_str(THESIS_PLUME_TOML, "embedded thesis_plume")
+            .expect("the embedded thesis scene is valid (checked by tests)")
+    }
+
+    /// Parses and validates a scene from TOML text; `origin` names it in error messages.
+    pub fn from_toml_str(text: &str, origin: &str) -> Result<Self, SceneError> {
+        let scene: Scene = toml::from_str(text).map_err(|err| {
+            let (line, column) = err
+                .span()
+                .map(|span| line_column(text, span.start))
+                .unwrap_or((1, 1));
+            SceneError::Parse {
+                origin: origin.to_owned(),
+                line,
+                column,
+                message: err.message().trim().to_owned(),
+            }
+        })?;
+        scene.validate().map_err(|message| SceneError::Invalid {
+            origin: origin.to_owned(),
+            message,
+        })?;
+        Ok(scene)
+    }
+
+    /// Reads, parses and validates a scene file.
+    pub fn load(path: &Path) -> Result<Self, SceneError> {
+        let text = std::fs::read_to_string(path).map_err(|source| SceneError::Read {
+            path: path.to_owned(),
+            source,
+        })?;
+        Self::from_toml_str(&text, &path.display().to_string())
+    }
+
+    /// Loads `path`, or the embedded thesis scene when `path` is `None`.
+    pub fn load_or_default(path: Option<&Path>) -> Result<Self, SceneError> {
+        match path {
+            Some(path) => Self::load(path),
+            None => Ok(Self::thesis_plume()),
+        }
+    }
+
+    /// Serialises the scene back to TOML.
+    pub fn to_toml(&self) -> String {
+        toml::to_string_pretty(self).expect("a scene always serialises")
+    }
+
+    /// Checks every range; the error names the field, the value and the allowed range.
+    pub fn validate(&self) -> Result<(), String> {
+        validate::validate(self)
+    }
+}
+
+/// 1-based line and column of a byte offset.
+fn line_column(text: &str, offset: usize) -> (usize, usize) {
+    let before = &text[..offset.min(text.len())];
+    let line = before.matches('\n').count() + 1;
+    let column = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
+    (line, column)
+}

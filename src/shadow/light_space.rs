@@ -1,0 +1,82 @@
+//! The spotlight's view of the smoke, shared by every technique.
+//!
+//! The shadow map covers the spotlight's cone with a perspective projection from the light. The
+//! depth coordinate is the *radial distance from the light*, so each shadow-map texel's light
+//! ray crosses a particle along an exact chord and the slices/layers are concentric shells; it is
+//! fitted tightly to the particles every frame (nearest sphere surface to farthest), as the
+//! thesis' opacity maps require.
+
+use glam::{Mat4, Vec3};
+
+use crate::scene::Spotlight;
+use crate::sim::Particle;
+
+/// The light's projection and the frame's depth bounds.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LightSpace {
+    /// Perspective projection x view of the spotlight covering its cone.
+    pub clip_from_world: Mat4,
+    /// Radial distance from the light to the nearest particle surface, metres.
+    pub near_m: f32,
+    /// Radial distance from the light to the farthest particle surface, metres.
+    pub far_m: f32,
+}
+
+impl LightSpace {
+    pub fn fit(light: &Spotlight, particles: &[Particle]) -> Self {
+        let axis = (light.target - light.position).normalize();
+        let helper = if axis.y.abs() > 0.99 {
+            Vec3::X
+        } else {
+            Vec3::Y
+        };
+        let view = Mat4::look_at_rh(light.position, light.target, helper);
+        // A small margin so the penumbra edge is inside the map.
+        let fov = (2.0 * light.cone_angle_deg.to_radians() * 1.04).min(170f32.to_radians());
+        let (mut near, mut far) = (f32::INFINITY, 0.0f32);
+        for p in particles {
+            let dist = p.position.distance(light.position);
+            near = near.min(dist - p.radius_m);
+            far = far.max(dist + p.radius_m);
+        }
+        if !near.is_finite() {
+            (near, far) = (1.0, 2.0);
+        }
+        let near = near.max(1e-3);
+        let far = far.max(near + 1e-3);
+        let proj = Mat4::perspective_rh(fov, 1.0, 0.05, far.max(1.0) * 2.0);
+        Self {
+            clip_from_world: proj * view,
+            near_m: near,
+            far_m: far,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bounds_enclose_every_sphere() {
+        let light = Spotlight {
+            position: Vec3::new(0.0, 10.0, 0.0),
+            target: Vec3::ZERO,
+            ..Spotlight::default()
+        };
+        let mk = |y: f32, r: f32| Particle {
+            position: Vec3::new(0.0, y, 0.0),
+            velocity: Vec3::ZERO,
+            age_s: 0.0,
+            radius_m: r,
+            density_per_m: 1.0,
+            albedo: Vec3::ONE,
+        };
+        let ls = LightSpace::fit(&light, &[mk(5.0, 0.5), mk(2.0, 1.0)]);
+        assert!((ls.near_m - 4.5).abs() < 1e-5);
+        assert!((ls.far_m - 9.0).abs() < 1e-5);
+        // The target is at the centre of the shadow map.
+        let c = ls.clip_from_world.project_point3(Vec3::new(0.0, 1.0, 0.0));
+        assert!(c.x.abs() < 1e-5 && c.y.abs() < 1e-5);
+    }
+}

@@ -1,0 +1,244 @@
+//! Shadow techniques: the shared interface and the registry (thesis 3.3.3).
+//!
+//! A technique turns the particles, seen from the spotlight, into something the lighting shaders
+//! can ask "how much light reaches world point p?" — the transmittance T(p). Every technique
+//! works under a **channel budget** (render-target components), as in the thesis' chapter 4.
+//!
+//! Shape of a technique (see `osm.rs`):
+//! - `new` builds its pipelines, layouts and maps once, recording every allocation in a
+//!   [`MemoryLedger`] so the bytes it reports are the bytes it owns;
+//! - [`ShadowTechnique::build`] records its passes into the frame's encoder each frame;
+//! - its registry entry names the lookup shader (`shaders/shadow/<name>.wgsl`) that defines
+//!   `fn shadow_transmittance(p: vec3<f32>) -> f32` and its bindings in group 1; the renderer
+//!   composes it into the opaque and particle shaders (`#import shadow_technique`).
+//!
+//! Adding a technique: a new `src/shadow/<name>.rs` with a `pub const ENTRY`, its shaders under
+//! `shaders/shadow/`, and one line in [`REGISTRY`].
+
+pub mod light_space;
+pub mod none;
+pub mod osm;
+
+pub use light_space::LightSpace;
+
+use serde::{Deserialize, Serialize};
+
+use crate::gpu::{Gpu, GpuTimer, MemoryLedger};
+
+/// Channel budgets accepted by every technique (one RGBA target carries 4 channels; 8 targets).
+pub const MAX_CHANNELS: u32 = 32;
+
+/// Errors in choosing or configuring a technique. Each renders as one line.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum ShadowError {
+    #[error("unknown technique \"{name}\"; valid techniques: {valid}")]
+    UnknownTechnique { name: String, valid: String },
+    #[error("--channels {channels} is out of range for {technique}: allowed {min}..={max}")]
+    ChannelsOutOfRange {
+        technique: &'static str,
+        channels: u32,
+        min: u32,
+        max: u32,
+    },
+    #[error(
+        "{technique} at {channels} channels needs {needed} colour attachments of \
+         {bytes_per_sample} bytes per sample, but the adapter allows {allowed_attachments} \
+         attachments and {allowed_bytes} bytes per sample"
+    )]
+    AdapterLimit {
+        technique: &'static str,
+        channels: u32,
+        needed: u32,
+        bytes_per_sample: u32,
+        allowed_attachments: u32,
+        allowed_bytes: u32,
+    },
+}
+
+/// How a particle's optical depth is placed along the light ray when building layered maps.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "snake_case")]
+pub enum SplatMode {
+    /// All of it at the particle centre's depth (the thesis).
+    #[default]
+    Point,
+    /// Spread uniformly over the chord through the sphere (converges to `exact`).
+    Segment,
+}
+
+/// The parameters every technique receives.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TechniqueParams {
+    /// Channel budget, 1..=32 (each technique may have a larger minimum).
+    pub channels: u32,
+    /// Square shadow-map resolution in pixels.
+    pub resolution_px: u32,
+    /// Where particle optical depth is splatted (layered techniques).
+    pub splat: SplatMode,
+}
+
+/// What a technique needs from the renderer to build its pipelines.
+pub struct TechniqueContext<'a> {
+    pub gpu: &'a Gpu,
+    /// Layout of group 0 (`Frame` uniforms), shared by every pass.
+    pub frame_layout: &'a wgpu::BindGroupLayout,
+}
+
+/// What a technique gets each frame to build its maps.
+pub struct BuildInputs<'a> {
+    pub encoder: &'a mut wgpu::CommandEncoder,
+    pub timer: &'a mut GpuTimer,
+    pub frame_bind_group: &'a wgpu::BindGroup,
+    /// Particle instances (see `ParticleInstance`), `particle_count` of them.
+    pub particles: &'a wgpu::Buffer,
+    pub particle_count: u32,
+    pub light: &'a LightSpace,
+}
+
+/// The interface every shadow technique implements.
+pub trait ShadowTechnique {
+    /// Registry name (snake_case), as used on the CLI and in file names.
+    fn name(&self) -> &'static str;
+    /// Channels of the budget this configuration actually uses.
+    fn channels_used(&self) -> u32;
+    /// Every GPU allocation the technique owns.
+    fn memory(&self) -> &MemoryLedger;
+    /// Layout of group 1 as the lookup shader declares it.
+    fn bind_group_layout(&self) -> &wgpu::BindGroupLayout;
+    /// The group-1 bind group for the lookup.
+    fn bind_group(&self) -> &wgpu::BindGroup;
+    /// Records this frame's shadow passes.
+    fn build(&mut self, gpu: &Gpu, inputs: BuildInputs<'_>);
+}
+
+/// Builds a technique from the GPU context and its (already range-checked) parameters.
+pub type CreateFn =
+    fn(&TechniqueContext<'_>, &TechniqueParams) -> Result<Box<dyn ShadowTechnique>, ShadowError>;
+
+/// One registry line.
+pub struct TechniqueEntry {
+    pub name: &'static str,
+    pub description: &'static str,
+    /// Smallest channel budget the technique can work with.
+    pub min_channels: u32,
+    /// Path (under `shaders/`) of the lookup shader defining group 1 and `shadow_transmittance`.
+    pub lookup_shader: &'static str,
+    /// Every other WGSL module the technique compiles, composed: (label, source). The naga test
+    /// validates them all, for every budget.
+    pub extra_shaders: fn() -> Vec<(String, String)>,
+    /// Builds the technique; `params` has already been checked against the budget range.
+    pub create: CreateFn,
+}
+
+/// Every technique, in the order lists and reports show them.
+pub static REGISTRY: &[TechniqueEntry] = &[none::ENTRY, osm::ENTRY];
+
+/// Comma-separated registry names.
+pub fn technique_names() -> String {
+    REGISTRY
+        .iter()
+        .map(|e| e.name)
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// Looks a technique up by name.
+pub fn find(name: &str) -> Result<&'static TechniqueEntry, ShadowError> {
+    REGISTRY
+        .iter()
+        .find(|e| e.name == name)
+        .ok_or_else(|| ShadowError::UnknownTechnique {
+            name: name.to_owned(),
+            valid: technique_names(),
+        })
+}
+
+/// Checks the channel budget against the technique's range.
+pub fn check_channels(entry: &TechniqueEntry, channels: u32) -> Result<(), ShadowError> {
+    if (entry.min_channels..=MAX_CHANNELS).contains(&channels) {
+        Ok(())
+    } else {
+        Err(ShadowError::ChannelsOutOfRange {
+            technique: entry.name,
+            channels,
+            min: entry.min_channels,
+            max: MAX_CHANNELS,
+        })
+    }
+}
+
+/// Looks up, checks and builds a technique.
+pub fn create(
+    ctx: &TechniqueContext<'_>,
+    name: &str,
+    params: &TechniqueParams,
+) -> Result<Box<dyn ShadowTechnique>, ShadowError> {
+    let entry = find(name)?;
+    check_channels(entry, params.channels)?;
+    (entry.create)(ctx, params)
+}
+
+/// Every WGSL module the renderer and the techniques compile, composed: (label, source).
+pub fn all_shader_modules() -> Vec<(String, String)> {
+    use crate::shaders::{SHADOW_TECHNIQUE, compose};
+    let mut out = vec![("tonemap".to_owned(), compose("render/tonemap.wgsl", &[]))];
+    for entry in REGISTRY {
+        let lookup = crate::shaders::source(entry.lookup_shader)
+            .expect("registered lookup shader is embedded");
+        for frame_shader in ["render/opaque.wgsl", "render/particles.wgsl"] {
+            out.push((
+                format!("{frame_shader}[{}]", entry.name),
+                compose(frame_shader, &[(SHADOW_TECHNIQUE, lookup)]),
+            ));
+        }
+        out.extend((entry.extra_shaders)());
+    }
+    out
+}
+
+/// A linear-filtering, edge-clamped sampler for shadow maps.
+pub(crate) fn map_sampler(device: &wgpu::Device, label: &str) -> wgpu::Sampler {
+    device.create_sampler(&wgpu::SamplerDescriptor {
+        label: Some(label),
+        address_mode_u: wgpu::AddressMode::ClampToEdge,
+        address_mode_v: wgpu::AddressMode::ClampToEdge,
+        mag_filter: wgpu::FilterMode::Linear,
+        min_filter: wgpu::FilterMode::Linear,
+        ..Default::default()
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn registry_names_are_unique_snake_case() {
+        let mut names: Vec<_> = REGISTRY.iter().map(|e| e.name).collect();
+        assert!(
+            names
+                .iter()
+                .all(|n| n.chars().all(|c| c.is_ascii_lowercase() || c == '_'))
+        );
+        names.sort();
+        names.dedup();
+        assert_eq!(names.len(), REGISTRY.len());
+    }
+
+    #[test]
+    fn unknown_technique_lists_the_valid_ones() {
+        let err = find("fancy").err().unwrap().to_string();
+        assert!(err.contains("\"fancy\""), "{err}");
+        assert!(err.contains("none") && err.contains("osm"), "{err}");
+    }
+
+    #[test]
+    fn budgets_outside_the_range_are_rejected_with_the_range() {
+        let osm = find("osm").unwrap();
+        assert!(check_channels(osm, 1).is_ok());
+        assert!(check_channels(osm, 32).is_ok());
+        let err = check_channels(osm, 33).unwrap_err().to_string();
+        assert!(err.contains("1..=32"), "{err}");
+        assert!(check_channels(osm, 0).is_err());
+    }
+}

@@ -1,0 +1,61 @@
+//! `none`: no self-shadowing (T = 1). It allocates nothing and records no pass; frame times with
+//! `none` are the baseline for a technique's overhead ratio.
+
+use super::{
+    BuildInputs, ShadowError, ShadowTechnique, TechniqueContext, TechniqueEntry, TechniqueParams,
+};
+use crate::gpu::{Gpu, MemoryLedger};
+
+pub const ENTRY: TechniqueEntry = TechniqueEntry {
+    name: "none",
+    description: "no self-shadowing (T = 1); the frame-time baseline",
+    min_channels: 1,
+    lookup_shader: "shadow/none.wgsl",
+    extra_shaders: Vec::new,
+    create: |ctx, params| Ok(Box::new(NoShadow::new(ctx, params)?)),
+};
+
+pub struct NoShadow {
+    layout: wgpu::BindGroupLayout,
+    bind_group: wgpu::BindGroup,
+    memory: MemoryLedger,
+}
+
+impl NoShadow {
+    pub fn new(ctx: &TechniqueContext<'_>, _params: &TechniqueParams) -> Result<Self, ShadowError> {
+        let device = &ctx.gpu.device;
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("none.layout"),
+            entries: &[],
+        });
+        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("none.bind_group"),
+            layout: &layout,
+            entries: &[],
+        });
+        Ok(Self {
+            layout,
+            bind_group,
+            memory: MemoryLedger::default(),
+        })
+    }
+}
+
+impl ShadowTechnique for NoShadow {
+    fn name(&self) -> &'static str {
+        ENTRY.name
+    }
+    fn channels_used(&self) -> u32 {
+        0
+    }
+    fn memory(&self) -> &MemoryLedger {
+        &self.memory
+    }
+    fn bind_group_layout(&self) -> &wgpu::BindGroupLayout {
+        &self.layout
+    }
+    fn bind_group(&self) -> &wgpu::BindGroup {
+        &self.bind_group
+    }
+    fn build(&mut self, _gpu: &Gpu, _inputs: BuildInputs<'_>) {}
+}

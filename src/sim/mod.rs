@@ -1,0 +1,344 @@
+//! The deterministic smoke emitter (thesis 3.1.2: particle systems).
+//!
+//! A fixed pool of `emitter.count` particles is born at a steady rate (particle `i` first at
+//! `i * lifetime / count`) and each particle is re-born at the source when it dies, so after one
+//! lifetime the plume is in a steady state with every particle alive. The state advances in fixed
+//! steps of `sim.step_s` from t = 0 to `sim.duration_s` with semi-implicit Euler.
+//!
+//! Determinism by construction: one named PRNG ([`rand_pcg::Pcg32`]) seeded from the scene,
+//! consumed in particle-index order on one thread; a turbulence field built from that seed; no
+//! wall clock. Same scene => bit-identical particles.
+//!
+//! Forces: buoyancy that decays with age, a divergence-free turbulent field (a sum of transverse
+//! travelling plane waves), a small per-particle random walk, and drag towards the air velocity,
+//! which is where the wind gust enters.
+
+use glam::Vec3;
+use rand::{Rng, SeedableRng};
+use rand_pcg::Pcg32;
+
+use crate::scene::{Emitter, Scene, Wind};
+
+/// One simulated particle.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Particle {
+    pub position: Vec3,
+    pub velocity: Vec3,
+    /// Seconds since (re)birth.
+    pub age_s: f32,
+    /// Sphere radius in metres (grows with age).
+    pub radius_m: f32,
+    /// Extinction coefficient τ in 1/m, already multiplied by the age fade.
+    pub density_per_m: f32,
+    /// Single-scattering albedo, linear RGB.
+    pub albedo: Vec3,
+}
+
+/// Number of plane waves in the turbulence field.
+const TURBULENCE_WAVES: usize = 12;
+
+/// A divergence-free, time-varying acceleration field: each wave's amplitude is perpendicular to
+/// its wave vector, so every term (and the sum) has zero divergence, giving swirls, not sources.
+struct Turbulence {
+    waves: [Wave; TURBULENCE_WAVES],
+}
+
+struct Wave {
+    wave_vector: Vec3,
+    amplitude: Vec3,
+    phase: f32,
+    angular_speed: f32,
+}
+
+impl Turbulence {
+    fn new(rng: &mut Pcg32, emitter: &Emitter) -> Self {
+        let waves = std::array::from_fn(|i| {
+            // Octaves: wavelength = scale / 2^(i/4), amplitude falls off as the -1/3 power of the
+            // wave number, a rough Kolmogorov-like spectrum.
+            let octave = (i / 4) as f32;
+            let k = std::f32::consts::TAU / emitter.turbulence_scale_m * 2f32.powf(octave);
+            let dir = random_unit(rng);
+            let amp_dir = dir
+                .any_orthonormal_pair()
+                .0
+                .lerp(dir.any_orthonormal_pair().1, rng.random::<f32>());
+            let amp = emitter.turbulence_m_per_s2 * 2f32.powf(-octave / 3.0)
+                / (TURBULENCE_WAVES as f32 / 4.0).sqrt();
+            Wave {
+                wave_vector: dir * k,
+                amplitude: amp_dir.normalize_or_zero() * amp,
+                phase: rng.random::<f32>() * std::f32::consts::TAU,
+                angular_speed: 0.3 + rng.random::<f32>() * 0.7,
+            }
+        });
+        Self { waves }
+    }
+
+    fn accel(&self, p: Vec3, t: f32) -> Vec3 {
+        self.waves.iter().fold(Vec3::ZERO, |acc, w| {
+            acc + w.amplitude * (w.wave_vector.dot(p) + w.phase + w.angular_speed * t).sin()
+        })
+    }
+}
+
+fn random_unit(rng: &mut Pcg32) -> Vec3 {
+    loop {
+        let v = Vec3::new(
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+        );
+        let len2 = v.length_squared();
+        if len2 > 1e-4 && len2 <= 1.0 {
+            return v / len2.sqrt();
+        }
+    }
+}
+
+/// Air velocity of the wind gust at time `t_s`.
+pub fn wind_velocity(wind: &Wind, t_s: f32) -> Vec3 {
+    if wind.strength_m_per_s <= 0.0 || t_s < wind.start_s {
+        return Vec3::ZERO;
+    }
+    let ramp = if wind.ramp_s > 0.0 {
+        let x = ((t_s - wind.start_s) / wind.ramp_s).clamp(0.0, 1.0);
+        x * x * (3.0 - 2.0 * x)
+    } else {
+        1.0
+    };
+    wind.direction.normalize_or_zero() * wind.strength_m_per_s * ramp
+}
+
+/// Pool slot state: not yet born, or alive.
+#[derive(Clone, Copy)]
+struct Slot {
+    particle: Particle,
+    alive: bool,
+    brightness: f32,
+}
+
+/// Runs the emitter from t = 0 to `scene.sim.duration_s` and returns the live particles in pool
+/// order (index order, not sorted).
+pub fn simulate(scene: &Scene) -> Vec<Particle> {
+    simulate_until(scene, scene.sim.duration_s)
+}
+
+/// Like [`simulate`], but stops at `time_s` (used by the viewer's time scrubber).
+pub fn simulate_until(scene: &Scene, time_s: f32) -> Vec<Particle> {
+    let e = &scene.emitter;
+    let mut rng = Pcg32::seed_from_u64(e.seed);
+    let turbulence = Turbulence::new(&mut rng, e);
+    let count = e.count as usize;
+    let birth_interval = e.lifetime_s / e.count as f32;
+    let dt = scene.sim.step_s;
+    let steps = (time_s / dt).round() as u64;
+
+    let empty = Slot {
+        particle: Particle {
+            position: e.position,
+            velocity: Vec3::ZERO,
+            age_s: 0.0,
+            radius_m: e.radius_birth_m,
+            density_per_m: 0.0,
+            albedo: e.albedo,
+        },
+        alive: false,
+        brightness: 1.0,
+    };
+    let mut slots = vec![empty; count];
+    // Particles are born in index order; `next_birth` is the first slot not yet born.
+    let mut next_birth = 0usize;
+
+    for step in 0..steps {
+        let t = step as f32 * dt;
+        let t_end = t + dt;
+        let air = wind_velocity(&scene.wind, t);
+        while next_birth < count && (next_birth as f32) * birth_interval < t_end {
+            spawn(&mut slots[next_birth], e, &mut rng);
+            next_birth += 1;
+        }
+        for slot in slots.iter_mut().filter(|s| s.alive) {
+            let p = &mut slot.particle;
+            let buoyancy = Vec3::Y * e.buoyancy_m_per_s2 * (-p.age_s / e.buoyancy_decay_s).exp();
+            let jitter = random_unit(&mut rng) * (e.turbulence_m_per_s2 * 0.5);
+            let accel = buoyancy
+                + turbulence.accel(p.position, t)
+                + jitter
+                + (air - p.velocity) * e.drag_per_s;
+            p.velocity += accel * dt;
+            p.position += p.velocity * dt;
+            p.age_s += dt;
+            if p.age_s >= e.lifetime_s {
+                spawn(slot, e, &mut rng);
+            }
+        }
+    }
+
+    slots
+        .iter()
+        .filter(|s| s.alive)
+        .map(|s| {
+            let mut p = s.particle;
+            p.radius_m = e.radius_birth_m + e.growth_m_per_s * p.age_s;
+            p.density_per_m = e.density_per_m * age_fade(e, p.age_s);
+            p.albedo = (e.albedo * s.brightness).clamp(Vec3::ZERO, Vec3::ONE);
+            p
+        })
+        .collect()
+}
+
+fn spawn(slot: &mut Slot, e: &Emitter, rng: &mut Pcg32) {
+    // Uniform point on the source disc (horizontal).
+    let angle = rng.random::<f32>() * std::f32::consts::TAU;
+    let r = e.source_radius_m * rng.random::<f32>().sqrt();
+    let offset = Vec3::new(angle.cos() * r, 0.0, angle.sin() * r);
+    let spread = Vec3::new(
+        rng.random_range(-1.0..=1.0),
+        rng.random_range(-1.0..=1.0),
+        rng.random_range(-1.0..=1.0),
+    ) * e.velocity_spread_m_per_s;
+    let brightness = 1.0 + e.albedo_jitter * rng.random_range(-1.0..=1.0);
+    slot.particle.position = e.position + offset;
+    slot.particle.velocity = e.velocity_m_per_s + spread;
+    slot.particle.age_s = 0.0;
+    slot.alive = true;
+    slot.brightness = brightness;
+}
+
+/// Opacity fade over a particle's life: ramps in over `fade_in` of the life and out over
+/// `fade_out`, smoothly, so particles neither pop in nor vanish.
+pub fn age_fade(e: &Emitter, age_s: f32) -> f32 {
+    let x = (age_s / e.lifetime_s).clamp(0.0, 1.0);
+    let smooth = |a: f32| a * a * (3.0 - 2.0 * a);
+    let fade_in = if e.fade_in > 0.0 {
+        smooth((x / e.fade_in).min(1.0))
+    } else {
+        1.0
+    };
+    let fade_out = if e.fade_out > 0.0 {
+        smooth(((1.0 - x) / e.fade_out).min(1.0))
+    } else {
+        1.0
+    };
+    fade_in * fade_out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn small_scene(seed: u64) -> Scene {
+        let mut scene = Scene::thesis_plume();
+        scene.emitter.count = 300;
+        scene.emitter.seed = seed;
+        scene.sim.duration_s = 3.0;
+        scene
+    }
+
+    fn bits(ps: &[Particle]) -> Vec<u32> {
+        ps.iter()
+            .flat_map(|p| {
+                [
+                    p.position.x,
+                    p.position.y,
+                    p.position.z,
+                    p.velocity.x,
+                    p.age_s,
+                    p.radius_m,
+                    p.density_per_m,
+                    p.albedo.x,
+                ]
+            })
+            .map(f32::to_bits)
+            .collect()
+    }
+
+    #[test]
+    fn same_seed_gives_bit_identical_particles() {
+        let a = simulate(&small_scene(7));
+        let b = simulate(&small_scene(7));
+        assert!(!a.is_empty());
+        assert_eq!(bits(&a), bits(&b));
+    }
+
+    #[test]
+    fn another_seed_gives_different_particles() {
+        let a = simulate(&small_scene(7));
+        let b = simulate(&small_scene(8));
+        assert_eq!(
+            a.len(),
+            b.len(),
+            "the birth schedule does not depend on the seed"
+        );
+        let moved = a
+            .iter()
+            .zip(&b)
+            .filter(|(p, q)| p.position.distance(q.position) > 1e-3)
+            .count();
+        assert!(
+            moved > a.len() * 9 / 10,
+            "only {moved} of {} particles differ",
+            a.len()
+        );
+    }
+
+    #[test]
+    fn pool_is_full_after_one_lifetime_and_partial_before() {
+        let mut scene = small_scene(1);
+        scene.sim.duration_s = scene.emitter.lifetime_s * 0.5;
+        let half = simulate(&scene).len();
+        scene.sim.duration_s = scene.emitter.lifetime_s * 2.0;
+        let full = simulate(&scene).len();
+        assert_eq!(full, scene.emitter.count as usize);
+        let expected = scene.emitter.count as usize / 2;
+        assert!(
+            half.abs_diff(expected) <= 2,
+            "half-life pool has {half}, expected ~{expected}"
+        );
+    }
+
+    #[test]
+    fn particles_rise_grow_and_fade() {
+        let scene = small_scene(3);
+        let ps = simulate(&scene);
+        let e = &scene.emitter;
+        for p in &ps {
+            assert!(p.age_s < e.lifetime_s);
+            let r = e.radius_birth_m + e.growth_m_per_s * p.age_s;
+            assert!((p.radius_m - r).abs() < 1e-5);
+            assert!(p.density_per_m <= e.density_per_m + 1e-6);
+        }
+        // Buoyancy: older particles are higher on average than young ones.
+        let mean_y = |pred: &dyn Fn(&Particle) -> bool| {
+            let sel: Vec<_> = ps.iter().filter(|p| pred(p)).collect();
+            sel.iter().map(|p| p.position.y).sum::<f32>() / sel.len() as f32
+        };
+        assert!(mean_y(&|p| p.age_s > 2.0) > mean_y(&|p| p.age_s < 0.5) + 0.5);
+    }
+
+    #[test]
+    fn wind_pushes_the_plume_downwind() {
+        let mut calm = small_scene(5);
+        calm.sim.duration_s = 6.0;
+        let mut windy = calm.clone();
+        windy.wind.strength_m_per_s = 3.0;
+        windy.wind.direction = Vec3::X;
+        windy.wind.start_s = 3.0;
+        let mean_x =
+            |ps: &[Particle]| ps.iter().map(|p| p.position.x).sum::<f32>() / ps.len() as f32;
+        assert!(mean_x(&simulate(&windy)) > mean_x(&simulate(&calm)) + 0.5);
+    }
+
+    #[test]
+    fn wind_is_zero_before_the_gust_and_full_after_the_ramp() {
+        let wind = Wind {
+            direction: Vec3::new(2.0, 0.0, 0.0),
+            strength_m_per_s: 3.0,
+            start_s: 1.0,
+            ramp_s: 0.5,
+        };
+        assert_eq!(wind_velocity(&wind, 0.99), Vec3::ZERO);
+        assert!((wind_velocity(&wind, 1.25).x - 1.5).abs() < 1e-5);
+        assert_eq!(wind_velocity(&wind, 2.0), Vec3::new(3.0, 0.0, 0.0));
+    }
+}

@@ -1,0 +1,132 @@
+//! Scene files: the committed scenes load, and bad files are rejected with a message that names
+//! the problem (field, value, range; or line and column).
+
+use smokeshadow::scene::{Scene, SceneError, THESIS_PLUME_TOML};
+
+#[test]
+fn committed_scenes_load_and_match_the_thesis_setup() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
+    let mut count = 0;
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_some_and(|e| e == "toml") {
+            Scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+            count += 1;
+        }
+    }
+    assert!(count >= 2);
+    // Thesis chapter 4: 2500 particles, 1024x768 screen, 512x512 shadow map.
+    let plume = Scene::thesis_plume();
+    assert_eq!(plume.emitter.count, 2500);
+    assert_eq!((plume.output.width_px, plume.output.height_px), (1024, 768));
+    assert_eq!(plume.shadow.resolution_px, 512);
+    assert!(!plume.boxes.is_empty());
+    // The wind scene is the same experiment with a gust.
+    let wind = Scene::load(&dir.join("thesis_wind.toml")).unwrap();
+    assert!(wind.wind.strength_m_per_s > 0.0 && wind.wind.start_s < wind.sim.duration_s);
+    assert_eq!(wind.emitter, plume.emitter);
+    assert_eq!(wind.camera, plume.camera);
+    assert_eq!(wind.light, plume.light);
+}
+
+#[test]
+fn scenes_round_trip_through_toml() {
+    let plume = Scene::thesis_plume();
+    let again = Scene::from_toml_str(&plume.to_toml(), "round trip").unwrap();
+    assert_eq!(plume, again);
+}
+
+/// Replaces `from` (which must occur) in the thesis scene.
+fn edited(from: &str, to: &str) -> String {
+    assert!(THESIS_PLUME_TOML.contains(from), "{from}");
+    THESIS_PLUME_TOML.replacen(from, to, 1)
+}
+
+#[test]
+fn bad_scenes_are_rejected_with_a_clear_message() {
+    let line_of = |needle: &str| {
+        let n = THESIS_PLUME_TOML
+            .lines()
+            .position(|l| l.starts_with(needle))
+            .unwrap()
+            + 1;
+        format!("line {n}")
+    };
+    let camera_next = format!(
+        "line {}",
+        THESIS_PLUME_TOML
+            .lines()
+            .position(|l| l == "[camera]")
+            .unwrap()
+            + 2
+    );
+    let width_line = line_of("width_px");
+    let output_line = line_of("[output]");
+    let cases: Vec<(String, Vec<&str>)> = vec![
+        (
+            edited("count = 2500", "count = 0"),
+            vec!["emitter.count = 0", "1..=1000000"],
+        ),
+        (
+            edited("count = 2500", "count = 1000001"),
+            vec!["emitter.count = 1000001", "1..=1000000"],
+        ),
+        (
+            edited("width_px = 1024", "width_px = 0"),
+            vec!["output.width_px = 0", "1..=8192"],
+        ),
+        (
+            edited("height_px = 768", "height_px = 9000"),
+            vec!["output.height_px = 9000", "1..=8192"],
+        ),
+        (
+            edited("density_per_m = 2.4", "density_per_m = -1.0"),
+            vec!["emitter.density_per_m = -1", ">= 0"],
+        ),
+        (
+            edited("resolution_px = 512", "resolution_px = 0"),
+            vec!["shadow.resolution_px = 0", "1..=8192"],
+        ),
+        (
+            edited("cone_angle_deg = 34.0", "cone_angle_deg = 95.0"),
+            vec!["light.cone_angle_deg = 95", "(0, 80)"],
+        ),
+        (
+            edited("hg_g = 0.35", "hg_g = 1.0"),
+            vec!["shading.hg_g = 1", "(-1, 1)"],
+        ),
+        (
+            edited("step_s = 0.016666668", "step_s = 0.0"),
+            vec!["sim.step_s = 0"],
+        ),
+        (
+            edited("[camera]\n", "[camera]\nzoom = 2.0\n"),
+            vec!["unknown field `zoom`", &camera_next],
+        ),
+        (
+            edited("width_px = 1024", "width_px = \"wide\""),
+            vec![&width_line, "column 12"],
+        ),
+        (edited("[output]", "[output"), vec![&output_line]),
+        (
+            edited("target = [0.4, 2.5, 0.0]", "target = [0.0, 2.7, 11.5]"),
+            vec!["camera.position and camera.target must differ"],
+        ),
+    ];
+    for (text, expected) in cases {
+        let err = Scene::from_toml_str(&text, "bad.toml").expect_err("should be rejected");
+        let msg = err.to_string();
+        assert!(!msg.contains('\n'), "one line: {msg}");
+        assert!(msg.starts_with("bad.toml"), "names the file: {msg}");
+        for needle in expected {
+            assert!(msg.contains(needle), "`{msg}` lacks `{needle}`");
+        }
+    }
+}
+
+#[test]
+fn a_missing_file_names_its_path() {
+    let err = Scene::load(std::path::Path::new("/no/such/scene.toml")).unwrap_err();
+    assert!(matches!(err, SceneError::Read { .. }));
+    assert!(err.to_string().contains("/no/such/scene.toml"));
+}
