@@ -10,7 +10,12 @@ struct ParticleIn {
     @location(1) albedo_density: vec4<f32>,
 };
 
-// Corner of the quad for vertex `index` (two triangles), in [-1, 1]².
+// Vertices per billboard: one quad as two triangles. (A software rasteriser pays per triangle
+// edge crossing its 4x4 pixel blocks, so finer fans around the disc cost more than the square's
+// extra corners save.)
+const BILLBOARD_VERTICES: u32 = 6u;
+
+// Corner of the quad for vertex `index`, in [-1, 1]².
 fn quad_corner(index: u32) -> vec2<f32> {
     var corners = array<vec2<f32>, 6>(
         vec2<f32>(-1.0, -1.0), vec2<f32>(1.0, -1.0), vec2<f32>(1.0, 1.0),
@@ -19,10 +24,19 @@ fn quad_corner(index: u32) -> vec2<f32> {
     return corners[index % 6u];
 }
 
+// Unit vectors spanning the plane through a billboard's centre perpendicular to the eye.
+struct BillboardFrame {
+    right: vec3<f32>,
+    up: vec3<f32>,
+    // Factor by which the quad exceeds the radius so that it covers the sphere's silhouette.
+    grow: f32,
+};
+
 // World position of a billboard corner: a quad through the sphere centre, perpendicular to the
 // direction from `eye`, enlarged so that it covers the sphere's silhouette seen from `eye` under
 // perspective (a quad of half-size r would clip it).
-fn billboard_corner(center: vec3<f32>, radius: f32, eye: vec3<f32>, corner: vec2<f32>) -> vec3<f32> {
+fn billboard_frame(center: vec3<f32>, radius: f32, eye: vec3<f32>) -> BillboardFrame {
+    var out: BillboardFrame;
     let to_center = center - eye;
     let dist = max(length(to_center), 1e-4);
     let forward = to_center / dist;
@@ -30,12 +44,16 @@ fn billboard_corner(center: vec3<f32>, radius: f32, eye: vec3<f32>, corner: vec2
     if abs(forward.y) > 0.99 {
         helper = vec3<f32>(1.0, 0.0, 0.0);
     }
-    let right = normalize(cross(forward, helper));
-    let up = cross(right, forward);
+    out.right = normalize(cross(forward, helper));
+    out.up = cross(out.right, forward);
     // Silhouette half-size at the centre plane: r·D/sqrt(D² - r²); capped when the eye is
     // (nearly) inside the sphere, where the quad then covers the view generously.
-    let grow = select(8.0, min(dist / sqrt(max(dist * dist - radius * radius, 1e-8)), 8.0), dist > radius * 1.01);
-    return center + (right * corner.x + up * corner.y) * (radius * grow);
+    out.grow = select(8.0, min(dist / sqrt(max(dist * dist - radius * radius, 1e-8)), 8.0), dist > radius * 1.01);
+    return out;
+}
+
+fn billboard_corner(center: vec3<f32>, radius: f32, frame: BillboardFrame, corner: vec2<f32>) -> vec3<f32> {
+    return center + (frame.right * corner.x + frame.up * corner.y) * (radius * frame.grow);
 }
 
 // The chord of a ray through a sphere.

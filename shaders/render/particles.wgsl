@@ -9,24 +9,59 @@ struct VertexOut {
     @builtin(position) clip: vec4<f32>,
     @location(0) world: vec3<f32>,
     @location(1) @interpolate(flat) center_radius: vec4<f32>,
-    @location(2) @interpolate(flat) albedo_density: vec4<f32>,
+    // Extinction τ of the particle (1/m).
+    @location(2) @interpolate(flat) density: f32,
+    // Position in the billboard's [-1, 1]² square.
+    @location(3) local: vec2<f32>,
+    // Radiance scattered towards the eye at the four lighting points (see vs_main).
+    @location(4) @interpolate(flat) radiance_00: vec3<f32>,
+    @location(5) @interpolate(flat) radiance_10: vec3<f32>,
+    @location(6) @interpolate(flat) radiance_01: vec3<f32>,
+    @location(7) @interpolate(flat) radiance_11: vec3<f32>,
 };
 
+// Where the four lighting points sit, as a fraction of the radius along the billboard's axes:
+// inside the sphere, spanning its visible disc.
+const SHADE_OFFSET: f32 = 0.5;
+
+// Lighting is evaluated per particle at four points inside the sphere (a 2x2 grid across its
+// disc) and blended bilinearly per fragment: the technique's T(p) costs texture fetches, and per
+// fragment it would be paid for every layer of overdraw (millions of fragments per frame).
 @vertex
 fn vs_main(@builtin(vertex_index) vi: u32, particle: ParticleIn) -> VertexOut {
     var out: VertexOut;
-    let world = billboard_corner(
-        particle.center_radius.xyz, particle.center_radius.w, frame.camera_pos.xyz, quad_corner(vi));
+    let center = particle.center_radius.xyz;
+    let radius = particle.center_radius.w;
+    let eye = frame.camera_pos.xyz;
+    let bb = billboard_frame(center, radius, eye);
+    let corner = quad_corner(vi);
+    let world = billboard_corner(center, radius, bb, corner);
     out.clip = frame.clip_from_world * vec4<f32>(world, 1.0);
     out.world = world;
     out.center_radius = particle.center_radius;
-    out.albedo_density = particle.albedo_density;
+    out.density = particle.albedo_density.a;
+    out.local = corner;
+    let albedo = particle.albedo_density.rgb;
+    let r = bb.right * (radius * SHADE_OFFSET);
+    let u = bb.up * (radius * SHADE_OFFSET);
+    out.radiance_00 = scattered_radiance(center - r - u, eye, albedo);
+    out.radiance_10 = scattered_radiance(center + r - u, eye, albedo);
+    out.radiance_01 = scattered_radiance(center - r + u, eye, albedo);
+    out.radiance_11 = scattered_radiance(center + r + u, eye, albedo);
     return out;
 }
 
+// The lighting at this fragment: bilinear between the four lighting points.
+fn fragment_radiance(in: VertexOut) -> vec3<f32> {
+    let grow = length(in.world - in.center_radius.xyz) / max(length(in.local) * in.center_radius.w, 1e-6);
+    let t = clamp(in.local * (grow / (2.0 * SHADE_OFFSET)) + vec2<f32>(0.5), vec2<f32>(0.0), vec2<f32>(1.0));
+    return mix(mix(in.radiance_00, in.radiance_10, t.x), mix(in.radiance_01, in.radiance_11, t.x), t.y);
+}
+
 // Single scattering at `p` towards the eye plus ambient, for a particle of albedo `albedo`.
-fn scattered_radiance(p: vec3<f32>, view_dir: vec3<f32>, albedo: vec3<f32>) -> vec3<f32> {
+fn scattered_radiance(p: vec3<f32>, eye: vec3<f32>, albedo: vec3<f32>) -> vec3<f32> {
     let light_dir = normalize(p - frame.light_pos.xyz);
+    let view_dir = normalize(p - eye);
     let phase = hg_phase_4pi(dot(light_dir, -view_dir), frame.light_radiance.w);
     let direct = spot_irradiance(p) * shadow_transmittance(p) * phase;
     // Normalised like a diffuse surface (E/π), so smoke and ground share one exposure: single
@@ -36,14 +71,11 @@ fn scattered_radiance(p: vec3<f32>, view_dir: vec3<f32>, albedo: vec3<f32>) -> v
 }
 
 // Composites one particle over the ray segment [t0, t1] of its chord.
-fn shade_segment(in: VertexOut, dir: vec3<f32>, chord: Chord, t0: f32, t1: f32) -> vec4<f32> {
+fn shade_segment(in: VertexOut, chord: Chord, t0: f32, t1: f32) -> vec4<f32> {
     let ds = max(t1 - t0, 0.0);
-    let sigma = chord_extinction(in.albedo_density.a, chord.d, in.center_radius.w);
+    let sigma = chord_extinction(in.density, chord.d, in.center_radius.w);
     let alpha = 1.0 - exp(-sigma * ds);
-    // Shade at the middle of the visible part of the chord.
-    let p = frame.camera_pos.xyz + dir * (0.5 * (t0 + t1));
-    let radiance = scattered_radiance(p, dir, in.albedo_density.rgb);
-    return vec4<f32>(radiance * alpha, alpha);
+    return vec4<f32>(fragment_radiance(in) * alpha, alpha);
 }
 
 @group(2) @binding(0) var opaque_depth: texture_depth_2d;
@@ -54,9 +86,11 @@ fn opaque_distance(pixel: vec2<f32>, dir: vec3<f32>) -> f32 {
     if depth >= 1.0 {
         return 3.0e38;
     }
-    let ndc = vec2<f32>(pixel.x * frame.viewport.z * 2.0 - 1.0, 1.0 - pixel.y * frame.viewport.w * 2.0);
-    let world = frame.world_from_clip * vec4<f32>(ndc, depth, 1.0);
-    return distance(world.xyz / world.w, frame.camera_pos.xyz);
+    // Invert the perspective depth (0 at near, 1 at far) to view-space z, then go along the ray.
+    let near = frame.camera_pos.w;
+    let far = frame.camera_forward.w;
+    let view_z = near * far / (far - depth * (far - near));
+    return view_z / max(dot(dir, frame.camera_forward.xyz), 1e-4);
 }
 
 @fragment
@@ -74,7 +108,7 @@ fn fs_spherical(in: VertexOut) -> @location(0) vec4<f32> {
     if t1 <= t0 {
         discard;
     }
-    return shade_segment(in, dir, chord, t0, t1);
+    return shade_segment(in, chord, t0, t1);
 }
 
 @fragment
@@ -85,5 +119,5 @@ fn fs_flat(in: VertexOut) -> @location(0) vec4<f32> {
         discard;
     }
     // The whole chord, whatever is behind it: the hard depth test alone decides visibility.
-    return shade_segment(in, dir, chord, chord.t_mid - chord.half_width, chord.t_mid + chord.half_width);
+    return shade_segment(in, chord, chord.t_mid - chord.half_width, chord.t_mid + chord.half_width);
 }

@@ -14,17 +14,23 @@ struct BuildVertexOut {
     @location(0) world: vec3<f32>,
     @location(1) @interpolate(flat) center_radius: vec4<f32>,
     @location(2) @interpolate(flat) density: f32,
+    // Point splat: the particle centre's depth in slice units.
+    @location(3) @interpolate(flat) center_slice: f32,
 };
 
 @vertex
 fn vs_build(@builtin(vertex_index) vi: u32, particle: ParticleIn) -> BuildVertexOut {
     var out: BuildVertexOut;
-    let world = billboard_corner(
-        particle.center_radius.xyz, particle.center_radius.w, frame.light_pos.xyz, quad_corner(vi));
+    let center = particle.center_radius.xyz;
+    let radius = particle.center_radius.w;
+    let bb = billboard_frame(center, radius, frame.light_pos.xyz);
+    let world = billboard_corner(center, radius, bb, quad_corner(vi));
     out.clip = frame.light_clip_from_world * vec4<f32>(world, 1.0);
     out.world = world;
     out.center_radius = particle.center_radius;
     out.density = particle.albedo_density.a;
+    out.center_slice = (distance(center, frame.light_pos.xyz) - frame.light_depth.x) * frame.light_depth.z
+        * f32(osm.slices);
     return out;
 }
 
@@ -41,13 +47,15 @@ fn splat_fragment(in: BuildVertexOut) -> Splat {
     let origin = frame.light_pos.xyz;
     let dir = normalize(in.world - origin);
     let chord = sphere_chord(origin, dir, in.center_radius.xyz, in.center_radius.w);
+    if chord.d >= in.center_radius.w {
+        discard;
+    }
     let w = chord.half_width;
     out.optical_depth = chord_extinction(in.density, chord.d, in.center_radius.w) * 2.0 * w;
     let b = f32(osm.slices);
     if osm.splat == 0u {
-        let s = (distance(in.center_radius.xyz, origin) - frame.light_depth.x) * frame.light_depth.z * b;
-        out.s0 = s;
-        out.s1 = s;
+        out.s0 = in.center_slice;
+        out.s1 = in.center_slice;
     } else {
         out.s0 = (chord.t_mid - w - frame.light_depth.x) * frame.light_depth.z * b;
         out.s1 = (chord.t_mid + w - frame.light_depth.x) * frame.light_depth.z * b;
@@ -55,27 +63,17 @@ fn splat_fragment(in: BuildVertexOut) -> Splat {
     return out;
 }
 
-// The optical depth this splat adds in front of slice boundary k.
-fn boundary_value(splat: Splat, k: u32) -> f32 {
-    let boundary = f32(k);
-    if k > osm.slices {
-        return 0.0;
-    }
-    if splat.s1 <= splat.s0 {
-        return select(0.0, splat.optical_depth, splat.s0 <= boundary);
-    }
-    return splat.optical_depth * clamp((boundary - splat.s0) / (splat.s1 - splat.s0), 0.0, 1.0);
-}
-
-// Values for render target `index`: boundaries 4·index + 1 ..= 4·index + 4.
+// Values for render target `index`: the optical depth this splat adds in front of boundaries
+// k = 4·index + 1 ..= 4·index + 4 (0 for boundaries beyond the last slice).
 fn target_values(splat: Splat, index: u32) -> vec4<f32> {
-    let k = index * 4u + 1u;
-    return vec4<f32>(
-        boundary_value(splat, k),
-        boundary_value(splat, k + 1u),
-        boundary_value(splat, k + 2u),
-        boundary_value(splat, k + 3u),
-    );
+    let k = vec4<f32>(f32(index * 4u + 1u)) + vec4<f32>(0.0, 1.0, 2.0, 3.0);
+    var covered: vec4<f32>;
+    if splat.s1 <= splat.s0 {
+        covered = step(vec4<f32>(splat.s0), k);
+    } else {
+        covered = clamp((k - splat.s0) / (splat.s1 - splat.s0), vec4<f32>(0.0), vec4<f32>(1.0));
+    }
+    return splat.optical_depth * covered * step(k, vec4<f32>(f32(osm.slices)));
 }
 
 //{{BUILD_OUTPUTS}}

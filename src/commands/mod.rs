@@ -12,7 +12,7 @@ pub struct TechniqueArgs {
     #[arg(long, short = 't', default_value = "osm")]
     pub technique: String,
     /// Channel budget (render-target components), 1..=32.
-    #[arg(long, short = 'c', default_value_t = 24)]
+    #[arg(long, short = 'c', default_value_t = 24, allow_negative_numbers = true)]
     pub channels: u32,
     /// Shadow-map resolution in pixels (default: the scene's `shadow.resolution_px`).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=8192))]

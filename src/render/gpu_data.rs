@@ -29,6 +29,10 @@ pub struct FrameUniforms {
     pub background: [f32; 4],
 }
 
+/// Vertices drawn per billboard (a quad as two triangles). Keep in sync with `BILLBOARD_VERTICES` in
+/// shaders/common/particle.wgsl.
+pub const BILLBOARD_VERTICES: u32 = 6;
+
 /// One particle as the GPU sees it. Keep in sync with `ParticleIn` in
 /// shaders/common/particle.wgsl.
 #[repr(C)]

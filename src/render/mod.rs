@@ -432,7 +432,7 @@ impl Renderer {
             pass.set_bind_group(1, self.technique.bind_group(), &[]);
             if particle_count > 0 {
                 pass.set_vertex_buffer(0, self.particles.slice(..));
-                pass.draw(0..6, 0..particle_count);
+                pass.draw(0..gpu_data::BILLBOARD_VERTICES, 0..particle_count);
             }
         }
         {

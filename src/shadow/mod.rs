@@ -25,6 +25,10 @@ use serde::{Deserialize, Serialize};
 
 use crate::gpu::{Gpu, GpuTimer, MemoryLedger};
 
+/// Stages that call `shadow_transmittance`: the particle pass lights per vertex, the opaque pass
+/// per fragment. Lookup bind group layouts use this visibility.
+pub const LOOKUP_STAGES: wgpu::ShaderStages = wgpu::ShaderStages::VERTEX_FRAGMENT;
+
 /// Channel budgets accepted by every technique (one RGBA target carries 4 channels; 8 targets).
 pub const MAX_CHANNELS: u32 = 32;
 

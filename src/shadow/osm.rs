@@ -12,11 +12,11 @@
 use bytemuck::{Pod, Zeroable};
 
 use super::{
-    BuildInputs, ShadowError, ShadowTechnique, SplatMode, TechniqueContext, TechniqueEntry,
-    TechniqueParams,
+    BuildInputs, LOOKUP_STAGES, ShadowError, ShadowTechnique, SplatMode, TechniqueContext,
+    TechniqueEntry, TechniqueParams,
 };
 use crate::gpu::{Gpu, MemoryLedger};
-use crate::render::gpu_data::ParticleInstance;
+use crate::render::gpu_data::{BILLBOARD_VERTICES, ParticleInstance};
 use crate::shaders;
 
 pub const ENTRY: TechniqueEntry = TechniqueEntry {
@@ -239,17 +239,17 @@ impl Osm {
         // Lookup: parameters, a bilinear sampler and 8 map slots (unused slots repeat map 0;
         // the shader never reads a slot beyond ceil(B/4)).
         let mut lookup_entries = vec![
-            uniform_entry(0, wgpu::ShaderStages::FRAGMENT),
+            uniform_entry(0, LOOKUP_STAGES),
             wgpu::BindGroupLayoutEntry {
                 binding: 1,
-                visibility: wgpu::ShaderStages::FRAGMENT,
+                visibility: LOOKUP_STAGES,
                 ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
                 count: None,
             },
         ];
         lookup_entries.extend((0..MAP_SLOTS).map(|i| wgpu::BindGroupLayoutEntry {
             binding: 2 + i,
-            visibility: wgpu::ShaderStages::FRAGMENT,
+            visibility: LOOKUP_STAGES,
             ty: wgpu::BindingType::Texture {
                 sample_type: wgpu::TextureSampleType::Float { filterable: true },
                 view_dimension: wgpu::TextureViewDimension::D2,
@@ -344,7 +344,7 @@ impl ShadowTechnique for Osm {
             pass.set_bind_group(0, inputs.frame_bind_group, &[]);
             pass.set_bind_group(1, &self.build_bind_group, &[]);
             pass.set_vertex_buffer(0, inputs.particles.slice(..));
-            pass.draw(0..6, 0..inputs.particle_count);
+            pass.draw(0..BILLBOARD_VERTICES, 0..inputs.particle_count);
         }
     }
 }

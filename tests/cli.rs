@@ -1,0 +1,208 @@
+//! The command line: bad input gets one clear line and a non-zero exit, nothing half-written is
+//! left behind, and `render` writes a PNG of the requested size.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn smokeshadow(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_smokeshadow"))
+        .args(args)
+        .env("SMOKESHADOW_ADAPTER", "cpu")
+        .output()
+        .expect("the binary runs")
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// stderr lines that are ours (the Vulkan loader may print its own XDG_RUNTIME_DIR warning).
+fn error_lines(out: &Output) -> Vec<String> {
+    String::from_utf8_lossy(&out.stderr)
+        .lines()
+        .filter(|l| !l.trim().is_empty() && !l.contains("XDG_RUNTIME_DIR"))
+        .map(str::to_owned)
+        .collect()
+}
+
+fn assert_one_line_error(out: &Output, needles: &[&str]) {
+    let lines = error_lines(out);
+    assert!(
+        !out.status.success(),
+        "expected failure, got {:?}",
+        out.status
+    );
+    assert_eq!(lines.len(), 1, "one line expected, got {lines:#?}");
+    for needle in needles {
+        assert!(lines[0].contains(needle), "`{}` lacks `{needle}`", lines[0]);
+    }
+    assert!(!lines[0].contains("panicked"), "{}", lines[0]);
+}
+
+#[test]
+fn bad_inputs_get_one_clear_line_and_leave_no_file() {
+    let dir = scratch("cli-bad");
+    let out_png = dir.join("out.png");
+    let out = out_png.to_str().unwrap();
+    let bad_scene = dir.join("bad.toml");
+    std::fs::write(&bad_scene, "[emitter]\ncount = 0\n").unwrap();
+    let syntax = dir.join("syntax.toml");
+    std::fs::write(&syntax, "[camera]\nfov_y_deg = = 3\n").unwrap();
+    let unknown = dir.join("unknown.toml");
+    std::fs::write(&unknown, "[light]\ncolour = [1.0, 1.0, 1.0]\n").unwrap();
+    let cases: Vec<(Vec<&str>, Vec<&str>)> = vec![
+        (
+            vec!["render", "/no/such.toml", "-o", out],
+            vec!["/no/such.toml", "cannot read"],
+        ),
+        (
+            vec!["render", bad_scene.to_str().unwrap(), "-o", out],
+            vec!["emitter.count = 0", "1..=1000000"],
+        ),
+        (
+            vec!["render", syntax.to_str().unwrap(), "-o", out],
+            vec!["line 2", "column"],
+        ),
+        (
+            vec!["render", unknown.to_str().unwrap(), "-o", out],
+            vec!["unknown field `colour`"],
+        ),
+        (
+            vec!["render", "--technique", "magic", "-o", out],
+            vec!["\"magic\"", "none", "osm"],
+        ),
+        (
+            vec!["render", "--channels", "0", "-o", out],
+            vec!["--channels 0", "1..=32"],
+        ),
+        (
+            vec!["render", "--channels", "33", "-o", out],
+            vec!["--channels 33", "1..=32"],
+        ),
+        (
+            vec!["render", "--channels", "-4", "-o", out],
+            vec!["--channels"],
+        ),
+        (
+            vec!["render", "--size", "0x100", "-o", out],
+            vec!["out of range", "1..=8192"],
+        ),
+        (
+            vec!["render", "--size", "big", "-o", out],
+            vec!["WIDTHxHEIGHT"],
+        ),
+        (
+            vec!["render", "--shadow-res", "0", "-o", out],
+            vec!["--shadow-res"],
+        ),
+        (
+            vec!["render", "--size", "64x48", "-o", "/no/such/dir/out.png"],
+            vec!["does not exist"],
+        ),
+    ];
+    for (args, needles) in cases {
+        let result = smokeshadow(&args);
+        assert_one_line_error(&result, &needles);
+        assert!(!out_png.exists(), "{args:?} left {out}");
+    }
+    let leftovers: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| !n.ends_with(".toml"))
+        .collect();
+    assert!(leftovers.is_empty(), "{leftovers:?}");
+}
+
+#[test]
+fn a_missing_adapter_says_to_install_a_vulkan_driver() {
+    let out = Command::new(env!("CARGO_BIN_EXE_smokeshadow"))
+        .args(["render", "--size", "8x8", "-o", "/tmp/never.png"])
+        .env("SMOKESHADOW_ADAPTER", "no-such-gpu-anywhere")
+        .output()
+        .unwrap();
+    assert_one_line_error(
+        &out,
+        &[
+            "no GPU adapter",
+            "no-such-gpu-anywhere",
+            "mesa-vulkan-drivers",
+        ],
+    );
+    // No Vulkan driver at all: point the loader at an empty ICD list.
+    let out = Command::new(env!("CARGO_BIN_EXE_smokeshadow"))
+        .args(["info"])
+        .env("VK_ICD_FILENAMES", "/nonexistent/icd.json")
+        .env("VK_DRIVER_FILES", "/nonexistent/icd.json")
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let text = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        text.contains("no GPU adapter found") && text.contains("lavapipe"),
+        "{text}"
+    );
+}
+
+#[test]
+fn render_writes_a_png_of_the_requested_size() {
+    let dir = scratch("cli-render");
+    let png = dir.join("smoke.png");
+    let out = smokeshadow(&[
+        "render",
+        "--technique",
+        "osm",
+        "--channels",
+        "6",
+        "--size",
+        "160x120",
+        "-o",
+        png.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("6 channels"), "{stdout}");
+    let image = image::open(&png).unwrap();
+    assert_eq!((image.width(), image.height()), (160, 120));
+}
+
+#[test]
+fn bench_prints_per_pass_gpu_times() {
+    let dir = scratch("cli-bench");
+    let png = dir.join("b.png");
+    let out = smokeshadow(&[
+        "render",
+        "--size",
+        "128x96",
+        "--channels",
+        "8",
+        "--bench",
+        "3",
+        "--warmup",
+        "1",
+        "-o",
+        png.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    for row in [
+        "gpu shadow",
+        "gpu opaque",
+        "gpu particles",
+        "gpu tonemap",
+        "cpu sort",
+        "wall frame",
+    ] {
+        assert!(stdout.contains(row), "`{row}` missing from:\n{stdout}");
+    }
+}

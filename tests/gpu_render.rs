@@ -1,0 +1,297 @@
+//! GPU tests of the frame on the thesis scene (reduced size) and of spherical billboards.
+//! They run on lavapipe in CI and fail, never skip, without an adapter.
+
+mod common;
+
+use common::{gpu, luminance, technique};
+use glam::Vec3;
+use smokeshadow::render::{CameraMatrices, OffscreenFrame, RenderOptions, render_offscreen};
+use smokeshadow::scene::{BoxShape, Scene};
+use smokeshadow::shadow::SplatMode;
+use smokeshadow::sim::{Particle, simulate};
+
+const W: u32 = 256;
+const H: u32 = 192;
+
+fn reduced_plume() -> Scene {
+    let mut scene = Scene::thesis_plume();
+    scene.output.width_px = W;
+    scene.output.height_px = H;
+    scene
+}
+
+fn render(
+    scene: &Scene,
+    particles: &[Particle],
+    name: &str,
+    channels: u32,
+    spherical: bool,
+) -> OffscreenFrame {
+    render_offscreen(
+        &gpu(),
+        scene,
+        particles,
+        &technique(name, channels, scene.shadow.resolution_px, SplatMode::Point),
+        &RenderOptions { spherical },
+    )
+    .unwrap()
+}
+
+/// Whether the segment from `a` to `b` passes through the box.
+fn segment_hits_box(a: Vec3, b: Vec3, bx: &BoxShape) -> bool {
+    let lo = bx.center - bx.size * 0.5;
+    let hi = bx.center + bx.size * 0.5;
+    let d = b - a;
+    let (mut t0, mut t1) = (0.0f32, 1.0f32);
+    for axis in 0..3 {
+        if d[axis].abs() < 1e-9 {
+            if a[axis] < lo[axis] || a[axis] > hi[axis] {
+                return false;
+            }
+        } else {
+            let (mut ta, mut tb) = (
+                (lo[axis] - a[axis]) / d[axis],
+                (hi[axis] - a[axis]) / d[axis],
+            );
+            if ta > tb {
+                std::mem::swap(&mut ta, &mut tb);
+            }
+            t0 = t0.max(ta);
+            t1 = t1.min(tb);
+        }
+    }
+    t0 <= t1
+}
+
+#[test]
+fn smoke_covers_the_pixels_where_particles_project_and_nothing_else() {
+    let scene = reduced_plume();
+    let particles = simulate(&scene);
+    let frame = render(&scene, &particles, "none", 1, true);
+    let cam = CameraMatrices::new(&scene, W, H);
+    let focal_px = H as f32 * 0.5 / (scene.camera.fov_y_deg.to_radians() * 0.5).tan();
+
+    // Every visible particle (centre in view, not behind the box, above the ground) makes its
+    // pixel at least as opaque as the particle alone would: 1 - exp(-τ·2r) on its central ray,
+    // halved to allow for the ray through the pixel centre being off the particle centre.
+    let mut checked = 0;
+    for p in &particles {
+        let Some(px) = cam.project_to_pixel(p.position, W, H) else {
+            continue;
+        };
+        let (x, y) = (px.x as i64, px.y as i64);
+        let hidden = scene
+            .boxes
+            .iter()
+            .any(|b| segment_hits_box(cam.position, p.position, b));
+        if x < 0 || y < 0 || x >= W as i64 || y >= H as i64 || hidden || p.position.y < p.radius_m {
+            continue;
+        }
+        let own_alpha = 1.0 - (-p.density_per_m * 2.0 * p.radius_m).exp();
+        let alpha = frame.hdr.get(x as u32, y as u32)[3];
+        assert!(
+            alpha >= 0.5 * own_alpha,
+            "pixel ({x}, {y}) over particle at {} has alpha {alpha}, expected >= {}",
+            p.position,
+            0.5 * own_alpha
+        );
+        checked += 1;
+    }
+    assert!(
+        checked > particles.len() / 2,
+        "only {checked} particles were checkable"
+    );
+
+    // Pixels farther than any particle's projected radius (with a margin) have no smoke at all.
+    let discs: Vec<(glam::Vec2, f32)> = particles
+        .iter()
+        .filter_map(|p| {
+            let depth = (p.position - cam.position).dot(cam.forward);
+            let px = cam.project_to_pixel(p.position, W, H)?;
+            Some((px, p.radius_m * focal_px / depth.max(0.1) * 1.25 + 2.0))
+        })
+        .collect();
+    let mut empty = 0;
+    for y in 0..H {
+        for x in 0..W {
+            let c = glam::Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
+            if discs.iter().all(|(p, r)| p.distance(c) > *r) {
+                let alpha = frame.hdr.get(x, y)[3];
+                assert!(
+                    alpha < 1e-3,
+                    "pixel ({x}, {y}) is far from every particle but has alpha {alpha}"
+                );
+                empty += 1;
+            }
+        }
+    }
+    assert!(
+        empty > (W * H / 4) as usize,
+        "the plume should leave most of the sky empty ({empty})"
+    );
+}
+
+#[test]
+fn osm_darkens_the_side_away_from_the_light_and_the_ground_under_the_plume() {
+    let scene = reduced_plume();
+    let particles = simulate(&scene);
+    let lit = render(&scene, &particles, "none", 1, true);
+    let shadowed = render(&scene, &particles, "osm", 24, true);
+    let cam = CameraMatrices::new(&scene, W, H);
+
+    // Smoke pixels (opaque enough in both) and the plume's horizontal extent on screen.
+    let smoke: Vec<(u32, u32)> = (0..H)
+        .flat_map(|y| (0..W).map(move |x| (x, y)))
+        .filter(|&(x, y)| lit.hdr.get(x, y)[3] > 0.6 && shadowed.hdr.get(x, y)[3] > 0.6)
+        .collect();
+    assert!(smoke.len() > 1000, "{} smoke pixels", smoke.len());
+    let xs: Vec<u32> = smoke.iter().map(|p| p.0).collect();
+    let (x_min, x_max) = (
+        *xs.iter().min().unwrap() as f32,
+        *xs.iter().max().unwrap() as f32,
+    );
+    let light_px = cam.project_to_pixel(scene.light.position, W, H).unwrap();
+    assert!(
+        light_px.x < x_min,
+        "the thesis scene lights the plume from the left of the screen"
+    );
+    let ratio_in = |lo: f32, hi: f32| {
+        let (mut sum_s, mut sum_l) = (0.0, 0.0);
+        for &(x, y) in &smoke {
+            let t = (x as f32 - x_min) / (x_max - x_min);
+            if t >= lo && t <= hi {
+                sum_s += luminance(shadowed.hdr.get(x, y));
+                sum_l += luminance(lit.hdr.get(x, y));
+            }
+        }
+        sum_s / sum_l
+    };
+    let near_side = ratio_in(0.0, 0.33);
+    let far_side = ratio_in(0.67, 1.0);
+    println!("osm/none luminance: light side {near_side:.3}, far side {far_side:.3}");
+    assert!(
+        near_side <= 1.0 + 1e-3 && far_side <= 1.0 + 1e-3,
+        "shadows only remove light"
+    );
+    assert!(
+        far_side < near_side * 0.85,
+        "far side {far_side} is not darker than near side {near_side}"
+    );
+
+    // The ground where the light ray through the plume's centre of extinction lands is darker
+    // with the shadow than without.
+    let weight: f32 = particles
+        .iter()
+        .map(|p| p.density_per_m * p.radius_m.powi(3))
+        .sum();
+    let center = particles.iter().fold(Vec3::ZERO, |acc, p| {
+        acc + p.position * p.density_per_m * p.radius_m.powi(3)
+    }) / weight;
+    let l = scene.light.position;
+    let t = (l.y - scene.ground.height_m) / (l.y - center.y);
+    let ground = l + (center - l) * t;
+    let px = cam.project_to_pixel(ground, W, H).unwrap();
+    let (gx, gy) = (px.x as u32, px.y as u32);
+    assert!(
+        gx < W && gy < H,
+        "the plume's ground shadow at {ground} is in view"
+    );
+    assert!(
+        lit.hdr.get(gx, gy)[3] < 0.05,
+        "no smoke in front of the ground shadow point"
+    );
+    let (before, after) = (
+        luminance(lit.hdr.get(gx, gy)),
+        luminance(shadowed.hdr.get(gx, gy)),
+    );
+    println!("ground at {ground}: none {before:.4}, osm {after:.4}");
+    assert!(
+        after < 0.7 * before,
+        "ground under the plume: {after} with osm vs {before} without"
+    );
+}
+
+/// One particle sunk half into the ground, seen from slightly above: the column of pixels
+/// through its centre runs from the sphere's top down to where it meets the ground.
+fn sunk_particle_column(spherical: bool) -> Vec<f32> {
+    let mut scene = Scene::thesis_plume();
+    scene.output.width_px = 96;
+    scene.output.height_px = 160;
+    scene.boxes.clear();
+    scene.camera.position = Vec3::new(0.0, 1.6, 6.0);
+    scene.camera.target = Vec3::new(0.0, 0.2, 0.0);
+    scene.camera.fov_y_deg = 30.0;
+    let particle = Particle {
+        position: Vec3::ZERO,
+        velocity: Vec3::ZERO,
+        age_s: 1.0,
+        radius_m: 1.0,
+        density_per_m: 3.0,
+        albedo: Vec3::splat(0.8),
+    };
+    let frame = render(&scene, &[particle], "none", 1, spherical);
+    (0..scene.output.height_px)
+        .map(|y| frame.hdr.get(48, y)[3])
+        .collect()
+}
+
+#[test]
+fn spherical_billboards_fade_continuously_into_the_ground_and_flat_ones_step() {
+    let max_step = |column: &[f32]| {
+        column
+            .windows(2)
+            .map(|w| (w[1] - w[0]).abs())
+            .fold(0.0f32, f32::max)
+    };
+    let soft = sunk_particle_column(true);
+    let hard = sunk_particle_column(false);
+    let peak = soft.iter().cloned().fold(0.0f32, f32::max);
+    assert!(peak > 0.8, "the particle is dense: peak alpha {peak}");
+
+    // Below the peak the column runs down to the contact line with the ground. With the fix the
+    // chord shrinks to zero there, so alpha passes through intermediate values on its way to 0;
+    // without it, the ground cuts the flat quad along a hard line: one jump from near the peak.
+    let fade = |column: &[f32]| {
+        let top = column.iter().position(|&a| a >= 0.95 * peak).unwrap();
+        let bottom = column.iter().rposition(|&a| a > 1e-4).unwrap();
+        let intermediate = column[top..=bottom]
+            .iter()
+            .filter(|&&a| a > 0.05 * peak && a < 0.9 * peak)
+            .count();
+        (intermediate, column[bottom], max_step(&column[top..]))
+    };
+    let (soft_mid, soft_last, soft_step) = fade(&soft);
+    let (hard_mid, hard_last, hard_step) = fade(&hard);
+    println!(
+        "spherical: {soft_mid} intermediate pixels, last alpha {soft_last:.3}, max step {soft_step:.3}"
+    );
+    println!(
+        "flat: {hard_mid} intermediate pixels, last alpha {hard_last:.3}, max step {hard_step:.3}"
+    );
+    assert!(
+        soft_mid >= 6,
+        "spherical fade has only {soft_mid} intermediate pixels"
+    );
+    assert!(
+        soft_last < 0.1 * peak,
+        "spherical alpha at the contact line {soft_last}"
+    );
+    assert!(soft_step < 0.3 * peak, "spherical max step {soft_step}");
+    assert!(
+        hard_mid == 0,
+        "flat billboard has {hard_mid} intermediate pixels"
+    );
+    assert!(hard_last > 0.9 * peak, "flat alpha at the cut {hard_last}");
+    assert!(hard_step > 0.9 * peak, "flat max step {hard_step}");
+}
+
+#[test]
+fn rendering_is_deterministic() {
+    let mut scene = reduced_plume();
+    scene.output.width_px = 128;
+    scene.output.height_px = 96;
+    let particles = simulate(&scene);
+    let a = render(&scene, &particles, "osm", 8, true);
+    let b = render(&scene, &particles, "osm", 8, true);
+    assert_eq!(a.image.as_raw(), b.image.as_raw());
+}
