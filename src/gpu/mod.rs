@@ -23,10 +23,10 @@ pub enum GpuError {
          lavapipe: `apt-get install mesa-vulkan-drivers libvulkan1`)"
     )]
     NoAdapter { detail: String },
-    #[error("cannot create a device on adapter \"{adapter}\": {source}")]
+    #[error("cannot create a device on adapter \"{adapter}\": {cause}")]
     Device {
         adapter: String,
-        source: wgpu::RequestDeviceError,
+        cause: wgpu::RequestDeviceError,
     },
     #[error("GPU readback failed: {0}")]
     Readback(String),
@@ -102,9 +102,9 @@ impl Gpu {
             required_limits: limits.clone(),
             ..Default::default()
         }))
-        .map_err(|source| GpuError::Device {
+        .map_err(|cause| GpuError::Device {
             adapter: info.name.clone(),
-            source,
+            cause,
         })?;
         Ok(Self {
             device,

@@ -27,10 +27,10 @@ pub const THESIS_WIND_TOML: &str = include_str!("../../scenes/thesis_wind.toml")
 /// Errors from loading or validating a scene. Each renders as one line for the user.
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
-    #[error("cannot read scene file {path}: {source}")]
+    #[error("cannot read scene file {path}: {cause}")]
     Read {
         path: PathBuf,
-        source: std::io::Error,
+        cause: std::io::Error,
     },
     #[error("{origin}: line {line}, column {column}: {message}")]
     Parse {
@@ -169,7 +169,7 @@ pub struct Emitter {
     pub fade_out: f32,
     /// Single-scattering albedo (linear RGB), each component in [0, 1].
     pub albedo: Vec3,
-    /// Per-particle random brightness variation of the albedo, [0, 1).
+    /// Per-particle random brightness variation of the albedo, [0, 0.999].
     pub albedo_jitter: f32,
 }
 
@@ -193,7 +193,7 @@ pub struct Wind {
 pub struct SimClock {
     /// Simulated time at which the frame is rendered, seconds, [0, 600].
     pub duration_s: f32,
-    /// Fixed time step, seconds, (0, 1].
+    /// Fixed time step, seconds, (0, 1).
     pub step_s: f32,
 }
 
@@ -374,9 +374,9 @@ impl Scene {
 
     /// Reads, parses and validates a scene file.
     pub fn load(path: &Path) -> Result<Self, SceneError> {
-        let text = std::fs::read_to_string(path).map_err(|source| SceneError::Read {
+        let text = std::fs::read_to_string(path).map_err(|cause| SceneError::Read {
             path: path.to_owned(),
-            source,
+            cause,
         })?;
         Self::from_toml_str(&text, &path.display().to_string())
     }
