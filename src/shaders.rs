@@ -47,6 +47,30 @@ pub const FILES: &[(&str, &str)] = &[
         "shadow/osm_build.wgsl",
         include_str!("../shaders/shadow/osm_build.wgsl"),
     ),
+    (
+        "shadow/layered.wgsl",
+        include_str!("../shaders/shadow/layered.wgsl"),
+    ),
+    (
+        "shadow/layered_build.wgsl",
+        include_str!("../shaders/shadow/layered_build.wgsl"),
+    ),
+    (
+        "shadow/dom.wgsl",
+        include_str!("../shaders/shadow/dom.wgsl"),
+    ),
+    (
+        "shadow/dom_build.wgsl",
+        include_str!("../shaders/shadow/dom_build.wgsl"),
+    ),
+    (
+        "shadow/fom.wgsl",
+        include_str!("../shaders/shadow/fom.wgsl"),
+    ),
+    (
+        "shadow/fom_build.wgsl",
+        include_str!("../shaders/shadow/fom_build.wgsl"),
+    ),
 ];
 
 /// Name of the virtual import that stands for the active shadow technique's lookup shader.

@@ -17,9 +17,30 @@ pub struct TechniqueArgs {
     /// Shadow-map resolution in pixels (default: the scene's `shadow.resolution_px`).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=8192))]
     pub shadow_res: Option<u32>,
-    /// How layered techniques place a particle's optical depth along the light ray.
-    #[arg(long, value_enum, default_value_t = SplatMode::Point)]
-    pub splat: SplatMode,
+    /// How layered techniques place a particle's optical depth along the light ray (default:
+    /// the scene's `shadow.splat`, point unless set).
+    #[arg(long, value_enum)]
+    pub splat: Option<SplatMode>,
+    /// DOM: metres covered by the layers (default: the scene's, else derived per frame).
+    #[arg(long, value_parser = positive_f32)]
+    pub dom_thickness: Option<f32>,
+    /// DOM: ratio between successive layer thicknesses, 1..=4 (1 = uniform).
+    #[arg(long, value_parser = dom_ratio)]
+    pub dom_ratio: Option<f32>,
+}
+
+fn positive_f32(s: &str) -> Result<f32, String> {
+    match s.parse::<f32>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        _ => Err(format!("\"{s}\" is not a positive number")),
+    }
+}
+
+fn dom_ratio(s: &str) -> Result<f32, String> {
+    match s.parse::<f32>() {
+        Ok(v) if (1.0..=4.0).contains(&v) => Ok(v),
+        _ => Err(format!("\"{s}\" is out of range: allowed 1..=4")),
+    }
 }
 
 impl TechniqueArgs {
@@ -33,9 +54,11 @@ impl TechniqueArgs {
         Ok(crate::render::TechniqueConfig {
             name: entry.name.to_owned(),
             params: TechniqueParams {
-                channels: self.channels,
                 resolution_px: self.shadow_res.unwrap_or(scene.shadow.resolution_px),
-                splat: self.splat,
+                splat: self.splat.unwrap_or(scene.shadow.splat),
+                dom_thickness_m: self.dom_thickness.or(scene.shadow.dom_thickness_m),
+                dom_layer_ratio: self.dom_ratio.unwrap_or(scene.shadow.dom_layer_ratio),
+                ..scene.shadow.params(self.channels)
             },
         })
     }

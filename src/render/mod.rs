@@ -206,6 +206,7 @@ impl Renderer {
             &TechniqueContext {
                 gpu,
                 frame_layout: &frame_layout,
+                depth_layout: &depth_layout,
             },
             &technique.name,
             &technique.params,
@@ -257,6 +258,7 @@ impl Renderer {
             &TechniqueContext {
                 gpu,
                 frame_layout: &self.frame_layout,
+                depth_layout: &self.depth_layout,
             },
             &config.name,
             &config.params,
@@ -356,6 +358,7 @@ impl Renderer {
                 frame_bind_group: &self.frame_bind_group,
                 particles: &self.particles,
                 particle_count,
+                particles_cpu: particles,
                 light: &light,
             },
         );

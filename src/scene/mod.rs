@@ -14,6 +14,7 @@ mod validate;
 
 use std::path::{Path, PathBuf};
 
+use crate::shadow::{SplatMode, TechniqueParams};
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
@@ -203,6 +204,27 @@ pub struct SimClock {
 pub struct ShadowSettings {
     /// Shadow-map resolution (square), pixels, 1..=8192. The thesis uses 512.
     pub resolution_px: u32,
+    /// Where the layered techniques put a particle's optical depth along the light ray:
+    /// `point` (the thesis, default) or `segment`.
+    pub splat: SplatMode,
+    /// `dom`: total thickness covered by the layers, metres, > 0; absent (the default) derives
+    /// it from the frame's bounds and particle sizes.
+    pub dom_thickness_m: Option<f32>,
+    /// `dom`: ratio between successive layer thicknesses, [1, 4]; 1 (default) is uniform.
+    pub dom_layer_ratio: f32,
+}
+
+impl ShadowSettings {
+    /// The technique parameters these settings give for a `channels` budget.
+    pub fn params(&self, channels: u32) -> TechniqueParams {
+        TechniqueParams {
+            channels,
+            resolution_px: self.resolution_px,
+            splat: self.splat,
+            dom_thickness_m: self.dom_thickness_m,
+            dom_layer_ratio: self.dom_layer_ratio,
+        }
+    }
 }
 
 /// Shading constants.
@@ -329,7 +351,13 @@ impl Default for SimClock {
 
 impl Default for ShadowSettings {
     fn default() -> Self {
-        Self { resolution_px: 512 }
+        let defaults = TechniqueParams::new(1, 512);
+        Self {
+            resolution_px: defaults.resolution_px,
+            splat: defaults.splat,
+            dom_thickness_m: defaults.dom_thickness_m,
+            dom_layer_ratio: defaults.dom_layer_ratio,
+        }
     }
 }
 

@@ -204,6 +204,16 @@ pub(super) fn validate(scene: &Scene) -> Result<(), String> {
         1,
         max_px,
     );
+    if let Some(thickness) = scene.shadow.dom_thickness_m {
+        c.positive("shadow.dom_thickness_m", thickness);
+    }
+    c.range(
+        "shadow.dom_layer_ratio",
+        scene.shadow.dom_layer_ratio,
+        1.0,
+        4.0,
+        true,
+    );
 
     let s = &scene.shading;
     c.range("shading.hg_g", s.hg_g, -1.0, 1.0, false);

@@ -20,6 +20,8 @@ pub struct LightSpace {
     pub near_m: f32,
     /// Radial distance from the light to the farthest particle surface, metres.
     pub far_m: f32,
+    /// The largest particle radius this frame, metres (0 without particles).
+    pub max_radius_m: f32,
 }
 
 impl LightSpace {
@@ -33,11 +35,12 @@ impl LightSpace {
         let view = Mat4::look_at_rh(light.position, light.target, helper);
         // A small margin so the penumbra edge is inside the map.
         let fov = (2.0 * light.cone_angle_deg.to_radians() * 1.04).min(170f32.to_radians());
-        let (mut near, mut far) = (f32::INFINITY, 0.0f32);
+        let (mut near, mut far, mut max_radius) = (f32::INFINITY, 0.0f32, 0.0f32);
         for p in particles {
             let dist = p.position.distance(light.position);
             near = near.min(dist - p.radius_m);
             far = far.max(dist + p.radius_m);
+            max_radius = max_radius.max(p.radius_m);
         }
         if !near.is_finite() {
             (near, far) = (1.0, 2.0);
@@ -49,6 +52,7 @@ impl LightSpace {
             clip_from_world: proj * view,
             near_m: near,
             far_m: far,
+            max_radius_m: max_radius,
         }
     }
 }
@@ -75,6 +79,7 @@ mod tests {
         let ls = LightSpace::fit(&light, &[mk(5.0, 0.5), mk(2.0, 1.0)]);
         assert!((ls.near_m - 4.5).abs() < 1e-5);
         assert!((ls.far_m - 9.0).abs() < 1e-5);
+        assert_eq!(ls.max_radius_m, 1.0);
         // The target is at the centre of the shadow map.
         let c = ls.clip_from_world.project_point3(Vec3::new(0.0, 1.0, 0.0));
         assert!(c.x.abs() < 1e-5 && c.y.abs() < 1e-5);

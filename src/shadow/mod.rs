@@ -4,7 +4,7 @@
 //! can ask "how much light reaches world point p?" — the transmittance T(p). Every technique
 //! works under a **channel budget** (render-target components), as in the thesis' chapter 4.
 //!
-//! Shape of a technique (see `osm.rs`):
+//! Shape of a technique (see `osm.rs`, or `half_angle.rs` for one that draws the particles):
 //! - `new` builds its pipelines, layouts and maps once, recording every allocation in a
 //!   [`MemoryLedger`] so the bytes it reports are the bytes it owns;
 //! - [`ShadowTechnique::build`] records its passes into the frame's encoder each frame;
@@ -15,6 +15,9 @@
 //! Adding a technique: a new `src/shadow/<name>.rs` with a `pub const ENTRY`, its shaders under
 //! `shaders/shadow/`, and one line in [`REGISTRY`].
 
+pub mod dom;
+pub mod fom;
+pub mod layered;
 pub mod light_space;
 pub mod none;
 pub mod osm;
@@ -24,10 +27,14 @@ pub use light_space::LightSpace;
 use serde::{Deserialize, Serialize};
 
 use crate::gpu::{Gpu, GpuTimer, MemoryLedger};
+use crate::render::CameraMatrices;
+use crate::sim::Particle;
 
 /// Stages that call `shadow_transmittance`: the particle pass lights per vertex, the opaque pass
 /// per fragment. Lookup bind group layouts use this visibility.
-pub const LOOKUP_STAGES: wgpu::ShaderStages = wgpu::ShaderStages::VERTEX_FRAGMENT;
+/// The transmittance probe calls it from a compute shader.
+pub const LOOKUP_STAGES: wgpu::ShaderStages =
+    wgpu::ShaderStages::VERTEX_FRAGMENT.union(wgpu::ShaderStages::COMPUTE);
 
 /// Channel budgets accepted by every technique (one RGBA target carries 4 channels; 8 targets).
 pub const MAX_CHANNELS: u32 = 32;
@@ -60,7 +67,9 @@ pub enum ShadowError {
 }
 
 /// How a particle's optical depth is placed along the light ray when building layered maps.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(
+    Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize, clap::ValueEnum,
+)]
 #[serde(rename_all = "snake_case")]
 pub enum SplatMode {
     /// All of it at the particle centre's depth (the thesis).
@@ -70,15 +79,43 @@ pub enum SplatMode {
     Segment,
 }
 
-/// The parameters every technique receives.
+impl SplatMode {
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Point => "point",
+            Self::Segment => "segment",
+        }
+    }
+}
+
+/// The parameters every technique receives; each technique reads the ones that concern it.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct TechniqueParams {
-    /// Channel budget, 1..=32 (each technique may have a larger minimum).
+    /// Channel budget, 1..=32 (each technique may have a larger minimum). Slices for `osm`,
+    /// 1 depth channel + layers for `dom`, 2n + 1 coefficients for `fom`, slices for `has`.
     pub channels: u32,
-    /// Square shadow-map resolution in pixels.
+    /// Square shadow-map resolution in pixels (light buffer for `has`, list grid for `exact`).
     pub resolution_px: u32,
-    /// Where particle optical depth is splatted (layered techniques).
+    /// Where particle optical depth is splatted (`osm`, `dom`, `fom`). Default: point.
     pub splat: SplatMode,
+    /// `dom`: total thickness covered by the layers, metres; `None` (the default) derives it
+    /// from the frame's bounds and particle sizes each frame.
+    pub dom_thickness_m: Option<f32>,
+    /// `dom`: ratio between successive layer thicknesses, >= 1; 1 (the default) is uniform.
+    pub dom_layer_ratio: f32,
+}
+
+impl TechniqueParams {
+    /// `channels` at `resolution_px` with every other parameter at its default.
+    pub fn new(channels: u32, resolution_px: u32) -> Self {
+        Self {
+            channels,
+            resolution_px,
+            splat: SplatMode::Point,
+            dom_thickness_m: None,
+            dom_layer_ratio: 1.0,
+        }
+    }
 }
 
 /// What a technique needs from the renderer to build its pipelines.
@@ -86,6 +123,9 @@ pub struct TechniqueContext<'a> {
     pub gpu: &'a Gpu,
     /// Layout of group 0 (`Frame` uniforms), shared by every pass.
     pub frame_layout: &'a wgpu::BindGroupLayout,
+    /// Layout of the opaque depth the particle pass reads (group 2 of the particle pipelines),
+    /// for techniques that draw the particles themselves.
+    pub depth_layout: &'a wgpu::BindGroupLayout,
 }
 
 /// What a technique gets each frame to build its maps.
@@ -93,10 +133,42 @@ pub struct BuildInputs<'a> {
     pub encoder: &'a mut wgpu::CommandEncoder,
     pub timer: &'a mut GpuTimer,
     pub frame_bind_group: &'a wgpu::BindGroup,
-    /// Particle instances (see `ParticleInstance`), `particle_count` of them.
+    /// Particle instances (see `ParticleInstance`), `particle_count` of them, sorted back to
+    /// front for the camera.
     pub particles: &'a wgpu::Buffer,
     pub particle_count: u32,
+    /// The same particles on the CPU, in simulation order.
+    pub particles_cpu: &'a [Particle],
     pub light: &'a LightSpace,
+}
+
+/// What a technique that draws the particles itself (see [`ShadowTechnique::particle_pass`])
+/// gets each frame, after the opaque pass.
+pub struct ParticlePassInputs<'a> {
+    pub encoder: &'a mut wgpu::CommandEncoder,
+    pub timer: &'a mut GpuTimer,
+    pub frame_bind_group: &'a wgpu::BindGroup,
+    /// The particles in simulation order; the technique sorts them as it needs (timed).
+    pub particles: &'a [Particle],
+    pub camera: &'a CameraMatrices,
+    pub light: &'a LightSpace,
+    /// Unit axis of the spotlight's cone.
+    pub light_axis: glam::Vec3,
+    /// The frame's HDR target, holding the opaque pass; the technique composites the smoke
+    /// over it with premultiplied "over" and leaves the smoke's opacity in its alpha.
+    pub hdr_view: &'a wgpu::TextureView,
+    pub hdr_size: (u32, u32),
+    /// The opaque depth as a group-2 bind group (spherical billboards) and as an attachment
+    /// (flat billboards' depth test).
+    pub depth_bind_group: &'a wgpu::BindGroup,
+    pub depth_view: &'a wgpu::TextureView,
+    pub spherical: bool,
+}
+
+/// A technique's own particle pass.
+pub trait ParticlePass {
+    /// Records the eye pass; returns the CPU time spent sorting, milliseconds.
+    fn record(&mut self, gpu: &Gpu, inputs: ParticlePassInputs<'_>) -> f64;
 }
 
 /// The interface every shadow technique implements.
@@ -113,6 +185,16 @@ pub trait ShadowTechnique {
     fn bind_group(&self) -> &wgpu::BindGroup;
     /// Records this frame's shadow passes.
     fn build(&mut self, gpu: &Gpu, inputs: BuildInputs<'_>);
+    /// `Some` when the technique draws the particles to the eye itself (half-angle slicing
+    /// interleaves eye and light passes). `None`, the default: the renderer draws the sorted
+    /// particles, lit through `shadow_transmittance`.
+    fn particle_pass(&mut self) -> Option<&mut dyn ParticlePass> {
+        None
+    }
+    /// The maps this frame's lookups read, for inspection: (label, view, channels in the view).
+    fn debug_maps(&self) -> Vec<(String, &wgpu::TextureView, u32)> {
+        Vec::new()
+    }
 }
 
 /// Builds a technique from the GPU context and its (already range-checked) parameters.
@@ -135,7 +217,13 @@ pub struct TechniqueEntry {
 }
 
 /// Every technique, in the order lists and reports show them.
-pub static REGISTRY: &[TechniqueEntry] = &[none::ENTRY, osm::ENTRY];
+pub static REGISTRY: &[TechniqueEntry] = &[
+    none::ENTRY,
+    osm::ENTRY,
+    dom::ENTRY,
+    fom::ENTRY,
+    fom::SIGMA_ENTRY,
+];
 
 /// Comma-separated registry names.
 pub fn technique_names() -> String {

@@ -27,9 +27,8 @@ pub fn technique(
     TechniqueConfig {
         name: name.to_owned(),
         params: TechniqueParams {
-            channels,
-            resolution_px,
             splat,
+            ..TechniqueParams::new(channels, resolution_px)
         },
     }
 }

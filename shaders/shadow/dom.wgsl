@@ -1,0 +1,71 @@
+// `dom` lookup: deep opacity maps (Yuksel & Keyser 2008, thesis 3.3.3.4).
+// One channel holds, per texel, the normalised light depth z0 where the smoke starts; the other
+// B - 1 channels are layers that start there and follow the smoke's shape: boundary k sits at
+// z0 + offset(k), with offsets uniform or growing geometrically over the total thickness. Points
+// in front of z0 see no smoke; points beyond the last layer map to the last layer (the paper's
+// recommendation). The four surrounding texels are evaluated separately (each has its own z0)
+// and blended bilinearly.
+#import shadow/layered.wgsl
+
+@group(1) @binding(10) var dom_depth: texture_2d<f32>;
+
+// Normalised offset of boundary k (0..=L) from the texel's start depth.
+fn dom_offset(k: f32) -> f32 {
+    let layers = f32(layered.count);
+    let thickness = layered.dom_thickness_m * frame.light_depth.z;
+    let r = layered.dom_ratio;
+    if r <= 1.0001 {
+        return thickness * k / layers;
+    }
+    return thickness * (pow(r, k) - 1.0) / (pow(r, layers) - 1.0);
+}
+
+// Inverse of `dom_offset`: the fractional boundary coordinate of offset u >= 0.
+fn dom_layer_coord(u: f32) -> f32 {
+    let layers = f32(layered.count);
+    let thickness = layered.dom_thickness_m * frame.light_depth.z;
+    let r = layered.dom_ratio;
+    if r <= 1.0001 {
+        return u / thickness * layers;
+    }
+    return log(1.0 + u / thickness * (pow(r, layers) - 1.0)) / log(r);
+}
+
+// Optical depth in front of boundary k (0..=L) at one texel; channel k - 1 of the packed maps.
+fn dom_boundary(k: u32, texel: vec2<i32>) -> f32 {
+    if k == 0u {
+        return 0.0;
+    }
+    return layered_texel((k - 1u) / 4u, texel)[(k - 1u) % 4u];
+}
+
+// Optical depth in front of normalised depth z along the ray of one texel.
+fn dom_texel_omega(texel: vec2<i32>, z: f32) -> f32 {
+    let z0 = textureLoad(dom_depth, texel, 0).r;
+    if z <= z0 {
+        return 0.0;
+    }
+    let layers = layered.count;
+    let s = clamp(dom_layer_coord(z - z0), 0.0, f32(layers));
+    let k0 = min(u32(floor(s)), layers);
+    let k1 = min(k0 + 1u, layers);
+    return mix(dom_boundary(k0, texel), dom_boundary(k1, texel), s - f32(k0));
+}
+
+fn shadow_transmittance(p: vec3<f32>) -> f32 {
+    let l = light_coords(p);
+    if !l.inside {
+        return 1.0;
+    }
+    let dims = vec2<i32>(textureDimensions(dom_depth));
+    let f = l.uv * vec2<f32>(dims) - vec2<f32>(0.5);
+    let base = vec2<i32>(floor(f));
+    let t = f - floor(f);
+    let hi = dims - vec2<i32>(1);
+    let z = l.depth01;
+    let o00 = dom_texel_omega(clamp(base, vec2<i32>(0), hi), z);
+    let o10 = dom_texel_omega(clamp(base + vec2<i32>(1, 0), vec2<i32>(0), hi), z);
+    let o01 = dom_texel_omega(clamp(base + vec2<i32>(0, 1), vec2<i32>(0), hi), z);
+    let o11 = dom_texel_omega(clamp(base + vec2<i32>(1, 1), vec2<i32>(0), hi), z);
+    return exp(-mix(mix(o00, o10, t.x), mix(o01, o11, t.x), t.y));
+}

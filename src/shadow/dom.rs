@@ -1,0 +1,34 @@
+//! `dom`: deep opacity maps (Yuksel & Keyser 2008; thesis 3.3.3.4).
+//!
+//! One channel holds, per shadow-map texel, the light depth where the smoke starts (a first pass
+//! min-blends each fragment's start depth); the other B - 1 channels are opacity layers that
+//! begin there and so follow the shape of the smoke. Layer spacing is uniform by default
+//! (`dom_layer_ratio` = 1) or geometric, over a total thickness `dom_thickness_m` (default
+//! derived from the frame's bounds and particle sizes, see
+//! [`super::layered::default_dom_thickness_m`]). Points beyond the last layer map to the last
+//! layer, as the paper recommends. Shaders: `shaders/shadow/dom.wgsl` and `dom_build.wgsl`.
+
+use super::TechniqueEntry;
+use super::layered::{ChannelPlan, Layered, LayeredSpec};
+
+pub const SPEC: LayeredSpec = LayeredSpec {
+    name: "dom",
+    build_shader: "shadow/dom_build.wgsl",
+    // One channel is the depth where the smoke starts; the rest are layers (24 -> 23).
+    plan: |channels| ChannelPlan {
+        count: channels - 1,
+        packed: channels - 1,
+        used: channels,
+    },
+    depth_channel: true,
+    sigma: false,
+};
+
+pub const ENTRY: TechniqueEntry = TechniqueEntry {
+    name: SPEC.name,
+    description: "deep opacity maps: a start-depth channel and B-1 layers that follow the smoke",
+    min_channels: 2,
+    lookup_shader: "shadow/dom.wgsl",
+    extra_shaders: || SPEC.all_build_shaders(),
+    create: |ctx, params| Ok(Box::new(Layered::new(ctx, &SPEC, params)?)),
+};

@@ -1,0 +1,55 @@
+//! `fom` and `fom_sigma`: Fourier opacity maps (Jansen & Bavoil 2010; thesis 3.3.3.5).
+//!
+//! The extinction along each light ray, over the depth normalised to the frame's tight bounds,
+//! is stored as a truncated Fourier series: a budget of B channels holds n = floor((B - 1) / 2)
+//! harmonics as a0, a1..an, b1..bn (24 -> 11, 8 -> 3, 6 -> 2). Every light-space fragment adds
+//! its −ln(1 − α)-weighted cos/sin terms (additive, no sort); a segment splat adds them
+//! integrated analytically over its chord. The lookup reconstructs the optical depth with the
+//! thesis' formula and clamps T to [0, 1]. `fom_sigma` damps harmonic k by the Lanczos σ-factor
+//! sinc(k / (n + 1)) to suppress ringing. Shaders: `shaders/shadow/fom.wgsl`, `fom_build.wgsl`.
+
+use super::TechniqueEntry;
+use super::layered::{ChannelPlan, Layered, LayeredSpec};
+
+/// a0, a1..an, b1..bn: n = floor((B - 1) / 2) harmonics in 2n + 1 channels.
+fn plan(channels: u32) -> ChannelPlan {
+    let n = (channels - 1) / 2;
+    ChannelPlan {
+        count: n,
+        packed: 2 * n + 1,
+        used: 2 * n + 1,
+    }
+}
+
+pub const FOM: LayeredSpec = LayeredSpec {
+    name: "fom",
+    build_shader: "shadow/fom_build.wgsl",
+    plan,
+    depth_channel: false,
+    sigma: false,
+};
+
+pub const FOM_SIGMA: LayeredSpec = LayeredSpec {
+    name: "fom_sigma",
+    sigma: true,
+    ..FOM
+};
+
+pub const ENTRY: TechniqueEntry = TechniqueEntry {
+    name: FOM.name,
+    description: "Fourier opacity maps: floor((B-1)/2) harmonics of the extinction along each ray",
+    min_channels: 3,
+    lookup_shader: "shadow/fom.wgsl",
+    extra_shaders: || FOM.all_build_shaders(),
+    create: |ctx, params| Ok(Box::new(Layered::new(ctx, &FOM, params)?)),
+};
+
+pub const SIGMA_ENTRY: TechniqueEntry = TechniqueEntry {
+    name: FOM_SIGMA.name,
+    description: "Fourier opacity maps with Lanczos sigma-factors damping the ringing",
+    min_channels: 3,
+    lookup_shader: "shadow/fom.wgsl",
+    // Same build shaders as `fom`: the σ-factors apply at lookup.
+    extra_shaders: Vec::new,
+    create: |ctx, params| Ok(Box::new(Layered::new(ctx, &FOM_SIGMA, params)?)),
+};

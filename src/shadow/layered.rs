@@ -1,0 +1,632 @@
+//! Shared machinery of the layered techniques (`osm`, `dom`, `fom`, `fom_sigma`): values packed
+//! 4 to a half-float render target, written in one MRT pass of light-facing billboards with
+//! additive blending (no sort), and read by a lookup shader through 8 texture slots
+//! (`shaders/shadow/layered.wgsl`, `layered_build.wgsl`).
+//!
+//! Each technique is a [`LayeredSpec`] in its own module: how its budget maps to packed channels
+//! and which build shader defines what each fragment writes (`target_values`). The last target
+//! has only as many components as it needs: R16F for 1, RG16F for 2, RGBA16F for 3 or 4 (there is
+//! no 3-component render format, so a remainder of 3 allocates one unused channel, and the memory
+//! ledger says so). A spec with a depth channel (`dom`) gets a first pass that min-blends the
+//! depth where the smoke starts into one more R16F channel.
+
+use bytemuck::{Pod, Zeroable};
+
+use super::{
+    BuildInputs, LOOKUP_STAGES, LightSpace, ShadowError, ShadowTechnique, SplatMode,
+    TechniqueContext, TechniqueParams,
+};
+use crate::gpu::{Gpu, MemoryLedger};
+use crate::render::gpu_data::{BILLBOARD_VERTICES, ParticleInstance};
+use crate::shaders;
+
+/// Texture slots of the lookup shader (`shaders/shadow/layered.wgsl`).
+pub const MAP_SLOTS: u32 = 8;
+/// Binding of the depth channel in the lookup and layer-build groups.
+const DEPTH_BINDING: u32 = 10;
+/// Format of the depth channel (normalised light depth, min-blended).
+const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R16Float;
+
+/// How a budget is spent.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ChannelPlan {
+    /// Slices (osm), layers (dom) or harmonics (fom).
+    pub count: u32,
+    /// Channels in the packed targets.
+    pub packed: u32,
+    /// Channels used in all (packed + the depth channel, if any).
+    pub used: u32,
+}
+
+/// One layered technique: everything that differs between `osm`, `dom` and `fom`.
+pub struct LayeredSpec {
+    pub name: &'static str,
+    /// Build shader (under `shaders/`) defining `target_values` (and `fs_depth` with a depth
+    /// channel).
+    pub build_shader: &'static str,
+    /// How a budget (already >= the technique's minimum) is spent.
+    pub plan: fn(u32) -> ChannelPlan,
+    /// Whether a first pass writes the depth where the smoke starts (`dom`).
+    pub depth_channel: bool,
+    /// Whether the lookup damps harmonics with Lanczos σ-factors (`fom_sigma`).
+    pub sigma: bool,
+}
+
+impl LayeredSpec {
+    /// Every build module for every target count, for the naga test.
+    pub fn all_build_shaders(&self) -> Vec<(String, String)> {
+        (1..=MAP_SLOTS)
+            .map(|targets| {
+                (
+                    format!("{}.build[{targets} targets]", self.name),
+                    build_shader_source(self, targets),
+                )
+            })
+            .collect()
+    }
+}
+
+/// Keep in sync with `LayeredParams` in shaders/shadow/layered.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+struct LayeredParams {
+    count: u32,
+    packed: u32,
+    splat: u32,
+    sigma: u32,
+    dom_thickness_m: f32,
+    dom_ratio: f32,
+    _pad: [f32; 2],
+}
+
+/// Format of packed target `index` for `packed` channels.
+pub fn target_format(packed: u32, index: u32) -> wgpu::TextureFormat {
+    match (packed - index * 4).min(4) {
+        1 => wgpu::TextureFormat::R16Float,
+        2 => wgpu::TextureFormat::Rg16Float,
+        _ => wgpu::TextureFormat::Rgba16Float,
+    }
+}
+
+/// The generated fragment entry point writing one vec4 per target.
+fn build_outputs_wgsl(targets: u32) -> String {
+    let fields: String = (0..targets)
+        .map(|i| format!("    @location({i}) t{i}: vec4<f32>,\n"))
+        .collect();
+    let writes: String = (0..targets)
+        .map(|i| format!("    out.t{i} = target_values(splat, {i}u, in.clip.xy);\n"))
+        .collect();
+    format!(
+        "struct BuildOut {{\n{fields}}};\n\n@fragment\nfn fs_build(in: BuildVertexOut) -> BuildOut {{\n    \
+         let splat = splat_fragment(in, layered.splat == 1u);\n    var out: BuildOut;\n{writes}    return out;\n}}\n"
+    )
+}
+
+/// The full build shader of `spec` for `targets` render targets.
+pub fn build_shader_source(spec: &LayeredSpec, targets: u32) -> String {
+    shaders::compose(spec.build_shader, &[])
+        .replace("//{{BUILD_OUTPUTS}}", &build_outputs_wgsl(targets))
+}
+
+/// The DOM layer thickness when none is given. The layers follow the smoke from where it starts
+/// along each texel's ray, so they need not span the whole bounding range: half of it, but at
+/// least four particle diameters (and never more than the range).
+pub fn default_dom_thickness_m(light: &LightSpace) -> f32 {
+    let range = light.far_m - light.near_m;
+    (0.5 * range).max(8.0 * light.max_radius_m).min(range)
+}
+
+/// A layered technique: a [`LayeredSpec`] with its maps and pipelines.
+pub struct Layered {
+    spec: &'static LayeredSpec,
+    plan: ChannelPlan,
+    params: TechniqueParams,
+    params_buffer: wgpu::Buffer,
+    targets: Vec<wgpu::TextureView>,
+    build_pipeline: wgpu::RenderPipeline,
+    build_bind_group: wgpu::BindGroup,
+    /// The depth channel's pass, for specs that have one.
+    depth: Option<DepthPass>,
+    lookup_layout: wgpu::BindGroupLayout,
+    lookup_bind_group: wgpu::BindGroup,
+    memory: MemoryLedger,
+}
+
+struct DepthPass {
+    view: wgpu::TextureView,
+    pipeline: wgpu::RenderPipeline,
+    bind_group: wgpu::BindGroup,
+}
+
+pub(crate) fn uniform_entry(
+    binding: u32,
+    visibility: wgpu::ShaderStages,
+) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Uniform,
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+pub(crate) fn texture_entry(
+    binding: u32,
+    visibility: wgpu::ShaderStages,
+) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility,
+        ty: wgpu::BindingType::Texture {
+            sample_type: wgpu::TextureSampleType::Float { filterable: true },
+            view_dimension: wgpu::TextureViewDimension::D2,
+            multisampled: false,
+        },
+        count: None,
+    }
+}
+
+/// A square shadow-map texture, recorded in `memory`.
+pub(crate) fn map_texture(
+    memory: &mut MemoryLedger,
+    device: &wgpu::Device,
+    label: &str,
+    format: wgpu::TextureFormat,
+    res: u32,
+) -> wgpu::TextureView {
+    memory
+        .texture(
+            device,
+            &wgpu::TextureDescriptor {
+                label: Some(label),
+                size: wgpu::Extent3d {
+                    width: res,
+                    height: res,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage: wgpu::TextureUsages::RENDER_ATTACHMENT
+                    | wgpu::TextureUsages::TEXTURE_BINDING
+                    | wgpu::TextureUsages::COPY_SRC,
+                view_formats: &[],
+            },
+        )
+        .create_view(&wgpu::TextureViewDescriptor::default())
+}
+
+/// Additive blending: every fragment adds to what is there.
+pub(crate) const ADDITIVE: wgpu::BlendComponent = wgpu::BlendComponent {
+    src_factor: wgpu::BlendFactor::One,
+    dst_factor: wgpu::BlendFactor::One,
+    operation: wgpu::BlendOperation::Add,
+};
+
+/// A pipeline drawing light-facing particle billboards (`vs_build`) into `formats` with `blend`.
+pub(crate) fn billboard_pipeline(
+    device: &wgpu::Device,
+    label: &str,
+    module: &wgpu::ShaderModule,
+    fragment_entry: &str,
+    layouts: &[Option<&wgpu::BindGroupLayout>],
+    formats: &[wgpu::TextureFormat],
+    blend: wgpu::BlendComponent,
+) -> wgpu::RenderPipeline {
+    let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some(label),
+        bind_group_layouts: layouts,
+        immediate_size: 0,
+    });
+    let targets: Vec<_> = formats
+        .iter()
+        .map(|&format| {
+            Some(wgpu::ColorTargetState {
+                format,
+                blend: Some(wgpu::BlendState {
+                    color: blend,
+                    alpha: blend,
+                }),
+                write_mask: wgpu::ColorWrites::ALL,
+            })
+        })
+        .collect();
+    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some(label),
+        layout: Some(&layout),
+        vertex: wgpu::VertexState {
+            module,
+            entry_point: Some("vs_build"),
+            compilation_options: Default::default(),
+            buffers: &[Some(ParticleInstance::LAYOUT)],
+        },
+        primitive: wgpu::PrimitiveState::default(),
+        depth_stencil: None,
+        multisample: wgpu::MultisampleState::default(),
+        fragment: Some(wgpu::FragmentState {
+            module,
+            entry_point: Some(fragment_entry),
+            compilation_options: Default::default(),
+            targets: &targets,
+        }),
+        multiview_mask: None,
+        cache: None,
+    })
+}
+
+/// A colour attachment cleared to `clear` and stored.
+pub(crate) fn cleared_attachment(
+    view: &wgpu::TextureView,
+    clear: wgpu::Color,
+) -> Option<wgpu::RenderPassColorAttachment<'_>> {
+    Some(wgpu::RenderPassColorAttachment {
+        view,
+        depth_slice: None,
+        resolve_target: None,
+        ops: wgpu::Operations {
+            load: wgpu::LoadOp::Clear(clear),
+            store: wgpu::StoreOp::Store,
+        },
+    })
+}
+
+/// Draws every particle as a light-facing billboard with `pipeline` and group 1 `bind_group`.
+pub(crate) fn draw_particles(
+    pass: &mut wgpu::RenderPass<'_>,
+    pipeline: &wgpu::RenderPipeline,
+    frame_bind_group: &wgpu::BindGroup,
+    bind_group: &wgpu::BindGroup,
+    particles: wgpu::BufferSlice<'_>,
+    count: u32,
+) {
+    if count > 0 {
+        pass.set_pipeline(pipeline);
+        pass.set_bind_group(0, frame_bind_group, &[]);
+        pass.set_bind_group(1, bind_group, &[]);
+        pass.set_vertex_buffer(0, particles);
+        pass.draw(0..BILLBOARD_VERTICES, 0..count);
+    }
+}
+
+impl Layered {
+    pub fn new(
+        ctx: &TechniqueContext<'_>,
+        spec: &'static LayeredSpec,
+        params: &TechniqueParams,
+    ) -> Result<Self, ShadowError> {
+        let gpu = ctx.gpu;
+        let device = &gpu.device;
+        let plan = (spec.plan)(params.channels);
+        let target_count = plan.packed.div_ceil(4);
+        let formats: Vec<_> = (0..target_count)
+            .map(|i| target_format(plan.packed, i))
+            .collect();
+        let bytes_per_sample: u32 = formats
+            .iter()
+            .map(|f| f.target_pixel_byte_cost().unwrap_or(8))
+            .sum();
+        if target_count > gpu.limits.max_color_attachments
+            || bytes_per_sample > gpu.limits.max_color_attachment_bytes_per_sample
+        {
+            return Err(ShadowError::AdapterLimit {
+                technique: spec.name,
+                channels: params.channels,
+                needed: target_count,
+                bytes_per_sample,
+                allowed_attachments: gpu.limits.max_color_attachments,
+                allowed_bytes: gpu.limits.max_color_attachment_bytes_per_sample,
+            });
+        }
+
+        let name = spec.name;
+        let res = params.resolution_px;
+        let mut memory = MemoryLedger::default();
+        let targets: Vec<_> = formats
+            .iter()
+            .enumerate()
+            .map(|(i, &format)| {
+                map_texture(&mut memory, device, &format!("{name}.map{i}"), format, res)
+            })
+            .collect();
+        let depth_view = spec.depth_channel.then(|| {
+            map_texture(
+                &mut memory,
+                device,
+                &format!("{name}.depth"),
+                DEPTH_FORMAT,
+                res,
+            )
+        });
+        let params_buffer = memory.buffer(
+            device,
+            &wgpu::BufferDescriptor {
+                label: Some(&format!("{name}.params")),
+                size: std::mem::size_of::<LayeredParams>() as u64,
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            },
+        );
+
+        // Build pass: group 1 holds the parameters and, after a depth pass, the depth channel it
+        // reads (the maps themselves are render targets).
+        let build_stages = wgpu::ShaderStages::VERTEX_FRAGMENT;
+        let params_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some(&format!("{name}.build.params_layout")),
+            entries: &[uniform_entry(0, build_stages)],
+        });
+        let params_bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some(&format!("{name}.build.params_bind_group")),
+            layout: &params_layout,
+            entries: &[wgpu::BindGroupEntry {
+                binding: 0,
+                resource: params_buffer.as_entire_binding(),
+            }],
+        });
+        let module = shaders::module(
+            device,
+            &format!("{name}.build"),
+            &build_shader_source(spec, target_count),
+        );
+        let (build_pipeline, build_bind_group, depth) = match &depth_view {
+            None => (
+                billboard_pipeline(
+                    device,
+                    &format!("{name}.build"),
+                    &module,
+                    "fs_build",
+                    &[Some(ctx.frame_layout), Some(&params_layout)],
+                    &formats,
+                    ADDITIVE,
+                ),
+                params_bind_group,
+                None,
+            ),
+            Some(depth_view) => {
+                let layer_layout =
+                    device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                        label: Some(&format!("{name}.build.layer_layout")),
+                        entries: &[
+                            uniform_entry(0, build_stages),
+                            texture_entry(DEPTH_BINDING, wgpu::ShaderStages::FRAGMENT),
+                        ],
+                    });
+                let layer_bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some(&format!("{name}.build.layer_bind_group")),
+                    layout: &layer_layout,
+                    entries: &[
+                        wgpu::BindGroupEntry {
+                            binding: 0,
+                            resource: params_buffer.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: DEPTH_BINDING,
+                            resource: wgpu::BindingResource::TextureView(depth_view),
+                        },
+                    ],
+                });
+                let depth_pipeline = billboard_pipeline(
+                    device,
+                    &format!("{name}.build.depth"),
+                    &module,
+                    "fs_depth",
+                    &[Some(ctx.frame_layout), Some(&params_layout)],
+                    &[DEPTH_FORMAT],
+                    wgpu::BlendComponent {
+                        src_factor: wgpu::BlendFactor::One,
+                        dst_factor: wgpu::BlendFactor::One,
+                        operation: wgpu::BlendOperation::Min,
+                    },
+                );
+                (
+                    billboard_pipeline(
+                        device,
+                        &format!("{name}.build.layers"),
+                        &module,
+                        "fs_build",
+                        &[Some(ctx.frame_layout), Some(&layer_layout)],
+                        &formats,
+                        ADDITIVE,
+                    ),
+                    layer_bind_group,
+                    Some(DepthPass {
+                        view: depth_view.clone(),
+                        pipeline: depth_pipeline,
+                        bind_group: params_bind_group,
+                    }),
+                )
+            }
+        };
+
+        // Lookup: parameters, a bilinear sampler, 8 map slots (unused slots repeat map 0; the
+        // shader never reads beyond the packed channels) and the depth channel if there is one.
+        let mut lookup_entries = vec![
+            uniform_entry(0, LOOKUP_STAGES),
+            wgpu::BindGroupLayoutEntry {
+                binding: 1,
+                visibility: LOOKUP_STAGES,
+                ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+                count: None,
+            },
+        ];
+        lookup_entries.extend((0..MAP_SLOTS).map(|i| texture_entry(2 + i, LOOKUP_STAGES)));
+        if depth_view.is_some() {
+            lookup_entries.push(texture_entry(DEPTH_BINDING, LOOKUP_STAGES));
+        }
+        let lookup_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some(&format!("{name}.lookup.layout")),
+            entries: &lookup_entries,
+        });
+        let sampler = super::map_sampler(device, &format!("{name}.sampler"));
+        let mut entries = vec![
+            wgpu::BindGroupEntry {
+                binding: 0,
+                resource: params_buffer.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 1,
+                resource: wgpu::BindingResource::Sampler(&sampler),
+            },
+        ];
+        entries.extend((0..MAP_SLOTS).map(|i| wgpu::BindGroupEntry {
+            binding: 2 + i,
+            resource: wgpu::BindingResource::TextureView(
+                targets.get(i as usize).unwrap_or(&targets[0]),
+            ),
+        }));
+        if let Some(view) = &depth_view {
+            entries.push(wgpu::BindGroupEntry {
+                binding: DEPTH_BINDING,
+                resource: wgpu::BindingResource::TextureView(view),
+            });
+        }
+        let lookup_bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some(&format!("{name}.lookup.bind_group")),
+            layout: &lookup_layout,
+            entries: &entries,
+        });
+
+        Ok(Self {
+            spec,
+            plan,
+            params: params.clone(),
+            params_buffer,
+            targets,
+            build_pipeline,
+            build_bind_group,
+            depth,
+            lookup_layout,
+            lookup_bind_group,
+            memory,
+        })
+    }
+
+    /// The parameters this frame: fixed ones plus the DOM thickness, which may follow the bounds.
+    fn frame_params(&self, light: &LightSpace) -> LayeredParams {
+        LayeredParams {
+            count: self.plan.count,
+            packed: self.plan.packed,
+            splat: match self.params.splat {
+                SplatMode::Point => 0,
+                SplatMode::Segment => 1,
+            },
+            sigma: u32::from(self.spec.sigma),
+            dom_thickness_m: self
+                .params
+                .dom_thickness_m
+                .unwrap_or_else(|| default_dom_thickness_m(light)),
+            dom_ratio: self.params.dom_layer_ratio,
+            _pad: [0.0; 2],
+        }
+    }
+
+    /// The packed map views, in channel order (channel c is component c % 4 of view c / 4).
+    pub fn map_views(&self) -> &[wgpu::TextureView] {
+        &self.targets
+    }
+}
+
+impl ShadowTechnique for Layered {
+    fn name(&self) -> &'static str {
+        self.spec.name
+    }
+    fn channels_used(&self) -> u32 {
+        self.plan.used
+    }
+    fn memory(&self) -> &MemoryLedger {
+        &self.memory
+    }
+    fn bind_group_layout(&self) -> &wgpu::BindGroupLayout {
+        &self.lookup_layout
+    }
+    fn bind_group(&self) -> &wgpu::BindGroup {
+        &self.lookup_bind_group
+    }
+
+    fn build(&mut self, gpu: &Gpu, inputs: BuildInputs<'_>) {
+        gpu.queue.write_buffer(
+            &self.params_buffer,
+            0,
+            bytemuck::bytes_of(&self.frame_params(inputs.light)),
+        );
+        let particles = inputs.particles.slice(..);
+        if let Some(depth) = &self.depth {
+            // The depth where the smoke starts: MIN blending, cleared beyond the far bound.
+            let mut pass = inputs
+                .encoder
+                .begin_render_pass(&wgpu::RenderPassDescriptor {
+                    label: Some("dom.build.depth"),
+                    color_attachments: &[cleared_attachment(&depth.view, wgpu::Color::WHITE)],
+                    depth_stencil_attachment: None,
+                    timestamp_writes: inputs.timer.pass("shadow"),
+                    occlusion_query_set: None,
+                    multiview_mask: None,
+                });
+            draw_particles(
+                &mut pass,
+                &depth.pipeline,
+                inputs.frame_bind_group,
+                &depth.bind_group,
+                particles,
+                inputs.particle_count,
+            );
+        }
+        let attachments: Vec<_> = self
+            .targets
+            .iter()
+            .map(|view| cleared_attachment(view, wgpu::Color::TRANSPARENT))
+            .collect();
+        let mut pass = inputs
+            .encoder
+            .begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("layered.build"),
+                color_attachments: &attachments,
+                depth_stencil_attachment: None,
+                timestamp_writes: inputs.timer.pass("shadow"),
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+        draw_particles(
+            &mut pass,
+            &self.build_pipeline,
+            inputs.frame_bind_group,
+            &self.build_bind_group,
+            particles,
+            inputs.particle_count,
+        );
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn target_formats_fit_the_packed_channels() {
+        assert_eq!(target_format(6, 0), wgpu::TextureFormat::Rgba16Float);
+        assert_eq!(target_format(6, 1), wgpu::TextureFormat::Rg16Float);
+        assert_eq!(target_format(5, 1), wgpu::TextureFormat::R16Float);
+        assert_eq!(target_format(7, 1), wgpu::TextureFormat::Rgba16Float);
+        assert_eq!(target_format(24, 5), wgpu::TextureFormat::Rgba16Float);
+    }
+
+    #[test]
+    fn budgets_map_to_the_thesis_channel_plans() {
+        // Thesis chapter 4: DOM spends one channel on depth (24 -> 23 layers); FOM 24 channels
+        // hold 11 harmonics, 8 hold 3, 6 hold 2.
+        let plan = |spec: &LayeredSpec, b| (spec.plan)(b);
+        assert_eq!(plan(&super::super::dom::SPEC, 24).count, 23);
+        assert_eq!(plan(&super::super::dom::SPEC, 24).used, 24);
+        let fom = &super::super::fom::FOM;
+        assert_eq!(plan(fom, 24).count, 11);
+        assert_eq!(plan(fom, 24).used, 23);
+        assert_eq!(plan(fom, 8).count, 3);
+        assert_eq!(plan(fom, 6).count, 2);
+        assert_eq!(plan(fom, 3).packed, 3);
+        assert_eq!(plan(&super::super::osm::SPEC, 6).packed, 6);
+    }
+}
