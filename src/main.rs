@@ -27,6 +27,9 @@ struct Cli {
 enum Command {
     /// Render one frame of a scene to PNG (and optionally benchmark it).
     Render(commands::render::RenderArgs),
+    /// Print the transmittance at a point (or along the light ray through it) for a technique
+    /// and for the exact reference.
+    Probe(commands::probe::ProbeArgs),
     /// Show the GPU adapters, the selected one's capabilities, and the techniques.
     Info,
 }
@@ -58,6 +61,7 @@ fn main() -> ExitCode {
     };
     let result = match &cli.command {
         Command::Render(args) => commands::render::run(args, &cli.adapter),
+        Command::Probe(args) => commands::probe::run(args, &cli.adapter),
         Command::Info => commands::info::run(&cli.adapter),
     };
     match result {

@@ -71,6 +71,18 @@ pub const FILES: &[(&str, &str)] = &[
         "shadow/fom_build.wgsl",
         include_str!("../shaders/shadow/fom_build.wgsl"),
     ),
+    (
+        "shadow/exact.wgsl",
+        include_str!("../shaders/shadow/exact.wgsl"),
+    ),
+    (
+        "shadow/exact_build.wgsl",
+        include_str!("../shaders/shadow/exact_build.wgsl"),
+    ),
+    (
+        "shadow/probe.wgsl",
+        include_str!("../shaders/shadow/probe.wgsl"),
+    ),
 ];
 
 /// Name of the virtual import that stands for the active shadow technique's lookup shader.

@@ -47,3 +47,25 @@ fn light_coords(p: vec3<f32>) -> LightCoords {
     out.inside = all(abs(ndc) <= vec2<f32>(1.0, 1.0));
     return out;
 }
+
+// The four texels around `uv` in a `dims`-sized map (clamped to the edge) and their bilinear
+// weights, for lookups that must evaluate each texel's own function before blending (a texel's
+// visibility is not linear in its stored values).
+struct BilinearTaps {
+    texels: array<vec2<i32>, 4>,
+    weights: vec4<f32>,
+};
+
+fn bilinear_taps(uv: vec2<f32>, dims: vec2<i32>) -> BilinearTaps {
+    var out: BilinearTaps;
+    let f = uv * vec2<f32>(dims) - vec2<f32>(0.5);
+    let base = vec2<i32>(floor(f));
+    let t = f - floor(f);
+    let hi = dims - vec2<i32>(1);
+    out.texels[0] = clamp(base, vec2<i32>(0), hi);
+    out.texels[1] = clamp(base + vec2<i32>(1, 0), vec2<i32>(0), hi);
+    out.texels[2] = clamp(base + vec2<i32>(0, 1), vec2<i32>(0), hi);
+    out.texels[3] = clamp(base + vec2<i32>(1, 1), vec2<i32>(0), hi);
+    out.weights = vec4<f32>((1.0 - t.x) * (1.0 - t.y), t.x * (1.0 - t.y), (1.0 - t.x) * t.y, t.x * t.y);
+    return out;
+}

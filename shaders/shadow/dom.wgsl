@@ -57,15 +57,10 @@ fn shadow_transmittance(p: vec3<f32>) -> f32 {
     if !l.inside {
         return 1.0;
     }
-    let dims = vec2<i32>(textureDimensions(dom_depth));
-    let f = l.uv * vec2<f32>(dims) - vec2<f32>(0.5);
-    let base = vec2<i32>(floor(f));
-    let t = f - floor(f);
-    let hi = dims - vec2<i32>(1);
-    let z = l.depth01;
-    let o00 = dom_texel_omega(clamp(base, vec2<i32>(0), hi), z);
-    let o10 = dom_texel_omega(clamp(base + vec2<i32>(1, 0), vec2<i32>(0), hi), z);
-    let o01 = dom_texel_omega(clamp(base + vec2<i32>(0, 1), vec2<i32>(0), hi), z);
-    let o11 = dom_texel_omega(clamp(base + vec2<i32>(1, 1), vec2<i32>(0), hi), z);
-    return exp(-mix(mix(o00, o10, t.x), mix(o01, o11, t.x), t.y));
+    var taps = bilinear_taps(l.uv, vec2<i32>(textureDimensions(dom_depth)));
+    var omega = 0.0;
+    for (var i = 0; i < 4; i++) {
+        omega += taps.weights[i] * dom_texel_omega(taps.texels[i], l.depth01);
+    }
+    return exp(-omega);
 }

@@ -1,6 +1,7 @@
 //! The CLI's commands. `main.rs` parses and dispatches; each command lives in its own file.
 
 pub mod info;
+pub mod probe;
 pub mod render;
 
 use crate::shadow::{SplatMode, TechniqueParams};

@@ -73,7 +73,7 @@ pub fn run(args: &RenderArgs, adapter: &AdapterPreference) -> anyhow::Result<()>
             frames,
         )?;
     }
-    renderer.render(&gpu, &scene, &particles, &options, &target.view);
+    renderer.render(&gpu, &scene, &particles, &options, &target.view)?;
     let image = crate::gpu::read_texture_rgba8(&gpu, &target.texture)?;
     crate::output::write_png(&args.output, &image)?;
     let t = renderer.technique();
@@ -106,7 +106,7 @@ fn bench(
     frames: u32,
 ) -> anyhow::Result<()> {
     for _ in 0..warmup {
-        renderer.render(gpu, scene, particles, options, &target.view);
+        renderer.render(gpu, scene, particles, options, &target.view)?;
         gpu.wait_idle()?;
     }
     let mut pass_samples: Vec<(&'static str, Vec<f64>)> = Vec::new();
@@ -115,7 +115,7 @@ fn bench(
     let mut wall = Vec::new();
     for _ in 0..frames {
         let start = Instant::now();
-        let stats = renderer.render(gpu, scene, particles, options, &target.view);
+        let stats = renderer.render(gpu, scene, particles, options, &target.view)?;
         let times = renderer.gpu_times(gpu).context("reading GPU timestamps")?;
         wall.push(start.elapsed().as_secs_f64() * 1e3);
         sort.push(stats.sort_ms);

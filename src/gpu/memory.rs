@@ -35,6 +35,11 @@ impl MemoryLedger {
         device.create_buffer(desc)
     }
 
+    /// Forgets the allocation labelled `label` (it was dropped or is about to be replaced).
+    pub fn forget(&mut self, label: &str) {
+        self.entries.retain(|(l, _)| l != label);
+    }
+
     /// Total bytes recorded.
     pub fn total_bytes(&self) -> u64 {
         self.entries.iter().map(|(_, b)| b).sum()

@@ -10,7 +10,7 @@ mod readback;
 mod timing;
 
 pub use memory::MemoryLedger;
-pub use readback::{Rgba16fImage, read_texture_rgba8, read_texture_rgba16f};
+pub use readback::{Rgba16fImage, read_buffer, read_texture_rgba8, read_texture_rgba16f};
 pub use timing::{GpuTimer, PassTimes};
 
 use std::fmt;

@@ -40,6 +40,45 @@ fn read_texture(
         },
     );
     gpu.queue.submit([encoder.finish()]);
+    map_and_copy(gpu, &buffer, |view| {
+        let mut out = Vec::with_capacity((unpadded * height) as usize);
+        for row in view.chunks_exact(padded as usize) {
+            out.extend_from_slice(&row[..unpadded as usize]);
+        }
+        out
+    })
+}
+
+/// Copies `size` bytes of `buffer` from `offset` (both multiples of 4) back to the CPU. The
+/// buffer needs `COPY_SRC`.
+pub fn read_buffer(
+    gpu: &Gpu,
+    buffer: &wgpu::Buffer,
+    offset: u64,
+    size: u64,
+) -> Result<Vec<u8>, GpuError> {
+    let staging = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("readback.staging"),
+        size,
+        usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+        mapped_at_creation: false,
+    });
+    let mut encoder = gpu
+        .device
+        .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("readback.encoder"),
+        });
+    encoder.copy_buffer_to_buffer(buffer, offset, &staging, 0, size);
+    gpu.queue.submit([encoder.finish()]);
+    map_and_copy(gpu, &staging, |bytes| bytes.to_vec())
+}
+
+/// Maps all of `buffer` (after the work already submitted) and hands its bytes to `f`.
+fn map_and_copy<T>(
+    gpu: &Gpu,
+    buffer: &wgpu::Buffer,
+    f: impl FnOnce(&[u8]) -> T,
+) -> Result<T, GpuError> {
     let slice = buffer.slice(..);
     let (tx, rx) = std::sync::mpsc::channel();
     slice.map_async(wgpu::MapMode::Read, move |r| {
@@ -52,10 +91,7 @@ fn read_texture(
     let view = slice
         .get_mapped_range()
         .map_err(|e| GpuError::Readback(e.to_string()))?;
-    let mut out = Vec::with_capacity((unpadded * height) as usize);
-    for row in view.chunks_exact(padded as usize) {
-        out.extend_from_slice(&row[..unpadded as usize]);
-    }
+    let out = f(&view);
     drop(view);
     buffer.unmap();
     Ok(out)

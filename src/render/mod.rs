@@ -23,6 +23,7 @@ use glam::{Mat4, Vec3};
 use crate::gpu::{Gpu, GpuError, GpuTimer, PassTimes};
 use crate::scene::Scene;
 use crate::shaders;
+use crate::shadow::probe::Probe;
 use crate::shadow::{
     self, LightSpace, ShadowError, ShadowTechnique, TechniqueContext, TechniqueParams,
 };
@@ -102,6 +103,8 @@ pub struct Renderer {
     technique_config: TechniqueConfig,
     pipelines: TechniquePipelines,
     timer: GpuTimer,
+    /// The transmittance probe for the active technique, built on first use.
+    probe: Option<Probe>,
 }
 
 impl Renderer {
@@ -242,6 +245,7 @@ impl Renderer {
             technique_config: technique.clone(),
             pipelines,
             timer: GpuTimer::new(gpu),
+            probe: None,
         })
     }
 
@@ -271,6 +275,7 @@ impl Renderer {
         );
         self.technique = technique;
         self.technique_config = config.clone();
+        self.probe = None;
         Ok(())
     }
 
@@ -315,54 +320,9 @@ impl Renderer {
         particles: &[Particle],
         options: &RenderOptions,
         output: &wgpu::TextureView,
-    ) -> FrameStats {
-        let device = &gpu.device;
-        let (width, height) = self.size();
-        self.upload_opaque(gpu, scene);
-
-        let camera = CameraMatrices::new(scene, width, height);
-        let light = LightSpace::fit(&scene.light, particles);
-        gpu.queue.write_buffer(
-            &self.frame_buffer,
-            0,
-            bytemuck::bytes_of(&frame_uniforms(scene, &camera, &light, width, height)),
-        );
-
-        // Back-to-front by view depth; ties keep pool order so the result is deterministic.
-        let sort_start = Instant::now();
-        let mut order: Vec<(f32, u32)> = particles
-            .iter()
-            .enumerate()
-            .map(|(i, p)| ((p.position - camera.position).dot(camera.forward), i as u32))
-            .collect();
-        order.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
-        let sort_ms = sort_start.elapsed().as_secs_f64() * 1e3;
-        self.instances.clear();
-        self.instances.extend(
-            order
-                .iter()
-                .map(|&(_, i)| ParticleInstance::from_particle(&particles[i as usize])),
-        );
-        self.upload_particles(gpu);
-        let particle_count = particles.len() as u32;
-
-        self.timer.begin_frame();
-        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
-            label: Some("frame.encoder"),
-        });
-        self.technique.build(
-            gpu,
-            shadow::BuildInputs {
-                encoder: &mut encoder,
-                timer: &mut self.timer,
-                frame_bind_group: &self.frame_bind_group,
-                particles: &self.particles,
-                particle_count,
-                particles_cpu: particles,
-                light: &light,
-            },
-        );
-
+    ) -> Result<FrameStats, ShadowError> {
+        let (mut encoder, mut stats, camera) = self.begin_frame(gpu, scene, particles)?;
+        let particle_count = stats.particle_count;
         let bg = scene.shading.background;
         {
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
@@ -399,43 +359,63 @@ impl Renderer {
             pass.set_vertex_buffer(0, self.opaque_vertices.slice(..));
             pass.draw(0..self.opaque_vertex_count, 0..1);
         }
-        {
-            let depth_attachment =
-                (!options.spherical).then_some(wgpu::RenderPassDepthStencilAttachment {
-                    view: &self.targets.depth_view,
-                    depth_ops: Some(wgpu::Operations {
-                        load: wgpu::LoadOp::Load,
-                        store: wgpu::StoreOp::Store,
-                    }),
-                    stencil_ops: None,
+        if let Some(owner) = self.technique.particle_pass() {
+            stats.sort_ms += owner.record(
+                gpu,
+                shadow::ParticlePassInputs {
+                    encoder: &mut encoder,
+                    timer: &mut self.timer,
+                    frame_bind_group: &self.frame_bind_group,
+                    particles,
+                    camera: &camera,
+                    light: &stats.light,
+                    light_axis: (scene.light.target - scene.light.position).normalize(),
+                    hdr_view: &self.targets.hdr_view,
+                    hdr_size: (self.targets.width, self.targets.height),
+                    depth_bind_group: &self.targets.depth_bind_group,
+                    depth_view: &self.targets.depth_view,
+                    spherical: options.spherical,
+                },
+            );
+        } else {
+            {
+                let depth_attachment =
+                    (!options.spherical).then_some(wgpu::RenderPassDepthStencilAttachment {
+                        view: &self.targets.depth_view,
+                        depth_ops: Some(wgpu::Operations {
+                            load: wgpu::LoadOp::Load,
+                            store: wgpu::StoreOp::Store,
+                        }),
+                        stencil_ops: None,
+                    });
+                let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                    label: Some("particles"),
+                    color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                        view: &self.targets.hdr_view,
+                        depth_slice: None,
+                        resolve_target: None,
+                        ops: wgpu::Operations {
+                            load: wgpu::LoadOp::Load,
+                            store: wgpu::StoreOp::Store,
+                        },
+                    })],
+                    depth_stencil_attachment: depth_attachment,
+                    timestamp_writes: self.timer.pass("particles"),
+                    occlusion_query_set: None,
+                    multiview_mask: None,
                 });
-            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("particles"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: &self.targets.hdr_view,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Load,
-                        store: wgpu::StoreOp::Store,
-                    },
-                })],
-                depth_stencil_attachment: depth_attachment,
-                timestamp_writes: self.timer.pass("particles"),
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
-            if options.spherical {
-                pass.set_pipeline(&self.pipelines.particles_spherical);
-                pass.set_bind_group(2, &self.targets.depth_bind_group, &[]);
-            } else {
-                pass.set_pipeline(&self.pipelines.particles_flat);
-            }
-            pass.set_bind_group(0, &self.frame_bind_group, &[]);
-            pass.set_bind_group(1, self.technique.bind_group(), &[]);
-            if particle_count > 0 {
-                pass.set_vertex_buffer(0, self.particles.slice(..));
-                pass.draw(0..gpu_data::BILLBOARD_VERTICES, 0..particle_count);
+                if options.spherical {
+                    pass.set_pipeline(&self.pipelines.particles_spherical);
+                    pass.set_bind_group(2, &self.targets.depth_bind_group, &[]);
+                } else {
+                    pass.set_pipeline(&self.pipelines.particles_flat);
+                }
+                pass.set_bind_group(0, &self.frame_bind_group, &[]);
+                pass.set_bind_group(1, self.technique.bind_group(), &[]);
+                if particle_count > 0 {
+                    pass.set_vertex_buffer(0, self.particles.slice(..));
+                    pass.draw(0..gpu_data::BILLBOARD_VERTICES, 0..particle_count);
+                }
             }
         }
         {
@@ -462,12 +442,114 @@ impl Renderer {
         }
         self.timer.resolve(&mut encoder);
         gpu.queue.submit([encoder.finish()]);
+        Ok(stats)
+    }
 
-        FrameStats {
+    /// The start every frame shares: fit the light space, upload the uniforms, sort the particles
+    /// back to front for the camera (timed) and upload them, and record the technique's build.
+    fn begin_frame(
+        &mut self,
+        gpu: &Gpu,
+        scene: &Scene,
+        particles: &[Particle],
+    ) -> Result<(wgpu::CommandEncoder, FrameStats, CameraMatrices), ShadowError> {
+        let (width, height) = self.size();
+        self.upload_opaque(gpu, scene);
+
+        let camera = CameraMatrices::new(scene, width, height);
+        let light = LightSpace::fit(&scene.light, particles);
+        gpu.queue.write_buffer(
+            &self.frame_buffer,
+            0,
+            bytemuck::bytes_of(&frame_uniforms(scene, &camera, &light, width, height)),
+        );
+
+        // Back-to-front by view depth; ties keep pool order so the result is deterministic.
+        let sort_start = Instant::now();
+        let mut order: Vec<(f32, u32)> = particles
+            .iter()
+            .enumerate()
+            .map(|(i, p)| ((p.position - camera.position).dot(camera.forward), i as u32))
+            .collect();
+        order.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+        let sort_ms = sort_start.elapsed().as_secs_f64() * 1e3;
+        self.instances.clear();
+        self.instances.extend(
+            order
+                .iter()
+                .map(|&(_, i)| ParticleInstance::from_particle(&particles[i as usize])),
+        );
+        self.upload_particles(gpu);
+        let particle_count = particles.len() as u32;
+
+        self.timer.begin_frame();
+        let mut encoder = gpu
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("frame.encoder"),
+            });
+        self.technique.build(
+            gpu,
+            shadow::BuildInputs {
+                encoder: &mut encoder,
+                timer: &mut self.timer,
+                frame_bind_group: &self.frame_bind_group,
+                particles: &self.particles,
+                particle_count,
+                light: &light,
+            },
+        )?;
+        let stats = FrameStats {
             sort_ms,
             particle_count,
             light,
-        }
+        };
+        Ok((encoder, stats, camera))
+    }
+
+    /// Transmittance T(p) from the light to each of `points` (world metres) as the active
+    /// technique sees it for this frame of `scene`: the technique builds its maps as for
+    /// [`Renderer::render`], then a compute shader evaluates the same `shadow_transmittance` the
+    /// lighting shaders call.
+    pub fn probe(
+        &mut self,
+        gpu: &Gpu,
+        scene: &Scene,
+        particles: &[Particle],
+        points: &[Vec3],
+    ) -> anyhow::Result<Vec<f32>> {
+        let (mut encoder, stats, _) = self.begin_frame(gpu, scene, particles)?;
+        self.timer.resolve(&mut encoder);
+        let probe = self
+            .probe
+            .get_or_insert_with(|| Probe::new(gpu, &self.frame_layout, self.technique.as_ref()));
+        let results = match self.technique.probe_pass() {
+            Some(owner) => owner.probe(
+                gpu,
+                shadow::ProbeInputs {
+                    encoder,
+                    frame_bind_group: &self.frame_bind_group,
+                    particles,
+                    light: &stats.light,
+                    light_axis: (scene.light.target - scene.light.position).normalize(),
+                    camera_forward: CameraMatrices::new(scene, 1, 1).forward,
+                    probe,
+                    points,
+                },
+            )?,
+            None => {
+                let pending = probe.record(
+                    gpu,
+                    &mut encoder,
+                    &self.frame_bind_group,
+                    self.technique.bind_group(),
+                    points,
+                );
+                gpu.queue.submit([encoder.finish()]);
+                pending.read(gpu)?
+            }
+        };
+        Ok(results)
     }
 
     fn upload_opaque(&mut self, gpu: &Gpu, scene: &Scene) {
@@ -849,7 +931,7 @@ pub fn render_offscreen(
     let (w, h) = (scene.output.width_px, scene.output.height_px);
     let mut renderer = Renderer::new(gpu, w, h, OUTPUT_FORMAT, technique)?;
     let target = OffscreenTarget::new(gpu, w, h);
-    let stats = renderer.render(gpu, scene, particles, options, &target.view);
+    let stats = renderer.render(gpu, scene, particles, options, &target.view)?;
     let times = renderer.gpu_times(gpu)?;
     Ok(OffscreenFrame {
         image: crate::gpu::read_texture_rgba8(gpu, &target.texture)?,

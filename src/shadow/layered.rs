@@ -547,7 +547,7 @@ impl ShadowTechnique for Layered {
         &self.lookup_bind_group
     }
 
-    fn build(&mut self, gpu: &Gpu, inputs: BuildInputs<'_>) {
+    fn build(&mut self, gpu: &Gpu, inputs: BuildInputs<'_>) -> Result<(), ShadowError> {
         gpu.queue.write_buffer(
             &self.params_buffer,
             0,
@@ -598,6 +598,7 @@ impl ShadowTechnique for Layered {
             particles,
             inputs.particle_count,
         );
+        Ok(())
     }
 }
 

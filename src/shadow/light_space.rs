@@ -14,6 +14,8 @@ use crate::sim::Particle;
 /// The light's projection and the frame's depth bounds.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LightSpace {
+    /// The spotlight's position, world metres.
+    pub position: Vec3,
     /// Perspective projection x view of the spotlight covering its cone.
     pub clip_from_world: Mat4,
     /// Radial distance from the light to the nearest particle surface, metres.
@@ -49,6 +51,7 @@ impl LightSpace {
         let far = far.max(near + 1e-3);
         let proj = Mat4::perspective_rh(fov, 1.0, 0.05, far.max(1.0) * 2.0);
         Self {
+            position: light.position,
             clip_from_world: proj * view,
             near_m: near,
             far_m: far,

@@ -16,11 +16,13 @@
 //! `shaders/shadow/`, and one line in [`REGISTRY`].
 
 pub mod dom;
+pub mod exact;
 pub mod fom;
 pub mod layered;
 pub mod light_space;
 pub mod none;
 pub mod osm;
+pub mod probe;
 
 pub use light_space::LightSpace;
 
@@ -64,6 +66,19 @@ pub enum ShadowError {
         allowed_attachments: u32,
         allowed_bytes: u32,
     },
+    #[error(
+        "exact at {resolution_px}x{resolution_px} needs {segments} segments ({bytes} bytes of \
+         lists) this frame, but the adapter binds at most {limit} bytes per buffer: use a lower \
+         --shadow-res"
+    )]
+    ListsTooLarge {
+        resolution_px: u32,
+        segments: u64,
+        bytes: u64,
+        limit: u64,
+    },
+    #[error("GPU error: {0}")]
+    Gpu(String),
 }
 
 /// How a particle's optical depth is placed along the light ray when building layered maps.
@@ -137,8 +152,6 @@ pub struct BuildInputs<'a> {
     /// front for the camera.
     pub particles: &'a wgpu::Buffer,
     pub particle_count: u32,
-    /// The same particles on the CPU, in simulation order.
-    pub particles_cpu: &'a [Particle],
     pub light: &'a LightSpace,
 }
 
@@ -165,6 +178,25 @@ pub struct ParticlePassInputs<'a> {
     pub spherical: bool,
 }
 
+/// What a technique with its own probe (see [`ShadowTechnique::probe_pass`]) gets: the frame's
+/// encoder after its build pass, and the generic probe pipeline to dispatch with its bindings.
+pub struct ProbeInputs<'a> {
+    pub encoder: wgpu::CommandEncoder,
+    pub frame_bind_group: &'a wgpu::BindGroup,
+    pub particles: &'a [Particle],
+    pub light: &'a LightSpace,
+    pub light_axis: glam::Vec3,
+    pub camera_forward: glam::Vec3,
+    pub probe: &'a probe::Probe,
+    pub points: &'a [glam::Vec3],
+}
+
+/// A technique whose transmittance depends on more than its maps after the build pass.
+pub trait ProbePass {
+    /// Submits `inputs.encoder` and whatever else it needs; returns T per point.
+    fn probe(&mut self, gpu: &Gpu, inputs: ProbeInputs<'_>) -> anyhow::Result<Vec<f32>>;
+}
+
 /// A technique's own particle pass.
 pub trait ParticlePass {
     /// Records the eye pass; returns the CPU time spent sorting, milliseconds.
@@ -183,12 +215,19 @@ pub trait ShadowTechnique {
     fn bind_group_layout(&self) -> &wgpu::BindGroupLayout;
     /// The group-1 bind group for the lookup.
     fn bind_group(&self) -> &wgpu::BindGroup;
-    /// Records this frame's shadow passes.
-    fn build(&mut self, gpu: &Gpu, inputs: BuildInputs<'_>);
+    /// Records this frame's shadow passes. Fails only when this frame's maps cannot be held
+    /// (`exact`'s lists beyond the adapter's buffer limits).
+    fn build(&mut self, gpu: &Gpu, inputs: BuildInputs<'_>) -> Result<(), ShadowError>;
     /// `Some` when the technique draws the particles to the eye itself (half-angle slicing
     /// interleaves eye and light passes). `None`, the default: the renderer draws the sorted
     /// particles, lit through `shadow_transmittance`.
     fn particle_pass(&mut self) -> Option<&mut dyn ParticlePass> {
+        None
+    }
+    /// `Some` when T(p) at a point is not simply the lookup over the built maps (half-angle
+    /// slicing: it depends on which slice the point falls in). `None`, the default: the probe
+    /// dispatches `shadow_transmittance` with [`ShadowTechnique::bind_group`].
+    fn probe_pass(&mut self) -> Option<&mut dyn ProbePass> {
         None
     }
     /// The maps this frame's lookups read, for inspection: (label, view, channels in the view).
@@ -223,6 +262,7 @@ pub static REGISTRY: &[TechniqueEntry] = &[
     dom::ENTRY,
     fom::ENTRY,
     fom::SIGMA_ENTRY,
+    exact::ENTRY,
 ];
 
 /// Comma-separated registry names.
@@ -284,6 +324,7 @@ pub fn all_shader_modules() -> Vec<(String, String)> {
             ));
         }
         out.extend((entry.extra_shaders)());
+        out.push((format!("probe[{}]", entry.name), probe::source(entry)));
     }
     out
 }

@@ -57,5 +57,7 @@ impl ShadowTechnique for NoShadow {
     fn bind_group(&self) -> &wgpu::BindGroup {
         &self.bind_group
     }
-    fn build(&mut self, _gpu: &Gpu, _inputs: BuildInputs<'_>) {}
+    fn build(&mut self, _gpu: &Gpu, _inputs: BuildInputs<'_>) -> Result<(), ShadowError> {
+        Ok(())
+    }
 }

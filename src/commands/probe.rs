@@ -1,0 +1,177 @@
+//! `smokeshadow probe`: transmittance at a world point, or along the light ray through it, for a
+//! technique and for the `exact` reference, both evaluated by the techniques' own lookup shaders
+//! on the GPU ([`crate::render::Renderer::probe`]).
+
+use std::path::PathBuf;
+
+use glam::Vec3;
+use serde::Serialize;
+
+use super::TechniqueArgs;
+use crate::gpu::{AdapterPreference, Gpu};
+use crate::render::{OUTPUT_FORMAT, Renderer, TechniqueConfig};
+use crate::scene::Scene;
+use crate::shadow::LightSpace;
+
+#[derive(Clone, Debug, clap::Args)]
+pub struct ProbeArgs {
+    /// Scene file (TOML); the embedded thesis scene when omitted.
+    pub scene: Option<PathBuf>,
+    #[command(flatten)]
+    pub technique: TechniqueArgs,
+    /// World point X,Y,Z in metres.
+    #[arg(long, value_parser = parse_point, allow_hyphen_values = true)]
+    pub at: Vec3,
+    /// Also print N samples of T along the light ray through the point, spanning the smoke's
+    /// light-space depth range.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(2..=100_000))]
+    pub along_light: Option<u32>,
+    /// Shadow resolution of the `exact` reference (default: the technique's, so that only the
+    /// depth representation differs).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=8192))]
+    pub exact_res: Option<u32>,
+    /// Print JSON instead of a table.
+    #[arg(long)]
+    pub json: bool,
+}
+
+fn parse_point(s: &str) -> Result<Vec3, String> {
+    let parts: Vec<f32> = s
+        .split(',')
+        .map(|v| v.trim().parse::<f32>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("\"{s}\" is not X,Y,Z (three numbers, e.g. 0,2.5,0)"))?;
+    match parts[..] {
+        [x, y, z] if parts.iter().all(|v| v.is_finite()) => Ok(Vec3::new(x, y, z)),
+        _ => Err(format!(
+            "\"{s}\" is not X,Y,Z (three numbers, e.g. 0,2.5,0)"
+        )),
+    }
+}
+
+/// One probed point.
+#[derive(Debug, Serialize)]
+pub struct Sample {
+    pub point: [f32; 3],
+    /// Distance from the spotlight, metres.
+    pub distance_m: f32,
+    /// Distance normalised to the smoke's light-space bounds (0 near, 1 far).
+    pub depth01: f32,
+    pub transmittance: f32,
+    pub exact: f32,
+}
+
+#[derive(Debug, Serialize)]
+struct Report<'a> {
+    scene: &'a str,
+    technique: &'a str,
+    channels: u32,
+    channels_used: u32,
+    shadow_res: u32,
+    exact_res: u32,
+    splat: &'a str,
+    light_near_m: f32,
+    light_far_m: f32,
+    at: Sample,
+    along_light: Vec<Sample>,
+}
+
+pub fn run(args: &ProbeArgs, adapter: &AdapterPreference) -> anyhow::Result<()> {
+    let scene = Scene::load_or_default(args.scene.as_deref())?;
+    let technique = args.technique.config(&scene)?;
+    let exact = TechniqueConfig {
+        name: "exact".to_owned(),
+        params: crate::shadow::TechniqueParams {
+            resolution_px: args.exact_res.unwrap_or(technique.params.resolution_px),
+            ..technique.params.clone()
+        },
+    };
+    let gpu = Gpu::new(adapter)?;
+    let particles = crate::sim::simulate(&scene);
+    let light = LightSpace::fit(&scene.light, &particles);
+
+    let mut points = vec![args.at];
+    if let Some(n) = args.along_light {
+        let dir = (args.at - scene.light.position).normalize_or(Vec3::NEG_Y);
+        points.extend((0..n).map(|i| {
+            let t = light.near_m + (light.far_m - light.near_m) * i as f32 / (n - 1) as f32;
+            scene.light.position + dir * t
+        }));
+    }
+    let (w, h) = (scene.output.width_px, scene.output.height_px);
+    let mut renderer = Renderer::new(&gpu, w, h, OUTPUT_FORMAT, &technique)?;
+    let t_technique = renderer.probe(&gpu, &scene, &particles, &points)?;
+    let channels_used = renderer.technique().channels_used();
+    renderer.set_technique(&gpu, &exact)?;
+    let t_exact = renderer.probe(&gpu, &scene, &particles, &points)?;
+
+    let mut samples = points
+        .iter()
+        .zip(t_technique.iter().zip(&t_exact))
+        .map(|(p, (&t, &e))| {
+            let distance_m = p.distance(scene.light.position);
+            Sample {
+                point: p.to_array(),
+                distance_m,
+                depth01: (distance_m - light.near_m) / (light.far_m - light.near_m),
+                transmittance: t,
+                exact: e,
+            }
+        });
+    let at = samples.next().expect("the probed point is always first");
+    let report = Report {
+        scene: &scene.name,
+        technique: &technique.name,
+        channels: technique.params.channels,
+        channels_used,
+        shadow_res: technique.params.resolution_px,
+        exact_res: exact.params.resolution_px,
+        splat: technique.params.splat.name(),
+        light_near_m: light.near_m,
+        light_far_m: light.far_m,
+        at,
+        along_light: samples.collect(),
+    };
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+        return Ok(());
+    }
+    println!(
+        "{} / {} at {} channels ({} used), {} splat, shadow map {}², exact {}²; smoke between {:.3} and {:.3} m from the light",
+        report.scene,
+        report.technique,
+        report.channels,
+        report.channels_used,
+        report.splat,
+        report.shadow_res,
+        report.exact_res,
+        report.light_near_m,
+        report.light_far_m
+    );
+    let header = format!(
+        "{:>9} {:>8} {:>12} {:>12} {:>10}",
+        "dist m", "depth01", report.technique, "exact", "diff"
+    );
+    let row = |s: &Sample| {
+        format!(
+            "{:>9.3} {:>8.3} {:>12.6} {:>12.6} {:>+10.6}",
+            s.distance_m,
+            s.depth01,
+            s.transmittance,
+            s.exact,
+            s.transmittance - s.exact
+        )
+    };
+    let p = report.at.point;
+    println!("T at ({}, {}, {}):", p[0], p[1], p[2]);
+    println!("{header}");
+    println!("{}", row(&report.at));
+    if !report.along_light.is_empty() {
+        println!("T along the light ray through it:");
+        println!("{header}");
+        for s in &report.along_light {
+            println!("{}", row(s));
+        }
+    }
+    Ok(())
+}
