@@ -284,8 +284,7 @@ impl Exact {
         self.raster(
             encoder,
             timer,
-            "exact.count",
-            &self.count_pipeline,
+            false,
             frame_bind_group,
             particles,
             particle_count,
@@ -305,17 +304,22 @@ impl Exact {
         pass.dispatch_workgroups(row_groups, 1, 1);
     }
 
-    /// Records one raster pass of the light-space particles with `pipeline`.
+    /// Records one raster pass of the light-space particles: the count pass, or with `fill` the
+    /// fill pass.
     fn raster(
         &self,
         encoder: &mut wgpu::CommandEncoder,
         timer: &mut crate::gpu::GpuTimer,
-        label: &str,
-        pipeline: &wgpu::RenderPipeline,
+        fill: bool,
         frame_bind_group: &wgpu::BindGroup,
         particles: &wgpu::Buffer,
         particle_count: u32,
     ) {
+        let (label, pipeline) = if fill {
+            ("exact.fill", &self.fill_pipeline)
+        } else {
+            ("exact.count", &self.count_pipeline)
+        };
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some(label),
             color_attachments: &[cleared_attachment(
@@ -475,8 +479,7 @@ impl ShadowTechnique for Exact {
         self.raster(
             encoder,
             inputs.timer,
-            "exact.fill",
-            &self.fill_pipeline,
+            true,
             inputs.frame_bind_group,
             particles,
             particle_count,
