@@ -83,6 +83,14 @@ pub const FILES: &[(&str, &str)] = &[
         "shadow/probe.wgsl",
         include_str!("../shaders/shadow/probe.wgsl"),
     ),
+    (
+        "shadow/has.wgsl",
+        include_str!("../shaders/shadow/has.wgsl"),
+    ),
+    (
+        "shadow/has_build.wgsl",
+        include_str!("../shaders/shadow/has_build.wgsl"),
+    ),
 ];
 
 /// Name of the virtual import that stands for the active shadow technique's lookup shader.

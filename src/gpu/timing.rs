@@ -41,15 +41,20 @@ impl PassTimes {
 }
 
 impl GpuTimer {
+    /// A timer that measures nothing (for work outside a timed frame).
+    pub fn disabled() -> Self {
+        Self {
+            query_set: None,
+            resolve: None,
+            readback: None,
+            period_ns: 0.0,
+            names: Vec::new(),
+        }
+    }
+
     pub fn new(gpu: &Gpu) -> Self {
         if !gpu.has_timestamps() {
-            return Self {
-                query_set: None,
-                resolve: None,
-                readback: None,
-                period_ns: 0.0,
-                names: Vec::new(),
-            };
+            return Self::disabled();
         }
         let count = MAX_PASSES * 2;
         let size = u64::from(count) * 8;

@@ -661,42 +661,21 @@ impl TechniquePipelines {
         depth_layout: &wgpu::BindGroupLayout,
         technique: &dyn ShadowTechnique,
     ) -> Self {
-        let entry = shadow::find(technique.name()).expect("a live technique is registered");
+        let name = technique.name();
+        let entry = shadow::find(name).expect("a live technique is registered");
         let lookup =
             shaders::source(entry.lookup_shader).expect("registered lookup shader is embedded");
-        let virtuals = [(shaders::SHADOW_TECHNIQUE, lookup)];
-        let name = technique.name();
         let opaque_module = shaders::module(
             device,
             &format!("opaque[{name}]"),
-            &shaders::compose("render/opaque.wgsl", &virtuals),
-        );
-        let particle_module = shaders::module(
-            device,
-            &format!("particles[{name}]"),
-            &shaders::compose("render/particles.wgsl", &virtuals),
+            &shaders::compose("render/opaque.wgsl", &[(shaders::SHADOW_TECHNIQUE, lookup)]),
         );
         let tech_layout = technique.bind_group_layout();
-        let layout = |label, groups: &[Option<&wgpu::BindGroupLayout>]| {
-            device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                label: Some(label),
-                bind_group_layouts: groups,
-                immediate_size: 0,
-            })
-        };
-        let opaque_layout = layout(
-            "opaque.pipeline_layout",
-            &[Some(frame_layout), Some(tech_layout)],
-        );
-        let spherical_layout = layout(
-            "particles.spherical.pipeline_layout",
-            &[Some(frame_layout), Some(tech_layout), Some(depth_layout)],
-        );
-        let flat_layout = layout(
-            "particles.flat.pipeline_layout",
-            &[Some(frame_layout), Some(tech_layout)],
-        );
-
+        let opaque_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("opaque.pipeline_layout"),
+            bind_group_layouts: &[Some(frame_layout), Some(tech_layout)],
+            immediate_size: 0,
+        });
         let opaque = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
             label: Some("opaque.pipeline"),
             layout: Some(&opaque_layout),
@@ -727,66 +706,143 @@ impl TechniquePipelines {
             multiview_mask: None,
             cache: None,
         });
-        // Premultiplied "over": C = C_src + (1 - α_src) C_dst, and the same for alpha.
-        let over = wgpu::BlendComponent {
-            src_factor: wgpu::BlendFactor::One,
-            dst_factor: wgpu::BlendFactor::OneMinusSrcAlpha,
-            operation: wgpu::BlendOperation::Add,
-        };
-        let particle_target = [Some(wgpu::ColorTargetState {
-            format: HDR_FORMAT,
-            blend: Some(wgpu::BlendState {
-                color: over,
-                alpha: over,
-            }),
-            write_mask: wgpu::ColorWrites::ALL,
-        })];
-        let particles =
-            |label, layout: &wgpu::PipelineLayout, fs, depth: Option<wgpu::DepthStencilState>| {
-                device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                    label: Some(label),
-                    layout: Some(layout),
-                    vertex: wgpu::VertexState {
-                        module: &particle_module,
-                        entry_point: Some("vs_main"),
-                        compilation_options: Default::default(),
-                        buffers: &[Some(ParticleInstance::LAYOUT)],
-                    },
-                    primitive: wgpu::PrimitiveState::default(),
-                    depth_stencil: depth,
-                    multisample: Default::default(),
-                    fragment: Some(wgpu::FragmentState {
-                        module: &particle_module,
-                        entry_point: Some(fs),
-                        compilation_options: Default::default(),
-                        targets: &particle_target,
-                    }),
-                    multiview_mask: None,
-                    cache: None,
-                })
-            };
-        let particles_spherical = particles(
-            "particles.spherical.pipeline",
-            &spherical_layout,
-            "fs_spherical",
-            None,
-        );
-        let particles_flat = particles(
-            "particles.flat.pipeline",
-            &flat_layout,
-            "fs_flat",
-            Some(wgpu::DepthStencilState {
-                format: DEPTH_FORMAT,
-                depth_write_enabled: Some(false),
-                depth_compare: Some(wgpu::CompareFunction::Less),
-                stencil: Default::default(),
-                bias: Default::default(),
-            }),
+        let particles = ParticlePipelines::new(
+            device,
+            &ParticlePipelineDesc {
+                name,
+                lookup_source: lookup,
+                frame_layout,
+                lookup_layout: tech_layout,
+                depth_layout,
+                blend: OVER,
+            },
         );
         Self {
             opaque,
-            particles_spherical,
-            particles_flat,
+            particles_spherical: particles.spherical,
+            particles_flat: particles.flat,
+        }
+    }
+}
+
+/// Premultiplied "over" (thesis Eq. 1.5): C = C_src + (1 - α_src) C_dst, the same for alpha.
+pub const OVER: wgpu::BlendComponent = wgpu::BlendComponent {
+    src_factor: wgpu::BlendFactor::One,
+    dst_factor: wgpu::BlendFactor::OneMinusSrcAlpha,
+    operation: wgpu::BlendOperation::Add,
+};
+
+/// Premultiplied "under" (thesis Eq. 1.4), for front-to-back compositing:
+/// C = C_dst + (1 - α_dst) C_src, the same for alpha.
+pub const UNDER: wgpu::BlendComponent = wgpu::BlendComponent {
+    src_factor: wgpu::BlendFactor::OneMinusDstAlpha,
+    dst_factor: wgpu::BlendFactor::One,
+    operation: wgpu::BlendOperation::Add,
+};
+
+/// What the particle pipelines are built from.
+pub struct ParticlePipelineDesc<'a> {
+    /// Technique name, for labels.
+    pub name: &'a str,
+    /// The technique's lookup shader (defines `shadow_transmittance` and group 1).
+    pub lookup_source: &'a str,
+    pub frame_layout: &'a wgpu::BindGroupLayout,
+    pub lookup_layout: &'a wgpu::BindGroupLayout,
+    pub depth_layout: &'a wgpu::BindGroupLayout,
+    /// How particles composite into the HDR-format target.
+    pub blend: wgpu::BlendComponent,
+}
+
+/// The particle pass's two pipelines (`shaders/render/particles.wgsl`): spherical billboards
+/// (group 2 = opaque depth) and flat billboards with a hard depth test.
+pub struct ParticlePipelines {
+    pub spherical: wgpu::RenderPipeline,
+    pub flat: wgpu::RenderPipeline,
+}
+
+impl ParticlePipelines {
+    pub fn new(device: &wgpu::Device, desc: &ParticlePipelineDesc<'_>) -> Self {
+        let name = desc.name;
+        let module = shaders::module(
+            device,
+            &format!("particles[{name}]"),
+            &shaders::compose(
+                "render/particles.wgsl",
+                &[(shaders::SHADOW_TECHNIQUE, desc.lookup_source)],
+            ),
+        );
+        let layout = |label: &str, groups: &[Option<&wgpu::BindGroupLayout>]| {
+            device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some(label),
+                bind_group_layouts: groups,
+                immediate_size: 0,
+            })
+        };
+        let spherical_layout = layout(
+            &format!("particles[{name}].spherical.pipeline_layout"),
+            &[
+                Some(desc.frame_layout),
+                Some(desc.lookup_layout),
+                Some(desc.depth_layout),
+            ],
+        );
+        let flat_layout = layout(
+            &format!("particles[{name}].flat.pipeline_layout"),
+            &[Some(desc.frame_layout), Some(desc.lookup_layout)],
+        );
+        let target = [Some(wgpu::ColorTargetState {
+            format: HDR_FORMAT,
+            blend: Some(wgpu::BlendState {
+                color: desc.blend,
+                alpha: desc.blend,
+            }),
+            write_mask: wgpu::ColorWrites::ALL,
+        })];
+        let pipeline = |label: &str,
+                        layout: &wgpu::PipelineLayout,
+                        fs,
+                        depth: Option<wgpu::DepthStencilState>| {
+            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some(label),
+                layout: Some(layout),
+                vertex: wgpu::VertexState {
+                    module: &module,
+                    entry_point: Some("vs_main"),
+                    compilation_options: Default::default(),
+                    buffers: &[Some(ParticleInstance::LAYOUT)],
+                },
+                primitive: wgpu::PrimitiveState::default(),
+                depth_stencil: depth,
+                multisample: Default::default(),
+                fragment: Some(wgpu::FragmentState {
+                    module: &module,
+                    entry_point: Some(fs),
+                    compilation_options: Default::default(),
+                    targets: &target,
+                }),
+                multiview_mask: None,
+                cache: None,
+            })
+        };
+        Self {
+            spherical: pipeline(
+                &format!("particles[{name}].spherical.pipeline"),
+                &spherical_layout,
+                "fs_spherical",
+                None,
+            ),
+            flat: pipeline(
+                &format!("particles[{name}].flat.pipeline"),
+                &flat_layout,
+                "fs_flat",
+                Some(wgpu::DepthStencilState {
+                    format: DEPTH_FORMAT,
+                    depth_write_enabled: Some(false),
+                    depth_compare: Some(wgpu::CompareFunction::Less),
+                    stencil: Default::default(),
+                    bias: Default::default(),
+                }),
+            ),
         }
     }
 }

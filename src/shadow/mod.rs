@@ -18,6 +18,7 @@
 pub mod dom;
 pub mod exact;
 pub mod fom;
+pub mod half_angle;
 pub mod layered;
 pub mod light_space;
 pub mod none;
@@ -262,6 +263,7 @@ pub static REGISTRY: &[TechniqueEntry] = &[
     dom::ENTRY,
     fom::ENTRY,
     fom::SIGMA_ENTRY,
+    half_angle::ENTRY,
     exact::ENTRY,
 ];
 

@@ -1,0 +1,660 @@
+//! `has`: half-angle slicing for particles (Kniss et al. 2003; Green 2008, "Volumetric Particle
+//! Shadows"; thesis 3.3.3.3).
+//!
+//! The particles are sorted along the vector halfway between the view and the light directions
+//! and split into S batches (S = the channel budget, so its curves line up with the layered
+//! techniques in a sweep). For each batch in turn: draw it to the eye, lit through the light
+//! buffer (the optical depth of the batches before it), then draw it into the light buffer. When
+//! the camera faces the light, the half-angle uses the inverted view vector and the eye
+//! composites back to front ("over", thesis Eq. 1.5); otherwise front to back ("under",
+//! Eq. 1.4) into an eye buffer of its own that is then composited over the frame. Either way
+//! the light buffer is always filled front to back from the light.
+//!
+//! So this technique owns the particle pass ([`ShadowTechnique::particle_pass`]). Its build pass
+//! fills the light buffer with every batch, which is what the opaque pass (the ground and the
+//! boxes receiving the smoke's shadow) reads. The light direction used for the half-angle is the
+//! spotlight's axis; the light buffer itself is the spotlight's perspective map.
+//!
+//! Memory: the light buffer (one R16F channel at the shadow resolution), the eye buffer (RGBA16F
+//! at the frame size) and the particles re-sorted along the half-angle, all in the ledger.
+
+use std::ops::Range;
+use std::time::Instant;
+
+use bytemuck::{Pod, Zeroable};
+use glam::Vec3;
+
+use super::layered::{
+    ADDITIVE, billboard_pipeline, cleared_attachment, map_texture, uniform_entry,
+};
+use super::probe::PendingProbe;
+use super::{
+    BuildInputs, LOOKUP_STAGES, ParticlePass, ParticlePassInputs, ProbeInputs, ProbePass,
+    ShadowError, ShadowTechnique, TechniqueContext, TechniqueEntry, TechniqueParams,
+};
+use crate::gpu::{Gpu, MemoryLedger};
+use crate::render::gpu_data::{BILLBOARD_VERTICES, ParticleInstance};
+use crate::render::{HDR_FORMAT, OVER, ParticlePipelineDesc, ParticlePipelines, UNDER};
+use crate::shaders;
+use crate::sim::Particle;
+
+pub const ENTRY: TechniqueEntry = TechniqueEntry {
+    name: "has",
+    description: "half-angle slicing: S batches along the half-angle, eye and light interleaved",
+    min_channels: 1,
+    lookup_shader: "shadow/has.wgsl",
+    extra_shaders: || {
+        vec![(
+            "has.build".to_owned(),
+            shaders::compose("shadow/has_build.wgsl", &[]),
+        )]
+    },
+    create: |ctx, params| Ok(Box::new(HalfAngle::new(ctx, params)?)),
+};
+
+/// Format of the light buffer (accumulated optical depth).
+const LIGHT_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R16Float;
+
+/// Keep in sync with `HasParams` in shaders/shadow/has.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+struct HasParams {
+    slices: u32,
+    _pad: [u32; 3],
+}
+
+/// The slicing axis and how the eye composites along it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Slicing {
+    /// Unit half-angle axis; particles are sorted by increasing `dot(p, axis)`, which is front
+    /// to back from the light.
+    pub axis: Vec3,
+    /// True: that order is also front to back for the eye ("under"); false: back to front
+    /// ("over", the camera faces the light).
+    pub eye_front_to_back: bool,
+}
+
+impl Slicing {
+    /// The half-angle between the unit view direction and the unit light direction (the way
+    /// light travels), inverting the view when the camera faces the light.
+    pub fn new(view_dir: Vec3, light_dir: Vec3) -> Self {
+        let eye_front_to_back = view_dir.dot(light_dir) >= 0.0;
+        let view = if eye_front_to_back {
+            view_dir
+        } else {
+            -view_dir
+        };
+        let axis = (view + light_dir).try_normalize().unwrap_or(light_dir);
+        Self {
+            axis,
+            eye_front_to_back,
+        }
+    }
+
+    /// Particle indices sorted along the axis (ties by index, deterministic).
+    pub fn order(&self, particles: &[Particle]) -> Vec<u32> {
+        let mut keyed: Vec<(f32, u32)> = particles
+            .iter()
+            .enumerate()
+            .map(|(i, p)| (p.position.dot(self.axis), i as u32))
+            .collect();
+        keyed.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        keyed.into_iter().map(|(_, i)| i).collect()
+    }
+}
+
+/// `count` sorted particles split into `slices` batches of (nearly) equal size; empty batches
+/// are dropped when there are fewer particles than slices.
+pub fn batches(count: u32, slices: u32) -> Vec<Range<u32>> {
+    let (n, s) = (u64::from(count), u64::from(slices.max(1)));
+    (0..s)
+        .map(|k| (k * n / s) as u32..((k + 1) * n / s) as u32)
+        .filter(|r| !r.is_empty())
+        .collect()
+}
+
+/// The eye buffer at the frame's size.
+struct EyeBuffer {
+    size: (u32, u32),
+    view: wgpu::TextureView,
+    bind_group: wgpu::BindGroup,
+}
+
+pub struct HalfAngle {
+    slices: u32,
+    device: wgpu::Device,
+    light_view: wgpu::TextureView,
+    lookup_layout: wgpu::BindGroupLayout,
+    lookup_bind_group: wgpu::BindGroup,
+    light_pipeline: wgpu::RenderPipeline,
+    eye_over: ParticlePipelines,
+    eye_under: ParticlePipelines,
+    composite_layout: wgpu::BindGroupLayout,
+    composite_pipeline: wgpu::RenderPipeline,
+    eye: Option<EyeBuffer>,
+    instances: wgpu::Buffer,
+    instance_capacity: u64,
+    memory: MemoryLedger,
+}
+
+fn instance_buffer(
+    memory: &mut MemoryLedger,
+    device: &wgpu::Device,
+    capacity: u64,
+) -> wgpu::Buffer {
+    memory.forget("has.instances");
+    memory.buffer(
+        device,
+        &wgpu::BufferDescriptor {
+            label: Some("has.instances"),
+            size: capacity * std::mem::size_of::<ParticleInstance>() as u64,
+            usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        },
+    )
+}
+
+impl HalfAngle {
+    pub fn new(ctx: &TechniqueContext<'_>, params: &TechniqueParams) -> Result<Self, ShadowError> {
+        let gpu = ctx.gpu;
+        let device = &gpu.device;
+        let mut memory = MemoryLedger::default();
+        let params_buffer = memory.buffer(
+            device,
+            &wgpu::BufferDescriptor {
+                label: Some("has.params"),
+                size: std::mem::size_of::<HasParams>() as u64,
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            },
+        );
+        gpu.queue.write_buffer(
+            &params_buffer,
+            0,
+            bytemuck::bytes_of(&HasParams {
+                slices: params.channels,
+                _pad: [0; 3],
+            }),
+        );
+        let light_view = map_texture(
+            &mut memory,
+            device,
+            "has.light",
+            LIGHT_FORMAT,
+            params.resolution_px,
+        );
+        let lookup_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("has.lookup.layout"),
+            entries: &[
+                uniform_entry(0, LOOKUP_STAGES),
+                wgpu::BindGroupLayoutEntry {
+                    binding: 1,
+                    visibility: LOOKUP_STAGES,
+                    ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+                    count: None,
+                },
+                super::layered::texture_entry(2, LOOKUP_STAGES),
+            ],
+        });
+        let sampler = super::map_sampler(device, "has.sampler");
+        let lookup_bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("has.lookup.bind_group"),
+            layout: &lookup_layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: params_buffer.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: wgpu::BindingResource::Sampler(&sampler),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: wgpu::BindingResource::TextureView(&light_view),
+                },
+            ],
+        });
+
+        let module = shaders::module(
+            device,
+            "has.build",
+            &shaders::compose("shadow/has_build.wgsl", &[]),
+        );
+        let light_pipeline = billboard_pipeline(
+            device,
+            "has.light",
+            &module,
+            "fs_light",
+            &[Some(ctx.frame_layout)],
+            &[LIGHT_FORMAT],
+            ADDITIVE,
+        );
+        let lookup_source =
+            shaders::source(ENTRY.lookup_shader).expect("registered lookup shader is embedded");
+        let eye = |blend| {
+            ParticlePipelines::new(
+                device,
+                &ParticlePipelineDesc {
+                    name: "has",
+                    lookup_source,
+                    frame_layout: ctx.frame_layout,
+                    lookup_layout: &lookup_layout,
+                    depth_layout: ctx.depth_layout,
+                    blend,
+                },
+            )
+        };
+        let (eye_over, eye_under) = (eye(OVER), eye(UNDER));
+
+        let composite_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("has.composite.layout"),
+            entries: &[wgpu::BindGroupLayoutEntry {
+                binding: 0,
+                visibility: wgpu::ShaderStages::FRAGMENT,
+                ty: wgpu::BindingType::Texture {
+                    sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                    view_dimension: wgpu::TextureViewDimension::D2,
+                    multisampled: false,
+                },
+                count: None,
+            }],
+        });
+        let composite_pipeline_layout =
+            device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some("has.composite.pipeline_layout"),
+                bind_group_layouts: &[Some(ctx.frame_layout), Some(&composite_layout)],
+                immediate_size: 0,
+            });
+        let composite_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("has.composite.pipeline"),
+            layout: Some(&composite_pipeline_layout),
+            vertex: wgpu::VertexState {
+                module: &module,
+                entry_point: Some("vs_composite"),
+                compilation_options: Default::default(),
+                buffers: &[],
+            },
+            primitive: wgpu::PrimitiveState::default(),
+            depth_stencil: None,
+            multisample: wgpu::MultisampleState::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &module,
+                entry_point: Some("fs_composite"),
+                compilation_options: Default::default(),
+                targets: &[Some(wgpu::ColorTargetState {
+                    format: HDR_FORMAT,
+                    blend: Some(wgpu::BlendState {
+                        color: OVER,
+                        alpha: OVER,
+                    }),
+                    write_mask: wgpu::ColorWrites::ALL,
+                })],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        let instance_capacity = 1024;
+        let instances = instance_buffer(&mut memory, device, instance_capacity);
+        Ok(Self {
+            slices: params.channels,
+            device: device.clone(),
+            light_view,
+            lookup_layout,
+            lookup_bind_group,
+            light_pipeline,
+            eye_over,
+            eye_under,
+            composite_layout,
+            composite_pipeline,
+            eye: None,
+            instances,
+            instance_capacity,
+            memory,
+        })
+    }
+
+    /// Sorts the particles along the half-angle and uploads them; returns the batches.
+    fn upload_sorted(
+        &mut self,
+        gpu: &Gpu,
+        particles: &[Particle],
+        slicing: &Slicing,
+    ) -> Vec<Range<u32>> {
+        let order = slicing.order(particles);
+        let instances: Vec<ParticleInstance> = order
+            .iter()
+            .map(|&i| ParticleInstance::from_particle(&particles[i as usize]))
+            .collect();
+        let needed = instances.len() as u64;
+        if needed > self.instance_capacity {
+            self.instance_capacity = needed.next_power_of_two();
+            self.instances =
+                instance_buffer(&mut self.memory, &self.device, self.instance_capacity);
+        }
+        if needed > 0 {
+            gpu.queue
+                .write_buffer(&self.instances, 0, bytemuck::cast_slice(&instances));
+        }
+        batches(instances.len() as u32, self.slices)
+    }
+
+    /// Records a light pass drawing `batch` into the light buffer (`clear` first, or add).
+    fn light_pass(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        timer: &mut crate::gpu::GpuTimer,
+        frame_bind_group: &wgpu::BindGroup,
+        batch: Option<Range<u32>>,
+        clear: bool,
+    ) {
+        let load = if clear {
+            wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT)
+        } else {
+            wgpu::LoadOp::Load
+        };
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("has.light"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: &self.light_view,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load,
+                    store: wgpu::StoreOp::Store,
+                },
+            })],
+            depth_stencil_attachment: None,
+            timestamp_writes: timer.pass("shadow"),
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        if let Some(batch) = batch.filter(|b| !b.is_empty()) {
+            pass.set_pipeline(&self.light_pipeline);
+            pass.set_bind_group(0, frame_bind_group, &[]);
+            pass.set_vertex_buffer(0, self.instances.slice(..));
+            pass.draw(0..BILLBOARD_VERTICES, batch);
+        }
+    }
+
+    fn ensure_eye_buffer(&mut self, size: (u32, u32)) {
+        if self.eye.as_ref().is_some_and(|e| e.size == size) {
+            return;
+        }
+        self.memory.forget("has.eye");
+        let texture = self.memory.texture(
+            &self.device,
+            &wgpu::TextureDescriptor {
+                label: Some("has.eye"),
+                size: wgpu::Extent3d {
+                    width: size.0,
+                    height: size.1,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format: HDR_FORMAT,
+                usage: wgpu::TextureUsages::RENDER_ATTACHMENT
+                    | wgpu::TextureUsages::TEXTURE_BINDING,
+                view_formats: &[],
+            },
+        );
+        let view = texture.create_view(&Default::default());
+        let bind_group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("has.composite.bind_group"),
+            layout: &self.composite_layout,
+            entries: &[wgpu::BindGroupEntry {
+                binding: 0,
+                resource: wgpu::BindingResource::TextureView(&view),
+            }],
+        });
+        self.eye = Some(EyeBuffer {
+            size,
+            view,
+            bind_group,
+        });
+    }
+}
+
+impl ShadowTechnique for HalfAngle {
+    fn name(&self) -> &'static str {
+        ENTRY.name
+    }
+    fn channels_used(&self) -> u32 {
+        self.slices
+    }
+    fn memory(&self) -> &MemoryLedger {
+        &self.memory
+    }
+    fn bind_group_layout(&self) -> &wgpu::BindGroupLayout {
+        &self.lookup_layout
+    }
+    fn bind_group(&self) -> &wgpu::BindGroup {
+        &self.lookup_bind_group
+    }
+
+    /// Every particle into the light buffer, for the opaque pass.
+    fn build(&mut self, _gpu: &Gpu, inputs: BuildInputs<'_>) -> Result<(), ShadowError> {
+        let mut pass = inputs
+            .encoder
+            .begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("has.light.all"),
+                color_attachments: &[cleared_attachment(
+                    &self.light_view,
+                    wgpu::Color::TRANSPARENT,
+                )],
+                depth_stencil_attachment: None,
+                timestamp_writes: inputs.timer.pass("shadow"),
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+        if inputs.particle_count > 0 {
+            pass.set_pipeline(&self.light_pipeline);
+            pass.set_bind_group(0, inputs.frame_bind_group, &[]);
+            pass.set_vertex_buffer(0, inputs.particles.slice(..));
+            pass.draw(0..BILLBOARD_VERTICES, 0..inputs.particle_count);
+        }
+        Ok(())
+    }
+
+    fn particle_pass(&mut self) -> Option<&mut dyn ParticlePass> {
+        Some(self)
+    }
+
+    fn probe_pass(&mut self) -> Option<&mut dyn ProbePass> {
+        Some(self)
+    }
+
+    fn debug_maps(&self) -> Vec<(String, &wgpu::TextureView, u32)> {
+        vec![("light buffer".to_owned(), &self.light_view, 1)]
+    }
+}
+
+impl ParticlePass for HalfAngle {
+    fn record(&mut self, gpu: &Gpu, inputs: ParticlePassInputs<'_>) -> f64 {
+        let slicing = Slicing::new(inputs.camera.forward, inputs.light_axis);
+        let sort_start = Instant::now();
+        let batches = self.upload_sorted(gpu, inputs.particles, &slicing);
+        let sort_ms = sort_start.elapsed().as_secs_f64() * 1e3;
+        self.ensure_eye_buffer(inputs.hdr_size);
+        let eye = self.eye.as_ref().expect("eye buffer was just made");
+        let pipelines = if slicing.eye_front_to_back {
+            &self.eye_under
+        } else {
+            &self.eye_over
+        };
+        let encoder = inputs.encoder;
+        // The light buffer starts empty; the eye buffer is cleared by the first eye pass.
+        self.light_pass(encoder, inputs.timer, inputs.frame_bind_group, None, true);
+        for (k, batch) in batches.iter().enumerate() {
+            {
+                let load = if k == 0 {
+                    wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT)
+                } else {
+                    wgpu::LoadOp::Load
+                };
+                let depth = (!inputs.spherical).then_some(wgpu::RenderPassDepthStencilAttachment {
+                    view: inputs.depth_view,
+                    depth_ops: Some(wgpu::Operations {
+                        load: wgpu::LoadOp::Load,
+                        store: wgpu::StoreOp::Store,
+                    }),
+                    stencil_ops: None,
+                });
+                let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                    label: Some("has.eye"),
+                    color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                        view: &eye.view,
+                        depth_slice: None,
+                        resolve_target: None,
+                        ops: wgpu::Operations {
+                            load,
+                            store: wgpu::StoreOp::Store,
+                        },
+                    })],
+                    depth_stencil_attachment: depth,
+                    timestamp_writes: inputs.timer.pass("particles"),
+                    occlusion_query_set: None,
+                    multiview_mask: None,
+                });
+                if inputs.spherical {
+                    pass.set_pipeline(&pipelines.spherical);
+                    pass.set_bind_group(2, inputs.depth_bind_group, &[]);
+                } else {
+                    pass.set_pipeline(&pipelines.flat);
+                }
+                pass.set_bind_group(0, inputs.frame_bind_group, &[]);
+                pass.set_bind_group(1, &self.lookup_bind_group, &[]);
+                pass.set_vertex_buffer(0, self.instances.slice(..));
+                pass.draw(0..BILLBOARD_VERTICES, batch.clone());
+            }
+            self.light_pass(
+                encoder,
+                inputs.timer,
+                inputs.frame_bind_group,
+                Some(batch.clone()),
+                false,
+            );
+        }
+        if batches.is_empty() {
+            return sort_ms;
+        }
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("has.composite"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: inputs.hdr_view,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Load,
+                    store: wgpu::StoreOp::Store,
+                },
+            })],
+            depth_stencil_attachment: None,
+            timestamp_writes: inputs.timer.pass("particles"),
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        pass.set_pipeline(&self.composite_pipeline);
+        pass.set_bind_group(0, inputs.frame_bind_group, &[]);
+        pass.set_bind_group(1, &eye.bind_group, &[]);
+        pass.draw(0..3, 0..1);
+        sort_ms
+    }
+}
+
+impl ProbePass for HalfAngle {
+    /// T at a point as the slicing sees it: the light buffer after every batch that lies wholly
+    /// before the point along the half-angle axis.
+    fn probe(&mut self, gpu: &Gpu, inputs: ProbeInputs<'_>) -> anyhow::Result<Vec<f32>> {
+        let mut encoder = inputs.encoder;
+        let slicing = Slicing::new(inputs.camera_forward, inputs.light_axis);
+        let order = slicing.order(inputs.particles);
+        let batches = self.upload_sorted(gpu, inputs.particles, &slicing);
+        let last_keys: Vec<f32> = batches
+            .iter()
+            .map(|b| {
+                inputs.particles[order[b.end as usize - 1] as usize]
+                    .position
+                    .dot(slicing.axis)
+            })
+            .collect();
+        // Group the points by how many batches lie before them.
+        let mut groups: Vec<Vec<usize>> = vec![Vec::new(); batches.len() + 1];
+        for (i, p) in inputs.points.iter().enumerate() {
+            let key = p.dot(slicing.axis);
+            groups[last_keys.partition_point(|&k| k < key)].push(i);
+        }
+        let mut timer = crate::gpu::GpuTimer::disabled();
+        self.light_pass(
+            &mut encoder,
+            &mut timer,
+            inputs.frame_bind_group,
+            None,
+            true,
+        );
+        let mut pending: Vec<(usize, PendingProbe)> = Vec::new();
+        for (k, group) in groups.iter().enumerate() {
+            if !group.is_empty() {
+                let points: Vec<Vec3> = group.iter().map(|&i| inputs.points[i]).collect();
+                pending.push((
+                    k,
+                    inputs.probe.record(
+                        gpu,
+                        &mut encoder,
+                        inputs.frame_bind_group,
+                        &self.lookup_bind_group,
+                        &points,
+                    ),
+                ));
+            }
+            if let Some(batch) = batches.get(k) {
+                self.light_pass(
+                    &mut encoder,
+                    &mut timer,
+                    inputs.frame_bind_group,
+                    Some(batch.clone()),
+                    false,
+                );
+            }
+        }
+        gpu.queue.submit([encoder.finish()]);
+        let mut out = vec![1.0; inputs.points.len()];
+        for (k, probe) in pending {
+            for (&i, t) in groups[k].iter().zip(probe.read(gpu)?) {
+                out[i] = t;
+            }
+        }
+        Ok(out)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn batches_cover_every_particle_once_in_order() {
+        let b = batches(10, 3);
+        assert_eq!(b, vec![0..3, 3..6, 6..10]);
+        assert_eq!(batches(2, 5), vec![0..1, 1..2]);
+        assert!(batches(0, 4).is_empty());
+    }
+
+    #[test]
+    fn the_half_angle_inverts_the_view_when_the_camera_faces_the_light() {
+        let light = Vec3::new(0.0, -1.0, 0.0);
+        // Looking the way the light travels: half-angle between them, front to back.
+        let s = Slicing::new(Vec3::new(1.0, 0.0, 0.0), light);
+        assert!(s.eye_front_to_back);
+        assert!((s.axis - Vec3::new(1.0, -1.0, 0.0).normalize()).length() < 1e-6);
+        // Looking into the light: the inverted view is used, back to front.
+        let s = Slicing::new(Vec3::new(0.6, 0.8, 0.0), light);
+        assert!(!s.eye_front_to_back);
+        assert!((s.axis - Vec3::new(-0.6, -1.8, 0.0).normalize()).length() < 1e-6);
+        // Either way the axis has a positive component along the light: sorting by it is
+        // front to back from the light.
+        assert!(s.axis.dot(light) > 0.0);
+    }
+}
