@@ -102,6 +102,35 @@ fn bad_inputs_get_one_clear_line_and_leave_no_file() {
             vec!["render", "--size", "64x48", "-o", "/no/such/dir/out.png"],
             vec!["does not exist"],
         ),
+        (
+            vec!["render", "--technique", "dom", "--channels", "1", "-o", out],
+            vec!["dom", "allowed 2..=32"],
+        ),
+        (
+            vec!["render", "--technique", "fom", "--channels", "2", "-o", out],
+            vec!["fom", "allowed 3..=32"],
+        ),
+        (
+            vec!["render", "--dom-ratio", "9", "-o", out],
+            vec!["--dom-ratio", "1..=4"],
+        ),
+        (
+            vec!["render", "--dom-thickness", "-1", "-o", out],
+            vec!["--dom-thickness"],
+        ),
+        (vec!["probe", "--at", "1,2"], vec!["--at", "X,Y,Z"]),
+        (
+            vec![
+                "probe",
+                "--technique",
+                "fom",
+                "--channels",
+                "1",
+                "--at",
+                "0,2,0",
+            ],
+            vec!["fom", "allowed 3..=32"],
+        ),
     ];
     for (args, needles) in cases {
         let result = smokeshadow(&args);
@@ -205,4 +234,80 @@ fn bench_prints_per_pass_gpu_times() {
     ] {
         assert!(stdout.contains(row), "`{row}` missing from:\n{stdout}");
     }
+}
+
+#[test]
+fn render_works_for_every_technique() {
+    let dir = scratch("cli-every-technique");
+    for technique in ["none", "osm", "dom", "fom", "fom_sigma", "has", "exact"] {
+        let png = dir.join(format!("{technique}.png"));
+        let out = smokeshadow(&[
+            "render",
+            "--technique",
+            technique,
+            "--channels",
+            "5",
+            "--shadow-res",
+            "128",
+            "--size",
+            "96x72",
+            "-o",
+            png.to_str().unwrap(),
+        ]);
+        assert!(
+            out.status.success(),
+            "{technique}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        assert!(
+            stdout.contains(&format!("technique {technique}")),
+            "{stdout}"
+        );
+        assert_eq!(image::open(&png).unwrap().width(), 96);
+    }
+}
+
+#[test]
+fn probe_prints_the_technique_beside_exact_along_the_light() {
+    let out = smokeshadow(&[
+        "probe",
+        "--technique",
+        "osm",
+        "--channels",
+        "8",
+        "--shadow-res",
+        "128",
+        "--splat",
+        "segment",
+        "--at",
+        "0,2.5,0",
+        "--along-light",
+        "5",
+        "--json",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(report["technique"], "osm");
+    assert_eq!(report["splat"], "segment");
+    let along = report["along_light"].as_array().unwrap();
+    assert_eq!(along.len(), 5);
+    // T starts at 1 in front of the smoke, never rises along the ray, and the plume's centre
+    // is in shadow for both.
+    let exact: Vec<f64> = along.iter().map(|s| s["exact"].as_f64().unwrap()).collect();
+    assert!((exact[0] - 1.0).abs() < 1e-6, "{exact:?}");
+    assert!(exact.windows(2).all(|w| w[1] <= w[0] + 1e-6), "{exact:?}");
+    assert!(report["at"]["exact"].as_f64().unwrap() < 0.5);
+    assert!(report["at"]["transmittance"].as_f64().unwrap() < 0.5);
+
+    let table = smokeshadow(&["probe", "--shadow-res", "128", "--at", "0,2.5,0"]);
+    let text = String::from_utf8_lossy(&table.stdout);
+    assert!(
+        text.contains("exact") && text.contains("T at (0, 2.5, 0)"),
+        "{text}"
+    );
 }

@@ -1,18 +1,26 @@
 // `dom` lookup: deep opacity maps (Yuksel & Keyser 2008, thesis 3.3.3.4).
 // One channel holds, per texel, the normalised light depth z0 where the smoke starts; the other
 // B - 1 channels are layers that start there and follow the smoke's shape: boundary k sits at
-// z0 + offset(k), with offsets uniform or growing geometrically over the total thickness. Points
-// in front of z0 see no smoke; points beyond the last layer map to the last layer (the paper's
-// recommendation). The four surrounding texels are evaluated separately (each has its own z0)
-// and blended bilinearly.
+// z0 + offset(k), with offsets uniform or growing geometrically over the layers' thickness:
+// by default from z0 to the smoke's far bound (so every texel spends all its layers on the
+// smoke behind its own start), or a fixed thickness, beyond which points map to the last layer
+// (the paper's recommendation). Points in front of z0 see no smoke. The four surrounding texels
+// are evaluated separately (each has its own z0) and blended bilinearly.
 #import shadow/layered.wgsl
 
 @group(1) @binding(10) var dom_depth: texture_2d<f32>;
 
+// Normalised thickness covered by the layers of a texel starting at z0.
+fn dom_thickness(z0: f32) -> f32 {
+    if layered.dom_thickness_m <= 0.0 {
+        return max(1.0 - z0, 1e-4);
+    }
+    return layered.dom_thickness_m * frame.light_depth.z;
+}
+
 // Normalised offset of boundary k (0..=L) from the texel's start depth.
-fn dom_offset(k: f32) -> f32 {
+fn dom_offset(k: f32, thickness: f32) -> f32 {
     let layers = f32(layered.count);
-    let thickness = layered.dom_thickness_m * frame.light_depth.z;
     let r = layered.dom_ratio;
     if r <= 1.0001 {
         return thickness * k / layers;
@@ -21,9 +29,8 @@ fn dom_offset(k: f32) -> f32 {
 }
 
 // Inverse of `dom_offset`: the fractional boundary coordinate of offset u >= 0.
-fn dom_layer_coord(u: f32) -> f32 {
+fn dom_layer_coord(u: f32, thickness: f32) -> f32 {
     let layers = f32(layered.count);
-    let thickness = layered.dom_thickness_m * frame.light_depth.z;
     let r = layered.dom_ratio;
     if r <= 1.0001 {
         return u / thickness * layers;
@@ -46,7 +53,7 @@ fn dom_texel_omega(texel: vec2<i32>, z: f32) -> f32 {
         return 0.0;
     }
     let layers = layered.count;
-    let s = clamp(dom_layer_coord(z - z0), 0.0, f32(layers));
+    let s = clamp(dom_layer_coord(z - z0, dom_thickness(z0)), 0.0, f32(layers));
     let k0 = min(u32(floor(s)), layers);
     let k1 = min(k0 + 1u, layers);
     return mix(dom_boundary(k0, texel), dom_boundary(k1, texel), s - f32(k0));

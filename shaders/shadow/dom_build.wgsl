@@ -1,22 +1,34 @@
-// `dom` build: two passes. `fs_depth` writes each fragment's start depth into the depth channel
-// with MIN blending (the chord's entry for segment splats, the centre for point splats), so each
-// texel ends up with the depth where its smoke starts. The layer pass then adds each fragment's
+// `dom` build: two passes. `fs_depth` writes each fragment's chord entry into the depth channel
+// with MIN blending, so each texel ends up with the depth where its smoke starts: the front
+// surface of the first particle sphere along its ray, whatever the splat mode (a point splat
+// still places the optical depth at the centres, behind that). The layer pass then adds each fragment's
 // optical depth to every boundary z0 + offset(k) at or beyond it, reading z0 at its own texel.
 #import shadow/layered_build.wgsl
 #import shadow/dom.wgsl
 
 @fragment
 fn fs_depth(in: BuildVertexOut) -> @location(0) vec4<f32> {
-    let splat = splat_fragment(in, layered.splat == 1u);
-    return vec4<f32>(splat.z0);
+    return vec4<f32>(splat_fragment(in, true).z0);
 }
 
 // Values for layer target `index`: boundaries k = 4·index + 1 ..= 4·index + 4.
-fn target_values(splat: Splat, index: u32, pixel: vec2<f32>) -> vec4<f32> {
+// The fragment's splat and its texel's layer geometry (read once, used by every target).
+struct Prepared {
+    splat: Splat,
+    z0: f32,
+    thickness: f32,
+};
+
+fn prepare_values(splat: Splat, pixel: vec2<f32>) -> Prepared {
     let z0 = textureLoad(dom_depth, vec2<i32>(pixel), 0).r;
+    return Prepared(splat, z0, dom_thickness(z0));
+}
+
+fn target_values(p: Prepared, index: u32) -> vec4<f32> {
     let k = vec4<f32>(f32(index * 4u + 1u)) + vec4<f32>(0.0, 1.0, 2.0, 3.0);
-    let boundary = vec4<f32>(z0) + vec4<f32>(dom_offset(k.x), dom_offset(k.y), dom_offset(k.z), dom_offset(k.w));
-    return splat.optical_depth * covered_fraction(splat, boundary) * step(k, vec4<f32>(f32(layered.count)));
+    let th = p.thickness;
+    let boundary = vec4<f32>(p.z0) + vec4<f32>(dom_offset(k.x, th), dom_offset(k.y, th), dom_offset(k.z, th), dom_offset(k.w, th));
+    return p.splat.optical_depth * covered_fraction(p.splat, boundary) * step(k, vec4<f32>(f32(layered.count)));
 }
 
 //{{BUILD_OUTPUTS}}

@@ -15,6 +15,11 @@ fn lanczos_sigma(k: u32) -> f32 {
     return sin(x) / x;
 }
 
+// The angle-sum formula: (cos(a + b), sin(a + b)) from (cos a, sin a) and (cos b, sin b).
+fn rotate(a: vec2<f32>, b: vec2<f32>) -> vec2<f32> {
+    return vec2<f32>(a.x * b.x - a.y * b.y, a.y * b.x + a.x * b.y);
+}
+
 fn shadow_transmittance(p: vec3<f32>) -> f32 {
     let l = light_coords(p);
     if !l.inside {
@@ -32,9 +37,12 @@ fn shadow_transmittance(p: vec3<f32>) -> f32 {
     let d = clamp(l.depth01, 0.0, 1.0);
     let n = layered.count;
     var omega = 0.5 * c[0] * d;
+    // (cos 2πkd, sin 2πkd) by rotating through 2πd: one cos and one sin for all harmonics.
+    let turn = vec2<f32>(cos(TAU * d), sin(TAU * d));
+    var cs = turn;
     for (var k = 1u; k <= n; k++) {
-        let w = TAU * f32(k);
-        omega += lanczos_sigma(k) * (c[k] * sin(w * d) + c[n + k] * (1.0 - cos(w * d))) / w;
+        omega += lanczos_sigma(k) * (c[k] * cs.y + c[n + k] * (1.0 - cs.x)) / (TAU * f32(k));
+        cs = rotate(cs, turn);
     }
     return clamp(exp(-omega), 0.0, 1.0);
 }

@@ -1,40 +1,49 @@
 // `fom` build: each fragment adds its harmonics (additive blending, no sort). A point splat at
 // depth d adds a_k = 2·od·cos(2πkd), b_k = 2·od·sin(2πkd); a segment splat over [z0, z1] adds the
-// same integrated analytically over the segment (uniform density along the chord).
+// same averaged analytically over the segment (uniform density along the chord). Channels beyond
+// 2n + 1 in the last target get 0.
 #import shadow/layered_build.wgsl
 #import shadow/fom.wgsl
 
-// Coefficient held in packed channel `channel`.
-fn fom_coefficient(splat: Splat, channel: u32) -> f32 {
+// Every coefficient this fragment adds, in packed-channel order (a0, a1..an, b1..bn), with the
+// sines and cosines of the harmonics by rotation (`rotate` in fom.wgsl).
+fn prepare_values(splat: Splat, pixel: vec2<f32>) -> array<f32, 32> {
+    var c: array<f32, 32>;
     let n = layered.count;
-    if channel == 0u {
-        return 2.0 * splat.optical_depth;
-    }
-    if channel > 2u * n {
-        return 0.0;
-    }
-    let is_b = channel > n;
-    let k = select(channel, channel - n, is_b);
-    let w = TAU * f32(k);
+    let od2 = 2.0 * splat.optical_depth;
+    c[0] = od2;
     let width = splat.z1 - splat.z0;
     if width <= 1e-6 {
         let z = 0.5 * (splat.z0 + splat.z1);
-        return 2.0 * splat.optical_depth * select(cos(w * z), sin(w * z), is_b);
+        let turn = vec2<f32>(cos(TAU * z), sin(TAU * z));
+        var cs = turn;
+        for (var k = 1u; k <= n; k++) {
+            c[k] = od2 * cs.x;
+            c[n + k] = od2 * cs.y;
+            cs = rotate(cs, turn);
+        }
+        return c;
     }
-    // Mean of cos / sin over the segment.
-    let mean_cos = (sin(w * splat.z1) - sin(w * splat.z0)) / (w * width);
-    let mean_sin = (cos(w * splat.z0) - cos(w * splat.z1)) / (w * width);
-    return 2.0 * splat.optical_depth * select(mean_cos, mean_sin, is_b);
+    // Mean of cos / sin of 2πkz over [z0, z1]: (sin 2πkz1 - sin 2πkz0) / (2πk·width) and
+    // (cos 2πkz0 - cos 2πkz1) / (2πk·width).
+    let turn0 = vec2<f32>(cos(TAU * splat.z0), sin(TAU * splat.z0));
+    let turn1 = vec2<f32>(cos(TAU * splat.z1), sin(TAU * splat.z1));
+    var cs0 = turn0;
+    var cs1 = turn1;
+    for (var k = 1u; k <= n; k++) {
+        let scale = od2 / (TAU * f32(k) * width);
+        c[k] = scale * (cs1.y - cs0.y);
+        c[n + k] = scale * (cs0.x - cs1.x);
+        cs0 = rotate(cs0, turn0);
+        cs1 = rotate(cs1, turn1);
+    }
+    return c;
 }
 
-fn target_values(splat: Splat, index: u32, pixel: vec2<f32>) -> vec4<f32> {
-    let c = index * 4u;
-    return vec4<f32>(
-        fom_coefficient(splat, c),
-        fom_coefficient(splat, c + 1u),
-        fom_coefficient(splat, c + 2u),
-        fom_coefficient(splat, c + 3u),
-    );
+fn target_values(prepared: array<f32, 32>, index: u32) -> vec4<f32> {
+    var c = prepared;
+    let i = index * 4u;
+    return vec4<f32>(c[i], c[i + 1u], c[i + 2u], c[i + 3u]);
 }
 
 //{{BUILD_OUTPUTS}}

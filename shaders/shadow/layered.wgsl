@@ -1,6 +1,6 @@
 // Shared lookup side of the layered techniques (osm, dom, fom): their parameters and up to 8
-// packed half-float map targets, 4 channels each. Channel c lives in target c / 4, component
-// c % 4. Keep `LayeredParams` in sync with src/shadow/layered.rs.
+// packed map targets, 4 channels each. Channel c lives in target c / 4, component c % 4.
+// Keep `LayeredParams` in sync with src/shadow/layered.rs.
 #import common/lighting.wgsl
 
 struct LayeredParams {
@@ -12,7 +12,7 @@ struct LayeredParams {
     splat: u32,
     // fom: 1 to damp harmonic k by the Lanczos σ-factor sinc(k / (n + 1)).
     sigma: u32,
-    // dom: total thickness covered by the layers, metres.
+    // dom: thickness covered by the layers, metres; 0: from each texel's start to the far bound.
     dom_thickness_m: f32,
     // dom: ratio between successive layer thicknesses (1 = uniform).
     dom_ratio: f32,
@@ -31,20 +31,6 @@ struct LayeredParams {
 @group(1) @binding(8) var layered_map6: texture_2d<f32>;
 @group(1) @binding(9) var layered_map7: texture_2d<f32>;
 
-// Bilinearly filtered texel of packed target `index`.
-fn layered_target(index: u32, uv: vec2<f32>) -> vec4<f32> {
-    switch index {
-        case 0u: { return textureSampleLevel(layered_map0, layered_sampler, uv, 0.0); }
-        case 1u: { return textureSampleLevel(layered_map1, layered_sampler, uv, 0.0); }
-        case 2u: { return textureSampleLevel(layered_map2, layered_sampler, uv, 0.0); }
-        case 3u: { return textureSampleLevel(layered_map3, layered_sampler, uv, 0.0); }
-        case 4u: { return textureSampleLevel(layered_map4, layered_sampler, uv, 0.0); }
-        case 5u: { return textureSampleLevel(layered_map5, layered_sampler, uv, 0.0); }
-        case 6u: { return textureSampleLevel(layered_map6, layered_sampler, uv, 0.0); }
-        default: { return textureSampleLevel(layered_map7, layered_sampler, uv, 0.0); }
-    }
-}
-
 // One unfiltered texel of packed target `index`.
 fn layered_texel(index: u32, texel: vec2<i32>) -> vec4<f32> {
     switch index {
@@ -56,6 +42,20 @@ fn layered_texel(index: u32, texel: vec2<i32>) -> vec4<f32> {
         case 5u: { return textureLoad(layered_map5, texel, 0); }
         case 6u: { return textureLoad(layered_map6, texel, 0); }
         default: { return textureLoad(layered_map7, texel, 0); }
+    }
+}
+
+// Bilinearly filtered texel of packed target `index`.
+fn layered_target(index: u32, uv: vec2<f32>) -> vec4<f32> {
+    switch index {
+        case 0u: { return textureSampleLevel(layered_map0, layered_sampler, uv, 0.0); }
+        case 1u: { return textureSampleLevel(layered_map1, layered_sampler, uv, 0.0); }
+        case 2u: { return textureSampleLevel(layered_map2, layered_sampler, uv, 0.0); }
+        case 3u: { return textureSampleLevel(layered_map3, layered_sampler, uv, 0.0); }
+        case 4u: { return textureSampleLevel(layered_map4, layered_sampler, uv, 0.0); }
+        case 5u: { return textureSampleLevel(layered_map5, layered_sampler, uv, 0.0); }
+        case 6u: { return textureSampleLevel(layered_map6, layered_sampler, uv, 0.0); }
+        default: { return textureSampleLevel(layered_map7, layered_sampler, uv, 0.0); }
     }
 }
 

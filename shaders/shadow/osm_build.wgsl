@@ -6,7 +6,11 @@
 
 // Values for render target `index`: boundaries k = 4·index + 1 ..= 4·index + 4 at depths k/B
 // (0 for boundaries beyond the last slice).
-fn target_values(splat: Splat, index: u32, pixel: vec2<f32>) -> vec4<f32> {
+fn prepare_values(splat: Splat, pixel: vec2<f32>) -> Splat {
+    return splat;
+}
+
+fn target_values(splat: Splat, index: u32) -> vec4<f32> {
     let k = vec4<f32>(f32(index * 4u + 1u)) + vec4<f32>(0.0, 1.0, 2.0, 3.0);
     let b = f32(layered.count);
     return splat.optical_depth * covered_fraction(splat, k / b) * step(k, vec4<f32>(b));

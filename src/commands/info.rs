@@ -19,8 +19,12 @@ pub fn run(preference: &AdapterPreference) -> anyhow::Result<()> {
         yes_no(gpu.has_timestamps())
     );
     println!(
-        "  FLOAT32_BLENDABLE: {}",
+        "  FLOAT32_BLENDABLE (fom's 32-bit coefficients): {}",
         yes_no(gpu.features.contains(wgpu::Features::FLOAT32_BLENDABLE))
+    );
+    println!(
+        "  FLOAT32_FILTERABLE (fom's 32-bit coefficients): {}",
+        yes_no(gpu.features.contains(wgpu::Features::FLOAT32_FILTERABLE))
     );
     println!(
         "  colour attachments: {} (32-channel budgets need {})",

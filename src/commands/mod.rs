@@ -23,10 +23,10 @@ pub struct TechniqueArgs {
     #[arg(long, value_enum)]
     pub splat: Option<SplatMode>,
     /// DOM: metres covered by the layers (default: the scene's, else derived per frame).
-    #[arg(long, value_parser = positive_f32)]
+    #[arg(long, value_parser = positive_f32, allow_negative_numbers = true)]
     pub dom_thickness: Option<f32>,
     /// DOM: ratio between successive layer thicknesses, 1..=4 (1 = uniform).
-    #[arg(long, value_parser = dom_ratio)]
+    #[arg(long, value_parser = dom_ratio, allow_negative_numbers = true)]
     pub dom_ratio: Option<f32>,
 }
 

@@ -66,8 +66,9 @@ impl fmt::Display for AdapterPreference {
 }
 
 /// Features the renderer uses when the adapter has them; none is required.
-pub const OPTIONAL_FEATURES: wgpu::Features =
-    wgpu::Features::TIMESTAMP_QUERY.union(wgpu::Features::FLOAT32_BLENDABLE);
+pub const OPTIONAL_FEATURES: wgpu::Features = wgpu::Features::TIMESTAMP_QUERY
+    .union(wgpu::Features::FLOAT32_BLENDABLE)
+    .union(wgpu::Features::FLOAT32_FILTERABLE);
 
 /// Minimum colour attachments: 8 RGBA targets carry a 32-channel budget.
 pub const REQUIRED_COLOR_ATTACHMENTS: u32 = 8;

@@ -15,6 +15,7 @@
 
 pub mod geometry;
 pub mod gpu_data;
+pub mod shaded;
 
 use std::time::Instant;
 

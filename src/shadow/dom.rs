@@ -3,13 +3,15 @@
 //! One channel holds, per shadow-map texel, the light depth where the smoke starts (a first pass
 //! min-blends each fragment's start depth); the other B - 1 channels are opacity layers that
 //! begin there and so follow the shape of the smoke. Layer spacing is uniform by default
-//! (`dom_layer_ratio` = 1) or geometric, over a total thickness `dom_thickness_m` (default
-//! derived from the frame's bounds and particle sizes, see
-//! [`super::layered::default_dom_thickness_m`]). Points beyond the last layer map to the last
-//! layer, as the paper recommends. Shaders: `shaders/shadow/dom.wgsl` and `dom_build.wgsl`.
+//! (`dom_layer_ratio` = 1) or geometric. By default the layers of each texel span from its own
+//! start to the far bound of the smoke, so no layer is wasted in front of the smoke and no point
+//! lies beyond the last one; with a fixed `dom_thickness_m`, points beyond the last layer map to
+//! the last layer, as the paper recommends (the smoke farther along the ray is then lost).
+//! The start depth is each ray's entry into the first particle sphere, in both splat modes.
+//! Shaders: `shaders/shadow/dom.wgsl` and `dom_build.wgsl`.
 
 use super::TechniqueEntry;
-use super::layered::{ChannelPlan, Layered, LayeredSpec};
+use super::layered::{ChannelPlan, Layered, LayeredSpec, Precision};
 
 pub const SPEC: LayeredSpec = LayeredSpec {
     name: "dom",
@@ -22,6 +24,7 @@ pub const SPEC: LayeredSpec = LayeredSpec {
     },
     depth_channel: true,
     sigma: false,
+    precision: Precision::Half,
 };
 
 pub const ENTRY: TechniqueEntry = TechniqueEntry {

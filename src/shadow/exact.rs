@@ -266,11 +266,6 @@ impl Exact {
         );
     }
 
-    /// Segments stored in the last frame's lists (light-space particle fragments).
-    pub fn segment_count(&self) -> u32 {
-        self.last_segment_count
-    }
-
     /// Records the count raster pass and the prefix sum.
     fn record_count_and_scan(
         &self,
@@ -416,6 +411,15 @@ impl ShadowTechnique for Exact {
     }
     fn bind_group(&self) -> &wgpu::BindGroup {
         &self.lists.lookup_bind_group
+    }
+
+    /// `segments`: stored last frame (light-space particle fragments); `segment_capacity`: what
+    /// the list buffers hold.
+    fn counters(&self) -> Vec<(&'static str, u64)> {
+        vec![
+            ("segments", u64::from(self.last_segment_count)),
+            ("segment_capacity", u64::from(self.lists.capacity)),
+        ]
     }
 
     fn build(&mut self, gpu: &Gpu, inputs: BuildInputs<'_>) -> Result<(), ShadowError> {

@@ -6,10 +6,12 @@
 //! its −ln(1 − α)-weighted cos/sin terms (additive, no sort); a segment splat adds them
 //! integrated analytically over its chord. The lookup reconstructs the optical depth with the
 //! thesis' formula and clamps T to [0, 1]. `fom_sigma` damps harmonic k by the Lanczos σ-factor
-//! sinc(k / (n + 1)) to suppress ringing. Shaders: `shaders/shadow/fom.wgsl`, `fom_build.wgsl`.
+//! sinc(k / (n + 1)) to suppress ringing. The coefficients are 32-bit floats: they are sums of
+//! terms of both signs that largely cancel, and in half floats the rounding of the partial sums
+//! made T depend on the order the particles were drawn in by up to 0.2. Shaders: `shaders/shadow/fom.wgsl`, `fom_build.wgsl`.
 
 use super::TechniqueEntry;
-use super::layered::{ChannelPlan, Layered, LayeredSpec};
+use super::layered::{ChannelPlan, Layered, LayeredSpec, Precision};
 
 /// a0, a1..an, b1..bn: n = floor((B - 1) / 2) harmonics in 2n + 1 channels.
 fn plan(channels: u32) -> ChannelPlan {
@@ -27,6 +29,7 @@ pub const FOM: LayeredSpec = LayeredSpec {
     plan,
     depth_channel: false,
     sigma: false,
+    precision: Precision::Float,
 };
 
 pub const FOM_SIGMA: LayeredSpec = LayeredSpec {

@@ -193,7 +193,16 @@ impl HalfAngle {
                     ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
                     count: None,
                 },
-                super::layered::texture_entry(2, LOOKUP_STAGES),
+                wgpu::BindGroupLayoutEntry {
+                    binding: 2,
+                    visibility: LOOKUP_STAGES,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: true },
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
             ],
         });
         let sampler = super::map_sampler(device, "has.sampler");

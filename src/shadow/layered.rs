@@ -4,17 +4,19 @@
 //! (`shaders/shadow/layered.wgsl`, `layered_build.wgsl`).
 //!
 //! Each technique is a [`LayeredSpec`] in its own module: how its budget maps to packed channels
-//! and which build shader defines what each fragment writes (`target_values`). The last target
+//! and which build shader defines what each fragment writes: `prepare_values(splat, pixel)`
+//! once per fragment, then `target_values(prepared, index)` per render target. The last target
 //! has only as many components as it needs: R16F for 1, RG16F for 2, RGBA16F for 3 or 4 (there is
 //! no 3-component render format, so a remainder of 3 allocates one unused channel, and the memory
-//! ledger says so). A spec with a depth channel (`dom`) gets a first pass that min-blends the
+//! ledger says so). Channels are half floats, or 32-bit floats where a technique needs them
+//! ([`Precision`]). A spec with a depth channel (`dom`) gets a first pass that min-blends the
 //! depth where the smoke starts into one more R16F channel.
 
 use bytemuck::{Pod, Zeroable};
 
 use super::{
-    BuildInputs, LOOKUP_STAGES, LightSpace, ShadowError, ShadowTechnique, SplatMode,
-    TechniqueContext, TechniqueParams,
+    BuildInputs, LOOKUP_STAGES, ShadowError, ShadowTechnique, SplatMode, TechniqueContext,
+    TechniqueParams,
 };
 use crate::gpu::{Gpu, MemoryLedger};
 use crate::render::gpu_data::{BILLBOARD_VERTICES, ParticleInstance};
@@ -50,6 +52,8 @@ pub struct LayeredSpec {
     pub depth_channel: bool,
     /// Whether the lookup damps harmonics with Lanczos σ-factors (`fom_sigma`).
     pub sigma: bool,
+    /// Storage precision of the packed channels.
+    pub precision: Precision,
 }
 
 impl LayeredSpec {
@@ -79,13 +83,28 @@ struct LayeredParams {
     _pad: [f32; 2],
 }
 
-/// Format of packed target `index` for `packed` channels.
-pub fn target_format(packed: u32, index: u32) -> wgpu::TextureFormat {
-    match (packed - index * 4).min(4) {
-        1 => wgpu::TextureFormat::R16Float,
-        2 => wgpu::TextureFormat::Rg16Float,
-        _ => wgpu::TextureFormat::Rgba16Float,
+/// Format of packed target `index` for `packed` channels of `precision`.
+pub fn target_format(packed: u32, index: u32, precision: Precision) -> wgpu::TextureFormat {
+    use wgpu::TextureFormat as F;
+    match ((packed - index * 4).min(4), precision) {
+        (1, Precision::Half) => F::R16Float,
+        (2, Precision::Half) => F::Rg16Float,
+        (_, Precision::Half) => F::Rgba16Float,
+        (1, Precision::Float) => F::R32Float,
+        (2, Precision::Float) => F::Rg32Float,
+        (_, Precision::Float) => F::Rgba32Float,
     }
+}
+
+/// Storage precision of the packed channels.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Precision {
+    /// 16-bit floats: enough for sums of positive optical depths (`osm`, `dom`).
+    Half,
+    /// 32-bit floats (needs `FLOAT32_BLENDABLE` and `FLOAT32_FILTERABLE`): Fourier coefficients
+    /// are sums of terms of both signs that largely cancel, and half floats round the partial
+    /// sums so coarsely that the result depends on the order the particles are drawn in.
+    Float,
 }
 
 /// The generated fragment entry point writing one vec4 per target.
@@ -94,11 +113,12 @@ fn build_outputs_wgsl(targets: u32) -> String {
         .map(|i| format!("    @location({i}) t{i}: vec4<f32>,\n"))
         .collect();
     let writes: String = (0..targets)
-        .map(|i| format!("    out.t{i} = target_values(splat, {i}u, in.clip.xy);\n"))
+        .map(|i| format!("    out.t{i} = target_values(prepared, {i}u);\n"))
         .collect();
     format!(
         "struct BuildOut {{\n{fields}}};\n\n@fragment\nfn fs_build(in: BuildVertexOut) -> BuildOut {{\n    \
-         let splat = splat_fragment(in, layered.splat == 1u);\n    var out: BuildOut;\n{writes}    return out;\n}}\n"
+         let splat = splat_fragment(in, layered.splat == 1u);\n    \
+         let prepared = prepare_values(splat, in.clip.xy);\n    var out: BuildOut;\n{writes}    return out;\n}}\n"
     )
 }
 
@@ -106,14 +126,6 @@ fn build_outputs_wgsl(targets: u32) -> String {
 pub fn build_shader_source(spec: &LayeredSpec, targets: u32) -> String {
     shaders::compose(spec.build_shader, &[])
         .replace("//{{BUILD_OUTPUTS}}", &build_outputs_wgsl(targets))
-}
-
-/// The DOM layer thickness when none is given. The layers follow the smoke from where it starts
-/// along each texel's ray, so they need not span the whole bounding range: half of it, but at
-/// least four particle diameters (and never more than the range).
-pub fn default_dom_thickness_m(light: &LightSpace) -> f32 {
-    let range = light.far_m - light.near_m;
-    (0.5 * range).max(8.0 * light.max_radius_m).min(range)
 }
 
 /// A layered technique: a [`LayeredSpec`] with its maps and pipelines.
@@ -154,6 +166,7 @@ pub(crate) fn uniform_entry(
     }
 }
 
+/// A filterable 2D float texture (32-bit float maps need `FLOAT32_FILTERABLE`).
 pub(crate) fn texture_entry(
     binding: u32,
     visibility: wgpu::ShaderStages,
@@ -304,8 +317,15 @@ impl Layered {
         let plan = (spec.plan)(params.channels);
         let target_count = plan.packed.div_ceil(4);
         let formats: Vec<_> = (0..target_count)
-            .map(|i| target_format(plan.packed, i))
+            .map(|i| target_format(plan.packed, i, spec.precision))
             .collect();
+        let float_features = wgpu::Features::FLOAT32_BLENDABLE | wgpu::Features::FLOAT32_FILTERABLE;
+        if spec.precision == Precision::Float && !gpu.features.contains(float_features) {
+            return Err(ShadowError::MissingFeature {
+                technique: spec.name,
+                feature: "FLOAT32_BLENDABLE and FLOAT32_FILTERABLE (32-bit float maps)",
+            });
+        }
         let bytes_per_sample: u32 = formats
             .iter()
             .map(|f| f.target_pixel_byte_cost().unwrap_or(8))
@@ -505,8 +525,8 @@ impl Layered {
         })
     }
 
-    /// The parameters this frame: fixed ones plus the DOM thickness, which may follow the bounds.
-    fn frame_params(&self, light: &LightSpace) -> LayeredParams {
+    /// The parameters for the shaders.
+    fn shader_params(&self) -> LayeredParams {
         LayeredParams {
             count: self.plan.count,
             packed: self.plan.packed,
@@ -515,10 +535,8 @@ impl Layered {
                 SplatMode::Segment => 1,
             },
             sigma: u32::from(self.spec.sigma),
-            dom_thickness_m: self
-                .params
-                .dom_thickness_m
-                .unwrap_or_else(|| default_dom_thickness_m(light)),
+            // 0 tells the shader: from each texel's start to the far bound.
+            dom_thickness_m: self.params.dom_thickness_m.unwrap_or(0.0),
             dom_ratio: self.params.dom_layer_ratio,
             _pad: [0.0; 2],
         }
@@ -551,7 +569,7 @@ impl ShadowTechnique for Layered {
         gpu.queue.write_buffer(
             &self.params_buffer,
             0,
-            bytemuck::bytes_of(&self.frame_params(inputs.light)),
+            bytemuck::bytes_of(&self.shader_params()),
         );
         let particles = inputs.particles.slice(..);
         if let Some(depth) = &self.depth {
@@ -608,11 +626,15 @@ mod tests {
 
     #[test]
     fn target_formats_fit_the_packed_channels() {
-        assert_eq!(target_format(6, 0), wgpu::TextureFormat::Rgba16Float);
-        assert_eq!(target_format(6, 1), wgpu::TextureFormat::Rg16Float);
-        assert_eq!(target_format(5, 1), wgpu::TextureFormat::R16Float);
-        assert_eq!(target_format(7, 1), wgpu::TextureFormat::Rgba16Float);
-        assert_eq!(target_format(24, 5), wgpu::TextureFormat::Rgba16Float);
+        use wgpu::TextureFormat as F;
+        let half = |packed, index| target_format(packed, index, Precision::Half);
+        assert_eq!(half(6, 0), F::Rgba16Float);
+        assert_eq!(half(6, 1), F::Rg16Float);
+        assert_eq!(half(5, 1), F::R16Float);
+        assert_eq!(half(7, 1), F::Rgba16Float);
+        assert_eq!(half(24, 5), F::Rgba16Float);
+        assert_eq!(target_format(23, 5, Precision::Float), F::Rgba32Float);
+        assert_eq!(target_format(5, 1, Precision::Float), F::R32Float);
     }
 
     #[test]

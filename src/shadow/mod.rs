@@ -78,6 +78,11 @@ pub enum ShadowError {
         bytes: u64,
         limit: u64,
     },
+    #[error("{technique} needs the adapter feature {feature}, which this adapter lacks")]
+    MissingFeature {
+        technique: &'static str,
+        feature: &'static str,
+    },
     #[error("GPU error: {0}")]
     Gpu(String),
 }
@@ -114,8 +119,8 @@ pub struct TechniqueParams {
     pub resolution_px: u32,
     /// Where particle optical depth is splatted (`osm`, `dom`, `fom`). Default: point.
     pub splat: SplatMode,
-    /// `dom`: total thickness covered by the layers, metres; `None` (the default) derives it
-    /// from the frame's bounds and particle sizes each frame.
+    /// `dom`: thickness covered by the layers from where the smoke starts, metres; `None` (the
+    /// default): from each texel's start to the far bound of the smoke.
     pub dom_thickness_m: Option<f32>,
     /// `dom`: ratio between successive layer thicknesses, >= 1; 1 (the default) is uniform.
     pub dom_layer_ratio: f32,
@@ -230,6 +235,10 @@ pub trait ShadowTechnique {
     /// dispatches `shadow_transmittance` with [`ShadowTechnique::bind_group`].
     fn probe_pass(&mut self) -> Option<&mut dyn ProbePass> {
         None
+    }
+    /// Technique-specific counts from the last frame, for reports (e.g. `exact`'s segments).
+    fn counters(&self) -> Vec<(&'static str, u64)> {
+        Vec::new()
     }
     /// The maps this frame's lookups read, for inspection: (label, view, channels in the view).
     fn debug_maps(&self) -> Vec<(String, &wgpu::TextureView, u32)> {

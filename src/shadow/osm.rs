@@ -8,7 +8,7 @@
 //! (lookup) and `osm_build.wgsl`; the packing and passes are shared in [`super::layered`].
 
 use super::TechniqueEntry;
-use super::layered::{ChannelPlan, Layered, LayeredSpec};
+use super::layered::{ChannelPlan, Layered, LayeredSpec, Precision};
 
 pub const SPEC: LayeredSpec = LayeredSpec {
     name: "osm",
@@ -20,6 +20,7 @@ pub const SPEC: LayeredSpec = LayeredSpec {
     },
     depth_channel: false,
     sigma: false,
+    precision: Precision::Half,
 };
 
 pub const ENTRY: TechniqueEntry = TechniqueEntry {

@@ -1,0 +1,209 @@
+//! The points whose transmittance a frame of the camera actually evaluates, so that a technique's
+//! error against `exact` can be measured where it matters:
+//! - every particle's four lighting points (the particle pass evaluates T at a 2x2 grid across
+//!   each camera-facing billboard, see `shaders/render/particles.wgsl`);
+//! - the opaque surfaces (ground and boxes) seen through a grid of pixels, where the spotlight
+//!   reaches them (inside its cone, facing it): the points that receive the smoke's shadow.
+//!
+//! The transmittance at these points comes from [`super::Renderer::probe`]; [`rms_difference`]
+//! turns two sets into the RMS transmittance error the tests, the probe and the sweep report.
+
+use glam::{Vec2, Vec3};
+
+use super::CameraMatrices;
+use crate::scene::Scene;
+use crate::sim::Particle;
+
+/// Fraction of the radius at which the particle pass places its lighting points. Keep in sync
+/// with `SHADE_OFFSET` in shaders/render/particles.wgsl.
+pub const SHADE_OFFSET: f32 = 0.5;
+
+/// The shaded points of a `width` x `height` view: particle lighting points, then lit opaque
+/// points sampled every `stride_px` pixels.
+pub fn shaded_points(
+    scene: &Scene,
+    particles: &[Particle],
+    width: u32,
+    height: u32,
+    stride_px: u32,
+) -> Vec<Vec3> {
+    let camera = CameraMatrices::new(scene, width, height);
+    let mut points = particle_lighting_points(camera.position, particles);
+    points.extend(lit_opaque_points(scene, &camera, width, height, stride_px));
+    points
+}
+
+/// The four lighting points of every particle seen from `eye`. Mirrors `billboard_frame` in
+/// shaders/common/particle.wgsl.
+pub fn particle_lighting_points(eye: Vec3, particles: &[Particle]) -> Vec<Vec3> {
+    let mut out = Vec::with_capacity(particles.len() * 4);
+    for p in particles {
+        let forward = (p.position - eye).normalize_or(Vec3::NEG_Z);
+        let helper = if forward.y.abs() > 0.99 {
+            Vec3::X
+        } else {
+            Vec3::Y
+        };
+        let right = forward.cross(helper).normalize();
+        let up = right.cross(forward);
+        let (r, u) = (
+            right * (p.radius_m * SHADE_OFFSET),
+            up * (p.radius_m * SHADE_OFFSET),
+        );
+        out.extend([
+            p.position - r - u,
+            p.position + r - u,
+            p.position - r + u,
+            p.position + r + u,
+        ]);
+    }
+    out
+}
+
+/// Opaque surface points seen through pixel centres every `stride_px` pixels that the spotlight
+/// lights (inside its cone and facing it).
+pub fn lit_opaque_points(
+    scene: &Scene,
+    camera: &CameraMatrices,
+    width: u32,
+    height: u32,
+    stride_px: u32,
+) -> Vec<Vec3> {
+    let world_from_clip = camera.clip_from_world().inverse();
+    let light = &scene.light;
+    let axis = (light.target - light.position).normalize();
+    let cos_cone = light.cone_angle_deg.to_radians().cos();
+    let stride = stride_px.max(1) as usize;
+    let mut out = Vec::new();
+    for y in (0..height).step_by(stride) {
+        for x in (0..width).step_by(stride) {
+            let ndc = Vec2::new(
+                (x as f32 + 0.5) / width as f32 * 2.0 - 1.0,
+                1.0 - (y as f32 + 0.5) / height as f32 * 2.0,
+            );
+            let far = world_from_clip.project_point3(ndc.extend(1.0));
+            let dir = (far - camera.position).normalize();
+            let Some((point, normal)) = first_opaque_hit(scene, camera.position, dir) else {
+                continue;
+            };
+            let to_point = (point - light.position).normalize();
+            let faces_light = normal.dot(-to_point) > 0.0;
+            if faces_light && to_point.dot(axis) >= cos_cone {
+                out.push(point);
+            }
+        }
+    }
+    out
+}
+
+/// The nearest hit of a ray with the ground square or a box: the point and its outward normal.
+fn first_opaque_hit(scene: &Scene, origin: Vec3, dir: Vec3) -> Option<(Vec3, Vec3)> {
+    let mut best: Option<(f32, Vec3)> = None;
+    let g = &scene.ground;
+    if dir.y.abs() > 1e-9 {
+        let t = (g.height_m - origin.y) / dir.y;
+        let p = origin + dir * t;
+        let half = g.size_m * 0.5;
+        if t > 0.0 && p.x.abs() <= half && p.z.abs() <= half && origin.y > g.height_m {
+            best = Some((t, Vec3::Y));
+        }
+    }
+    for b in &scene.boxes {
+        let lo = b.center - b.size * 0.5;
+        let hi = b.center + b.size * 0.5;
+        let (mut t_near, mut t_far, mut normal) = (f32::NEG_INFINITY, f32::INFINITY, Vec3::ZERO);
+        let mut missed = false;
+        for axis in 0..3 {
+            if dir[axis].abs() < 1e-12 {
+                missed |= origin[axis] < lo[axis] || origin[axis] > hi[axis];
+                continue;
+            }
+            let (mut t0, mut t1) = (
+                (lo[axis] - origin[axis]) / dir[axis],
+                (hi[axis] - origin[axis]) / dir[axis],
+            );
+            let mut n = Vec3::ZERO;
+            n[axis] = -1.0;
+            if t0 > t1 {
+                std::mem::swap(&mut t0, &mut t1);
+                n[axis] = 1.0;
+            }
+            if t0 > t_near {
+                t_near = t0;
+                normal = n;
+            }
+            t_far = t_far.min(t1);
+        }
+        if !missed && t_near <= t_far && t_near > 0.0 && best.is_none_or(|(t, _)| t_near < t) {
+            best = Some((t_near, normal));
+        }
+    }
+    best.map(|(t, n)| (origin + dir * t, n))
+}
+
+/// Root-mean-square difference of two equally long sets of values (0 for empty sets).
+pub fn rms_difference(a: &[f32], b: &[f32]) -> f64 {
+    assert_eq!(a.len(), b.len(), "RMS over sets of different sizes");
+    if a.is_empty() {
+        return 0.0;
+    }
+    let sum: f64 = a
+        .iter()
+        .zip(b)
+        .map(|(&x, &y)| (f64::from(x) - f64::from(y)).powi(2))
+        .sum();
+    (sum / a.len() as f64).sqrt()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn lighting_points_straddle_the_centre_across_the_view() {
+        let p = Particle {
+            position: Vec3::new(0.0, 1.0, 0.0),
+            velocity: Vec3::ZERO,
+            age_s: 0.0,
+            radius_m: 2.0,
+            density_per_m: 1.0,
+            albedo: Vec3::ONE,
+        };
+        let eye = Vec3::new(0.0, 1.0, 10.0);
+        let pts = particle_lighting_points(eye, &[p]);
+        assert_eq!(pts.len(), 4);
+        let mean = pts.iter().sum::<Vec3>() / 4.0;
+        assert!((mean - p.position).length() < 1e-6);
+        for q in &pts {
+            // In the plane facing the eye, at radius·offset·√2 from the centre.
+            assert!((q.z - p.position.z).abs() < 1e-6);
+            assert!(((*q - p.position).length() - 2.0 * SHADE_OFFSET * 2f32.sqrt()).abs() < 1e-5);
+        }
+    }
+
+    #[test]
+    fn opaque_points_lie_on_lit_surfaces_in_the_cone() {
+        let scene = Scene::thesis_plume();
+        let camera = CameraMatrices::new(&scene, 128, 96);
+        let pts = lit_opaque_points(&scene, &camera, 128, 96, 2);
+        assert!(pts.len() > 200, "{} points", pts.len());
+        let axis = (scene.light.target - scene.light.position).normalize();
+        let cos_cone = scene.light.cone_angle_deg.to_radians().cos();
+        for p in &pts {
+            let on_ground = (p.y - scene.ground.height_m).abs() < 1e-3;
+            let on_box = scene.boxes.iter().any(|b| {
+                let d = (*p - b.center).abs() - b.size * 0.5;
+                d.max_element().abs() < 1e-3
+            });
+            assert!(on_ground || on_box, "{p} is on no surface");
+            assert!((*p - scene.light.position).normalize().dot(axis) >= cos_cone - 1e-6);
+        }
+    }
+
+    #[test]
+    fn rms_of_a_known_difference() {
+        assert_eq!(rms_difference(&[1.0, 1.0], &[1.0, 1.0]), 0.0);
+        let r = rms_difference(&[0.0, 0.0, 0.0, 0.0], &[0.5, -0.5, 0.5, -0.5]);
+        assert!((r - 0.5).abs() < 1e-12);
+    }
+}
