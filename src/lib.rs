@@ -2,10 +2,14 @@
 //! measured under the same channel budget (Giuliatti 2013, *Rendering Techniques for Cloud
 //! Volume Densities with Shadows*). See ARCHITECTURE.md for the data flow and the file map.
 
+pub mod baseline;
 pub mod commands;
+pub mod compare;
+pub mod diff;
 pub mod gpu;
 pub mod output;
 pub mod render;
+pub mod report;
 pub mod scene;
 pub mod shaders;
 pub mod shadow;

@@ -32,6 +32,13 @@ enum Command {
     Probe(commands::probe::ProbeArgs),
     /// Show the GPU adapters, the selected one's capabilities, and the techniques.
     Info,
+    /// Compare two images: FLIP, RMSE, PSNR, SSIM, and the thesis' 4x-enhanced difference.
+    Diff(commands::diff::DiffArgs),
+    /// Check the committed 24-channel baselines against fresh renders, or bless new ones.
+    Baseline(commands::baseline::BaselineArgs),
+    /// The thesis' accuracy comparison for a scene: images, differences, metrics.csv and an
+    /// HTML page.
+    Compare(commands::compare::CompareArgs),
 }
 
 fn main() -> ExitCode {
@@ -67,15 +74,26 @@ fn main() -> ExitCode {
         }
     };
     let result = match &cli.command {
-        Command::Render(args) => commands::render::run(args, &cli.adapter),
-        Command::Probe(args) => commands::probe::run(args, &cli.adapter),
-        Command::Info => commands::info::run(&cli.adapter),
+        Command::Render(args) => {
+            commands::render::run(args, &cli.adapter).map(|()| ExitCode::SUCCESS)
+        }
+        Command::Probe(args) => {
+            commands::probe::run(args, &cli.adapter).map(|()| ExitCode::SUCCESS)
+        }
+        Command::Info => commands::info::run(&cli.adapter).map(|()| ExitCode::SUCCESS),
+        Command::Diff(args) => commands::diff::run(args),
+        Command::Baseline(args) => commands::baseline::run(args, &cli.adapter),
+        Command::Compare(args) => {
+            commands::compare::run(args, &cli.adapter).map(|()| ExitCode::SUCCESS)
+        }
     };
     match result {
-        Ok(()) => ExitCode::SUCCESS,
+        Ok(code) => code,
         Err(err) => {
             eprintln!("error: {}", format!("{err:#}").replace('\n', " "));
-            ExitCode::FAILURE
+            // Like ImageMagick's `compare`: 1 means "ran, and found a difference over a
+            // threshold" (diff, baseline --check); an error is 2.
+            ExitCode::from(2)
         }
     }
 }

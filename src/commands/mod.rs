@@ -1,5 +1,8 @@
 //! The CLI's commands. `main.rs` parses and dispatches; each command lives in its own file.
 
+pub mod baseline;
+pub mod compare;
+pub mod diff;
 pub mod info;
 pub mod probe;
 pub mod render;

@@ -25,6 +25,12 @@ pub const THESIS_PLUME_TOML: &str = include_str!("../../scenes/thesis_plume.toml
 /// The same plume after a wind gust.
 pub const THESIS_WIND_TOML: &str = include_str!("../../scenes/thesis_wind.toml");
 
+/// The scenes embedded in the binary, by name: the baselines and reports use these.
+pub const EMBEDDED: &[(&str, &str)] = &[
+    ("thesis_plume", THESIS_PLUME_TOML),
+    ("thesis_wind", THESIS_WIND_TOML),
+];
+
 /// Errors from loading or validating a scene. Each renders as one line for the user.
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
@@ -377,6 +383,22 @@ impl Scene {
     pub fn thesis_plume() -> Self {
         Self::from_toml_str(THESIS_PLUME_TOML, "embedded thesis_plume")
             .expect("the embedded thesis scene is valid (checked by tests)")
+    }
+
+    /// An embedded scene by name (see [`EMBEDDED`]).
+    pub fn embedded(name: &str) -> Option<Self> {
+        EMBEDDED.iter().find(|(n, _)| *n == name).map(|(n, text)| {
+            Self::from_toml_str(text, &format!("embedded {n}"))
+                .expect("the embedded scenes are valid (checked by tests)")
+        })
+    }
+
+    /// SHA-256 of the scene as the tool reads it (its canonical TOML, so comments and
+    /// formatting do not count), hex-encoded: names what a baseline was rendered from.
+    pub fn content_hash(&self) -> String {
+        use sha2::Digest;
+        let digest = sha2::Sha256::digest(self.to_toml().as_bytes());
+        digest.iter().map(|b| format!("{b:02x}")).collect()
     }
 
     /// Parses and validates a scene from TOML text; `origin` names it in error messages.

@@ -1,0 +1,85 @@
+//! `smokeshadow baseline --check | --bless`: the committed 24-channel baselines
+//! ([`crate::baseline`]). `--check` exits 1 when any baseline fails; `--bless` is the only way
+//! the files change.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use crate::baseline;
+use crate::gpu::{AdapterPreference, Gpu};
+
+#[derive(Clone, Debug, clap::Args)]
+#[command(group(clap::ArgGroup::new("mode").required(true).args(["check", "bless"])))]
+pub struct BaselineArgs {
+    /// Re-render every selected baseline and compare it with the committed image.
+    #[arg(long)]
+    pub check: bool,
+    /// Render the selected baselines and (over)write them and their .json sidecars.
+    #[arg(long)]
+    pub bless: bool,
+    /// Only this embedded scene (repeatable; default: all).
+    #[arg(long = "scene")]
+    pub scenes: Vec<String>,
+    /// Only this technique (repeatable; default: all).
+    #[arg(long = "technique")]
+    pub techniques: Vec<String>,
+    /// Folder holding `<scene>/<technique>.png`.
+    #[arg(long, default_value = "baselines")]
+    pub dir: PathBuf,
+    /// Where `--check` writes the actual image and difference maps of a failing baseline.
+    #[arg(long, default_value = "test-output/baselines")]
+    pub out: PathBuf,
+}
+
+pub fn run(args: &BaselineArgs, adapter: &AdapterPreference) -> anyhow::Result<ExitCode> {
+    let baselines = baseline::select(&args.dir, &args.scenes, &args.techniques)?;
+    let gpu = Gpu::new(adapter)?;
+    if args.bless {
+        for path in baseline::bless(&gpu, &baselines)? {
+            println!("blessed {}", path.display());
+        }
+        return Ok(ExitCode::SUCCESS);
+    }
+    println!(
+        "checking {} baselines in {} on {}",
+        baselines.len(),
+        args.dir.display(),
+        gpu.describe()
+    );
+    println!(
+        "{:<14} {:<10} {:>10} {:>10} {:>10}  result",
+        "scene", "technique", "FLIP mean", "limit", "RMSE"
+    );
+    let rows = baseline::check(&gpu, &baselines, &args.out)?;
+    let mut failed = 0;
+    for row in &rows {
+        let (flip, rmse) = row
+            .comparison
+            .as_ref()
+            .map(|c| {
+                (
+                    format!("{:.5}", c.metrics.flip_mean),
+                    format!("{:.5}", c.metrics.rmse_srgb),
+                )
+            })
+            .unwrap_or_else(|| ("-".into(), "-".into()));
+        let result = match &row.failure {
+            None => "pass".to_owned(),
+            Some(why) => {
+                failed += 1;
+                format!("FAIL: {why}")
+            }
+        };
+        println!(
+            "{:<14} {:<10} {:>10} {:>10} {:>10}  {result}",
+            row.baseline.scene, row.baseline.technique, flip, row.threshold, rmse
+        );
+    }
+    if failed > 0 {
+        println!("{failed} of {} baselines failed", rows.len());
+        Ok(ExitCode::from(1))
+    } else {
+        println!("all {} baselines pass", rows.len());
+        Ok(ExitCode::SUCCESS)
+    }
+}

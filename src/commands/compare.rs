@@ -1,0 +1,87 @@
+//! `smokeshadow compare [SCENE] -o DIR`: the thesis' accuracy comparison for one scene, as
+//! images, `metrics.csv` and `index.html` ([`crate::compare`]).
+
+use std::path::PathBuf;
+
+use crate::compare::{self, CompareOptions};
+use crate::gpu::{AdapterPreference, Gpu};
+use crate::scene::Scene;
+use crate::shadow::SplatMode;
+
+#[derive(Clone, Debug, clap::Args)]
+pub struct CompareArgs {
+    /// Scene file (TOML), or the name of an embedded scene (thesis_plume, thesis_wind); the
+    /// embedded thesis scene when omitted.
+    pub scene: Option<String>,
+    /// Output folder (created if missing).
+    #[arg(long, short = 'o')]
+    pub output: PathBuf,
+    /// Techniques, comma-separated, in display order.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "osm,dom,fom,fom_sigma,has"
+    )]
+    pub techniques: Vec<String>,
+    /// Budgets, comma-separated; the first is each technique's baseline.
+    #[arg(long, value_delimiter = ',', default_value = "24,16,8,6")]
+    pub channels: Vec<u32>,
+    /// How the layered techniques place optical depth (default: the scene's).
+    #[arg(long, value_enum)]
+    pub splat: Option<SplatMode>,
+    /// Shadow resolution of the `exact` reference.
+    #[arg(long, default_value_t = crate::baseline::EXACT_RESOLUTION_PX, value_parser = clap::value_parser!(u32).range(1..=8192))]
+    pub exact_res: u32,
+    /// Output size as WIDTHxHEIGHT (default: the scene's).
+    #[arg(long)]
+    pub size: Option<super::Size>,
+}
+
+/// A scene argument: an embedded scene's name, or a path.
+pub fn load_scene(arg: Option<&str>) -> anyhow::Result<Scene> {
+    Ok(match arg {
+        None => Scene::thesis_plume(),
+        Some(name) => match Scene::embedded(name) {
+            Some(scene) => scene,
+            None => Scene::load(std::path::Path::new(name))?,
+        },
+    })
+}
+
+pub fn run(args: &CompareArgs, adapter: &AdapterPreference) -> anyhow::Result<()> {
+    let mut scene = load_scene(args.scene.as_deref())?;
+    if let Some(size) = args.size {
+        scene.output.width_px = size.width;
+        scene.output.height_px = size.height;
+    }
+    let options = CompareOptions {
+        techniques: args.techniques.clone(),
+        budgets: args.channels.clone(),
+        splat: args.splat.unwrap_or(scene.shadow.splat),
+        exact_resolution_px: args.exact_res,
+    };
+    let gpu = Gpu::new(adapter)?;
+    let report = compare::run(&gpu, &scene, &options, &args.output)?;
+    println!(
+        "wrote {} files to {} (open index.html)",
+        report.files.len(),
+        args.output.display()
+    );
+    println!(
+        "{:<10} {:>8} {:>12} {:>14} {:>14}",
+        "technique", "channels", "bytes", "FLIP vs exact", "FLIP vs own"
+    );
+    for c in &report.cells {
+        println!(
+            "{:<10} {:>8} {:>12} {:>14.5} {:>14}",
+            c.technique,
+            c.channels,
+            c.bytes,
+            c.vs_exact.metrics.flip_mean,
+            c.vs_baseline
+                .as_ref()
+                .map_or("-".to_owned(), |p| format!("{:.5}", p.metrics.flip_mean))
+        );
+    }
+    Ok(())
+}
