@@ -91,6 +91,10 @@ pub const FILES: &[(&str, &str)] = &[
         "shadow/has_build.wgsl",
         include_str!("../shaders/shadow/has_build.wgsl"),
     ),
+    (
+        "render/particle_lighting.wgsl",
+        include_str!("../shaders/render/particle_lighting.wgsl"),
+    ),
 ];
 
 /// Name of the virtual import that stands for the active shadow technique's lookup shader.

@@ -361,11 +361,15 @@ fn reported_channels_and_bytes_match_each_techniques_formula() {
                     (used, texels * packed_bytes_per_texel(used, 4) + 32)
                 }
                 // R16F light buffer, RGBA16F eye buffer, the re-sorted instances (32 bytes each,
-                // capacity a power of two from 1024).
-                "has" => (
-                    b64,
-                    16 + texels * 2 + pixels * 8 + 32 * n.next_power_of_two().max(1024),
-                ),
+                // capacity a power of two from 1024), their lighting (64 bytes each) and one
+                // 256-byte lighting range per slice.
+                "has" => {
+                    let capacity = n.next_power_of_two().max(1024);
+                    (
+                        b64,
+                        16 + texels * 2 + pixels * 8 + 32 * capacity + 64 * capacity + 256 * b64,
+                    )
+                }
                 // Counts, offsets (+1 for the total), row sums (+1), an R8 raster target, and
                 // 12 + 16 bytes of segment and node storage per segment of capacity.
                 "exact" => {

@@ -32,8 +32,11 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     let to_light = normalize(frame.light_pos.xyz - in.world);
     let lambert = max(dot(n, to_light), 0.0);
     var direct = vec3<f32>(0.0);
-    if lambert > 0.0 {
-        direct = spot_irradiance(in.world) * lambert * shadow_transmittance(in.world);
+    let irradiance = spot_irradiance(in.world) * lambert;
+    // Only where the spotlight reaches does the smoke's shadow matter: outside its cone (or on
+    // faces turned away) the lookup is skipped, not multiplied by zero.
+    if any(irradiance > vec3<f32>(0.0)) {
+        direct = irradiance * shadow_transmittance(in.world);
     }
     let radiance = in.albedo * (direct / PI + frame.ambient.rgb);
     // Alpha 0: the HDR target's alpha channel accumulates smoke opacity only.

@@ -1,9 +1,16 @@
 // Particle pass: billboards sorted back to front, composited with premultiplied "over"
 // (thesis Eq. 1.5). `fs_spherical` clips each particle's chord against the opaque depth
 // (spherical billboards, thesis 3.2.2.3); `fs_flat` is the plain billboard with a hard depth test.
-#import common/lighting.wgsl
+// The lighting was computed per particle beforehand (render/particle_lighting.wgsl).
+#import common/frame.wgsl
 #import common/particle.wgsl
-#import shadow_technique
+
+// Keep in sync with `ParticleLight` in render/particle_lighting.wgsl.
+struct ParticleLight {
+    radiance: array<vec4<f32>, 4>,
+};
+
+@group(1) @binding(0) var<storage, read> particle_light: array<ParticleLight>;
 
 struct VertexOut {
     @builtin(position) clip: vec4<f32>,
@@ -20,15 +27,16 @@ struct VertexOut {
     @location(7) @interpolate(flat) radiance_11: vec3<f32>,
 };
 
-// Where the four lighting points sit, as a fraction of the radius along the billboard's axes:
-// inside the sphere, spanning its visible disc.
+// Where the four lighting points sit, as a fraction of the radius (as in
+// particle_lighting.wgsl): the fragment's position in that 2x2 grid weights their radiance.
 const SHADE_OFFSET: f32 = 0.5;
 
-// Lighting is evaluated per particle at four points inside the sphere (a 2x2 grid across its
-// disc) and blended bilinearly per fragment: the technique's T(p) costs texture fetches, and per
-// fragment it would be paid for every layer of overdraw (millions of fragments per frame).
 @vertex
-fn vs_main(@builtin(vertex_index) vi: u32, particle: ParticleIn) -> VertexOut {
+fn vs_main(
+    @builtin(vertex_index) vi: u32,
+    @builtin(instance_index) instance: u32,
+    particle: ParticleIn,
+) -> VertexOut {
     var out: VertexOut;
     let center = particle.center_radius.xyz;
     let radius = particle.center_radius.w;
@@ -41,13 +49,11 @@ fn vs_main(@builtin(vertex_index) vi: u32, particle: ParticleIn) -> VertexOut {
     out.center_radius = particle.center_radius;
     out.density = particle.albedo_density.a;
     out.local = corner;
-    let albedo = particle.albedo_density.rgb;
-    let r = bb.right * (radius * SHADE_OFFSET);
-    let u = bb.up * (radius * SHADE_OFFSET);
-    out.radiance_00 = scattered_radiance(center - r - u, eye, albedo);
-    out.radiance_10 = scattered_radiance(center + r - u, eye, albedo);
-    out.radiance_01 = scattered_radiance(center - r + u, eye, albedo);
-    out.radiance_11 = scattered_radiance(center + r + u, eye, albedo);
+    let light = particle_light[instance];
+    out.radiance_00 = light.radiance[0].rgb;
+    out.radiance_10 = light.radiance[1].rgb;
+    out.radiance_01 = light.radiance[2].rgb;
+    out.radiance_11 = light.radiance[3].rgb;
     return out;
 }
 
@@ -56,18 +62,6 @@ fn fragment_radiance(in: VertexOut) -> vec3<f32> {
     let grow = length(in.world - in.center_radius.xyz) / max(length(in.local) * in.center_radius.w, 1e-6);
     let t = clamp(in.local * (grow / (2.0 * SHADE_OFFSET)) + vec2<f32>(0.5), vec2<f32>(0.0), vec2<f32>(1.0));
     return mix(mix(in.radiance_00, in.radiance_10, t.x), mix(in.radiance_01, in.radiance_11, t.x), t.y);
-}
-
-// Single scattering at `p` towards the eye plus ambient, for a particle of albedo `albedo`.
-fn scattered_radiance(p: vec3<f32>, eye: vec3<f32>, albedo: vec3<f32>) -> vec3<f32> {
-    let light_dir = normalize(p - frame.light_pos.xyz);
-    let view_dir = normalize(p - eye);
-    let phase = hg_phase_4pi(dot(light_dir, -view_dir), frame.light_radiance.w);
-    let direct = spot_irradiance(p) * shadow_transmittance(p) * phase;
-    // Normalised like a diffuse surface (E/π), so smoke and ground share one exposure: single
-    // scattering alone would leave dense smoke far darker than the multiple scattering of real
-    // smoke makes it look.
-    return albedo * (direct / PI + frame.ambient.rgb);
 }
 
 // Composites one particle over the ray segment [t0, t1] of its chord.

@@ -8,7 +8,7 @@
 // are evaluated separately (each has its own z0) and blended bilinearly.
 #import shadow/layered.wgsl
 
-@group(1) @binding(10) var dom_depth: texture_2d<f32>;
+@group(1) @binding(4) var dom_depth: texture_2d<f32>;
 
 // Normalised thickness covered by the layers of a texel starting at z0.
 fn dom_thickness(z0: f32) -> f32 {

@@ -1,5 +1,7 @@
-// Shared lookup side of the layered techniques (osm, dom, fom): their parameters and up to 8
-// packed map targets, 4 channels each. Channel c lives in target c / 4, component c % 4.
+// Shared lookup side of the layered techniques (osm, dom, fom): their parameters and the packed
+// maps, 4 channels a target. Channel c lives in target c / 4, component c % 4; the full targets
+// are layers of one array texture and the remainder (1-3 channels) a texture of its own, so a
+// lookup picks a layer by index rather than switching between textures (divergent per fragment).
 // Keep `LayeredParams` in sync with src/shadow/layered.rs.
 #import common/lighting.wgsl
 
@@ -16,47 +18,30 @@ struct LayeredParams {
     dom_thickness_m: f32,
     // dom: ratio between successive layer thicknesses (1 = uniform).
     dom_ratio: f32,
-    _pad0: f32,
-    _pad1: f32,
+    // Full 4-channel targets in `layered_full`; target `full_targets` is `layered_rest`.
+    full_targets: u32,
+    _pad0: u32,
 };
 
 @group(1) @binding(0) var<uniform> layered: LayeredParams;
 @group(1) @binding(1) var layered_sampler: sampler;
-@group(1) @binding(2) var layered_map0: texture_2d<f32>;
-@group(1) @binding(3) var layered_map1: texture_2d<f32>;
-@group(1) @binding(4) var layered_map2: texture_2d<f32>;
-@group(1) @binding(5) var layered_map3: texture_2d<f32>;
-@group(1) @binding(6) var layered_map4: texture_2d<f32>;
-@group(1) @binding(7) var layered_map5: texture_2d<f32>;
-@group(1) @binding(8) var layered_map6: texture_2d<f32>;
-@group(1) @binding(9) var layered_map7: texture_2d<f32>;
+@group(1) @binding(2) var layered_full: texture_2d_array<f32>;
+@group(1) @binding(3) var layered_rest: texture_2d<f32>;
 
 // One unfiltered texel of packed target `index`.
 fn layered_texel(index: u32, texel: vec2<i32>) -> vec4<f32> {
-    switch index {
-        case 0u: { return textureLoad(layered_map0, texel, 0); }
-        case 1u: { return textureLoad(layered_map1, texel, 0); }
-        case 2u: { return textureLoad(layered_map2, texel, 0); }
-        case 3u: { return textureLoad(layered_map3, texel, 0); }
-        case 4u: { return textureLoad(layered_map4, texel, 0); }
-        case 5u: { return textureLoad(layered_map5, texel, 0); }
-        case 6u: { return textureLoad(layered_map6, texel, 0); }
-        default: { return textureLoad(layered_map7, texel, 0); }
+    if index < layered.full_targets {
+        return textureLoad(layered_full, texel, index, 0);
     }
+    return textureLoad(layered_rest, texel, 0);
 }
 
 // Bilinearly filtered texel of packed target `index`.
 fn layered_target(index: u32, uv: vec2<f32>) -> vec4<f32> {
-    switch index {
-        case 0u: { return textureSampleLevel(layered_map0, layered_sampler, uv, 0.0); }
-        case 1u: { return textureSampleLevel(layered_map1, layered_sampler, uv, 0.0); }
-        case 2u: { return textureSampleLevel(layered_map2, layered_sampler, uv, 0.0); }
-        case 3u: { return textureSampleLevel(layered_map3, layered_sampler, uv, 0.0); }
-        case 4u: { return textureSampleLevel(layered_map4, layered_sampler, uv, 0.0); }
-        case 5u: { return textureSampleLevel(layered_map5, layered_sampler, uv, 0.0); }
-        case 6u: { return textureSampleLevel(layered_map6, layered_sampler, uv, 0.0); }
-        default: { return textureSampleLevel(layered_map7, layered_sampler, uv, 0.0); }
+    if index < layered.full_targets {
+        return textureSampleLevel(layered_full, layered_sampler, uv, index, 0.0);
     }
+    return textureSampleLevel(layered_rest, layered_sampler, uv, 0.0);
 }
 
 // Bilinearly filtered packed channel `channel`.

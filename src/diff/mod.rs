@@ -5,7 +5,7 @@
 //! golden-image tests use), RMSE and PSNR of the sRGB values and of the linear values they
 //! encode, the largest channel difference, the share of visibly different pixels, and SSIM. The
 //! pictures are the thesis' "difference enhanced 4x" ([`enhanced_difference`], Giuliatti 2013,
-//! chapter 5) and the FLIP error map through the magma colour map ([`flip_heatmap`]).
+//! 4.2.2.2) and the FLIP error map through the magma colour map ([`flip_heatmap`]).
 //!
 //! Images are 8-bit sRGB RGB ([`load_png`] converts anything else). Thresholds name a metric
 //! ([`Metric`], `METRIC=VALUE` via [`parse_threshold`]). To add a metric: compute it in

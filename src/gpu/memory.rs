@@ -35,6 +35,11 @@ impl MemoryLedger {
         device.create_buffer(desc)
     }
 
+    /// Records an allocation made elsewhere, by the size of the buffer(s) actually created.
+    pub fn record(&mut self, label: &str, bytes: u64) {
+        self.entries.push((label.to_owned(), bytes));
+    }
+
     /// Forgets the allocation labelled `label` (it was dropped or is about to be replaced).
     pub fn forget(&mut self, label: &str) {
         self.entries.retain(|(l, _)| l != label);

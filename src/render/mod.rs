@@ -15,6 +15,7 @@
 
 pub mod geometry;
 pub mod gpu_data;
+pub mod particles;
 pub mod shaded;
 
 use std::time::Instant;
@@ -30,6 +31,8 @@ use crate::shadow::{
 };
 use crate::sim::Particle;
 use gpu_data::{FrameUniforms, OpaqueVertex, ParticleInstance};
+use particles::{LightBuffers, ParticleLighting};
+pub use particles::{OVER, ParticleLayouts, ParticlePipelines, UNDER};
 
 /// Format of the HDR frame (premultiplied radiance; alpha = smoke opacity).
 pub const HDR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
@@ -70,8 +73,7 @@ pub struct FrameStats {
 /// Pipelines that depend on the technique's lookup shader.
 struct TechniquePipelines {
     opaque: wgpu::RenderPipeline,
-    particles_spherical: wgpu::RenderPipeline,
-    particles_flat: wgpu::RenderPipeline,
+    lighting: ParticleLighting,
 }
 
 /// Size-dependent targets.
@@ -100,6 +102,11 @@ pub struct Renderer {
     particles: wgpu::Buffer,
     particle_capacity: u64,
     instances: Vec<ParticleInstance>,
+    particle_layouts: ParticleLayouts,
+    /// Lighting of the sorted instances, computed each frame before the particle pass.
+    lights: LightBuffers,
+    /// The particle pass's draw pipelines (independent of the technique).
+    particle_pipelines: ParticlePipelines,
     technique: Box<dyn ShadowTechnique>,
     technique_config: TechniqueConfig,
     pipelines: TechniquePipelines,
@@ -205,12 +212,22 @@ impl Renderer {
             })
         };
         let targets = Targets::new(device, &depth_layout, &hdr_layout, width, height);
+        let particle_layouts = ParticleLayouts::new(device);
+        let particle_pipelines = ParticlePipelines::new(
+            device,
+            "particles",
+            &frame_layout,
+            &particle_layouts,
+            &depth_layout,
+            OVER,
+        );
 
         let technique_impl = shadow::create(
             &TechniqueContext {
                 gpu,
                 frame_layout: &frame_layout,
                 depth_layout: &depth_layout,
+                particle_layouts: &particle_layouts,
             },
             &technique.name,
             &technique.params,
@@ -218,11 +235,20 @@ impl Renderer {
         let pipelines = TechniquePipelines::new(
             device,
             &frame_layout,
-            &depth_layout,
+            &particle_layouts,
             technique_impl.as_ref(),
         );
 
         let particle_capacity = 1024;
+        let particles = particle_buffer(device, particle_capacity);
+        let lights = LightBuffers::new(
+            device,
+            &particle_layouts,
+            &particles,
+            particle_capacity,
+            1,
+            "particles",
+        );
         Ok(Self {
             opaque_vertices: device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("opaque.vertices"),
@@ -232,8 +258,11 @@ impl Renderer {
             }),
             opaque_vertex_count: 0,
             opaque_source: Vec::new(),
-            particles: particle_buffer(device, particle_capacity),
+            particles,
             particle_capacity,
+            lights,
+            particle_layouts,
+            particle_pipelines,
             instances: Vec::new(),
             frame_layout,
             frame_buffer,
@@ -264,6 +293,7 @@ impl Renderer {
                 gpu,
                 frame_layout: &self.frame_layout,
                 depth_layout: &self.depth_layout,
+                particle_layouts: &self.particle_layouts,
             },
             &config.name,
             &config.params,
@@ -271,7 +301,7 @@ impl Renderer {
         self.pipelines = TechniquePipelines::new(
             &gpu.device,
             &self.frame_layout,
-            &self.depth_layout,
+            &self.particle_layouts,
             technique.as_ref(),
         );
         self.technique = technique;
@@ -324,6 +354,24 @@ impl Renderer {
     ) -> Result<FrameStats, ShadowError> {
         let (mut encoder, mut stats, camera) = self.begin_frame(gpu, scene, particles)?;
         let particle_count = stats.particle_count;
+        if self.technique.particle_pass().is_none() {
+            // Each particle's lighting, once, with the technique's T (part of rendering them).
+            let lighting = &self.pipelines.lighting;
+            let everything = 0..particle_count;
+            lighting.set_ranges(&gpu.queue, &self.lights, std::slice::from_ref(&everything));
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("particles.lighting"),
+                timestamp_writes: self.timer.compute_pass("particles"),
+            });
+            lighting.dispatch(
+                &mut pass,
+                &self.frame_bind_group,
+                self.technique.bind_group(),
+                &self.lights,
+                0,
+                particle_count,
+            );
+        }
         let bg = scene.shading.background;
         {
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
@@ -406,13 +454,13 @@ impl Renderer {
                     multiview_mask: None,
                 });
                 if options.spherical {
-                    pass.set_pipeline(&self.pipelines.particles_spherical);
+                    pass.set_pipeline(&self.particle_pipelines.spherical);
                     pass.set_bind_group(2, &self.targets.depth_bind_group, &[]);
                 } else {
-                    pass.set_pipeline(&self.pipelines.particles_flat);
+                    pass.set_pipeline(&self.particle_pipelines.flat);
                 }
                 pass.set_bind_group(0, &self.frame_bind_group, &[]);
-                pass.set_bind_group(1, self.technique.bind_group(), &[]);
+                pass.set_bind_group(1, &self.lights.read_bind_group, &[]);
                 if particle_count > 0 {
                     pass.set_vertex_buffer(0, self.particles.slice(..));
                     pass.draw(0..gpu_data::BILLBOARD_VERTICES, 0..particle_count);
@@ -579,6 +627,14 @@ impl Renderer {
         if needed > self.particle_capacity {
             self.particle_capacity = needed.next_power_of_two();
             self.particles = particle_buffer(&gpu.device, self.particle_capacity);
+            self.lights = LightBuffers::new(
+                &gpu.device,
+                &self.particle_layouts,
+                &self.particles,
+                self.particle_capacity,
+                1,
+                "particles",
+            );
         }
         if needed > 0 {
             gpu.queue
@@ -591,7 +647,9 @@ fn particle_buffer(device: &wgpu::Device, capacity: u64) -> wgpu::Buffer {
     device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("particles.instances"),
         size: capacity * std::mem::size_of::<ParticleInstance>() as u64,
-        usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_DST,
+        usage: wgpu::BufferUsages::VERTEX
+            | wgpu::BufferUsages::COPY_DST
+            | wgpu::BufferUsages::STORAGE,
         mapped_at_creation: false,
     })
 }
@@ -659,7 +717,7 @@ impl TechniquePipelines {
     fn new(
         device: &wgpu::Device,
         frame_layout: &wgpu::BindGroupLayout,
-        depth_layout: &wgpu::BindGroupLayout,
+        particle_layouts: &ParticleLayouts,
         technique: &dyn ShadowTechnique,
     ) -> Self {
         let name = technique.name();
@@ -707,144 +765,15 @@ impl TechniquePipelines {
             multiview_mask: None,
             cache: None,
         });
-        let particles = ParticlePipelines::new(
+        let lighting = ParticleLighting::new(
             device,
-            &ParticlePipelineDesc {
-                name,
-                lookup_source: lookup,
-                frame_layout,
-                lookup_layout: tech_layout,
-                depth_layout,
-                blend: OVER,
-            },
+            name,
+            frame_layout,
+            tech_layout,
+            lookup,
+            particle_layouts,
         );
-        Self {
-            opaque,
-            particles_spherical: particles.spherical,
-            particles_flat: particles.flat,
-        }
-    }
-}
-
-/// Premultiplied "over" (thesis Eq. 1.5): C = C_src + (1 - α_src) C_dst, the same for alpha.
-pub const OVER: wgpu::BlendComponent = wgpu::BlendComponent {
-    src_factor: wgpu::BlendFactor::One,
-    dst_factor: wgpu::BlendFactor::OneMinusSrcAlpha,
-    operation: wgpu::BlendOperation::Add,
-};
-
-/// Premultiplied "under" (thesis Eq. 1.4), for front-to-back compositing:
-/// C = C_dst + (1 - α_dst) C_src, the same for alpha.
-pub const UNDER: wgpu::BlendComponent = wgpu::BlendComponent {
-    src_factor: wgpu::BlendFactor::OneMinusDstAlpha,
-    dst_factor: wgpu::BlendFactor::One,
-    operation: wgpu::BlendOperation::Add,
-};
-
-/// What the particle pipelines are built from.
-pub struct ParticlePipelineDesc<'a> {
-    /// Technique name, for labels.
-    pub name: &'a str,
-    /// The technique's lookup shader (defines `shadow_transmittance` and group 1).
-    pub lookup_source: &'a str,
-    pub frame_layout: &'a wgpu::BindGroupLayout,
-    pub lookup_layout: &'a wgpu::BindGroupLayout,
-    pub depth_layout: &'a wgpu::BindGroupLayout,
-    /// How particles composite into the HDR-format target.
-    pub blend: wgpu::BlendComponent,
-}
-
-/// The particle pass's two pipelines (`shaders/render/particles.wgsl`): spherical billboards
-/// (group 2 = opaque depth) and flat billboards with a hard depth test.
-pub struct ParticlePipelines {
-    pub spherical: wgpu::RenderPipeline,
-    pub flat: wgpu::RenderPipeline,
-}
-
-impl ParticlePipelines {
-    pub fn new(device: &wgpu::Device, desc: &ParticlePipelineDesc<'_>) -> Self {
-        let name = desc.name;
-        let module = shaders::module(
-            device,
-            &format!("particles[{name}]"),
-            &shaders::compose(
-                "render/particles.wgsl",
-                &[(shaders::SHADOW_TECHNIQUE, desc.lookup_source)],
-            ),
-        );
-        let layout = |label: &str, groups: &[Option<&wgpu::BindGroupLayout>]| {
-            device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                label: Some(label),
-                bind_group_layouts: groups,
-                immediate_size: 0,
-            })
-        };
-        let spherical_layout = layout(
-            &format!("particles[{name}].spherical.pipeline_layout"),
-            &[
-                Some(desc.frame_layout),
-                Some(desc.lookup_layout),
-                Some(desc.depth_layout),
-            ],
-        );
-        let flat_layout = layout(
-            &format!("particles[{name}].flat.pipeline_layout"),
-            &[Some(desc.frame_layout), Some(desc.lookup_layout)],
-        );
-        let target = [Some(wgpu::ColorTargetState {
-            format: HDR_FORMAT,
-            blend: Some(wgpu::BlendState {
-                color: desc.blend,
-                alpha: desc.blend,
-            }),
-            write_mask: wgpu::ColorWrites::ALL,
-        })];
-        let pipeline = |label: &str,
-                        layout: &wgpu::PipelineLayout,
-                        fs,
-                        depth: Option<wgpu::DepthStencilState>| {
-            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                label: Some(label),
-                layout: Some(layout),
-                vertex: wgpu::VertexState {
-                    module: &module,
-                    entry_point: Some("vs_main"),
-                    compilation_options: Default::default(),
-                    buffers: &[Some(ParticleInstance::LAYOUT)],
-                },
-                primitive: wgpu::PrimitiveState::default(),
-                depth_stencil: depth,
-                multisample: Default::default(),
-                fragment: Some(wgpu::FragmentState {
-                    module: &module,
-                    entry_point: Some(fs),
-                    compilation_options: Default::default(),
-                    targets: &target,
-                }),
-                multiview_mask: None,
-                cache: None,
-            })
-        };
-        Self {
-            spherical: pipeline(
-                &format!("particles[{name}].spherical.pipeline"),
-                &spherical_layout,
-                "fs_spherical",
-                None,
-            ),
-            flat: pipeline(
-                &format!("particles[{name}].flat.pipeline"),
-                &flat_layout,
-                "fs_flat",
-                Some(wgpu::DepthStencilState {
-                    format: DEPTH_FORMAT,
-                    depth_write_enabled: Some(false),
-                    depth_compare: Some(wgpu::CompareFunction::Less),
-                    stencil: Default::default(),
-                    bias: Default::default(),
-                }),
-            ),
-        }
+        Self { opaque, lighting }
     }
 }
 

@@ -1,7 +1,7 @@
 //! The points whose transmittance a frame of the camera actually evaluates, so that a technique's
 //! error against `exact` can be measured where it matters:
-//! - every particle's four lighting points (the particle pass evaluates T at a 2x2 grid across
-//!   each camera-facing billboard, see `shaders/render/particles.wgsl`);
+//! - every particle's four lighting points (the lighting pass evaluates T at a 2x2 grid across
+//!   each camera-facing billboard, see `shaders/render/particle_lighting.wgsl`);
 //! - the opaque surfaces (ground and boxes) seen through a grid of pixels, where the spotlight
 //!   reaches them (inside its cone, facing it): the points that receive the smoke's shadow.
 //!
@@ -15,7 +15,7 @@ use crate::scene::Scene;
 use crate::sim::Particle;
 
 /// Fraction of the radius at which the particle pass places its lighting points. Keep in sync
-/// with `SHADE_OFFSET` in shaders/render/particles.wgsl.
+/// with `SHADE_OFFSET` in shaders/render/particle_lighting.wgsl and particles.wgsl.
 pub const SHADE_OFFSET: f32 = 0.5;
 
 /// The shaded points of a `width` x `height` view: particle lighting points, then lit opaque

@@ -34,7 +34,8 @@ use super::{
 };
 use crate::gpu::{Gpu, MemoryLedger};
 use crate::render::gpu_data::{BILLBOARD_VERTICES, ParticleInstance};
-use crate::render::{HDR_FORMAT, OVER, ParticlePipelineDesc, ParticlePipelines, UNDER};
+use crate::render::particles::{LightBuffers, ParticleLighting};
+use crate::render::{HDR_FORMAT, OVER, ParticleLayouts, ParticlePipelines, UNDER};
 use crate::shaders;
 use crate::sim::Particle;
 
@@ -134,6 +135,10 @@ pub struct HalfAngle {
     eye: Option<EyeBuffer>,
     instances: wgpu::Buffer,
     instance_capacity: u64,
+    /// Lighting of each batch, computed just before the batch's eye pass.
+    lighting: ParticleLighting,
+    lights: LightBuffers,
+    particle_layouts: ParticleLayouts,
     memory: MemoryLedger,
 }
 
@@ -148,10 +153,27 @@ fn instance_buffer(
         &wgpu::BufferDescriptor {
             label: Some("has.instances"),
             size: capacity * std::mem::size_of::<ParticleInstance>() as u64,
-            usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_DST,
+            usage: wgpu::BufferUsages::VERTEX
+                | wgpu::BufferUsages::COPY_DST
+                | wgpu::BufferUsages::STORAGE,
             mapped_at_creation: false,
         },
     )
+}
+
+/// Lighting buffers for `capacity` particles in `slices` batches, recorded in `memory`.
+fn light_buffers(
+    memory: &mut MemoryLedger,
+    device: &wgpu::Device,
+    layouts: &ParticleLayouts,
+    instances: &wgpu::Buffer,
+    capacity: u64,
+    slices: u32,
+) -> LightBuffers {
+    let lights = LightBuffers::new(device, layouts, instances, capacity, slices, "has");
+    memory.forget("has.lighting");
+    memory.record("has.lighting", lights.bytes());
+    lights
 }
 
 impl HalfAngle {
@@ -241,20 +263,25 @@ impl HalfAngle {
         );
         let lookup_source =
             shaders::source(ENTRY.lookup_shader).expect("registered lookup shader is embedded");
-        let eye = |blend| {
+        let eye = |label, blend| {
             ParticlePipelines::new(
                 device,
-                &ParticlePipelineDesc {
-                    name: "has",
-                    lookup_source,
-                    frame_layout: ctx.frame_layout,
-                    lookup_layout: &lookup_layout,
-                    depth_layout: ctx.depth_layout,
-                    blend,
-                },
+                label,
+                ctx.frame_layout,
+                ctx.particle_layouts,
+                ctx.depth_layout,
+                blend,
             )
         };
-        let (eye_over, eye_under) = (eye(OVER), eye(UNDER));
+        let (eye_over, eye_under) = (eye("has.eye.over", OVER), eye("has.eye.under", UNDER));
+        let lighting = ParticleLighting::new(
+            device,
+            "has",
+            ctx.frame_layout,
+            &lookup_layout,
+            lookup_source,
+            ctx.particle_layouts,
+        );
 
         let composite_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("has.composite.layout"),
@@ -305,6 +332,14 @@ impl HalfAngle {
         });
         let instance_capacity = 1024;
         let instances = instance_buffer(&mut memory, device, instance_capacity);
+        let lights = light_buffers(
+            &mut memory,
+            device,
+            ctx.particle_layouts,
+            &instances,
+            instance_capacity,
+            params.channels,
+        );
         Ok(Self {
             slices: params.channels,
             device: device.clone(),
@@ -319,6 +354,9 @@ impl HalfAngle {
             eye: None,
             instances,
             instance_capacity,
+            lighting,
+            lights,
+            particle_layouts: ctx.particle_layouts.clone(),
             memory,
         })
     }
@@ -340,6 +378,14 @@ impl HalfAngle {
             self.instance_capacity = needed.next_power_of_two();
             self.instances =
                 instance_buffer(&mut self.memory, &self.device, self.instance_capacity);
+            self.lights = light_buffers(
+                &mut self.memory,
+                &self.device,
+                &self.particle_layouts,
+                &self.instances,
+                self.instance_capacity,
+                self.slices,
+            );
         }
         if needed > 0 {
             gpu.queue
@@ -494,9 +540,25 @@ impl ParticlePass for HalfAngle {
             &self.eye_over
         };
         let encoder = inputs.encoder;
+        self.lighting.set_ranges(&gpu.queue, &self.lights, &batches);
         // The light buffer starts empty; the eye buffer is cleared by the first eye pass.
         self.light_pass(encoder, inputs.timer, inputs.frame_bind_group, None, true);
         for (k, batch) in batches.iter().enumerate() {
+            {
+                // This batch's lighting, through the light buffer as the batches before left it.
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("has.lighting"),
+                    timestamp_writes: inputs.timer.compute_pass("particles"),
+                });
+                self.lighting.dispatch(
+                    &mut pass,
+                    inputs.frame_bind_group,
+                    &self.lookup_bind_group,
+                    &self.lights,
+                    k as u32,
+                    batch.end - batch.start,
+                );
+            }
             {
                 let load = if k == 0 {
                     wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT)
@@ -534,7 +596,7 @@ impl ParticlePass for HalfAngle {
                     pass.set_pipeline(&pipelines.flat);
                 }
                 pass.set_bind_group(0, inputs.frame_bind_group, &[]);
-                pass.set_bind_group(1, &self.lookup_bind_group, &[]);
+                pass.set_bind_group(1, &self.lights.read_bind_group, &[]);
                 pass.set_vertex_buffer(0, self.instances.slice(..));
                 pass.draw(0..BILLBOARD_VERTICES, batch.clone());
             }

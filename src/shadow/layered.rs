@@ -22,10 +22,10 @@ use crate::gpu::{Gpu, MemoryLedger};
 use crate::render::gpu_data::{BILLBOARD_VERTICES, ParticleInstance};
 use crate::shaders;
 
-/// Texture slots of the lookup shader (`shaders/shadow/layered.wgsl`).
-pub const MAP_SLOTS: u32 = 8;
+/// Most render targets a layered technique writes (8 x 4 = 32 channels).
+pub const MAX_TARGETS: u32 = 8;
 /// Binding of the depth channel in the lookup and layer-build groups.
-const DEPTH_BINDING: u32 = 10;
+const DEPTH_BINDING: u32 = 4;
 /// Format of the depth channel (normalised light depth, min-blended).
 const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R16Float;
 
@@ -59,7 +59,7 @@ pub struct LayeredSpec {
 impl LayeredSpec {
     /// Every build module for every target count, for the naga test.
     pub fn all_build_shaders(&self) -> Vec<(String, String)> {
-        (1..=MAP_SLOTS)
+        (1..=MAX_TARGETS)
             .map(|targets| {
                 (
                     format!("{}.build[{targets} targets]", self.name),
@@ -80,7 +80,8 @@ struct LayeredParams {
     sigma: u32,
     dom_thickness_m: f32,
     dom_ratio: f32,
-    _pad: [f32; 2],
+    full_targets: u32,
+    _pad: u32,
 }
 
 /// Format of packed target `index` for `packed` channels of `precision`.
@@ -128,12 +129,116 @@ pub fn build_shader_source(spec: &LayeredSpec, targets: u32) -> String {
         .replace("//{{BUILD_OUTPUTS}}", &build_outputs_wgsl(targets))
 }
 
+/// The packed maps: the full 4-channel targets as layers of one array texture, and the 1-, 2- or
+/// 3-channel remainder (stored in R, RG or RGBA) as a texture of its own.
+struct Maps {
+    full_layers: u32,
+    full: Option<wgpu::Texture>,
+    rest: Option<wgpu::Texture>,
+    /// The array as the lookup binds it (the remainder viewed as a 1-layer array when there
+    /// are no full layers: the lookup never reads it then).
+    full_view: wgpu::TextureView,
+    /// The remainder as the lookup binds it (layer 0 of the array when there is none).
+    rest_view: wgpu::TextureView,
+}
+
+impl Maps {
+    /// Maps for `packed` channels of `precision` at `res`², recorded in `memory`.
+    fn new(
+        memory: &mut MemoryLedger,
+        device: &wgpu::Device,
+        name: &str,
+        packed: u32,
+        precision: Precision,
+        res: u32,
+    ) -> Self {
+        let full_layers = packed / 4;
+        let mut texture = |label: String, format, layers| {
+            memory.texture(
+                device,
+                &wgpu::TextureDescriptor {
+                    label: Some(&label),
+                    size: wgpu::Extent3d {
+                        width: res,
+                        height: res,
+                        depth_or_array_layers: layers,
+                    },
+                    mip_level_count: 1,
+                    sample_count: 1,
+                    dimension: wgpu::TextureDimension::D2,
+                    format,
+                    usage: wgpu::TextureUsages::RENDER_ATTACHMENT
+                        | wgpu::TextureUsages::TEXTURE_BINDING
+                        | wgpu::TextureUsages::COPY_SRC,
+                    view_formats: &[],
+                },
+            )
+        };
+        let full = (full_layers > 0).then(|| {
+            let format = target_format(packed, 0, precision);
+            texture(format!("{name}.maps"), format, full_layers)
+        });
+        let rest = (!packed.is_multiple_of(4)).then(|| {
+            let format = target_format(packed, full_layers, precision);
+            texture(format!("{name}.maps.rest"), format, 1)
+        });
+        let array_view = |t: &wgpu::Texture| {
+            t.create_view(&wgpu::TextureViewDescriptor {
+                dimension: Some(wgpu::TextureViewDimension::D2Array),
+                ..Default::default()
+            })
+        };
+        let layer_view = |t: &wgpu::Texture, layer| {
+            t.create_view(&wgpu::TextureViewDescriptor {
+                dimension: Some(wgpu::TextureViewDimension::D2),
+                base_array_layer: layer,
+                array_layer_count: Some(1),
+                ..Default::default()
+            })
+        };
+        let any = full
+            .as_ref()
+            .or(rest.as_ref())
+            .expect("at least one target");
+        Self {
+            full_layers,
+            full_view: array_view(full.as_ref().unwrap_or(any)),
+            rest_view: layer_view(rest.as_ref().unwrap_or(any), 0),
+            full,
+            rest,
+        }
+    }
+
+    /// One render-target view per packed target, in channel order.
+    fn attachments(&self) -> Vec<wgpu::TextureView> {
+        let mut out: Vec<_> = (0..self.full_layers)
+            .map(|layer| {
+                self.full.as_ref().expect("full layers exist").create_view(
+                    &wgpu::TextureViewDescriptor {
+                        dimension: Some(wgpu::TextureViewDimension::D2),
+                        base_array_layer: layer,
+                        array_layer_count: Some(1),
+                        ..Default::default()
+                    },
+                )
+            })
+            .collect();
+        if let Some(rest) = &self.rest {
+            out.push(rest.create_view(&Default::default()));
+        }
+        out
+    }
+}
+
 /// A layered technique: a [`LayeredSpec`] with its maps and pipelines.
 pub struct Layered {
     spec: &'static LayeredSpec,
     plan: ChannelPlan,
+    /// Full RGBA layers in the array (the rest, if any, is one more texture).
+    full_targets: u32,
     params: TechniqueParams,
     params_buffer: wgpu::Buffer,
+    /// The render-target views, in channel order: the full RGBA layers, then the remainder.
     targets: Vec<wgpu::TextureView>,
     build_pipeline: wgpu::RenderPipeline,
     build_bind_group: wgpu::BindGroup,
@@ -346,13 +451,8 @@ impl Layered {
         let name = spec.name;
         let res = params.resolution_px;
         let mut memory = MemoryLedger::default();
-        let targets: Vec<_> = formats
-            .iter()
-            .enumerate()
-            .map(|(i, &format)| {
-                map_texture(&mut memory, device, &format!("{name}.map{i}"), format, res)
-            })
-            .collect();
+        let maps = Maps::new(&mut memory, device, name, plan.packed, spec.precision, res);
+        let targets = maps.attachments();
         let depth_view = spec.depth_channel.then(|| {
             map_texture(
                 &mut memory,
@@ -462,8 +562,9 @@ impl Layered {
             }
         };
 
-        // Lookup: parameters, a bilinear sampler, 8 map slots (unused slots repeat map 0; the
-        // shader never reads beyond the packed channels) and the depth channel if there is one.
+        // Lookup: parameters, a bilinear sampler, the full layers as one array and the remainder
+        // (one texture each, so a lookup picks a layer by index instead of switching between
+        // textures), and the depth channel if there is one.
         let mut lookup_entries = vec![
             uniform_entry(0, LOOKUP_STAGES),
             wgpu::BindGroupLayoutEntry {
@@ -473,7 +574,17 @@ impl Layered {
                 count: None,
             },
         ];
-        lookup_entries.extend((0..MAP_SLOTS).map(|i| texture_entry(2 + i, LOOKUP_STAGES)));
+        lookup_entries.push(wgpu::BindGroupLayoutEntry {
+            binding: 2,
+            visibility: LOOKUP_STAGES,
+            ty: wgpu::BindingType::Texture {
+                sample_type: wgpu::TextureSampleType::Float { filterable: true },
+                view_dimension: wgpu::TextureViewDimension::D2Array,
+                multisampled: false,
+            },
+            count: None,
+        });
+        lookup_entries.push(texture_entry(3, LOOKUP_STAGES));
         if depth_view.is_some() {
             lookup_entries.push(texture_entry(DEPTH_BINDING, LOOKUP_STAGES));
         }
@@ -492,12 +603,14 @@ impl Layered {
                 resource: wgpu::BindingResource::Sampler(&sampler),
             },
         ];
-        entries.extend((0..MAP_SLOTS).map(|i| wgpu::BindGroupEntry {
-            binding: 2 + i,
-            resource: wgpu::BindingResource::TextureView(
-                targets.get(i as usize).unwrap_or(&targets[0]),
-            ),
-        }));
+        entries.push(wgpu::BindGroupEntry {
+            binding: 2,
+            resource: wgpu::BindingResource::TextureView(&maps.full_view),
+        });
+        entries.push(wgpu::BindGroupEntry {
+            binding: 3,
+            resource: wgpu::BindingResource::TextureView(&maps.rest_view),
+        });
         if let Some(view) = &depth_view {
             entries.push(wgpu::BindGroupEntry {
                 binding: DEPTH_BINDING,
@@ -513,6 +626,7 @@ impl Layered {
         Ok(Self {
             spec,
             plan,
+            full_targets: maps.full_layers,
             params: params.clone(),
             params_buffer,
             targets,
@@ -538,7 +652,8 @@ impl Layered {
             // 0 tells the shader: from each texel's start to the far bound.
             dom_thickness_m: self.params.dom_thickness_m.unwrap_or(0.0),
             dom_ratio: self.params.dom_layer_ratio,
-            _pad: [0.0; 2],
+            full_targets: self.full_targets,
+            _pad: 0,
         }
     }
 

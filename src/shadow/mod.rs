@@ -147,6 +147,8 @@ pub struct TechniqueContext<'a> {
     /// Layout of the opaque depth the particle pass reads (group 2 of the particle pipelines),
     /// for techniques that draw the particles themselves.
     pub depth_layout: &'a wgpu::BindGroupLayout,
+    /// Layouts of the per-particle lighting buffers, for the same.
+    pub particle_layouts: &'a crate::render::ParticleLayouts,
 }
 
 /// What a technique gets each frame to build its maps.

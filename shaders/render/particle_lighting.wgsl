@@ -1,0 +1,66 @@
+// Per-particle lighting: once per particle and frame, the single-scattered radiance towards the
+// eye at four points inside the sphere (a 2x2 grid across the camera-facing disc, at
+// ±SHADE_OFFSET·r), with the technique's T(p). The particle pass blends them bilinearly per
+// fragment. (Evaluated per vertex instead, T would be paid six times per particle; per fragment,
+// for every layer of overdraw.) Keep `ParticleLight` in sync with src/render/particles.rs and
+// the four points with src/render/shaded.rs.
+#import common/lighting.wgsl
+#import common/particle.wgsl
+#import shadow_technique
+
+// Where the four lighting points sit, as a fraction of the radius along the billboard's axes.
+const SHADE_OFFSET: f32 = 0.5;
+
+struct ParticleData {
+    center_radius: vec4<f32>,
+    albedo_density: vec4<f32>,
+};
+
+// Radiance at the points (-,-), (+,-), (-,+), (+,+) along (right, up); w unused.
+struct ParticleLight {
+    radiance: array<vec4<f32>, 4>,
+};
+
+// The particles [start, start + count) of the instance buffer to light.
+struct LightRange {
+    start: u32,
+    count: u32,
+};
+
+@group(2) @binding(0) var<storage, read> lit_particles: array<ParticleData>;
+@group(2) @binding(1) var<storage, read_write> lit_out: array<ParticleLight>;
+@group(2) @binding(2) var<uniform> lit_range: LightRange;
+
+// Single scattering at `p` towards the eye plus ambient, for a particle of albedo `albedo`.
+fn scattered_radiance(p: vec3<f32>, eye: vec3<f32>, albedo: vec3<f32>) -> vec3<f32> {
+    let light_dir = normalize(p - frame.light_pos.xyz);
+    let view_dir = normalize(p - eye);
+    let phase = hg_phase_4pi(dot(light_dir, -view_dir), frame.light_radiance.w);
+    let direct = spot_irradiance(p) * shadow_transmittance(p) * phase;
+    // Normalised like a diffuse surface (E/π), so smoke and ground share one exposure: single
+    // scattering alone would leave dense smoke far darker than the multiple scattering of real
+    // smoke makes it look.
+    return albedo * (direct / PI + frame.ambient.rgb);
+}
+
+@compute @workgroup_size(64)
+fn light_particles(@builtin(global_invocation_id) id: vec3<u32>) {
+    if id.x >= lit_range.count {
+        return;
+    }
+    let index = lit_range.start + id.x;
+    let particle = lit_particles[index];
+    let center = particle.center_radius.xyz;
+    let radius = particle.center_radius.w;
+    let eye = frame.camera_pos.xyz;
+    let bb = billboard_frame(center, radius, eye);
+    let r = bb.right * (radius * SHADE_OFFSET);
+    let u = bb.up * (radius * SHADE_OFFSET);
+    let albedo = particle.albedo_density.rgb;
+    var out: ParticleLight;
+    out.radiance[0] = vec4<f32>(scattered_radiance(center - r - u, eye, albedo), 0.0);
+    out.radiance[1] = vec4<f32>(scattered_radiance(center + r - u, eye, albedo), 0.0);
+    out.radiance[2] = vec4<f32>(scattered_radiance(center - r + u, eye, albedo), 0.0);
+    out.radiance[3] = vec4<f32>(scattered_radiance(center + r + u, eye, albedo), 0.0);
+    lit_out[index] = out;
+}

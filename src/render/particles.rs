@@ -1,0 +1,356 @@
+//! The particle pass's pieces: lighting each particle once per frame with the active technique
+//! ([`ParticleLighting`], `shaders/render/particle_lighting.wgsl`), and drawing the billboards
+//! with that lighting ([`ParticlePipelines`], `shaders/render/particles.wgsl`).
+//!
+//! Lighting is a compute pass over a range of the instance buffer: the renderer lights every
+//! particle in one dispatch; half-angle slicing lights one batch at a time, between its light
+//! passes. The draw pipelines do not depend on the technique at all.
+
+use std::ops::Range;
+
+use bytemuck::{Pod, Zeroable};
+
+use super::gpu_data::ParticleInstance;
+use super::{DEPTH_FORMAT, HDR_FORMAT};
+use crate::shaders;
+
+/// Premultiplied "over" (thesis Eq. 1.5): C = C_src + (1 - α_src) C_dst, the same for alpha.
+pub const OVER: wgpu::BlendComponent = wgpu::BlendComponent {
+    src_factor: wgpu::BlendFactor::One,
+    dst_factor: wgpu::BlendFactor::OneMinusSrcAlpha,
+    operation: wgpu::BlendOperation::Add,
+};
+
+/// Premultiplied "under" (thesis Eq. 1.4), for front-to-back compositing:
+/// C = C_dst + (1 - α_dst) C_src, the same for alpha.
+pub const UNDER: wgpu::BlendComponent = wgpu::BlendComponent {
+    src_factor: wgpu::BlendFactor::OneMinusDstAlpha,
+    dst_factor: wgpu::BlendFactor::One,
+    operation: wgpu::BlendOperation::Add,
+};
+
+/// One particle's lighting: radiance at its four lighting points (w unused). Keep in sync with
+/// `ParticleLight` in shaders/render/particle_lighting.wgsl and particles.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+pub struct ParticleLight {
+    pub radiance: [[f32; 4]; 4],
+}
+
+/// Keep in sync with `LightRange` in shaders/render/particle_lighting.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct LightRange {
+    start: u32,
+    count: u32,
+}
+
+/// Uniform offsets must be multiples of this (the WebGPU minimum, which every adapter meets).
+const RANGE_STRIDE: u64 = 256;
+
+/// The bind group layouts of the lighting buffers, made once and shared by every pipeline that
+/// reads or writes them.
+#[derive(Clone)]
+pub struct ParticleLayouts {
+    /// The lighting as the draw pipelines read it (group 1, vertex stage).
+    pub read: wgpu::BindGroupLayout,
+    /// Instances, lighting and the range uniform as the lighting pass uses them (group 2).
+    pub io: wgpu::BindGroupLayout,
+}
+
+impl ParticleLayouts {
+    pub fn new(device: &wgpu::Device) -> Self {
+        let storage = |binding, visibility, read_only| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Storage { read_only },
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        };
+        let read = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("particles.light_layout"),
+            entries: &[storage(0, wgpu::ShaderStages::VERTEX, true)],
+        });
+        let compute = wgpu::ShaderStages::COMPUTE;
+        let io = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("particle_lighting.io_layout"),
+            entries: &[
+                storage(0, compute, true),
+                storage(1, compute, false),
+                wgpu::BindGroupLayoutEntry {
+                    binding: 2,
+                    visibility: compute,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: true,
+                        min_binding_size: wgpu::BufferSize::new(
+                            std::mem::size_of::<LightRange>() as u64
+                        ),
+                    },
+                    count: None,
+                },
+            ],
+        });
+        Self { read, io }
+    }
+}
+
+/// The lighting compute pipeline for one technique's lookup.
+pub struct ParticleLighting {
+    pipeline: wgpu::ComputePipeline,
+}
+
+impl ParticleLighting {
+    /// `lookup_source`: the technique's lookup shader (group 1, `shadow_transmittance`).
+    pub fn new(
+        device: &wgpu::Device,
+        name: &str,
+        frame_layout: &wgpu::BindGroupLayout,
+        lookup_layout: &wgpu::BindGroupLayout,
+        lookup_source: &str,
+        layouts: &ParticleLayouts,
+    ) -> Self {
+        let module = shaders::module(
+            device,
+            &format!("particle_lighting[{name}]"),
+            &lighting_source(lookup_source),
+        );
+        let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("particle_lighting.pipeline_layout"),
+            bind_group_layouts: &[Some(frame_layout), Some(lookup_layout), Some(&layouts.io)],
+            immediate_size: 0,
+        });
+        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some(&format!("particle_lighting[{name}]")),
+            layout: Some(&layout),
+            module: &module,
+            entry_point: Some("light_particles"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        Self { pipeline }
+    }
+
+    /// Writes `ranges` (at most the buffers' batch capacity) for the next submission.
+    pub fn set_ranges(&self, queue: &wgpu::Queue, buffers: &LightBuffers, ranges: &[Range<u32>]) {
+        assert!(
+            ranges.len() <= buffers.max_batches as usize,
+            "more batches than allocated"
+        );
+        let mut bytes = vec![0u8; ranges.len() * RANGE_STRIDE as usize];
+        for (i, r) in ranges.iter().enumerate() {
+            let at = i * RANGE_STRIDE as usize;
+            bytes[at..at + 8].copy_from_slice(bytemuck::bytes_of(&LightRange {
+                start: r.start,
+                count: r.end - r.start,
+            }));
+        }
+        if !bytes.is_empty() {
+            queue.write_buffer(&buffers.ranges, 0, &bytes);
+        }
+    }
+
+    /// Records the lighting of range `batch` (as set by [`Self::set_ranges`], `count` particles)
+    /// into `pass`.
+    pub fn dispatch(
+        &self,
+        pass: &mut wgpu::ComputePass<'_>,
+        frame_bind_group: &wgpu::BindGroup,
+        lookup_bind_group: &wgpu::BindGroup,
+        buffers: &LightBuffers,
+        batch: u32,
+        count: u32,
+    ) {
+        if count == 0 {
+            return;
+        }
+        pass.set_pipeline(&self.pipeline);
+        pass.set_bind_group(0, frame_bind_group, &[]);
+        pass.set_bind_group(1, lookup_bind_group, &[]);
+        let offset = (u64::from(batch) * RANGE_STRIDE) as u32;
+        pass.set_bind_group(2, &buffers.io_bind_group, &[offset]);
+        pass.dispatch_workgroups(count.div_ceil(64), 1, 1);
+    }
+}
+
+/// The lighting buffer for one instance buffer, and the ranges uniform.
+pub struct LightBuffers {
+    capacity: u64,
+    max_batches: u32,
+    lighting: wgpu::Buffer,
+    ranges: wgpu::Buffer,
+    /// The lighting as the draw pipelines read it (group 1).
+    pub read_bind_group: wgpu::BindGroup,
+    io_bind_group: wgpu::BindGroup,
+}
+
+impl LightBuffers {
+    /// Lighting for `capacity` particles of `instances`, in up to `max_batches` ranges.
+    pub fn new(
+        device: &wgpu::Device,
+        layouts: &ParticleLayouts,
+        instances: &wgpu::Buffer,
+        capacity: u64,
+        max_batches: u32,
+        label: &str,
+    ) -> Self {
+        let lighting = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(&format!("{label}.lighting")),
+            size: capacity.max(1) * std::mem::size_of::<ParticleLight>() as u64,
+            usage: wgpu::BufferUsages::STORAGE,
+            mapped_at_creation: false,
+        });
+        let ranges = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(&format!("{label}.light_ranges")),
+            size: u64::from(max_batches.max(1)) * RANGE_STRIDE,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let read_bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some(&format!("{label}.light_bind_group")),
+            layout: &layouts.read,
+            entries: &[wgpu::BindGroupEntry {
+                binding: 0,
+                resource: lighting.as_entire_binding(),
+            }],
+        });
+        let io_bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some(&format!("{label}.light_io_bind_group")),
+            layout: &layouts.io,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: instances.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: lighting.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                        buffer: &ranges,
+                        offset: 0,
+                        size: wgpu::BufferSize::new(std::mem::size_of::<LightRange>() as u64),
+                    }),
+                },
+            ],
+        });
+        Self {
+            capacity,
+            max_batches,
+            lighting,
+            ranges,
+            read_bind_group,
+            io_bind_group,
+        }
+    }
+
+    /// Bytes allocated (lighting and ranges).
+    pub fn bytes(&self) -> u64 {
+        self.lighting.size() + self.ranges.size()
+    }
+
+    /// Particles this lighting holds.
+    pub fn capacity(&self) -> u64 {
+        self.capacity
+    }
+}
+
+/// The composed lighting shader for a technique's lookup.
+pub fn lighting_source(lookup_source: &str) -> String {
+    shaders::compose(
+        "render/particle_lighting.wgsl",
+        &[(shaders::SHADOW_TECHNIQUE, lookup_source)],
+    )
+}
+
+/// The particle pass's two pipelines (`shaders/render/particles.wgsl`): spherical billboards
+/// (group 2 = opaque depth) and flat billboards with a hard depth test; group 1 is the lighting.
+pub struct ParticlePipelines {
+    pub spherical: wgpu::RenderPipeline,
+    pub flat: wgpu::RenderPipeline,
+}
+
+impl ParticlePipelines {
+    /// Pipelines compositing into an HDR-format target with `blend`.
+    pub fn new(
+        device: &wgpu::Device,
+        label: &str,
+        frame_layout: &wgpu::BindGroupLayout,
+        layouts: &ParticleLayouts,
+        depth_layout: &wgpu::BindGroupLayout,
+        blend: wgpu::BlendComponent,
+    ) -> Self {
+        let light_layout = &layouts.read;
+        let module = shaders::module(
+            device,
+            label,
+            &shaders::compose("render/particles.wgsl", &[]),
+        );
+        let layout = |suffix: &str, groups: &[Option<&wgpu::BindGroupLayout>]| {
+            device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some(&format!("{label}.{suffix}.pipeline_layout")),
+                bind_group_layouts: groups,
+                immediate_size: 0,
+            })
+        };
+        let spherical_layout = layout(
+            "spherical",
+            &[Some(frame_layout), Some(light_layout), Some(depth_layout)],
+        );
+        let flat_layout = layout("flat", &[Some(frame_layout), Some(light_layout)]);
+        let target = [Some(wgpu::ColorTargetState {
+            format: HDR_FORMAT,
+            blend: Some(wgpu::BlendState {
+                color: blend,
+                alpha: blend,
+            }),
+            write_mask: wgpu::ColorWrites::ALL,
+        })];
+        let pipeline = |suffix: &str,
+                        layout: &wgpu::PipelineLayout,
+                        fs,
+                        depth: Option<wgpu::DepthStencilState>| {
+            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some(&format!("{label}.{suffix}.pipeline")),
+                layout: Some(layout),
+                vertex: wgpu::VertexState {
+                    module: &module,
+                    entry_point: Some("vs_main"),
+                    compilation_options: Default::default(),
+                    buffers: &[Some(ParticleInstance::LAYOUT)],
+                },
+                primitive: wgpu::PrimitiveState::default(),
+                depth_stencil: depth,
+                multisample: Default::default(),
+                fragment: Some(wgpu::FragmentState {
+                    module: &module,
+                    entry_point: Some(fs),
+                    compilation_options: Default::default(),
+                    targets: &target,
+                }),
+                multiview_mask: None,
+                cache: None,
+            })
+        };
+        Self {
+            spherical: pipeline("spherical", &spherical_layout, "fs_spherical", None),
+            flat: pipeline(
+                "flat",
+                &flat_layout,
+                "fs_flat",
+                Some(wgpu::DepthStencilState {
+                    format: DEPTH_FORMAT,
+                    depth_write_enabled: Some(false),
+                    depth_compare: Some(wgpu::CompareFunction::Less),
+                    stencil: Default::default(),
+                    bias: Default::default(),
+                }),
+            ),
+        }
+    }
+}
