@@ -14,3 +14,4 @@ pub mod scene;
 pub mod shaders;
 pub mod shadow;
 pub mod sim;
+pub mod sweep;

@@ -34,6 +34,9 @@ enum Command {
     Info,
     /// Compare two images: FLIP, RMSE, PSNR, SSIM, and the thesis' 4x-enhanced difference.
     Diff(commands::diff::DiffArgs),
+    /// Sweep techniques x channel budgets x shadow resolutions: time, bytes and error as CSV,
+    /// JSON, SVG charts and an HTML report (default: the thesis experiment).
+    Sweep(commands::sweep::SweepArgs),
     /// Check the committed 24-channel baselines against fresh renders, or bless new ones.
     Baseline(commands::baseline::BaselineArgs),
     /// The thesis' accuracy comparison for a scene: images, differences, metrics.csv and an
@@ -83,6 +86,9 @@ fn main() -> ExitCode {
         Command::Info => commands::info::run(&cli.adapter).map(|()| ExitCode::SUCCESS),
         Command::Diff(args) => commands::diff::run(args),
         Command::Baseline(args) => commands::baseline::run(args, &cli.adapter),
+        Command::Sweep(args) => {
+            commands::sweep::run(args, &cli.adapter).map(|()| ExitCode::SUCCESS)
+        }
         Command::Compare(args) => {
             commands::compare::run(args, &cli.adapter).map(|()| ExitCode::SUCCESS)
         }

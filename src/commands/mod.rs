@@ -6,6 +6,7 @@ pub mod diff;
 pub mod info;
 pub mod probe;
 pub mod render;
+pub mod sweep;
 
 use crate::shadow::{SplatMode, TechniqueParams};
 

@@ -34,4 +34,5 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     lookup_shader: "shadow/dom.wgsl",
     extra_shaders: || SPEC.all_build_shaders(),
     create: |ctx, params| Ok(Box::new(Layered::new(ctx, &SPEC, params)?)),
+    uses_splat: true,
 };

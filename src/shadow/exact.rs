@@ -41,6 +41,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
         )]
     },
     create: |ctx, params| Ok(Box::new(Exact::new(ctx, params)?)),
+    uses_splat: false,
 };
 
 /// Keep in sync with `ExactParams` in shaders/shadow/exact.wgsl and exact_build.wgsl.

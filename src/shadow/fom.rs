@@ -45,6 +45,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     lookup_shader: "shadow/fom.wgsl",
     extra_shaders: || FOM.all_build_shaders(),
     create: |ctx, params| Ok(Box::new(Layered::new(ctx, &FOM, params)?)),
+    uses_splat: true,
 };
 
 pub const SIGMA_ENTRY: TechniqueEntry = TechniqueEntry {
@@ -55,4 +56,5 @@ pub const SIGMA_ENTRY: TechniqueEntry = TechniqueEntry {
     // Same build shaders as `fom`: the σ-factors apply at lookup.
     extra_shaders: Vec::new,
     create: |ctx, params| Ok(Box::new(Layered::new(ctx, &FOM_SIGMA, params)?)),
+    uses_splat: true,
 };

@@ -51,6 +51,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
         )]
     },
     create: |ctx, params| Ok(Box::new(HalfAngle::new(ctx, params)?)),
+    uses_splat: false,
 };
 
 /// Format of the light buffer (accumulated optical depth).

@@ -265,6 +265,8 @@ pub struct TechniqueEntry {
     pub extra_shaders: fn() -> Vec<(String, String)>,
     /// Builds the technique; `params` has already been checked against the budget range.
     pub create: CreateFn,
+    /// Whether [`TechniqueParams::splat`] changes its result (sweeps run the others once).
+    pub uses_splat: bool,
 }
 
 /// Every technique, in the order lists and reports show them.

@@ -13,6 +13,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     lookup_shader: "shadow/none.wgsl",
     extra_shaders: Vec::new,
     create: |ctx, params| Ok(Box::new(NoShadow::new(ctx, params)?)),
+    uses_splat: false,
 };
 
 pub struct NoShadow {

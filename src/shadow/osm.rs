@@ -30,4 +30,5 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     lookup_shader: "shadow/osm.wgsl",
     extra_shaders: || SPEC.all_build_shaders(),
     create: |ctx, params| Ok(Box::new(Layered::new(ctx, &SPEC, params)?)),
+    uses_splat: true,
 };

@@ -1,0 +1,631 @@
+//! The sweep's `index.html`: a self-contained page (no network, relative links only) that
+//! answers "which technique gives the most accuracy for a given memory", then shows the charts,
+//! every measured cell, the cells that were skipped, and every image with its differences.
+//!
+//! The page is built from [`SweepResults`] alone, so it can be rewritten from `results.json`
+//! at any time; the page skeleton and formatting come from [`crate::report`], shared with the
+//! `compare` page. A new section is one more function that appends to the body in
+//! [`write_html`].
+
+use std::fmt::Write;
+use std::path::Path;
+
+use super::charts::Chart;
+use super::{CellResult, SweepResults, Timing};
+use crate::report::{self, escape as e};
+
+/// Every path the page references (`src` and `href` attributes, and the `compare` page's
+/// `data-*` image attributes), for checking that a report's links resolve.
+pub use crate::compare::referenced_paths;
+
+/// Name of the page inside the sweep folder.
+pub const INDEX_HTML: &str = "index.html";
+
+/// Writes `dir/index.html` atomically from `results` and the `charts` already written into
+/// `dir` (see [`super::charts::write_charts`]). Every link is relative to `dir`.
+pub fn write_html(results: &SweepResults, charts: &[Chart], dir: &Path) -> anyhow::Result<()> {
+    let html = page(results, charts);
+    crate::output::write_atomic(&dir.join(INDEX_HTML), html.as_bytes())
+}
+
+/// Page-specific style: Pareto rows and the image grid's small links.
+const STYLE: &str = "<style>
+tr.pareto td { background: #d9f2dc; }
+tr.baseline td { color: #6b7280; }
+.charts { display: grid; grid-template-columns: repeat(auto-fill, minmax(440px, 1fr)); gap: 16px; }
+.charts figure { margin: 0; }
+.charts img { width: 100%; height: auto; border: 1px solid #ddd; }
+.charts figcaption { font-size: 13px; color: #374151; }
+.links a { margin-right: 4px; }
+.grid .empty { color: #9ca3af; font-size: 12px; }
+.range { font-size: 11px; }
+.wide { overflow-x: auto; }
+</style>
+";
+
+fn page(results: &SweepResults, charts: &[Chart]) -> String {
+    let m = &results.metadata;
+    let title = format!("smokeshadow sweep: {}", m.scene);
+    let variants = Variants::of(&results.cells);
+    let pareto = pareto_front(&results.cells);
+
+    let mut body = String::from(STYLE);
+    let _ = writeln!(body, "<h1>{}</h1>", e(&title));
+    metadata_line(&mut body, results);
+    answer(&mut body, results, &variants, &pareto);
+    charts_section(&mut body, charts);
+    table(&mut body, results, &variants, &pareto);
+    skipped(&mut body, results);
+    image_grid(&mut body, results, &variants);
+    body.push_str(
+        "<h2>Data</h2>\n<p>Every cell as <a href=\"results.csv\">results.csv</a> (a row per \
+         cell) and <a href=\"results.json\">results.json</a> (with the metadata above).</p>\n",
+    );
+    report::page(&title, &body, "")
+}
+
+/// What the sweep ran on and with.
+fn metadata_line(body: &mut String, results: &SweepResults) {
+    let m = &results.metadata;
+    let wall = if m.wall_s.is_finite() && m.wall_s >= 0.0 {
+        humantime::format_duration(std::time::Duration::from_secs(m.wall_s.round() as u64))
+            .to_string()
+    } else {
+        "unknown".into()
+    };
+    let _ = writeln!(
+        body,
+        "<p class=\"muted\">Scene <code>{scene}</code> at {w}x{h}, {particles} particles, seed {seed}; \
+         adapter {adapter} ({backend}, driver {driver}); timestamp queries: {ts}; \
+         {frames} timed frames after {warmup} warm-up; reference <code>exact</code> at {exact_res}² \
+         ({exact_bytes}); smokeshadow {version}; ran {wall}, started {started}.</p>",
+        scene = e(&m.scene),
+        w = m.width_px,
+        h = m.height_px,
+        particles = m.particles,
+        seed = m.seed,
+        adapter = e(&m.adapter),
+        backend = e(&m.backend),
+        driver = e(&m.driver),
+        ts = if m.timestamp_queries {
+            "yes"
+        } else {
+            "no (GPU times are absent)"
+        },
+        frames = m.frames,
+        warmup = m.warmup,
+        exact_res = m.exact_res,
+        exact_bytes = report::bytes(m.exact_bytes),
+        version = e(&m.tool_version),
+        started = e(&m.started),
+    );
+}
+
+/// The one-paragraph answer: the Pareto front and the most accurate cell.
+fn answer(body: &mut String, results: &SweepResults, variants: &Variants, pareto: &[bool]) {
+    body.push_str("<h2>Answer</h2>\n");
+    let mut front: Vec<&CellResult> = results
+        .cells
+        .iter()
+        .zip(pareto)
+        .filter_map(|(c, &p)| p.then_some(c))
+        .collect();
+    if front.is_empty() {
+        body.push_str(
+            "<p>No cell has an error against <code>exact</code> yet, so there is no answer.</p>\n",
+        );
+        return;
+    }
+    front.sort_by(|a, b| {
+        a.bytes
+            .cmp(&b.bytes)
+            .then(flip_exact(a).total_cmp(&flip_exact(b)))
+    });
+    let listed: Vec<String> = front
+        .iter()
+        .map(|c| {
+            format!(
+                "<b>{}</b>: {}, FLIP {:.4}",
+                e(&variants.cell_label(c)),
+                report::bytes(c.bytes),
+                flip_exact(c)
+            )
+        })
+        .collect();
+    let best = results
+        .cells
+        .iter()
+        .filter(|c| flip_exact(c).is_finite())
+        .min_by(|a, b| {
+            flip_exact(a)
+                .total_cmp(&flip_exact(b))
+                .then(a.bytes.cmp(&b.bytes))
+        });
+    let _ = write!(
+        body,
+        "<p>Most accuracy for the memory (the Pareto front: no other cell is both no larger and \
+         closer to <code>exact</code> by FLIP mean): {}.",
+        listed.join("; ")
+    );
+    if let Some(best) = best {
+        let _ = write!(
+            body,
+            " Closest to <code>exact</code> overall: <b>{}</b> (FLIP {:.4}, {}).",
+            e(&variants.cell_label(best)),
+            flip_exact(best),
+            report::bytes(best.bytes)
+        );
+    }
+    body.push_str("</p>\n");
+}
+
+fn charts_section(body: &mut String, charts: &[Chart]) {
+    if charts.is_empty() {
+        return;
+    }
+    body.push_str("<h2>Charts</h2>\n<div class=\"charts\">\n");
+    for chart in charts {
+        let _ = writeln!(
+            body,
+            "<figure><a href=\"{file}\"><img src=\"{file}\" alt=\"{title}\"></a>\
+             <figcaption><b>{title}.</b> {caption}</figcaption></figure>",
+            file = e(&chart.file),
+            title = e(&chart.title),
+            caption = e(&chart.caption),
+        );
+    }
+    body.push_str("</div>\n");
+}
+
+/// Every cell, one row each, Pareto rows highlighted.
+fn table(body: &mut String, results: &SweepResults, variants: &Variants, pareto: &[bool]) {
+    let gpu = results.metadata.timestamp_queries;
+    body.push_str(
+        "<h2>Results</h2>\n<p>Times in milliseconds: the median over the timed frames, under it the minimum and maximum. \
+         Overhead: frame time / the frame time without shadows (<code>none</code>). \
+         FLIP: mean, 0 = identical. RMS T error: transmittance against <code>exact</code> at \
+         the points the view shades. Highlighted: the Pareto front.</p>\n\
+         <div class=\"wide\"><table><tr><th>technique</th><th>channels<br>(used)</th><th>res</th><th>splat</th>\
+         <th>bytes</th><th>shadow<br>ms</th><th>render<br>ms</th><th>sort<br>ms</th><th>frame<br>ms</th>\
+         <th>overhead</th><th>FLIP<br>vs own 24</th><th>FLIP<br>vs exact</th><th>RMSE<br>vs exact</th>\
+         <th>RMS T<br>error</th></tr>\n",
+    );
+    for (c, &on_front) in results.cells.iter().zip(pareto) {
+        let class = if on_front {
+            " class=\"pareto\""
+        } else if c.technique == "none" {
+            " class=\"baseline\""
+        } else {
+            ""
+        };
+        let channels = if c.channels_used == c.channels {
+            c.channels.to_string()
+        } else {
+            format!("{} ({})", c.channels, c.channels_used)
+        };
+        let gpu_time = |t: &Timing| {
+            if gpu { timing_range(t) } else { "n/a".into() }
+        };
+        let _ = writeln!(
+            body,
+            "<tr{class}><td>{}</td><td>{channels}</td><td>{}</td><td>{}</td><td>{}</td>\
+             <td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td>\
+             <td>{}</td><td>{}</td></tr>",
+            e(&c.technique),
+            c.shadow_res,
+            c.splat.name(),
+            report::bytes(c.bytes),
+            gpu_time(&c.gpu_shadow_ms),
+            if gpu {
+                ms(c.gpu_render_ms.median)
+            } else {
+                "n/a".into()
+            },
+            ms(c.cpu_sort_ms.median),
+            timing_range(&c.frame_ms),
+            c.overhead_ratio
+                .filter(|r| r.is_finite())
+                .map_or("—".into(), |r| format!("{r:.2}x")),
+            metric(c.vs_own_24.map(|x| x.flip_mean)),
+            metric(c.vs_exact.map(|x| x.flip_mean)),
+            metric(c.vs_exact.map(|x| x.rmse)),
+            metric(c.rms_transmittance_error),
+        );
+    }
+    body.push_str("</table></div>\n");
+    if variants.several() {
+        body.push_str(
+            "<p class=\"muted\">FLIP vs own 24 compares with the same technique at 24 channels \
+             at the same resolution and splat.</p>\n",
+        );
+    }
+}
+
+fn skipped(body: &mut String, results: &SweepResults) {
+    if results.skipped.is_empty() {
+        return;
+    }
+    body.push_str(
+        "<h2>Skipped</h2>\n<table><tr><th>technique</th><th>channels</th><th>reason</th></tr>\n",
+    );
+    for s in &results.skipped {
+        let _ = writeln!(
+            body,
+            "<tr><td>{}</td><td>{}</td><td style=\"text-align: left; white-space: normal\">{}</td></tr>",
+            e(&s.technique),
+            s.channels,
+            e(&s.reason)
+        );
+    }
+    body.push_str("</table>\n");
+}
+
+/// Rows technique (x resolution x splat), columns channel budgets, largest first as in the
+/// thesis; the references (`exact`, and `none`) above them.
+fn image_grid(body: &mut String, results: &SweepResults, variants: &Variants) {
+    body.push_str(
+        "<h2>Images</h2>\n<p>Click an image for full size. ×4: |a − b| × 4 as in the thesis; \
+         FLIP: the FLIP error map (magma).</p>\n",
+    );
+    // References.
+    body.push_str("<div class=\"grid\" style=\"grid-template-columns: repeat(4, 1fr)\">\n");
+    let _ = writeln!(
+        body,
+        "<figure><a href=\"{x}\"><img loading=\"lazy\" src=\"{x}\" alt=\"exact\"></a>\
+         <figcaption><b>exact</b> at {}² · {} · the reference</figcaption></figure>",
+        results.metadata.exact_res,
+        report::bytes(results.metadata.exact_bytes),
+        x = e(&results.exact_image),
+    );
+    for c in results.cells.iter().filter(|c| c.technique == "none") {
+        let _ = writeln!(
+            body,
+            "<figure><a href=\"{x}\"><img loading=\"lazy\" src=\"{x}\" alt=\"none\"></a>\
+             <figcaption><b>none</b> · no self-shadowing · frame {} ms</figcaption></figure>",
+            ms(c.frame_ms.median),
+            x = e(&c.image),
+        );
+    }
+    body.push_str("</div>\n");
+
+    let shadowed: Vec<&CellResult> = results
+        .cells
+        .iter()
+        .filter(|c| c.technique != "none")
+        .collect();
+    if shadowed.is_empty() {
+        return;
+    }
+    let mut budgets: Vec<u32> = shadowed.iter().map(|c| c.channels).collect();
+    budgets.sort_unstable_by(|a, b| b.cmp(a));
+    budgets.dedup();
+    let _ = writeln!(
+        body,
+        "<div class=\"grid\" style=\"grid-template-columns: 110px repeat({}, 1fr)\">",
+        budgets.len()
+    );
+    body.push_str("<div></div>");
+    for b in &budgets {
+        let _ = write!(body, "<div><b>{b} channels</b></div>");
+    }
+    body.push('\n');
+    let mut rows: Vec<String> = Vec::new();
+    for c in &shadowed {
+        let row = variants.row_label(c);
+        if !rows.contains(&row) {
+            rows.push(row);
+        }
+    }
+    for row in &rows {
+        let _ = write!(body, "<div class=\"rowhead\">{}</div>", e(row));
+        for &b in &budgets {
+            let Some(c) = shadowed
+                .iter()
+                .find(|c| c.channels == b && &variants.row_label(c) == row)
+            else {
+                body.push_str("<div class=\"empty\">—</div>");
+                continue;
+            };
+            let mut links = Vec::new();
+            for (label, path) in [
+                ("×4 vs own 24", &c.diff_own_24),
+                ("FLIP vs own 24", &c.flip_own_24),
+                ("×4 vs exact", &c.diff_exact),
+                ("FLIP vs exact", &c.flip_exact),
+            ] {
+                if let Some(path) = path {
+                    links.push(format!("<a href=\"{}\">{label}</a>", e(path)));
+                }
+            }
+            let used = if c.channels_used == c.channels {
+                String::new()
+            } else {
+                format!(" ({} used)", c.channels_used)
+            };
+            let _ = write!(
+                body,
+                "<figure><a href=\"{x}\"><img loading=\"lazy\" src=\"{x}\" alt=\"{label}\"></a>\
+                 <figcaption>{b} ch{used} · {bytes} · FLIP vs exact {flip}<br>\
+                 <span class=\"links\">{links}</span></figcaption></figure>",
+                x = e(&c.image),
+                label = e(&variants.cell_label(c)),
+                bytes = report::bytes(c.bytes),
+                flip = metric(c.vs_exact.map(|x| x.flip_mean)),
+                links = links.join(" "),
+            );
+        }
+        body.push('\n');
+    }
+    body.push_str("</div>\n");
+}
+
+/// Whether the sweep has several shadow resolutions or splat modes, so labels must name them.
+struct Variants {
+    several_res: bool,
+    several_splats: bool,
+}
+
+impl Variants {
+    fn of(cells: &[CellResult]) -> Self {
+        let shadowed = || cells.iter().filter(|c| c.technique != "none");
+        let several = |differ: &dyn Fn(&CellResult, &CellResult) -> bool| {
+            shadowed()
+                .next()
+                .is_some_and(|first| shadowed().any(|c| differ(first, c)))
+        };
+        Self {
+            several_res: several(&|a, b| a.shadow_res != b.shadow_res),
+            several_splats: several(&|a, b| a.splat != b.splat),
+        }
+    }
+
+    fn several(&self) -> bool {
+        self.several_res || self.several_splats
+    }
+
+    /// Technique, with resolution and splat where the sweep varies them: `dom 512² segment`.
+    fn row_label(&self, c: &CellResult) -> String {
+        let mut label = c.technique.clone();
+        if self.several_res {
+            let _ = write!(label, " {}²", c.shadow_res);
+        }
+        if self.several_splats {
+            let _ = write!(label, " {}", c.splat.name());
+        }
+        label
+    }
+
+    /// `osm at 24 channels` (plus resolution and splat where they vary).
+    fn cell_label(&self, c: &CellResult) -> String {
+        let mut label = format!("{} at {} channels", c.technique, c.channels);
+        if self.several_res {
+            let _ = write!(label, ", {}²", c.shadow_res);
+        }
+        if self.several_splats {
+            let _ = write!(label, ", {} splat", c.splat.name());
+        }
+        label
+    }
+}
+
+/// FLIP mean against `exact`, NaN when absent (never on the front, never the best).
+fn flip_exact(c: &CellResult) -> f64 {
+    c.vs_exact.map_or(f64::NAN, |x| x.flip_mean)
+}
+
+/// For each cell, whether it is on the Pareto front of bytes against FLIP vs `exact`: it has a
+/// finite error and no other cell has both fewer-or-equal bytes and a lower error. Cells
+/// without an error against `exact` (`none`) are never on it.
+fn pareto_front(cells: &[CellResult]) -> Vec<bool> {
+    cells
+        .iter()
+        .map(|c| {
+            let flip = flip_exact(c);
+            flip.is_finite()
+                && !cells.iter().any(|d| {
+                    let other = flip_exact(d);
+                    other.is_finite() && d.bytes <= c.bytes && other < flip
+                })
+        })
+        .collect()
+}
+
+fn ms(value: f64) -> String {
+    if value.is_finite() {
+        format!("{value:.3}")
+    } else {
+        "—".into()
+    }
+}
+
+fn timing_range(t: &Timing) -> String {
+    format!(
+        "{}<br><span class=\"muted range\">{}–{}</span>",
+        ms(t.median),
+        ms(t.min),
+        ms(t.max)
+    )
+}
+
+fn metric(value: Option<f64>) -> String {
+    match value {
+        Some(v) if v.is_finite() => format!("{v:.4}"),
+        _ => "—".into(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::shadow::SplatMode;
+    use crate::sweep::{ImageError, SkippedCell, SweepMetadata};
+
+    fn timing(ms: f64) -> Timing {
+        Timing {
+            median: ms,
+            min: ms * 0.9,
+            max: ms * 1.1,
+        }
+    }
+
+    fn cell(technique: &str, channels: u32, bytes: u64, flip: Option<f64>) -> CellResult {
+        let error = flip.map(|f| ImageError {
+            flip_mean: f,
+            rmse: f / 2.0,
+        });
+        let name = format!("{technique}_{channels}");
+        let with_error = |kind: &str| flip.map(|_| format!("images/{name}_{kind}.png"));
+        CellResult {
+            technique: technique.into(),
+            channels,
+            channels_used: if technique == "fom" { 11 } else { channels },
+            shadow_res: 512,
+            splat: SplatMode::Point,
+            bytes,
+            gpu_shadow_ms: timing(1.0),
+            gpu_render_ms: timing(4.0),
+            cpu_sort_ms: timing(0.5),
+            frame_ms: timing(6.0),
+            wall_ms: timing(8.0),
+            overhead_ratio: flip.map(|_| 1.42),
+            vs_own_24: error.filter(|_| channels != 24),
+            vs_exact: error,
+            rms_transmittance_error: flip.map(|f| f * 2.0),
+            image: format!("images/{name}.png"),
+            diff_own_24: with_error("diff_own").filter(|_| channels != 24),
+            flip_own_24: with_error("flip_own").filter(|_| channels != 24),
+            diff_exact: with_error("diff_exact"),
+            flip_exact: with_error("flip_exact"),
+            settings_key: "k".into(),
+        }
+    }
+
+    fn results() -> SweepResults {
+        SweepResults {
+            metadata: SweepMetadata {
+                tool_version: "0.1.0".into(),
+                scene: "thesis_plume".into(),
+                scene_sha256: "00".into(),
+                seed: 7,
+                particles: 2500,
+                width_px: 1024,
+                height_px: 768,
+                adapter: "llvmpipe <LLVM>".into(),
+                backend: "vulkan".into(),
+                driver: "mesa".into(),
+                timestamp_queries: true,
+                frames: 30,
+                warmup: 5,
+                exact_res: 1024,
+                exact_bytes: 63 << 20,
+                started: "2026-01-01T00:00:00Z".into(),
+                wall_s: 75.0,
+            },
+            cells: vec![
+                cell("none", 24, 0, None),
+                cell("osm", 24, 12 << 20, Some(0.02)),
+                cell("osm", 8, 4 << 20, Some(0.05)),
+                // Larger than osm 8 and worse: not on the front.
+                cell("dom", 8, 5 << 20, Some(0.06)),
+                cell("fom", 24, 22 << 20, Some(0.01)),
+            ],
+            skipped: vec![SkippedCell {
+                technique: "dom".into(),
+                channels: 1,
+                reason: "dom needs at least 2 channels".into(),
+            }],
+            exact_image: "images/exact.png".into(),
+        }
+    }
+
+    #[test]
+    fn pareto_front_keeps_cells_nothing_smaller_beats() {
+        let r = results();
+        assert_eq!(pareto_front(&r.cells), [false, true, true, false, true]);
+        assert!(pareto_front(&[]).is_empty());
+    }
+
+    #[test]
+    fn page_links_resolve_and_name_every_technique() {
+        let r = results();
+        let dir = std::env::temp_dir().join(format!("sweep-report-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(dir.join("images")).unwrap();
+        // Placeholders for what the sweep engine writes.
+        let mut files = vec![
+            r.exact_image.clone(),
+            "results.csv".into(),
+            "results.json".into(),
+        ];
+        for c in &r.cells {
+            files.push(c.image.clone());
+            for path in [&c.diff_own_24, &c.flip_own_24, &c.diff_exact, &c.flip_exact]
+                .into_iter()
+                .flatten()
+            {
+                files.push(path.clone());
+            }
+        }
+        for f in &files {
+            std::fs::write(dir.join(f), b"").unwrap();
+        }
+
+        let charts = super::super::charts::write_charts(&r, &dir).unwrap();
+        write_html(&r, &charts, &dir).unwrap();
+        let html = std::fs::read_to_string(dir.join(INDEX_HTML)).unwrap();
+
+        let referenced = referenced_paths(&html);
+        for chart in &charts {
+            assert!(
+                referenced.contains(&chart.file.clone().into()),
+                "{}",
+                chart.file
+            );
+        }
+        for f in &files {
+            assert!(referenced.contains(&f.into()), "page does not link {f}");
+        }
+        for path in &referenced {
+            assert!(path.is_relative(), "{}", path.display());
+            assert!(dir.join(path).is_file(), "broken link {}", path.display());
+        }
+        for technique in ["none", "osm", "dom", "fom", "exact"] {
+            assert!(html.contains(technique), "page never mentions {technique}");
+        }
+        assert!(
+            html.contains("dom needs at least 2 channels"),
+            "skipped reason"
+        );
+        assert!(
+            html.contains("llvmpipe &lt;LLVM&gt;"),
+            "metadata is escaped"
+        );
+        assert!(html.contains("1.42x") && html.contains("24 (11)"));
+        assert_eq!(html.matches("class=\"pareto\"").count(), 3);
+        // The answer names the front in order of bytes, and the best cell.
+        let answer = &html[html.find("<h2>Answer").unwrap()..html.find("<h2>Charts").unwrap()];
+        let osm8 = answer.find("osm at 8 channels").unwrap();
+        let osm24 = answer.find("osm at 24 channels").unwrap();
+        assert!(osm8 < osm24, "{answer}");
+        assert!(!answer.contains("dom at 8"), "{answer}");
+        assert!(
+            answer.contains("overall: <b>fom at 24 channels</b>"),
+            "{answer}"
+        );
+        assert!(
+            !html.contains("http://") && !html.contains("https://"),
+            "no network"
+        );
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn empty_results_still_give_a_page() {
+        let mut r = results();
+        r.cells.clear();
+        r.skipped.clear();
+        let html = page(&r, &[]);
+        assert!(html.contains("no answer"));
+        assert!(html.contains("results.csv"));
+    }
+}

@@ -1,0 +1,666 @@
+//! The sweep engine: plans the cells, renders and times each one on one long-lived renderer
+//! (pipelines are rebuilt only when the technique changes; the particles are simulated once),
+//! compares it with its own 24-channel image and with `exact`, and persists it.
+
+use std::io::IsTerminal;
+use std::path::Path;
+use std::time::Instant;
+
+use anyhow::Context;
+
+use super::{CellResult, ImageError, SkippedCell, SweepMetadata, SweepResults, Timing};
+use crate::diff;
+use crate::gpu::Gpu;
+use crate::render::shaded::{rms_difference, shaded_points};
+use crate::render::{OUTPUT_FORMAT, OffscreenTarget, RenderOptions, Renderer, TechniqueConfig};
+use crate::scene::Scene;
+use crate::shadow::{self, SplatMode};
+use crate::sim::Particle;
+
+/// What to sweep. [`SweepOptions::default`] is the thesis experiment (chapter 4.2.1).
+#[derive(Clone, Debug)]
+pub struct SweepOptions {
+    pub techniques: Vec<String>,
+    pub channels: Vec<u32>,
+    pub shadow_res: Vec<u32>,
+    pub splats: Vec<SplatMode>,
+    /// Timed frames per cell (medians over these) and untimed warm-up frames before them.
+    pub frames: u32,
+    pub warmup: u32,
+    /// Reuse cells already finished with identical settings.
+    pub resume: bool,
+    /// Shadow resolution of the `exact` reference.
+    pub exact_res: u32,
+}
+
+impl Default for SweepOptions {
+    fn default() -> Self {
+        Self {
+            techniques: ["osm", "dom", "fom", "has"].map(String::from).to_vec(),
+            channels: vec![24, 16, 8, 6],
+            shadow_res: vec![512],
+            splats: vec![SplatMode::Point],
+            frames: 20,
+            warmup: 3,
+            resume: false,
+            exact_res: crate::baseline::EXACT_RESOLUTION_PX,
+        }
+    }
+}
+
+/// The budget every cell's "own baseline" uses (the thesis' baselines).
+const BASELINE_CHANNELS: u32 = 24;
+/// Pixel stride of the opaque points the transmittance error is measured at.
+const SHADED_STRIDE_PX: u32 = 4;
+
+/// One planned cell.
+#[derive(Clone, Debug)]
+struct Plan {
+    name: String,
+    config: TechniqueConfig,
+}
+
+impl Plan {
+    fn new(scene: &Scene, technique: &str, channels: u32, res: u32, splat: SplatMode) -> Self {
+        let mut params = scene.shadow.params(channels);
+        params.resolution_px = res;
+        params.splat = splat;
+        let name = if technique == "none" {
+            "none".to_owned()
+        } else {
+            format!("{technique}_{channels}_{res}_{}", splat.name())
+        };
+        Self {
+            name,
+            config: TechniqueConfig {
+                name: technique.to_owned(),
+                params,
+            },
+        }
+    }
+}
+
+/// Checks the options and lays out the cells: the `none` baseline, then per resolution, splat
+/// mode and technique its budgets. Budgets below a technique's minimum are skipped with a note;
+/// techniques that ignore the splat mode run once per resolution.
+fn plan(scene: &Scene, options: &SweepOptions) -> anyhow::Result<(Vec<Plan>, Vec<SkippedCell>)> {
+    let non_empty = |what: &str, empty: bool| {
+        if empty {
+            anyhow::bail!("--{what} is empty: give at least one value");
+        }
+        Ok(())
+    };
+    non_empty("techniques", options.techniques.is_empty())?;
+    non_empty("channels", options.channels.is_empty())?;
+    non_empty("shadow-res", options.shadow_res.is_empty())?;
+    non_empty("splat", options.splats.is_empty())?;
+    if options.frames == 0 {
+        anyhow::bail!("--frames 0: time at least one frame");
+    }
+    for &res in &options.shadow_res {
+        if !(1..=8192).contains(&res) {
+            anyhow::bail!("--shadow-res {res} is out of range: allowed 1..=8192");
+        }
+    }
+    let mut cells = vec![Plan::new(
+        scene,
+        "none",
+        1,
+        options.shadow_res[0],
+        options.splats[0],
+    )];
+    let mut skipped = Vec::new();
+    for name in &options.techniques {
+        let entry = shadow::find(name)?;
+        if matches!(entry.name, "none" | "exact") {
+            anyhow::bail!(
+                "--techniques {name}: `none` and `exact` are the sweep's baseline and reference, always measured; list the techniques to compare"
+            );
+        }
+        for &b in &options.channels {
+            if !(1..=shadow::MAX_CHANNELS).contains(&b) {
+                anyhow::bail!(
+                    "--channels {b} is out of range: allowed 1..={}",
+                    shadow::MAX_CHANNELS
+                );
+            }
+            if let Err(err) = shadow::check_channels(entry, b) {
+                skipped.push(SkippedCell {
+                    technique: entry.name.to_owned(),
+                    channels: b,
+                    reason: err.to_string(),
+                });
+            }
+        }
+    }
+    for &res in &options.shadow_res {
+        for (s, &splat) in options.splats.iter().enumerate() {
+            for name in &options.techniques {
+                let entry = shadow::find(name)?;
+                if s > 0 && !entry.uses_splat {
+                    continue;
+                }
+                for &b in &options.channels {
+                    if shadow::check_channels(entry, b).is_ok() {
+                        cells.push(Plan::new(scene, entry.name, b, res, splat));
+                    }
+                }
+            }
+        }
+    }
+    Ok((cells, skipped))
+}
+
+/// What a cell's measurement depends on, as a string (`--resume` reuses a cell only when equal).
+fn settings_key(scene: &Scene, options: &SweepOptions, plan: &Plan) -> String {
+    format!(
+        "tool={} scene={} size={}x{} frames={} warmup={} exact_res={} technique={} params={}",
+        env!("CARGO_PKG_VERSION"),
+        scene.content_hash(),
+        scene.output.width_px,
+        scene.output.height_px,
+        options.frames,
+        options.warmup,
+        options.exact_res,
+        plan.config.name,
+        serde_json::to_string(&plan.config.params).expect("params serialise"),
+    )
+}
+
+/// Median, minimum and maximum of samples.
+fn timing(samples: &[f64]) -> Timing {
+    let mut v = samples.to_vec();
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n == 0 {
+        return Timing::default();
+    }
+    let median = if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    };
+    Timing {
+        median,
+        min: v[0],
+        max: v[n - 1],
+    }
+}
+
+/// The long-lived state of one sweep.
+struct Sweeper<'a> {
+    gpu: &'a Gpu,
+    scene: &'a Scene,
+    options: &'a SweepOptions,
+    dir: &'a Path,
+    particles: Vec<Particle>,
+    renderer: Renderer,
+    target: OffscreenTarget,
+    /// Points the transmittance error is measured at, and `exact`'s T there.
+    points: Vec<glam::Vec3>,
+    exact_t: Vec<f32>,
+    exact_image: image::RgbImage,
+}
+
+impl Sweeper<'_> {
+    /// Renders `config` once and returns the frame.
+    fn render_image(&mut self, config: &TechniqueConfig) -> anyhow::Result<image::RgbImage> {
+        self.renderer.set_technique(self.gpu, config)?;
+        self.renderer.render(
+            self.gpu,
+            self.scene,
+            &self.particles,
+            &RenderOptions::default(),
+            &self.target.view,
+        )?;
+        let rgba = crate::gpu::read_texture_rgba8(self.gpu, &self.target.texture)?;
+        Ok(image::DynamicImage::ImageRgba8(rgba).into_rgb8())
+    }
+
+    /// The technique's own 24-channel image at the cell's resolution and splat: from disk when
+    /// an earlier cell (or run) wrote it, else rendered now.
+    fn own_baseline(&mut self, plan: &Plan) -> anyhow::Result<image::RgbImage> {
+        let p = &plan.config.params;
+        let baseline = Plan::new(
+            self.scene,
+            &plan.config.name,
+            BASELINE_CHANNELS,
+            p.resolution_px,
+            p.splat,
+        );
+        let path = self.dir.join(format!("images/{}.png", baseline.name));
+        if path.is_file() {
+            return Ok(diff::load_png(&path)?);
+        }
+        let image = self.render_image(&baseline.config)?;
+        crate::output::write_png_rgb(&path, &image)?;
+        Ok(image)
+    }
+
+    /// Writes the x4 difference and FLIP map of `test` against `reference` as `stem_x4.png` and
+    /// `stem_flip.png` under `diffs/`; returns the error and both paths.
+    fn compare(
+        &self,
+        reference: &image::RgbImage,
+        test: &image::RgbImage,
+        stem: &str,
+    ) -> anyhow::Result<(ImageError, String, String)> {
+        let comparison = diff::compare(reference, test)?;
+        let x4 = format!("diffs/{stem}_x4.png");
+        let flip = format!("diffs/{stem}_flip.png");
+        crate::output::write_png_rgb(
+            &self.dir.join(&x4),
+            &diff::enhanced_difference(reference, test, diff::DEFAULT_ENHANCE),
+        )?;
+        crate::output::write_png_rgb(&self.dir.join(&flip), &diff::flip_heatmap(&comparison))?;
+        Ok((
+            ImageError {
+                flip_mean: comparison.metrics.flip_mean,
+                rmse: comparison.metrics.rmse_srgb,
+            },
+            x4,
+            flip,
+        ))
+    }
+
+    /// Times, images and compares one cell.
+    fn measure(&mut self, plan: &Plan, key: String) -> anyhow::Result<CellResult> {
+        self.renderer.set_technique(self.gpu, &plan.config)?;
+        let options = RenderOptions::default();
+        for _ in 0..self.options.warmup {
+            self.renderer.render(
+                self.gpu,
+                self.scene,
+                &self.particles,
+                &options,
+                &self.target.view,
+            )?;
+            self.gpu.wait_idle()?;
+        }
+        let (mut shadow_ms, mut render_ms, mut sort_ms, mut frame_ms, mut wall_ms) =
+            (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        for _ in 0..self.options.frames {
+            let start = Instant::now();
+            let stats = self.renderer.render(
+                self.gpu,
+                self.scene,
+                &self.particles,
+                &options,
+                &self.target.view,
+            )?;
+            let times = self.renderer.gpu_times(self.gpu)?;
+            wall_ms.push(start.elapsed().as_secs_f64() * 1e3);
+            let shadow = times.get("shadow").unwrap_or(0.0);
+            shadow_ms.push(shadow);
+            render_ms.push(times.total_ms() - shadow);
+            sort_ms.push(stats.sort_ms);
+            frame_ms.push(times.total_ms() + stats.sort_ms);
+        }
+        let technique = self.renderer.technique();
+        let (channels_used, bytes) = (technique.channels_used(), technique.memory().total_bytes());
+        let rgba = crate::gpu::read_texture_rgba8(self.gpu, &self.target.texture)?;
+        let image = image::DynamicImage::ImageRgba8(rgba).into_rgb8();
+        let image_path = format!("images/{}.png", plan.name);
+        crate::output::write_png_rgb(&self.dir.join(&image_path), &image)?;
+
+        let mut cell = CellResult {
+            technique: plan.config.name.clone(),
+            channels: plan.config.params.channels,
+            channels_used,
+            shadow_res: plan.config.params.resolution_px,
+            splat: plan.config.params.splat,
+            bytes,
+            gpu_shadow_ms: timing(&shadow_ms),
+            gpu_render_ms: timing(&render_ms),
+            cpu_sort_ms: timing(&sort_ms),
+            frame_ms: timing(&frame_ms),
+            wall_ms: timing(&wall_ms),
+            overhead_ratio: None,
+            vs_own_24: None,
+            vs_exact: None,
+            rms_transmittance_error: None,
+            image: image_path,
+            diff_own_24: None,
+            flip_own_24: None,
+            diff_exact: None,
+            flip_exact: None,
+            settings_key: key,
+        };
+        if plan.config.name == "none" {
+            return Ok(cell);
+        }
+        let (vs_exact, x4, flip) = self.compare(
+            &self.exact_image.clone(),
+            &image,
+            &format!("{}_vs_exact", plan.name),
+        )?;
+        cell.vs_exact = Some(vs_exact);
+        cell.diff_exact = Some(x4);
+        cell.flip_exact = Some(flip);
+        if plan.config.params.channels == BASELINE_CHANNELS {
+            // Its own baseline: zero error by definition, no difference images to look at.
+            cell.vs_own_24 = Some(ImageError {
+                flip_mean: 0.0,
+                rmse: 0.0,
+            });
+        } else {
+            let own = self.own_baseline(plan)?;
+            self.renderer.set_technique(self.gpu, &plan.config)?;
+            let (vs_own, x4, flip) =
+                self.compare(&own, &image, &format!("{}_vs_own_24", plan.name))?;
+            cell.vs_own_24 = Some(vs_own);
+            cell.diff_own_24 = Some(x4);
+            cell.flip_own_24 = Some(flip);
+        }
+        let t = self
+            .renderer
+            .probe(self.gpu, self.scene, &self.particles, &self.points)?;
+        cell.rms_transmittance_error = Some(rms_difference(&t, &self.exact_t));
+        Ok(cell)
+    }
+}
+
+/// A line of progress: a bar with an ETA on a terminal, plain lines otherwise (CI logs).
+struct Progress {
+    bar: Option<indicatif::ProgressBar>,
+    total: usize,
+    done: usize,
+}
+
+impl Progress {
+    fn new(total: usize) -> Self {
+        let bar = std::io::stderr().is_terminal().then(|| {
+            let bar = indicatif::ProgressBar::new(total as u64);
+            bar.set_style(
+                indicatif::ProgressStyle::with_template(
+                    "{spinner} [{elapsed_precise}] {bar:30} {pos}/{len} cells, ETA {eta} {msg}",
+                )
+                .expect("a valid progress template")
+                .progress_chars("=> "),
+            );
+            bar
+        });
+        Self {
+            bar,
+            total,
+            done: 0,
+        }
+    }
+
+    fn start(&self, what: &str) {
+        if let Some(bar) = &self.bar {
+            bar.set_message(what.to_owned());
+        }
+    }
+
+    fn finish(&mut self, line: String) {
+        self.done += 1;
+        match &self.bar {
+            Some(bar) => {
+                bar.println(line);
+                bar.inc(1);
+            }
+            None => eprintln!("[{}/{}] {line}", self.done, self.total),
+        }
+    }
+
+    fn end(&self) {
+        if let Some(bar) = &self.bar {
+            bar.finish_and_clear();
+        }
+    }
+}
+
+/// Runs the sweep into `dir` and writes every output; returns the results.
+pub fn run(
+    gpu: &Gpu,
+    scene: &Scene,
+    options: &SweepOptions,
+    dir: &Path,
+) -> anyhow::Result<SweepResults> {
+    let started = std::time::SystemTime::now();
+    let wall = Instant::now();
+    let (plans, skipped) = plan(scene, options)?;
+    if dir.is_file() {
+        anyhow::bail!("output {} is a file; give a folder", dir.display());
+    }
+    let cells_dir = dir.join("cells");
+    for sub in ["cells", "images", "diffs"] {
+        std::fs::create_dir_all(dir.join(sub))
+            .with_context(|| format!("cannot create {}", dir.join(sub).display()))?;
+    }
+    if !options.resume {
+        // A fresh sweep: forget finished cells and reference images of earlier runs.
+        for sub in ["cells", "images"] {
+            for entry in std::fs::read_dir(dir.join(sub))? {
+                let path = entry?.path();
+                if path.is_file() {
+                    std::fs::remove_file(&path)?;
+                }
+            }
+        }
+    }
+
+    let particles = crate::sim::simulate(scene);
+    let (w, h) = (scene.output.width_px, scene.output.height_px);
+    let mut exact_config = plans[0].config.clone();
+    exact_config.name = "exact".to_owned();
+    exact_config.params.resolution_px = options.exact_res;
+    let mut progress = Progress::new(plans.len() + 1);
+    progress.start("exact reference");
+    let mut renderer = Renderer::new(gpu, w, h, OUTPUT_FORMAT, &exact_config)?;
+    let target = OffscreenTarget::new(gpu, w, h);
+    renderer.render(
+        gpu,
+        scene,
+        &particles,
+        &RenderOptions::default(),
+        &target.view,
+    )?;
+    let exact_bytes = renderer.technique().memory().total_bytes();
+    let exact_image =
+        image::DynamicImage::ImageRgba8(crate::gpu::read_texture_rgba8(gpu, &target.texture)?)
+            .into_rgb8();
+    let exact_image_path = "images/exact.png".to_owned();
+    crate::output::write_png_rgb(&dir.join(&exact_image_path), &exact_image)?;
+    let points = shaded_points(scene, &particles, w, h, SHADED_STRIDE_PX);
+    let exact_t = renderer.probe(gpu, scene, &particles, &points)?;
+    progress.finish(format!(
+        "exact reference at {}²: {} bytes, T at {} shaded points",
+        options.exact_res,
+        exact_bytes,
+        points.len()
+    ));
+
+    let mut sweeper = Sweeper {
+        gpu,
+        scene,
+        options,
+        dir,
+        particles,
+        renderer,
+        target,
+        points,
+        exact_t,
+        exact_image,
+    };
+    let metadata = |wall_s: f64| SweepMetadata {
+        tool_version: env!("CARGO_PKG_VERSION").to_owned(),
+        scene: scene.name.clone(),
+        scene_sha256: scene.content_hash(),
+        seed: scene.emitter.seed,
+        particles: scene.emitter.count,
+        width_px: w,
+        height_px: h,
+        adapter: gpu.info.name.clone(),
+        backend: format!("{:?}", gpu.info.backend),
+        driver: format!("{} {}", gpu.info.driver, gpu.info.driver_info),
+        timestamp_queries: gpu.has_timestamps(),
+        frames: options.frames,
+        warmup: options.warmup,
+        exact_res: options.exact_res,
+        exact_bytes,
+        started: humantime::format_rfc3339_seconds(started).to_string(),
+        wall_s,
+    };
+    let mut cells: Vec<CellResult> = Vec::new();
+    for plan in &plans {
+        let key = settings_key(scene, options, plan);
+        let record = cells_dir.join(format!("{}.json", plan.name));
+        progress.start(&plan.name);
+        let reused = options
+            .resume
+            .then(|| std::fs::read_to_string(&record).ok())
+            .flatten()
+            .and_then(|text| serde_json::from_str::<CellResult>(&text).ok())
+            .filter(|cell| cell.settings_key == key && dir.join(&cell.image).is_file());
+        let cell = match reused {
+            Some(cell) => {
+                progress.finish(format!("{}: done earlier, reused", plan.name));
+                cell
+            }
+            None => {
+                let cell = sweeper.measure(plan, key)?;
+                crate::output::write_atomic(
+                    &record,
+                    serde_json::to_string_pretty(&cell)?.as_bytes(),
+                )?;
+                progress.finish(summary(&cell));
+                cell
+            }
+        };
+        cells.push(cell);
+        // Keep the tables current, so a sweep stopped here leaves consistent results.
+        let partial = results(
+            metadata(wall.elapsed().as_secs_f64()),
+            &cells,
+            &skipped,
+            &exact_image_path,
+        );
+        write_results(&partial, dir)?;
+    }
+    progress.end();
+    let results = results(
+        metadata(wall.elapsed().as_secs_f64()),
+        &cells,
+        &skipped,
+        &exact_image_path,
+    );
+    write_results(&results, dir)?;
+    let charts = super::charts::write_charts(&results, dir)?;
+    super::report::write_html(&results, &charts, dir)?;
+    Ok(results)
+}
+
+/// The results so far, with overhead ratios against the `none` cell.
+fn results(
+    metadata: SweepMetadata,
+    cells: &[CellResult],
+    skipped: &[SkippedCell],
+    exact_image: &str,
+) -> SweepResults {
+    let baseline = cells
+        .iter()
+        .find(|c| c.technique == "none")
+        .map(|c| c.frame_ms.median);
+    let cells = cells
+        .iter()
+        .cloned()
+        .map(|mut c| {
+            c.overhead_ratio = baseline.filter(|b| *b > 0.0).map(|b| c.frame_ms.median / b);
+            c
+        })
+        .collect();
+    SweepResults {
+        metadata,
+        cells,
+        skipped: skipped.to_vec(),
+        exact_image: exact_image.to_owned(),
+    }
+}
+
+/// One line about a finished cell.
+fn summary(cell: &CellResult) -> String {
+    let mut line = format!(
+        "{} {} ch ({} used) {}² {}: {} bytes, frame {:.1} ms (shadow {:.1})",
+        cell.technique,
+        cell.channels,
+        cell.channels_used,
+        cell.shadow_res,
+        cell.splat.name(),
+        cell.bytes,
+        cell.frame_ms.median,
+        cell.gpu_shadow_ms.median
+    );
+    if let Some(e) = &cell.vs_exact {
+        line.push_str(&format!(", FLIP vs exact {:.4}", e.flip_mean));
+    }
+    line
+}
+
+/// The CSV columns, in order (documented in the README).
+pub const CSV_COLUMNS: &[&str] = &[
+    "technique",
+    "channels",
+    "channels_used",
+    "shadow_res",
+    "splat",
+    "bytes",
+    "shadow_ms_median",
+    "shadow_ms_min",
+    "shadow_ms_max",
+    "render_ms_median",
+    "render_ms_min",
+    "render_ms_max",
+    "sort_ms_median",
+    "frame_ms_median",
+    "frame_ms_min",
+    "frame_ms_max",
+    "wall_ms_median",
+    "overhead_ratio",
+    "flip_vs_own_24",
+    "rmse_vs_own_24",
+    "flip_vs_exact",
+    "rmse_vs_exact",
+    "rms_transmittance_error",
+    "image",
+];
+
+/// Writes `results.csv` (a row per cell) and `results.json` (everything) atomically.
+pub fn write_results(results: &SweepResults, dir: &Path) -> anyhow::Result<()> {
+    let mut writer = csv::Writer::from_writer(Vec::new());
+    writer.write_record(CSV_COLUMNS)?;
+    let opt = |v: Option<f64>, digits: usize| v.map_or(String::new(), |v| format!("{v:.digits$}"));
+    for c in &results.cells {
+        writer.write_record([
+            c.technique.clone(),
+            c.channels.to_string(),
+            c.channels_used.to_string(),
+            c.shadow_res.to_string(),
+            c.splat.name().to_owned(),
+            c.bytes.to_string(),
+            format!("{:.3}", c.gpu_shadow_ms.median),
+            format!("{:.3}", c.gpu_shadow_ms.min),
+            format!("{:.3}", c.gpu_shadow_ms.max),
+            format!("{:.3}", c.gpu_render_ms.median),
+            format!("{:.3}", c.gpu_render_ms.min),
+            format!("{:.3}", c.gpu_render_ms.max),
+            format!("{:.3}", c.cpu_sort_ms.median),
+            format!("{:.3}", c.frame_ms.median),
+            format!("{:.3}", c.frame_ms.min),
+            format!("{:.3}", c.frame_ms.max),
+            format!("{:.3}", c.wall_ms.median),
+            opt(c.overhead_ratio, 3),
+            opt(c.vs_own_24.map(|e| e.flip_mean), 6),
+            opt(c.vs_own_24.map(|e| e.rmse), 6),
+            opt(c.vs_exact.map(|e| e.flip_mean), 6),
+            opt(c.vs_exact.map(|e| e.rmse), 6),
+            opt(c.rms_transmittance_error, 6),
+            c.image.clone(),
+        ])?;
+    }
+    let csv = writer.into_inner().context("cannot encode results.csv")?;
+    crate::output::write_atomic(&dir.join("results.csv"), &csv)?;
+    let json = serde_json::to_string_pretty(results)?;
+    crate::output::write_atomic(&dir.join("results.json"), json.as_bytes())
+}
