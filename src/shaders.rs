@@ -95,6 +95,10 @@ pub const FILES: &[(&str, &str)] = &[
         "render/particle_lighting.wgsl",
         include_str!("../shaders/render/particle_lighting.wgsl"),
     ),
+    (
+        "render/map_view.wgsl",
+        include_str!("../shaders/render/map_view.wgsl"),
+    ),
 ];
 
 /// Name of the virtual import that stands for the active shadow technique's lookup shader.

@@ -14,7 +14,9 @@ const MAX_PASSES: u32 = 160;
 pub struct GpuTimer {
     query_set: Option<wgpu::QuerySet>,
     resolve: Option<wgpu::Buffer>,
-    readback: Option<wgpu::Buffer>,
+    /// Readback buffers, used in turn so that a frame can be resolved while earlier ones are
+    /// still being mapped (the viewer polls without waiting).
+    readbacks: Vec<Readback>,
     period_ns: f32,
     names: Vec<&'static str>,
 }
@@ -40,13 +42,32 @@ impl PassTimes {
     }
 }
 
+/// Readback buffers in the ring: enough for the frames in flight of an interactive viewer.
+const READBACKS: usize = 3;
+
+struct Readback {
+    buffer: wgpu::Buffer,
+    state: ReadbackState,
+}
+
+enum ReadbackState {
+    Free,
+    /// Holds a resolved frame: its pass names, and a flag set when mapping finished.
+    Resolved {
+        names: Vec<&'static str>,
+        mapped: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>,
+        /// Order of resolution, to return the newest frame.
+        serial: u64,
+    },
+}
+
 impl GpuTimer {
     /// A timer that measures nothing (for work outside a timed frame).
     pub fn disabled() -> Self {
         Self {
             query_set: None,
             resolve: None,
-            readback: None,
+            readbacks: Vec::new(),
             period_ns: 0.0,
             names: Vec::new(),
         }
@@ -58,6 +79,17 @@ impl GpuTimer {
         }
         let count = MAX_PASSES * 2;
         let size = u64::from(count) * 8;
+        let readbacks = (0..READBACKS)
+            .map(|_| Readback {
+                buffer: gpu.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("timer.readback"),
+                    size,
+                    usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+                    mapped_at_creation: false,
+                }),
+                state: ReadbackState::Free,
+            })
+            .collect();
         Self {
             query_set: Some(gpu.device.create_query_set(&wgpu::QuerySetDescriptor {
                 label: Some("timer.queries"),
@@ -70,12 +102,7 @@ impl GpuTimer {
                 usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
                 mapped_at_creation: false,
             })),
-            readback: Some(gpu.device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("timer.readback"),
-                size,
-                usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-                mapped_at_creation: false,
-            })),
+            readbacks,
             period_ns: gpu.queue.get_timestamp_period(),
             names: Vec::new(),
         }
@@ -125,50 +152,162 @@ impl GpuTimer {
         Some(index)
     }
 
-    /// Resolves this frame's queries into the readback buffer; call once, after the last pass.
-    pub fn resolve(&self, encoder: &mut wgpu::CommandEncoder) {
-        let (Some(set), Some(resolve), Some(readback)) =
-            (&self.query_set, &self.resolve, &self.readback)
-        else {
+    /// Resolves this frame's queries into a free readback buffer; call once, after the last
+    /// pass. When every buffer still holds an unread frame (a viewer that never polls), the
+    /// oldest is dropped.
+    pub fn resolve(&mut self, encoder: &mut wgpu::CommandEncoder) {
+        let (Some(set), Some(resolve)) = (&self.query_set, &self.resolve) else {
             return;
         };
         if self.names.is_empty() {
             return;
         }
+        let serial = self
+            .readbacks
+            .iter()
+            .filter_map(|r| match &r.state {
+                ReadbackState::Resolved { serial, .. } => Some(*serial + 1),
+                ReadbackState::Free => None,
+            })
+            .max()
+            .unwrap_or(0);
+        let slot = match self
+            .readbacks
+            .iter()
+            .position(|r| matches!(r.state, ReadbackState::Free))
+        {
+            Some(slot) => slot,
+            None => {
+                // All in use: reuse the oldest one that is not being mapped right now.
+                let Some(slot) = self
+                    .readbacks
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, r)| {
+                        matches!(r.state, ReadbackState::Resolved { mapped: None, .. })
+                    })
+                    .min_by_key(|(_, r)| match r.state {
+                        ReadbackState::Resolved { serial, .. } => serial,
+                        ReadbackState::Free => 0,
+                    })
+                    .map(|(i, _)| i)
+                else {
+                    return;
+                };
+                slot
+            }
+        };
         let count = self.names.len() as u32 * 2;
         encoder.resolve_query_set(set, 0..count, resolve, 0);
-        encoder.copy_buffer_to_buffer(resolve, 0, readback, 0, u64::from(count) * 8);
+        let readback = &mut self.readbacks[slot];
+        encoder.copy_buffer_to_buffer(resolve, 0, &readback.buffer, 0, u64::from(count) * 8);
+        readback.state = ReadbackState::Resolved {
+            names: self.names.clone(),
+            mapped: None,
+            serial,
+        };
     }
 
-    /// Waits for the frame and returns its pass times (empty when timing is off).
-    pub fn read(&self, gpu: &Gpu) -> Result<PassTimes, GpuError> {
-        let Some(readback) = &self.readback else {
+    /// Waits for the newest resolved frame and returns its pass times (empty when timing is
+    /// off). Older unread frames are discarded.
+    pub fn read(&mut self, gpu: &Gpu) -> Result<PassTimes, GpuError> {
+        let Some(newest) = self.newest() else {
             return Ok(PassTimes::default());
         };
-        if self.names.is_empty() {
-            return Ok(PassTimes::default());
+        for (i, r) in self.readbacks.iter_mut().enumerate() {
+            if i != newest && matches!(r.state, ReadbackState::Resolved { mapped: None, .. }) {
+                r.state = ReadbackState::Free;
+            }
         }
-        let bytes = self.names.len() as u64 * 16;
-        let slice = readback.slice(..bytes);
-        let (tx, rx) = std::sync::mpsc::channel();
-        slice.map_async(wgpu::MapMode::Read, move |r| {
-            let _ = tx.send(r);
-        });
+        self.start_map(newest);
         gpu.wait_idle()?;
-        rx.recv()
-            .map_err(|e| GpuError::Readback(e.to_string()))?
-            .map_err(|e| GpuError::Readback(e.to_string()))?;
+        self.take(newest)
+    }
+
+    /// Without waiting: the newest frame whose times have arrived, if any; starts mapping the
+    /// frames that are resolved. Call once per frame (the viewer).
+    pub fn poll(&mut self, gpu: &Gpu) -> Option<PassTimes> {
+        for i in 0..self.readbacks.len() {
+            self.start_map(i);
+        }
+        let _ = gpu.device.poll(wgpu::PollType::Poll);
+        let ready: Vec<usize> = (0..self.readbacks.len())
+            .filter(|&i| match &self.readbacks[i].state {
+                ReadbackState::Resolved {
+                    mapped: Some(flag), ..
+                } => flag.load(std::sync::atomic::Ordering::Acquire),
+                _ => false,
+            })
+            .collect();
+        let newest = ready
+            .iter()
+            .copied()
+            .max_by_key(|&i| match self.readbacks[i].state {
+                ReadbackState::Resolved { serial, .. } => serial,
+                ReadbackState::Free => 0,
+            })?;
+        let mut out = None;
+        for i in ready {
+            let times = self.take(i).ok();
+            if i == newest {
+                out = times;
+            }
+        }
+        out
+    }
+
+    fn newest(&self) -> Option<usize> {
+        self.readbacks
+            .iter()
+            .enumerate()
+            .filter_map(|(i, r)| match r.state {
+                ReadbackState::Resolved { serial, .. } => Some((i, serial)),
+                ReadbackState::Free => None,
+            })
+            .max_by_key(|(_, serial)| *serial)
+            .map(|(i, _)| i)
+    }
+
+    /// Starts mapping readback `i` if it holds a frame not yet being mapped.
+    fn start_map(&mut self, i: usize) {
+        let r = &mut self.readbacks[i];
+        if let ReadbackState::Resolved { names, mapped, .. } = &mut r.state
+            && mapped.is_none()
+        {
+            let flag = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+            let done = flag.clone();
+            r.buffer.slice(..names.len() as u64 * 16).map_async(
+                wgpu::MapMode::Read,
+                move |result| {
+                    if result.is_ok() {
+                        done.store(true, std::sync::atomic::Ordering::Release);
+                    }
+                },
+            );
+            *mapped = Some(flag);
+        }
+    }
+
+    /// Reads mapped readback `i` (its mapping must have finished) and frees it.
+    fn take(&mut self, i: usize) -> Result<PassTimes, GpuError> {
+        let r = &mut self.readbacks[i];
+        let ReadbackState::Resolved { names, .. } =
+            std::mem::replace(&mut r.state, ReadbackState::Free)
+        else {
+            return Ok(PassTimes::default());
+        };
+        let slice = r.buffer.slice(..names.len() as u64 * 16);
         let ticks: Vec<u64> = {
             let view = slice
                 .get_mapped_range()
                 .map_err(|e| GpuError::Readback(e.to_string()))?;
             bytemuck::cast_slice(&view).to_vec()
         };
-        readback.unmap();
+        r.buffer.unmap();
         let mut times = PassTimes::default();
-        for (i, name) in self.names.iter().enumerate() {
+        for (k, name) in names.iter().enumerate() {
             let ns =
-                ticks[2 * i + 1].saturating_sub(ticks[2 * i]) as f64 * f64::from(self.period_ns);
+                ticks[2 * k + 1].saturating_sub(ticks[2 * k]) as f64 * f64::from(self.period_ns);
             let ms = ns / 1e6;
             match times.passes.iter_mut().find(|(n, _)| n == name) {
                 Some((_, total)) => *total += ms,

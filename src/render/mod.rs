@@ -339,8 +339,14 @@ impl Renderer {
     }
 
     /// GPU pass times of the last frame (blocks until it finished); empty without timestamps.
-    pub fn gpu_times(&self, gpu: &Gpu) -> Result<PassTimes, GpuError> {
+    pub fn gpu_times(&mut self, gpu: &Gpu) -> Result<PassTimes, GpuError> {
         self.timer.read(gpu)
+    }
+
+    /// Without waiting: the pass times of the newest frame that has finished since the last
+    /// call, if any (the viewer calls this every frame).
+    pub fn poll_gpu_times(&mut self, gpu: &Gpu) -> Option<PassTimes> {
+        self.timer.poll(gpu)
     }
 
     /// Renders one frame of `scene` with `particles` into `output` (size = [`Renderer::size`]).

@@ -10,8 +10,8 @@
 //! The start depth is each ray's entry into the first particle sphere, in both splat modes.
 //! Shaders: `shaders/shadow/dom.wgsl` and `dom_build.wgsl`.
 
-use super::TechniqueEntry;
 use super::layered::{ChannelPlan, Layered, LayeredSpec, Precision};
+use super::{MapKind, TechniqueEntry};
 
 pub const SPEC: LayeredSpec = LayeredSpec {
     name: "dom",
@@ -25,6 +25,14 @@ pub const SPEC: LayeredSpec = LayeredSpec {
     depth_channel: true,
     sigma: false,
     precision: Precision::Half,
+    channel_name: |c, plan| {
+        format!(
+            "layer {} of {}: optical depth in front of it",
+            c + 1,
+            plan.count
+        )
+    },
+    map_kind: MapKind::OpticalDepth,
 };
 
 pub const ENTRY: TechniqueEntry = TechniqueEntry {

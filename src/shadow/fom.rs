@@ -10,8 +10,8 @@
 //! terms of both signs that largely cancel, and in half floats the rounding of the partial sums
 //! made T depend on the order the particles were drawn in by up to 0.2. Shaders: `shaders/shadow/fom.wgsl`, `fom_build.wgsl`.
 
-use super::TechniqueEntry;
 use super::layered::{ChannelPlan, Layered, LayeredSpec, Precision};
+use super::{MapKind, TechniqueEntry};
 
 /// a0, a1..an, b1..bn: n = floor((B - 1) / 2) harmonics in 2n + 1 channels.
 fn plan(channels: u32) -> ChannelPlan {
@@ -30,6 +30,12 @@ pub const FOM: LayeredSpec = LayeredSpec {
     depth_channel: false,
     sigma: false,
     precision: Precision::Float,
+    channel_name: |c, plan| match c {
+        0 => "a0 (twice the total optical depth)".to_owned(),
+        c if c <= plan.count => format!("a{c} (cosine coefficient)"),
+        c => format!("b{} (sine coefficient)", c - plan.count),
+    },
+    map_kind: MapKind::Signed,
 };
 
 pub const FOM_SIGMA: LayeredSpec = LayeredSpec {

@@ -29,8 +29,8 @@ use super::layered::{
 };
 use super::probe::PendingProbe;
 use super::{
-    BuildInputs, LOOKUP_STAGES, ParticlePass, ParticlePassInputs, ProbeInputs, ProbePass,
-    ShadowError, ShadowTechnique, TechniqueContext, TechniqueEntry, TechniqueParams,
+    BuildInputs, DebugMap, LOOKUP_STAGES, MapKind, ParticlePass, ParticlePassInputs, ProbeInputs,
+    ProbePass, ShadowError, ShadowTechnique, TechniqueContext, TechniqueEntry, TechniqueParams,
 };
 use crate::gpu::{Gpu, MemoryLedger};
 use crate::render::gpu_data::{BILLBOARD_VERTICES, ParticleInstance};
@@ -522,8 +522,12 @@ impl ShadowTechnique for HalfAngle {
         Some(self)
     }
 
-    fn debug_maps(&self) -> Vec<(String, &wgpu::TextureView, u32)> {
-        vec![("light buffer".to_owned(), &self.light_view, 1)]
+    fn debug_maps(&self) -> Vec<DebugMap<'_>> {
+        vec![DebugMap {
+            view: &self.light_view,
+            channels: vec!["light buffer (optical depth of every batch)".to_owned()],
+            kind: MapKind::OpticalDepth,
+        }]
     }
 }
 

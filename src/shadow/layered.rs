@@ -15,8 +15,8 @@
 use bytemuck::{Pod, Zeroable};
 
 use super::{
-    BuildInputs, LOOKUP_STAGES, ShadowError, ShadowTechnique, SplatMode, TechniqueContext,
-    TechniqueParams,
+    BuildInputs, DebugMap, LOOKUP_STAGES, MapKind, ShadowError, ShadowTechnique, SplatMode,
+    TechniqueContext, TechniqueParams,
 };
 use crate::gpu::{Gpu, MemoryLedger};
 use crate::render::gpu_data::{BILLBOARD_VERTICES, ParticleInstance};
@@ -54,6 +54,10 @@ pub struct LayeredSpec {
     pub sigma: bool,
     /// Storage precision of the packed channels.
     pub precision: Precision,
+    /// What packed channel `c` holds under `plan`, for inspection.
+    pub channel_name: fn(u32, &ChannelPlan) -> String,
+    /// How the packed channels' values read.
+    pub map_kind: MapKind,
 }
 
 impl LayeredSpec {
@@ -656,11 +660,6 @@ impl Layered {
             _pad: 0,
         }
     }
-
-    /// The packed map views, in channel order (channel c is component c % 4 of view c / 4).
-    pub fn map_views(&self) -> &[wgpu::TextureView] {
-        &self.targets
-    }
 }
 
 impl ShadowTechnique for Layered {
@@ -678,6 +677,32 @@ impl ShadowTechnique for Layered {
     }
     fn bind_group(&self) -> &wgpu::BindGroup {
         &self.lookup_bind_group
+    }
+
+    fn debug_maps(&self) -> Vec<DebugMap<'_>> {
+        let mut out: Vec<DebugMap<'_>> = self
+            .targets
+            .iter()
+            .enumerate()
+            .map(|(t, view)| DebugMap {
+                view,
+                channels: (4 * t as u32..(4 * t as u32 + 4).min(self.plan.packed))
+                    .map(|c| (self.spec.channel_name)(c, &self.plan))
+                    .collect(),
+                kind: self.spec.map_kind,
+            })
+            .collect();
+        if let Some(depth) = &self.depth {
+            out.insert(
+                0,
+                DebugMap {
+                    view: &depth.view,
+                    channels: vec!["depth where the smoke starts".to_owned()],
+                    kind: MapKind::Depth01,
+                },
+            );
+        }
+        out
     }
 
     fn build(&mut self, gpu: &Gpu, inputs: BuildInputs<'_>) -> Result<(), ShadowError> {

@@ -205,6 +205,26 @@ pub trait ProbePass {
     fn probe(&mut self, gpu: &Gpu, inputs: ProbeInputs<'_>) -> anyhow::Result<Vec<f32>>;
 }
 
+/// How the values in a map channel read.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MapKind {
+    /// Optical depth (shown as the opacity 1 − e^−Ω).
+    OpticalDepth,
+    /// A light depth normalised to the smoke's bounds, in [0, 1].
+    Depth01,
+    /// A signed quantity (Fourier coefficients).
+    Signed,
+}
+
+/// One texture of a technique's maps, for inspection.
+pub struct DebugMap<'a> {
+    /// A 2D view of the texture (one layer).
+    pub view: &'a wgpu::TextureView,
+    /// What each of its channels holds, e.g. "slice 5 of 24"; one entry per channel in use.
+    pub channels: Vec<String>,
+    pub kind: MapKind,
+}
+
 /// A technique's own particle pass.
 pub trait ParticlePass {
     /// Records the eye pass; returns the CPU time spent sorting, milliseconds.
@@ -212,7 +232,7 @@ pub trait ParticlePass {
 }
 
 /// The interface every shadow technique implements.
-pub trait ShadowTechnique {
+pub trait ShadowTechnique: Send {
     /// Registry name (snake_case), as used on the CLI and in file names.
     fn name(&self) -> &'static str;
     /// Channels of the budget this configuration actually uses.
@@ -242,8 +262,8 @@ pub trait ShadowTechnique {
     fn counters(&self) -> Vec<(&'static str, u64)> {
         Vec::new()
     }
-    /// The maps this frame's lookups read, for inspection: (label, view, channels in the view).
-    fn debug_maps(&self) -> Vec<(String, &wgpu::TextureView, u32)> {
+    /// The maps this frame's lookups read, for inspection (the viewer shows each channel).
+    fn debug_maps(&self) -> Vec<DebugMap<'_>> {
         Vec::new()
     }
 }
@@ -328,11 +348,18 @@ pub fn create(
 /// Every WGSL module the renderer and the techniques compile, composed: (label, source).
 pub fn all_shader_modules() -> Vec<(String, String)> {
     use crate::shaders::{SHADOW_TECHNIQUE, compose};
-    let mut out = vec![("tonemap".to_owned(), compose("render/tonemap.wgsl", &[]))];
+    let mut out: Vec<(String, String)> = [
+        "render/tonemap.wgsl",
+        "render/particles.wgsl",
+        "render/map_view.wgsl",
+    ]
+    .iter()
+    .map(|f| ((*f).to_owned(), compose(f, &[])))
+    .collect();
     for entry in REGISTRY {
         let lookup = crate::shaders::source(entry.lookup_shader)
             .expect("registered lookup shader is embedded");
-        for frame_shader in ["render/opaque.wgsl", "render/particles.wgsl"] {
+        for frame_shader in ["render/opaque.wgsl", "render/particle_lighting.wgsl"] {
             out.push((
                 format!("{frame_shader}[{}]", entry.name),
                 compose(frame_shader, &[(SHADOW_TECHNIQUE, lookup)]),

@@ -7,8 +7,8 @@
 //! boundaries around the point and returns T = exp(-Ω). Shaders: `shaders/shadow/osm.wgsl`
 //! (lookup) and `osm_build.wgsl`; the packing and passes are shared in [`super::layered`].
 
-use super::TechniqueEntry;
 use super::layered::{ChannelPlan, Layered, LayeredSpec, Precision};
+use super::{MapKind, TechniqueEntry};
 
 pub const SPEC: LayeredSpec = LayeredSpec {
     name: "osm",
@@ -21,6 +21,14 @@ pub const SPEC: LayeredSpec = LayeredSpec {
     depth_channel: false,
     sigma: false,
     precision: Precision::Half,
+    channel_name: |c, plan| {
+        format!(
+            "slice {} of {}: optical depth in front of it",
+            c + 1,
+            plan.count
+        )
+    },
+    map_kind: MapKind::OpticalDepth,
 };
 
 pub const ENTRY: TechniqueEntry = TechniqueEntry {

@@ -123,68 +123,124 @@ pub fn simulate(scene: &Scene) -> Vec<Particle> {
     simulate_until(scene, scene.sim.duration_s)
 }
 
-/// Like [`simulate`], but stops at `time_s` (used by the viewer's time scrubber).
+/// Like [`simulate`], but stops at `time_s`.
 pub fn simulate_until(scene: &Scene, time_s: f32) -> Vec<Particle> {
-    let e = &scene.emitter;
-    let mut rng = Pcg32::seed_from_u64(e.seed);
-    let turbulence = Turbulence::new(&mut rng, e);
-    let count = e.count as usize;
-    let birth_interval = e.lifetime_s / e.count as f32;
-    let dt = scene.sim.step_s;
-    let steps = (time_s / dt).round() as u64;
+    let mut sim = Simulation::new(scene);
+    sim.advance_to(time_s);
+    sim.particles()
+}
 
-    let empty = Slot {
-        particle: Particle {
-            position: e.position,
-            velocity: Vec3::ZERO,
-            age_s: 0.0,
-            radius_m: e.radius_birth_m,
-            density_per_m: 0.0,
-            albedo: e.albedo,
-        },
-        alive: false,
-        brightness: 1.0,
-    };
-    let mut slots = vec![empty; count];
-    // Particles are born in index order; `next_birth` is the first slot not yet born.
-    let mut next_birth = 0usize;
+/// The emitter's state between fixed steps, for callers that move through time (the viewer's
+/// play and scrub): stepping forward continues; going back replays from t = 0, so the state at
+/// a time is always the one [`simulate_until`] gives.
+pub struct Simulation {
+    emitter: Emitter,
+    wind: Wind,
+    step_s: f32,
+    rng: Pcg32,
+    turbulence: Turbulence,
+    slots: Vec<Slot>,
+    /// The first slot not yet born (particles are born in index order).
+    next_birth: usize,
+    /// Steps taken so far.
+    steps: u64,
+}
 
-    for step in 0..steps {
-        let t = step as f32 * dt;
-        let t_end = t + dt;
-        let air = wind_velocity(&scene.wind, t);
-        while next_birth < count && (next_birth as f32) * birth_interval < t_end {
-            spawn(&mut slots[next_birth], e, &mut rng);
-            next_birth += 1;
+impl Simulation {
+    /// The state at t = 0.
+    pub fn new(scene: &Scene) -> Self {
+        Self::start(scene.emitter.clone(), scene.wind.clone(), scene.sim.step_s)
+    }
+
+    fn start(e: Emitter, wind: Wind, step_s: f32) -> Self {
+        let mut rng = Pcg32::seed_from_u64(e.seed);
+        let turbulence = Turbulence::new(&mut rng, &e);
+        let empty = Slot {
+            particle: Particle {
+                position: e.position,
+                velocity: Vec3::ZERO,
+                age_s: 0.0,
+                radius_m: e.radius_birth_m,
+                density_per_m: 0.0,
+                albedo: e.albedo,
+            },
+            alive: false,
+            brightness: 1.0,
+        };
+        Self {
+            slots: vec![empty; e.count as usize],
+            emitter: e,
+            wind,
+            step_s,
+            rng,
+            turbulence,
+            next_birth: 0,
+            steps: 0,
         }
-        for slot in slots.iter_mut().filter(|s| s.alive) {
+    }
+
+    /// Simulated time, seconds.
+    pub fn time_s(&self) -> f32 {
+        self.steps as f32 * self.step_s
+    }
+
+    /// Steps forward (or replays from the start) to the step nearest `time_s`.
+    pub fn advance_to(&mut self, time_s: f32) {
+        let target = (time_s.max(0.0) / self.step_s).round() as u64;
+        if target < self.steps {
+            *self = Self::start(self.emitter.clone(), self.wind.clone(), self.step_s);
+        }
+        while self.steps < target {
+            self.step();
+        }
+    }
+
+    /// One fixed step.
+    fn step(&mut self) {
+        let e = &self.emitter;
+        let count = e.count as usize;
+        let birth_interval = e.lifetime_s / e.count as f32;
+        let dt = self.step_s;
+        let t = self.steps as f32 * dt;
+        let t_end = t + dt;
+        let air = wind_velocity(&self.wind, t);
+        while self.next_birth < count && (self.next_birth as f32) * birth_interval < t_end {
+            spawn(&mut self.slots[self.next_birth], e, &mut self.rng);
+            self.next_birth += 1;
+        }
+        for slot in self.slots.iter_mut().filter(|s| s.alive) {
             let p = &mut slot.particle;
             let buoyancy = Vec3::Y * e.buoyancy_m_per_s2 * (-p.age_s / e.buoyancy_decay_s).exp();
-            let jitter = random_unit(&mut rng) * (e.turbulence_m_per_s2 * 0.5);
+            let jitter = random_unit(&mut self.rng) * (e.turbulence_m_per_s2 * 0.5);
             let accel = buoyancy
-                + turbulence.accel(p.position, t)
+                + self.turbulence.accel(p.position, t)
                 + jitter
                 + (air - p.velocity) * e.drag_per_s;
             p.velocity += accel * dt;
             p.position += p.velocity * dt;
             p.age_s += dt;
             if p.age_s >= e.lifetime_s {
-                spawn(slot, e, &mut rng);
+                spawn(slot, e, &mut self.rng);
             }
         }
+        self.steps += 1;
     }
 
-    slots
-        .iter()
-        .filter(|s| s.alive)
-        .map(|s| {
-            let mut p = s.particle;
-            p.radius_m = e.radius_birth_m + e.growth_m_per_s * p.age_s;
-            p.density_per_m = e.density_per_m * age_fade(e, p.age_s);
-            p.albedo = (e.albedo * s.brightness).clamp(Vec3::ZERO, Vec3::ONE);
-            p
-        })
-        .collect()
+    /// The live particles in pool order, with their age-dependent radius, density and albedo.
+    pub fn particles(&self) -> Vec<Particle> {
+        let e = &self.emitter;
+        self.slots
+            .iter()
+            .filter(|s| s.alive)
+            .map(|s| {
+                let mut p = s.particle;
+                p.radius_m = e.radius_birth_m + e.growth_m_per_s * p.age_s;
+                p.density_per_m = e.density_per_m * age_fade(e, p.age_s);
+                p.albedo = (e.albedo * s.brightness).clamp(Vec3::ZERO, Vec3::ONE);
+                p
+            })
+            .collect()
+    }
 }
 
 fn spawn(slot: &mut Slot, e: &Emitter, rng: &mut Pcg32) {
@@ -225,6 +281,18 @@ pub fn age_fade(e: &Emitter, age_s: f32) -> f32 {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn stepping_forward_and_back_matches_simulating_from_the_start() {
+        let scene = Scene::thesis_plume();
+        let mut sim = Simulation::new(&scene);
+        sim.advance_to(3.0);
+        sim.advance_to(5.0);
+        assert_eq!(sim.particles(), simulate_until(&scene, 5.0));
+        sim.advance_to(2.0);
+        assert_eq!(sim.particles(), simulate_until(&scene, 2.0));
+        assert!((sim.time_s() - 2.0).abs() < 1e-3);
+    }
+
     use super::*;
 
     fn small_scene(seed: u64) -> Scene {
