@@ -15,3 +15,4 @@ pub mod shaders;
 pub mod shadow;
 pub mod sim;
 pub mod sweep;
+pub mod viewer;

@@ -34,6 +34,9 @@ enum Command {
     Info,
     /// Compare two images: FLIP, RMSE, PSNR, SSIM, and the thesis' 4x-enhanced difference.
     Diff(commands::diff::DiffArgs),
+    /// Open the interactive viewer: switch techniques and budgets live, compare them side by
+    /// side, against their baselines and the exact reference.
+    View(commands::view::ViewArgs),
     /// Sweep techniques x channel budgets x shadow resolutions: time, bytes and error as CSV,
     /// JSON, SVG charts and an HTML report (default: the thesis experiment).
     Sweep(commands::sweep::SweepArgs),
@@ -86,6 +89,7 @@ fn main() -> ExitCode {
         Command::Info => commands::info::run(&cli.adapter).map(|()| ExitCode::SUCCESS),
         Command::Diff(args) => commands::diff::run(args),
         Command::Baseline(args) => commands::baseline::run(args, &cli.adapter),
+        Command::View(args) => commands::view::run(args, &cli.adapter).map(|()| ExitCode::SUCCESS),
         Command::Sweep(args) => {
             commands::sweep::run(args, &cli.adapter).map(|()| ExitCode::SUCCESS)
         }

@@ -7,6 +7,7 @@ pub mod info;
 pub mod probe;
 pub mod render;
 pub mod sweep;
+pub mod view;
 
 use crate::shadow::{SplatMode, TechniqueParams};
 

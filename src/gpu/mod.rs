@@ -92,28 +92,29 @@ impl Gpu {
         Self::from_adapter(&adapter)
     }
 
-    /// Creates the device on a given adapter (the viewer passes the one eframe chose).
+    /// Creates the device on a given adapter.
     pub fn from_adapter(adapter: &wgpu::Adapter) -> Result<Self, GpuError> {
         let info = adapter.get_info();
-        let features = adapter.features() & OPTIONAL_FEATURES;
-        let limits = adapter.limits();
-        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
-            label: Some("smokeshadow.device"),
-            required_features: features,
-            required_limits: limits.clone(),
-            ..Default::default()
-        }))
+        let (device, queue) = pollster::block_on(
+            adapter.request_device(&device_descriptor(adapter)),
+        )
         .map_err(|cause| GpuError::Device {
             adapter: info.name.clone(),
             cause,
         })?;
-        Ok(Self {
+        Ok(Self::from_device(device, queue, info))
+    }
+
+    /// Wraps a device someone else created (the viewer's, made by eframe with
+    /// [`device_descriptor`]); features and limits are read from the device itself.
+    pub fn from_device(device: wgpu::Device, queue: wgpu::Queue, info: wgpu::AdapterInfo) -> Self {
+        Self {
+            features: device.features(),
+            limits: device.limits(),
             device,
             queue,
             info,
-            features,
-            limits,
-        })
+        }
     }
 
     /// Whether GPU pass times can be measured on this adapter.
@@ -133,6 +134,38 @@ impl Gpu {
             .map(|_| ())
             .map_err(|e| GpuError::Readback(e.to_string()))
     }
+}
+
+/// What the tool asks of a device on `adapter`: the optional features it has, and its own
+/// limits (the defaults allow only 32 bytes per sample, too few for 8 RGBA16F targets).
+pub fn device_descriptor(adapter: &wgpu::Adapter) -> wgpu::DeviceDescriptor<'static> {
+    wgpu::DeviceDescriptor {
+        label: Some("smokeshadow.device"),
+        required_features: adapter.features() & OPTIONAL_FEATURES,
+        required_limits: adapter.limits(),
+        ..Default::default()
+    }
+}
+
+/// Whether an adapter satisfies `preference`.
+pub fn matches(preference: &AdapterPreference, info: &wgpu::AdapterInfo) -> bool {
+    match preference {
+        AdapterPreference::Auto => true,
+        AdapterPreference::Cpu => info.device_type == wgpu::DeviceType::Cpu,
+        AdapterPreference::Named(name) => info
+            .name
+            .to_ascii_lowercase()
+            .contains(&name.to_ascii_lowercase()),
+    }
+}
+
+/// The order adapters are preferred in: hardware first, Vulkan first, then by name.
+pub fn rank(info: &wgpu::AdapterInfo) -> (u8, u8, String) {
+    (
+        type_rank(info.device_type),
+        backend_rank(info.backend),
+        info.name.clone(),
+    )
 }
 
 /// A wgpu instance on the native backends (Vulkan, Metal, DX12; not GL, whose GLSL path lacks
@@ -173,14 +206,7 @@ fn backend_rank(b: wgpu::Backend) -> u8 {
 /// All adapters, in the deterministic order used for selection.
 pub async fn ranked_adapters(instance: &wgpu::Instance) -> Vec<wgpu::Adapter> {
     let mut adapters = instance.enumerate_adapters(wgpu::Backends::all()).await;
-    adapters.sort_by_key(|a| {
-        let info = a.get_info();
-        (
-            type_rank(info.device_type),
-            backend_rank(info.backend),
-            info.name,
-        )
-    });
+    adapters.sort_by_key(|a| rank(&a.get_info()));
     adapters
 }
 
@@ -189,17 +215,9 @@ async fn select_adapter(
     preference: &AdapterPreference,
 ) -> Result<wgpu::Adapter, GpuError> {
     let adapters = ranked_adapters(instance).await;
-    let found = adapters.into_iter().find(|a| {
-        let info = a.get_info();
-        match preference {
-            AdapterPreference::Auto => true,
-            AdapterPreference::Cpu => info.device_type == wgpu::DeviceType::Cpu,
-            AdapterPreference::Named(name) => info
-                .name
-                .to_ascii_lowercase()
-                .contains(&name.to_ascii_lowercase()),
-        }
-    });
+    let found = adapters
+        .into_iter()
+        .find(|a| matches(preference, &a.get_info()));
     found.ok_or_else(|| GpuError::NoAdapter {
         detail: match preference {
             AdapterPreference::Auto => String::new(),

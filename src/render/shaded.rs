@@ -97,7 +97,7 @@ pub fn lit_opaque_points(
 }
 
 /// The nearest hit of a ray with the ground square or a box: the point and its outward normal.
-fn first_opaque_hit(scene: &Scene, origin: Vec3, dir: Vec3) -> Option<(Vec3, Vec3)> {
+pub fn first_opaque_hit(scene: &Scene, origin: Vec3, dir: Vec3) -> Option<(Vec3, Vec3)> {
     let mut best: Option<(f32, Vec3)> = None;
     let g = &scene.ground;
     if dir.y.abs() > 1e-9 {

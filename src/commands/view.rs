@@ -1,0 +1,15 @@
+//! `smokeshadow view [SCENE]`: the interactive viewer ([`crate::viewer`]).
+
+use std::path::PathBuf;
+
+use crate::gpu::AdapterPreference;
+
+#[derive(Clone, Debug, clap::Args)]
+pub struct ViewArgs {
+    /// Scene file (TOML); the embedded thesis scene when omitted.
+    pub scene: Option<PathBuf>,
+}
+
+pub fn run(args: &ViewArgs, adapter: &AdapterPreference) -> anyhow::Result<()> {
+    crate::viewer::run(args.scene.clone(), adapter.clone())
+}

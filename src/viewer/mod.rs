@@ -1,0 +1,95 @@
+//! `smokeshadow view`: the interactive viewer (egui + winit through eframe), drawing with the
+//! same [`crate::render::Renderer`] the CLI, the tests and the sweep use. A graphics engineer
+//! flips between techniques and budgets and sees, side by side, what each gets wrong and what it
+//! costs.
+//!
+//! - [`app`]: the eframe application: state, panels, shortcuts;
+//! - [`view`]: the two configurations A and B rendered into textures egui shows;
+//! - [`analysis`]: a worker thread for everything that reads back (errors against `exact`,
+//!   difference and FLIP images, the transmittance probe, screenshots), so the UI never waits;
+//! - [`camera`]: the orbit camera; [`map_view`]: the inspector's shadow-map pictures.
+//!
+//! eframe creates the wgpu device with what the renderer needs ([`wgpu_setup`]: the adapter
+//! the user asked for, its own limits, timestamp queries and 32-bit float blending/filtering).
+
+pub mod analysis;
+pub mod app;
+pub mod camera;
+pub mod map_view;
+pub mod view;
+
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use eframe::egui_wgpu;
+
+use crate::gpu::{self, AdapterPreference};
+use crate::scene::Scene;
+
+pub use app::{CompareMode, Source, ViewerApp};
+
+/// How eframe (or a test harness) should create the wgpu device: the adapter matching
+/// `preference` in the tool's usual order, the adapter's own limits, and the optional features
+/// the techniques use.
+pub fn wgpu_setup(preference: AdapterPreference) -> egui_wgpu::WgpuSetup {
+    let mut create = egui_wgpu::WgpuSetupCreateNew::without_display_handle();
+    create.instance_descriptor.backends = wgpu::Backends::PRIMARY;
+    create.native_adapter_selector = Some(Arc::new(move |adapters, surface| {
+        let mut usable: Vec<&wgpu::Adapter> = adapters
+            .iter()
+            .filter(|a| surface.is_none_or(|s| a.is_surface_supported(s)))
+            .filter(|a| gpu::matches(&preference, &a.get_info()))
+            .collect();
+        usable.sort_by_key(|a| gpu::rank(&a.get_info()));
+        usable.first().map(|a| (*a).clone()).ok_or_else(|| {
+            format!(
+                "no GPU adapter matching {preference} can draw to this window: install a Vulkan driver (on a machine without a GPU, Mesa's lavapipe: `apt-get install mesa-vulkan-drivers libvulkan1`)"
+            )
+        })
+    }));
+    create.device_descriptor = Arc::new(gpu::device_descriptor);
+    egui_wgpu::WgpuSetup::CreateNew(create)
+}
+
+/// Window options for the viewer.
+pub fn native_options(preference: AdapterPreference) -> eframe::NativeOptions {
+    let mut options = eframe::NativeOptions {
+        viewport: eframe::egui::ViewportBuilder::default()
+            .with_inner_size([1500.0, 940.0])
+            .with_title("smokeshadow"),
+        renderer: eframe::Renderer::Wgpu,
+        ..Default::default()
+    };
+    options.wgpu_options.wgpu_setup = wgpu_setup(preference);
+    options
+}
+
+/// Opens the viewer on `scene` (the embedded thesis scene when `None`) and returns when the
+/// window closes. Problems found before the window exists (a bad scene file, no adapter) are
+/// returned as one-line errors.
+pub fn run(scene_path: Option<PathBuf>, preference: AdapterPreference) -> anyhow::Result<()> {
+    let scene = match &scene_path {
+        Some(path) => Scene::load(path)?,
+        None => Scene::thesis_plume(),
+    };
+    let adapters = pollster::block_on(gpu::ranked_adapters(&gpu::instance()));
+    if !adapters
+        .iter()
+        .any(|a| gpu::matches(&preference, &a.get_info()))
+    {
+        return Err(gpu::GpuError::NoAdapter {
+            detail: match &preference {
+                AdapterPreference::Auto => String::new(),
+                other => format!(" matching {other}"),
+            },
+        }
+        .into());
+    }
+    let path = scene_path.map(|p| p.display().to_string());
+    eframe::run_native(
+        "smokeshadow",
+        native_options(preference),
+        Box::new(move |cc| Ok(Box::new(ViewerApp::new(cc, scene, path)))),
+    )
+    .map_err(|err| anyhow::anyhow!("cannot open the viewer window: {err}"))
+}

@@ -1,0 +1,164 @@
+//! The viewer's real eframe app driven headless through egui_kittest on lavapipe (no display):
+//! widgets change the state and the pixels, the viewport shows what `render` writes, a bad scene
+//! file is reported and the scene kept, and the default window matches its committed snapshot
+//! (updated only with `UPDATE_SNAPSHOTS=1`, never implicitly).
+
+mod common;
+
+use std::time::{Duration, Instant};
+
+use egui_kittest::Harness;
+use egui_kittest::kittest::Queryable;
+use smokeshadow::gpu::AdapterPreference;
+use smokeshadow::render::{RenderOptions, render_offscreen};
+use smokeshadow::scene::Scene;
+use smokeshadow::viewer::{CompareMode, Source, ViewerApp};
+
+/// The thesis scene at a size that keeps the tests quick.
+fn small_scene() -> Scene {
+    let mut scene = Scene::thesis_plume();
+    scene.output.width_px = 320;
+    scene.output.height_px = 240;
+    scene.shadow.resolution_px = 256;
+    scene
+}
+
+/// How many pixels of two equally sized images differ (images are never printed whole).
+fn differing(a: &image::RgbaImage, b: &image::RgbaImage) -> usize {
+    assert_eq!(a.dimensions(), b.dimensions());
+    a.pixels().zip(b.pixels()).filter(|(p, q)| p != q).count()
+}
+
+fn harness(scene: Scene) -> Harness<'static, ViewerApp> {
+    Harness::builder()
+        .with_size([1400.0, 900.0])
+        .wgpu_setup(smokeshadow::viewer::wgpu_setup(AdapterPreference::Cpu))
+        .build_eframe(move |cc| {
+            let mut app = ViewerApp::new(cc, scene.clone(), None);
+            app.hide_timings = true;
+            app
+        })
+}
+
+/// Steps the harness until `done` holds (or fails after a generous timeout).
+fn step_until(harness: &mut Harness<'_, ViewerApp>, what: &str, done: impl Fn(&ViewerApp) -> bool) {
+    let start = Instant::now();
+    while !done(harness.state()) {
+        assert!(
+            start.elapsed() < Duration::from_secs(120),
+            "timed out waiting for {what}: {}",
+            harness.state().progress()
+        );
+        harness.step();
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    harness.step();
+}
+
+/// Steps until the view has settled at full resolution and its measurement arrived.
+fn settle(harness: &mut Harness<'_, ViewerApp>) {
+    step_until(harness, "the view to settle and be measured", |app| {
+        app.settled()
+    });
+}
+
+#[test]
+fn widgets_switch_technique_budget_and_modes_and_the_pixels_follow() {
+    let mut harness = harness(small_scene());
+    settle(&mut harness);
+    let first = harness.state().read_view_a().expect("view A renders");
+    assert_eq!(harness.state().state.a.technique, "fom");
+
+    // Technique A: osm, through the combo box; budget A: 4, through the slider.
+    harness
+        .get_by_role_and_label(eframe::egui::Role::ComboBox, "Technique A")
+        .click();
+    harness.run_steps(2);
+    harness.get_by_label("osm").click();
+    harness.run_steps(2);
+    harness
+        .get_by_role_and_label(eframe::egui::Role::Slider, "Channels A")
+        .set_value_accesskit(4.0);
+    settle(&mut harness);
+    let a = &harness.state().state.a;
+    assert_eq!(
+        (a.technique.as_str(), a.channels, a.source),
+        ("osm", 4, Source::Technique)
+    );
+    let osm4 = harness.state().read_view_a().unwrap();
+    assert!(
+        differing(&first, &osm4) > 1000,
+        "the viewport did not change with the technique"
+    );
+
+    // Split view shows B (exact) right of the divider: the window changes.
+    let single = harness.render().expect("the window renders");
+    harness.get_by_label("Split").click();
+    settle(&mut harness);
+    assert_eq!(harness.state().state.mode, CompareMode::Split);
+    let split = harness.render().unwrap();
+    assert!(
+        differing(&single, &split) > 1000,
+        "split view looks like single view"
+    );
+
+    // Difference x4 comes from the analysis worker: wait for it, then the picture changes.
+    harness.get_by_label("Difference x4").click();
+    step_until(&mut harness, "the difference image", |app| {
+        app.settled() && app.has_comparison()
+    });
+    assert_eq!(harness.state().state.mode, CompareMode::Difference);
+    let difference = harness.render().unwrap();
+    assert!(
+        differing(&split, &difference) > 1000,
+        "difference view looks like split view"
+    );
+}
+
+#[test]
+fn the_viewport_shows_what_render_writes() {
+    let scene = small_scene();
+    let mut harness = harness(scene.clone());
+    settle(&mut harness);
+    let app = harness.state();
+    let config = app.config(&app.state.a);
+    let shown = app.read_view_a().unwrap();
+    assert_eq!((shown.width(), shown.height()), (320, 240));
+
+    // The CLI's path, on its own device: the same settings give the same bytes.
+    let gpu = common::gpu();
+    let particles = smokeshadow::sim::simulate(&scene);
+    let frame =
+        render_offscreen(&gpu, &scene, &particles, &config, &RenderOptions::default()).unwrap();
+    assert_eq!(
+        differing(&frame.image, &shown),
+        0,
+        "viewer and render differ"
+    );
+}
+
+#[test]
+fn a_malformed_scene_is_reported_and_the_scene_kept() {
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("viewer-bad-scene");
+    std::fs::create_dir_all(&dir).unwrap();
+    let bad = dir.join("bad.toml");
+    std::fs::write(&bad, "[emitter]\ncount = = 3\n").unwrap();
+    let scene = small_scene();
+    let mut harness = harness(scene.clone());
+    harness.step();
+    harness.state_mut().scene_path = bad.display().to_string();
+    harness.get_by_label("Load").click();
+    harness.step();
+    let app = harness.state();
+    let err = app.scene_error.clone().expect("an error is shown");
+    assert!(err.contains("bad.toml") && err.contains("line 2"), "{err}");
+    assert_eq!(app.state.scene, scene, "the previous scene is kept");
+}
+
+#[test]
+fn the_default_window_matches_its_snapshot() {
+    let mut harness = harness(small_scene());
+    settle(&mut harness);
+    // Created or updated only with UPDATE_SNAPSHOTS=1; a missing file fails.
+    harness.snapshot("viewer_default");
+}
