@@ -160,6 +160,14 @@ fn a_missing_adapter_says_to_install_a_vulkan_driver() {
             "mesa-vulkan-drivers",
         ],
     );
+    // The viewer says so on the terminal before any window exists.
+    let out = Command::new(env!("CARGO_BIN_EXE_smokeshadow"))
+        .args(["view"])
+        .env("SMOKESHADOW_ADAPTER", "no-such-gpu-anywhere")
+        .env_remove("DISPLAY")
+        .output()
+        .unwrap();
+    assert_one_line_error(&out, &["no GPU adapter", "no-such-gpu-anywhere"]);
     // No Vulkan driver at all: point the loader at an empty ICD list.
     let out = Command::new(env!("CARGO_BIN_EXE_smokeshadow"))
         .args(["info"])

@@ -56,6 +56,7 @@ pub fn run(args: &RenderArgs, adapter: &AdapterPreference) -> anyhow::Result<()>
 
     let options = RenderOptions {
         spherical: !args.no_spherical,
+        ..RenderOptions::default()
     };
     let (w, h) = (scene.output.width_px, scene.output.height_px);
     let mut renderer = Renderer::new(&gpu, w, h, OUTPUT_FORMAT, &technique)?;

@@ -46,11 +46,18 @@ pub const OUTPUT_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSr
 pub struct RenderOptions {
     /// Spherical billboards (soft contact with opaque geometry) or flat ones with a depth test.
     pub spherical: bool,
+    /// Skip the technique's build when the particles, the light and the technique are the
+    /// ones the maps were last built from (shadow maps do not depend on the camera). For the
+    /// viewer, where the camera moves most; never for timings, which must measure every build.
+    pub reuse_shadow_maps: bool,
 }
 
 impl Default for RenderOptions {
     fn default() -> Self {
-        Self { spherical: true }
+        Self {
+            spherical: true,
+            reuse_shadow_maps: false,
+        }
     }
 }
 
@@ -113,6 +120,8 @@ pub struct Renderer {
     timer: GpuTimer,
     /// The transmittance probe for the active technique, built on first use.
     probe: Option<Probe>,
+    /// What the technique's maps were last built from (see [`RenderOptions::reuse_shadow_maps`]).
+    built_from: Option<u64>,
 }
 
 impl Renderer {
@@ -276,6 +285,7 @@ impl Renderer {
             pipelines,
             timer: GpuTimer::new(gpu),
             probe: None,
+            built_from: None,
         })
     }
 
@@ -307,6 +317,7 @@ impl Renderer {
         self.technique = technique;
         self.technique_config = config.clone();
         self.probe = None;
+        self.built_from = None;
         Ok(())
     }
 
@@ -358,7 +369,8 @@ impl Renderer {
         options: &RenderOptions,
         output: &wgpu::TextureView,
     ) -> Result<FrameStats, ShadowError> {
-        let (mut encoder, mut stats, camera) = self.begin_frame(gpu, scene, particles)?;
+        let (mut encoder, mut stats, camera) =
+            self.begin_frame(gpu, scene, particles, options.reuse_shadow_maps)?;
         let particle_count = stats.particle_count;
         if self.technique.particle_pass().is_none() {
             // Each particle's lighting, once, with the technique's T (part of rendering them).
@@ -507,6 +519,7 @@ impl Renderer {
         gpu: &Gpu,
         scene: &Scene,
         particles: &[Particle],
+        reuse_shadow_maps: bool,
     ) -> Result<(wgpu::CommandEncoder, FrameStats, CameraMatrices), ShadowError> {
         let (width, height) = self.size();
         self.upload_opaque(gpu, scene);
@@ -543,17 +556,22 @@ impl Renderer {
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                 label: Some("frame.encoder"),
             });
-        self.technique.build(
-            gpu,
-            shadow::BuildInputs {
-                encoder: &mut encoder,
-                timer: &mut self.timer,
-                frame_bind_group: &self.frame_bind_group,
-                particles: &self.particles,
-                particle_count,
-                light: &light,
-            },
-        )?;
+        let build_key = build_key(particles, &scene.light, &light, &self.technique_config);
+        if !(reuse_shadow_maps && self.built_from == Some(build_key)) {
+            self.built_from = None;
+            self.technique.build(
+                gpu,
+                shadow::BuildInputs {
+                    encoder: &mut encoder,
+                    timer: &mut self.timer,
+                    frame_bind_group: &self.frame_bind_group,
+                    particles: &self.particles,
+                    particle_count,
+                    light: &light,
+                },
+            )?;
+            self.built_from = Some(build_key);
+        }
         let stats = FrameStats {
             sort_ms,
             particle_count,
@@ -573,7 +591,7 @@ impl Renderer {
         particles: &[Particle],
         points: &[Vec3],
     ) -> anyhow::Result<Vec<f32>> {
-        let (mut encoder, stats, _) = self.begin_frame(gpu, scene, particles)?;
+        let (mut encoder, stats, _) = self.begin_frame(gpu, scene, particles, false)?;
         self.timer.resolve(&mut encoder);
         let probe = self
             .probe
@@ -647,6 +665,42 @@ impl Renderer {
                 .write_buffer(&self.particles, 0, bytemuck::cast_slice(&self.instances));
         }
     }
+}
+
+/// Identifies the inputs of a technique's build: the particles, the spotlight and its fitted
+/// light space, the technique's configuration.
+fn build_key(
+    particles: &[Particle],
+    spot: &crate::scene::Spotlight,
+    light: &LightSpace,
+    config: &TechniqueConfig,
+) -> u64 {
+    use std::hash::{Hash, Hasher};
+    let mut h = std::collections::hash_map::DefaultHasher::new();
+    for p in particles {
+        for v in [
+            p.position.x,
+            p.position.y,
+            p.position.z,
+            p.radius_m,
+            p.density_per_m,
+        ] {
+            v.to_bits().hash(&mut h);
+        }
+    }
+    for v in spot
+        .position
+        .to_array()
+        .iter()
+        .chain(&spot.target.to_array())
+    {
+        v.to_bits().hash(&mut h);
+    }
+    for v in light.clip_from_world.to_cols_array() {
+        v.to_bits().hash(&mut h);
+    }
+    format!("{config:?}").hash(&mut h);
+    h.finish()
 }
 
 fn particle_buffer(device: &wgpu::Device, capacity: u64) -> wgpu::Buffer {

@@ -125,20 +125,28 @@ struct Probed {
     series: Vec<ProbeSeries>,
 }
 
-/// GPU pass times, smoothed over frames.
+/// GPU pass times, smoothed over the frames that ran them (the shadow build is skipped while
+/// only the camera moves, so its figure is that of the last build), and the frame total.
 #[derive(Default)]
 struct Smoothed {
     passes: Vec<(&'static str, f64)>,
+    frame_ms: f64,
 }
 
 impl Smoothed {
     fn add(&mut self, times: &crate::gpu::PassTimes) {
-        const KEEP: f64 = 0.8;
+        const KEEP: f64 = 0.7;
+        let blend = |old: &mut f64, new: f64| *old = KEEP * *old + (1.0 - KEEP) * new;
         for (name, ms) in &times.passes {
             match self.passes.iter_mut().find(|(n, _)| n == name) {
-                Some((_, v)) => *v = KEEP * *v + (1.0 - KEEP) * ms,
+                Some((_, v)) => blend(v, *ms),
                 None => self.passes.push((name, *ms)),
             }
+        }
+        if self.frame_ms == 0.0 {
+            self.frame_ms = times.total_ms();
+        } else {
+            blend(&mut self.frame_ms, times.total_ms());
         }
     }
 }
@@ -431,6 +439,7 @@ impl ViewerApp {
         };
         let options = RenderOptions {
             spherical: self.state.spherical,
+            reuse_shadow_maps: true,
         };
         let sides = [self.state.a.clone(), self.state.b.clone()];
         let mut error = None;
@@ -565,6 +574,7 @@ impl ViewerApp {
             particles: self.particles.clone(),
             options: RenderOptions {
                 spherical: self.state.spherical,
+                ..RenderOptions::default()
             },
         };
         let exact = self.config(&Side {
@@ -630,6 +640,7 @@ impl ViewerApp {
                 particles: self.particles.clone(),
                 options: RenderOptions {
                     spherical: self.state.spherical,
+                    ..RenderOptions::default()
                 },
             },
             configs,
@@ -658,6 +669,7 @@ impl ViewerApp {
                 particles: self.particles.clone(),
                 options: RenderOptions {
                     spherical: self.state.spherical,
+                    ..RenderOptions::default()
                 },
             },
             config,
@@ -936,13 +948,17 @@ impl ViewerApp {
         };
         egui::Grid::new("numbers").striped(true).show(ui, |ui| {
             for (name, t) in &self.times.passes {
-                ui.label(format!("GPU {name}"));
+                let caption = if *name == "shadow" {
+                    "GPU shadow (last build)".to_owned()
+                } else {
+                    format!("GPU {name}")
+                };
+                ui.label(caption);
                 ui.label(ms(*t, 2));
                 ui.end_row();
             }
-            let total: f64 = self.times.passes.iter().map(|(_, ms)| ms).sum();
-            ui.label("GPU frame");
-            ui.label(ms(total, 2));
+            ui.label("GPU frame (A)");
+            ui.label(ms(self.times.frame_ms, 2));
             ui.end_row();
             if let Some(stats) = &view.stats {
                 ui.label("CPU sort");
@@ -1234,6 +1250,7 @@ impl ViewerApp {
                 "point ({:.2}, {:.2}, {:.2}), {:.2} m from the light",
                 probe.point.x, probe.point.y, probe.point.z, probe.point_distance_m
             ));
+            let exact_colour = ui.visuals().strong_text_color();
             egui_plot::Plot::new("probe")
                 .legend(egui_plot::Legend::default().follow_insertion_order(true))
                 .height(220.0)
@@ -1245,7 +1262,7 @@ impl ViewerApp {
                     for s in &probe.series {
                         let mut line = egui_plot::Line::new(s.label.clone(), s.points.clone());
                         if s.label == "exact" {
-                            line = line.color(Color32::BLACK).width(2.5);
+                            line = line.color(exact_colour).width(2.5);
                         }
                         plot.line(line);
                     }
