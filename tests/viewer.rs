@@ -162,3 +162,30 @@ fn the_default_window_matches_its_snapshot() {
     // Created or updated only with UPDATE_SNAPSHOTS=1; a missing file fails.
     harness.snapshot("viewer_default");
 }
+
+#[test]
+fn keyboard_shortcuts_switch_modes_budgets_and_show_the_help() {
+    let mut harness = harness(small_scene());
+    harness.step();
+    harness.key_press(eframe::egui::Key::Num2);
+    harness.step();
+    assert_eq!(harness.state().state.mode, CompareMode::Split);
+    harness.key_press(eframe::egui::Key::Num6);
+    harness.step();
+    assert_eq!(harness.state().state.mode, CompareMode::FlipMap);
+    let channels = harness.state().state.a.channels;
+    harness.key_press(eframe::egui::Key::CloseBracket);
+    harness.step();
+    assert_eq!(harness.state().state.a.channels, channels + 1);
+    harness.key_press(eframe::egui::Key::H);
+    harness.step();
+    assert!(harness.state().state.show_help);
+    harness.get_by_label("Keyboard and mouse");
+    harness.key_press(eframe::egui::Key::T);
+    harness.step();
+    assert_ne!(
+        harness.state().state.a.technique,
+        "fom",
+        "T moves A to the next technique"
+    );
+}

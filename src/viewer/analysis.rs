@@ -45,6 +45,15 @@ pub enum Request {
         point: Vec3,
         samples: u32,
     },
+    /// Renders `config` for `frame` (at the scene's output size) and sends the image back: the
+    /// viewer shows `exact` this way, since its build reads its list sizes back from the GPU.
+    Render {
+        id: u64,
+        /// 0 for A, 1 for B: a newer request for the same side supersedes an older one.
+        side: u8,
+        frame: Frame,
+        config: TechniqueConfig,
+    },
     /// Renders `config` at the scene's full size and writes it to `path` as PNG.
     Screenshot {
         frame: Frame,
@@ -59,6 +68,7 @@ impl Request {
             Request::Compare { .. } => 0,
             Request::Probe { .. } => 1,
             Request::Screenshot { .. } => 2,
+            Request::Render { side, .. } => 3 + side,
         }
     }
 }
@@ -75,6 +85,8 @@ pub struct ProbeSeries {
 pub enum Reply {
     Compare {
         id: u64,
+        /// A's image at the frame's full size.
+        image_a: image::RgbImage,
         a_vs_exact: Metrics,
         /// B against A: metrics, the x4 difference and the FLIP map.
         b_vs_a: Option<Box<(Metrics, image::RgbImage, image::RgbImage)>>,
@@ -87,6 +99,12 @@ pub enum Reply {
         /// Distance from the light to the probed point.
         point_distance_m: f32,
         series: Vec<ProbeSeries>,
+    },
+    Render {
+        id: u64,
+        image: image::RgbImage,
+        /// Bytes the technique allocated.
+        bytes: u64,
     },
     Screenshot {
         path: std::path::PathBuf,
@@ -261,6 +279,7 @@ impl Worker {
                 };
                 Ok(Reply::Compare {
                     id,
+                    image_a,
                     a_vs_exact,
                     b_vs_a,
                     seconds: start.elapsed().as_secs_f64(),
@@ -308,6 +327,19 @@ impl Worker {
                     point_distance_m: point.distance(origin),
                     series,
                 })
+            }
+            Request::Render {
+                id, frame, config, ..
+            } => {
+                let image = self.render(&frame, &config)?;
+                let size = (frame.scene.output.width_px, frame.scene.output.height_px);
+                let bytes = self
+                    .renderer(&config, size)?
+                    .2
+                    .technique()
+                    .memory()
+                    .total_bytes();
+                Ok(Reply::Render { id, image, bytes })
             }
             Request::Screenshot {
                 frame,

@@ -113,6 +113,8 @@ struct AnalysisKey {
 /// What the worker last measured, and of what.
 struct Analysed {
     key: AnalysisKey,
+    /// A as the worker rendered it (full size), for the cursor's pixel values.
+    image_a: image::RgbImage,
     a_vs_exact: Metrics,
     seconds: f64,
     b: Option<(Metrics, egui::TextureHandle, egui::TextureHandle)>,
@@ -123,6 +125,22 @@ struct Probed {
     point: Vec3,
     point_distance_m: f32,
     series: Vec<ProbeSeries>,
+}
+
+/// What a side rendered by the worker shows.
+#[derive(Clone, Debug, PartialEq)]
+struct WorkerKey {
+    revision: u64,
+    size: (u32, u32),
+    config: TechniqueConfig,
+}
+
+/// A side shown through the analysis worker: `exact`, whose build reads its list sizes back
+/// from the GPU, which the UI thread never waits for.
+#[derive(Default)]
+struct WorkerView {
+    shown: Option<(WorkerKey, egui::TextureHandle, u64)>,
+    pending: Option<(u64, WorkerKey)>,
 }
 
 /// GPU pass times, smoothed over the frames that ran them (the shadow build is skipped while
@@ -179,6 +197,8 @@ pub struct ViewerApp {
     particles: Arc<Vec<Particle>>,
     sim_inputs: (crate::scene::Emitter, crate::scene::Wind, f32),
     views: [Option<View>; 2],
+    /// Sides rendered on the worker (see [`WorkerView`]).
+    worker_views: [WorkerView; 2],
     analysis: Option<Analysis>,
     inspector: Option<Inspector>,
     /// Bumped whenever something that reaches the pixels changes.
@@ -288,6 +308,7 @@ impl ViewerApp {
             sim,
             particles,
             views: [None, None],
+            worker_views: Default::default(),
             analysis,
             inspector,
             revision: 0,
@@ -315,9 +336,18 @@ impl ViewerApp {
     /// `exact` has arrived (nothing more will change without input).
     pub fn settled(&self) -> bool {
         let shown = |i: usize| {
-            self.views[i]
-                .as_ref()
-                .is_some_and(|v| v.rendered_revision() == Some(self.revision))
+            let side = if i == 0 { &self.state.a } else { &self.state.b };
+            let config = self.config(side);
+            if renders_on_worker(&config) {
+                self.worker_views[i]
+                    .shown
+                    .as_ref()
+                    .is_some_and(|(k, _, _)| k.revision == self.revision && k.config == config)
+            } else {
+                self.views[i]
+                    .as_ref()
+                    .is_some_and(|v| v.rendered_revision() == Some(self.revision))
+            }
         };
         let key = self.analysis_key();
         !self.reduced
@@ -448,6 +478,10 @@ impl ViewerApp {
                 continue;
             }
             let config = self.config(side);
+            if renders_on_worker(&config) {
+                self.request_worker_view(i, config, size, &scene);
+                continue;
+            }
             let view = match &mut self.views[i] {
                 Some(view) => {
                     if let Err(err) = view.set_config(&gpu, &config) {
@@ -488,6 +522,58 @@ impl ViewerApp {
         }
     }
 
+    /// Asks the worker for side `i` unless it shows, or is rendering, this very frame.
+    fn request_worker_view(
+        &mut self,
+        i: usize,
+        config: TechniqueConfig,
+        size: (u32, u32),
+        scene: &Scene,
+    ) {
+        let Some(analysis) = &self.analysis else {
+            return;
+        };
+        let key = WorkerKey {
+            revision: self.revision,
+            size,
+            config,
+        };
+        let view = &mut self.worker_views[i];
+        if view.shown.as_ref().is_some_and(|(k, _, _)| *k == key)
+            || view.pending.as_ref().is_some_and(|(_, k)| *k == key)
+        {
+            return;
+        }
+        let mut scene = scene.clone();
+        scene.output.width_px = size.0;
+        scene.output.height_px = size.1;
+        self.next_request += 1;
+        analysis.send(Request::Render {
+            id: self.next_request,
+            side: i as u8,
+            frame: Frame {
+                scene,
+                particles: self.particles.clone(),
+                options: RenderOptions {
+                    spherical: self.state.spherical,
+                    ..RenderOptions::default()
+                },
+            },
+            config: key.config.clone(),
+        });
+        view.pending = Some((self.next_request, key));
+    }
+
+    /// The texture side `i` shows now.
+    fn side_texture(&self, i: usize) -> Option<egui::TextureId> {
+        let side = if i == 0 { &self.state.a } else { &self.state.b };
+        if renders_on_worker(&self.config(side)) {
+            self.worker_views[i].shown.as_ref().map(|(_, t, _)| t.id())
+        } else {
+            self.views[i].as_ref().map(|v| v.texture_id)
+        }
+    }
+
     /// Handles what the worker sent back.
     fn receive(&mut self, ctx: &egui::Context) {
         let Some(analysis) = &self.analysis else {
@@ -497,6 +583,7 @@ impl ViewerApp {
             match reply {
                 Reply::Compare {
                     id,
+                    image_a,
                     a_vs_exact,
                     b_vs_a,
                     seconds,
@@ -523,6 +610,7 @@ impl ViewerApp {
                         self.requested.retain(|(r, _)| *r > id);
                         self.analysed = Some(Analysed {
                             key,
+                            image_a,
                             a_vs_exact,
                             seconds,
                             b,
@@ -540,6 +628,20 @@ impl ViewerApp {
                         point_distance_m,
                         series,
                     });
+                }
+                Reply::Render { id, image, bytes } => {
+                    for (i, view) in self.worker_views.iter_mut().enumerate() {
+                        if view.pending.as_ref().is_some_and(|(r, _)| *r == id) {
+                            let (_, key) = view.pending.take().expect("pending");
+                            let size = [image.width() as usize, image.height() as usize];
+                            let texture = ctx.load_texture(
+                                format!("viewer.side{i}"),
+                                egui::ColorImage::from_rgb(size, image.as_raw()),
+                                egui::TextureOptions::LINEAR,
+                            );
+                            view.shown = Some((key, texture, bytes));
+                        }
+                    }
                 }
                 Reply::Screenshot { path } => {
                     self.status = format!("saved {}", path.display());
@@ -756,6 +858,11 @@ impl ViewerApp {
     }
 }
 
+/// Whether a configuration is rendered on the analysis worker instead of the UI thread.
+fn renders_on_worker(config: &TechniqueConfig) -> bool {
+    config.name == "exact"
+}
+
 /// Techniques a side can pick (everything but `none`, which the numbers use as a baseline).
 fn comparable_techniques() -> Vec<&'static str> {
     shadow::REGISTRY
@@ -924,6 +1031,16 @@ impl ViewerApp {
     /// GPU times, bytes and the live error.
     fn numbers(&mut self, ui: &mut egui::Ui) {
         ui.heading("Numbers");
+        if let Some((key, _, bytes)) = &self.worker_views[0].shown
+            && renders_on_worker(&self.config(&self.state.a))
+        {
+            ui.label(format!(
+                "A: exact at {} px, rendered on the worker; {} of lists",
+                format_size(key.size.0, key.size.1),
+                crate::report::bytes(*bytes)
+            ));
+            return;
+        }
         let Some(view) = &self.views[0] else {
             return;
         };
@@ -1202,6 +1319,9 @@ impl ViewerApp {
 
     /// Draws the selected channel into the inspector image when it or A changed.
     fn draw_inspector(&mut self) {
+        if renders_on_worker(&self.config(&self.state.a)) {
+            return;
+        }
         let (Some(gpu), Some(view), Some(inspector)) =
             (&self.gpu, &self.views[0], &mut self.inspector)
         else {
@@ -1334,7 +1454,7 @@ impl ViewerApp {
 
         let whole = Rect::from_min_max(pos2(0.0, 0.0), pos2(1.0, 1.0));
         let painter = ui.painter_at(rect);
-        let id = |i: usize| self.views[i].as_ref().map(|v| v.texture_id);
+        let id = |i: usize| self.side_texture(i);
         match self.state.mode {
             CompareMode::Single => {
                 if let Some(a) = id(0) {
@@ -1523,12 +1643,21 @@ impl ViewerApp {
         (px, dragging)
     }
 
-    /// The pixel values under the cursor, from the last measured image of A.
+    /// The pixel values under the cursor, from the worker's full-size image of A (once the
+    /// view has settled and been measured).
     fn pixel_readout(&self, uv: Vec2) -> String {
-        format!(
-            "u {:.3}, v {:.3}; click to probe T along the light ray here",
-            uv.x, uv.y
-        )
+        let key = self.analysis_key();
+        let values = match self.analysed.as_ref().filter(|a| a.key == key) {
+            Some(a) => {
+                let (w, h) = a.image_a.dimensions();
+                let x = ((uv.x * w as f32) as u32).min(w - 1);
+                let y = ((uv.y * h as f32) as u32).min(h - 1);
+                let [r, g, b] = a.image_a.get_pixel(x, y).0;
+                format!("A pixel ({x}, {y}): sRGB {r} {g} {b}")
+            }
+            None => "A pixel: measuring when the view settles".to_owned(),
+        };
+        format!("{values}\nclick to probe T along the light ray here")
     }
 
     fn help_window(&mut self, ctx: &egui::Context) {
