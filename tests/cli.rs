@@ -1,32 +1,11 @@
 //! The command line: bad input gets one clear line and a non-zero exit, nothing half-written is
 //! left behind, and `render` writes a PNG of the requested size.
 
-use std::path::{Path, PathBuf};
+mod common;
+
 use std::process::{Command, Output};
 
-fn smokeshadow(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_smokeshadow"))
-        .args(args)
-        .env("SMOKESHADOW_ADAPTER", "cpu")
-        .output()
-        .expect("the binary runs")
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
-/// stderr lines that are ours (the Vulkan loader may print its own XDG_RUNTIME_DIR warning).
-fn error_lines(out: &Output) -> Vec<String> {
-    String::from_utf8_lossy(&out.stderr)
-        .lines()
-        .filter(|l| !l.trim().is_empty() && !l.contains("XDG_RUNTIME_DIR"))
-        .map(str::to_owned)
-        .collect()
-}
+use common::{error_lines, scratch, smokeshadow};
 
 fn assert_one_line_error(out: &Output, needles: &[&str]) {
     let lines = error_lines(out);

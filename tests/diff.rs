@@ -2,34 +2,14 @@
 //! the enhanced-difference PNG, the exit codes (0 within thresholds, 1 over one, 2 for bad
 //! input) and one-line errors. Needs no GPU.
 
+mod common;
+
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
+
+use common::{error_lines, scratch, smokeshadow};
 
 use image::{Rgb, RgbImage, Rgba, RgbaImage};
-
-fn smokeshadow(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_smokeshadow"))
-        .args(args)
-        .env("SMOKESHADOW_ADAPTER", "cpu")
-        .output()
-        .expect("the binary runs")
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
-/// stderr lines that are ours (the Vulkan loader may print its own XDG_RUNTIME_DIR warning).
-fn error_lines(out: &Output) -> Vec<String> {
-    String::from_utf8_lossy(&out.stderr)
-        .lines()
-        .filter(|l| !l.trim().is_empty() && !l.contains("XDG_RUNTIME_DIR"))
-        .map(str::to_owned)
-        .collect()
-}
 
 fn code(out: &Output) -> i32 {
     out.status.code().expect("exited, not killed")

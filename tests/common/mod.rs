@@ -1,6 +1,9 @@
 //! Shared helpers for GPU tests: a deterministic adapter (lavapipe), and scene shortcuts.
 #![allow(dead_code)]
 
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
 use smokeshadow::gpu::{AdapterPreference, Gpu};
 use smokeshadow::render::TechniqueConfig;
 use smokeshadow::shadow::{SplatMode, TechniqueParams};
@@ -36,4 +39,30 @@ pub fn technique(
 /// Rec. 709 luminance of a linear RGB triple.
 pub fn luminance(c: [f32; 4]) -> f32 {
     0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]
+}
+
+/// Runs the binary with `args` on the CPU adapter.
+pub fn smokeshadow(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_smokeshadow"))
+        .args(args)
+        .env("SMOKESHADOW_ADAPTER", "cpu")
+        .output()
+        .expect("the binary runs")
+}
+
+/// A fresh, empty folder for one test's files.
+pub fn scratch(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// stderr lines that are ours (the Vulkan loader may print its own XDG_RUNTIME_DIR warning).
+pub fn error_lines(out: &Output) -> Vec<String> {
+    String::from_utf8_lossy(&out.stderr)
+        .lines()
+        .filter(|l| !l.trim().is_empty() && !l.contains("XDG_RUNTIME_DIR"))
+        .map(str::to_owned)
+        .collect()
 }
