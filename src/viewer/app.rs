@@ -225,6 +225,8 @@ pub struct ViewerApp {
     pub hide_timings: bool,
     /// Whether the current drag started on the split view's divider.
     dragging_divider: bool,
+    /// Whether the current drag started on the spotlight's target handle.
+    dragging_light_target: bool,
 }
 
 impl ViewerApp {
@@ -329,6 +331,7 @@ impl ViewerApp {
             ui_frame_ms: 0.0,
             hide_timings: false,
             dragging_divider: false,
+            dragging_light_target: false,
         }
     }
 
@@ -1235,7 +1238,7 @@ impl ViewerApp {
                     drag(ui, "Cone (deg)", &mut l.cone_angle_deg, 0.2, 1.0..=79.0);
                     drag(ui, "Intensity", &mut l.intensity, 1.0, 0.0..=1e5);
                 });
-                ui.label("Shift-drag in the view moves the light around its target.");
+                ui.label("In the view: drag the yellow ring to aim the light; shift-drag moves the light around its target.");
             });
         }
         if self.state.scene != before {
@@ -1571,6 +1574,31 @@ impl ViewerApp {
             Color32::WHITE,
         );
 
+        // The spotlight's handle: where its axis meets the scene, and the axis towards the light.
+        let scene = self.frame_scene();
+        // (The camera's aspect is the image's, whatever size it renders at.)
+        let (w, h) = (
+            (image_rect.width().round() as u32).max(1),
+            (image_rect.height().round() as u32).max(1),
+        );
+        let camera = crate::render::CameraMatrices::new(&scene, w, h);
+        let to_screen = |p: Vec3| {
+            camera.project_to_pixel(p, w, h).map(|px| {
+                image_rect.min
+                    + Vec2::new(px.x, px.y) / Vec2::new(w as f32, h as f32) * image_rect.size()
+            })
+        };
+        let handle = to_screen(scene.light.target);
+        if let Some(h) = handle.filter(|h| image_rect.contains(*h)) {
+            let yellow = Color32::from_rgb(255, 210, 60);
+            let toward =
+                scene.light.target + (scene.light.position - scene.light.target).normalize() * 1.5;
+            if let Some(t) = to_screen(toward) {
+                painter.line_segment([h, t], egui::Stroke::new(1.5, yellow));
+            }
+            painter.circle_stroke(h, 7.0, egui::Stroke::new(2.0, yellow));
+        }
+
         // Interaction: orbit, pan, zoom, light, divider, probe.
         let mut dragging = false;
         let shift = ui.input(|i| i.modifiers.shift);
@@ -1579,11 +1607,32 @@ impl ViewerApp {
         {
             let x = image_rect.left() + image_rect.width() * self.state.split;
             self.dragging_divider = self.state.mode == CompareMode::Split && (p.x - x).abs() < 10.0;
+            self.dragging_light_target =
+                !self.dragging_divider && handle.is_some_and(|h| h.distance(p) < 12.0);
         }
         if response.dragged_by(PointerButton::Primary) {
             let d = response.drag_delta();
             if self.dragging_divider {
                 self.state.split = (self.state.split + d.x / image_rect.width()).clamp(0.0, 1.0);
+            } else if self.dragging_light_target
+                && let Some(p) = response.interact_pointer_pos()
+            {
+                // Slide the target in its horizontal plane to where the pointer's ray meets it.
+                let uv = (p - image_rect.min) / image_rect.size();
+                let ndc = glam::Vec2::new(uv.x * 2.0 - 1.0, 1.0 - uv.y * 2.0);
+                let far = camera
+                    .clip_from_world()
+                    .inverse()
+                    .project_point3(ndc.extend(1.0));
+                let dir = (far - camera.position).normalize();
+                let target = &mut self.state.scene.light.target;
+                if dir.y.abs() > 1e-4 {
+                    let t = (target.y - camera.position.y) / dir.y;
+                    if t > 0.0 {
+                        let hit = camera.position + dir * t;
+                        *target = Vec3::new(hit.x, target.y, hit.z);
+                    }
+                }
             } else if shift {
                 let light = &mut self.state.scene.light;
                 let mut orbit = Orbit::from_camera(&crate::scene::Camera {
@@ -1612,6 +1661,7 @@ impl ViewerApp {
         }
         if response.drag_stopped() {
             self.dragging_divider = false;
+            self.dragging_light_target = false;
         }
         if response.hovered() {
             let scroll = ui.input(|i| i.smooth_scroll_delta.y);
@@ -1684,6 +1734,7 @@ impl ViewerApp {
                         ("drag", "orbit the camera (in split view, drag the divider)"),
                         ("right / middle drag", "pan"),
                         ("wheel", "zoom"),
+                        ("drag the yellow ring", "move where the spotlight aims"),
                         ("shift + drag", "move the spotlight around its target"),
                         ("click", "probe T along the light ray through the point"),
                     ] {
