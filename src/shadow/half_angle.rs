@@ -25,7 +25,8 @@ use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 
 use super::layered::{
-    ADDITIVE, billboard_pipeline, cleared_attachment, map_texture, uniform_entry,
+    ADDITIVE, billboard_pipeline, cleared_attachment, map_texture, sampler_entry, texture_entry,
+    uniform_entry,
 };
 use super::probe::PendingProbe;
 use super::{
@@ -210,22 +211,8 @@ impl HalfAngle {
             label: Some("has.lookup.layout"),
             entries: &[
                 uniform_entry(0, LOOKUP_STAGES),
-                wgpu::BindGroupLayoutEntry {
-                    binding: 1,
-                    visibility: LOOKUP_STAGES,
-                    ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
-                    count: None,
-                },
-                wgpu::BindGroupLayoutEntry {
-                    binding: 2,
-                    visibility: LOOKUP_STAGES,
-                    ty: wgpu::BindingType::Texture {
-                        sample_type: wgpu::TextureSampleType::Float { filterable: true },
-                        view_dimension: wgpu::TextureViewDimension::D2,
-                        multisampled: false,
-                    },
-                    count: None,
-                },
+                sampler_entry(1, LOOKUP_STAGES),
+                texture_entry(2, LOOKUP_STAGES),
             ],
         });
         let sampler = super::map_sampler(device, "has.sampler");

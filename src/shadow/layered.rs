@@ -158,25 +158,7 @@ impl Maps {
     ) -> Self {
         let full_layers = packed / 4;
         let mut texture = |label: String, format, layers| {
-            memory.texture(
-                device,
-                &wgpu::TextureDescriptor {
-                    label: Some(&label),
-                    size: wgpu::Extent3d {
-                        width: res,
-                        height: res,
-                        depth_or_array_layers: layers,
-                    },
-                    mip_level_count: 1,
-                    sample_count: 1,
-                    dimension: wgpu::TextureDimension::D2,
-                    format,
-                    usage: wgpu::TextureUsages::RENDER_ATTACHMENT
-                        | wgpu::TextureUsages::TEXTURE_BINDING
-                        | wgpu::TextureUsages::COPY_SRC,
-                    view_formats: &[],
-                },
-            )
+            map_texture_layers(memory, device, &label, format, res, layers)
         };
         let full = (full_layers > 0).then(|| {
             let format = target_format(packed, 0, precision);
@@ -275,6 +257,19 @@ pub(crate) fn uniform_entry(
     }
 }
 
+/// A filtering sampler.
+pub(crate) fn sampler_entry(
+    binding: u32,
+    visibility: wgpu::ShaderStages,
+) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility,
+        ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+        count: None,
+    }
+}
+
 /// A filterable 2D float texture (32-bit float maps need `FLOAT32_FILTERABLE`).
 pub(crate) fn texture_entry(
     binding: u32,
@@ -292,7 +287,37 @@ pub(crate) fn texture_entry(
     }
 }
 
-/// A square shadow-map texture, recorded in `memory`.
+/// A square shadow-map texture of `layers` layers, recorded in `memory`.
+fn map_texture_layers(
+    memory: &mut MemoryLedger,
+    device: &wgpu::Device,
+    label: &str,
+    format: wgpu::TextureFormat,
+    res: u32,
+    layers: u32,
+) -> wgpu::Texture {
+    memory.texture(
+        device,
+        &wgpu::TextureDescriptor {
+            label: Some(label),
+            size: wgpu::Extent3d {
+                width: res,
+                height: res,
+                depth_or_array_layers: layers,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT
+                | wgpu::TextureUsages::TEXTURE_BINDING
+                | wgpu::TextureUsages::COPY_SRC,
+            view_formats: &[],
+        },
+    )
+}
+
+/// A square single-layer shadow-map texture, recorded in `memory`, and its view.
 pub(crate) fn map_texture(
     memory: &mut MemoryLedger,
     device: &wgpu::Device,
@@ -300,26 +325,7 @@ pub(crate) fn map_texture(
     format: wgpu::TextureFormat,
     res: u32,
 ) -> wgpu::TextureView {
-    memory
-        .texture(
-            device,
-            &wgpu::TextureDescriptor {
-                label: Some(label),
-                size: wgpu::Extent3d {
-                    width: res,
-                    height: res,
-                    depth_or_array_layers: 1,
-                },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format,
-                usage: wgpu::TextureUsages::RENDER_ATTACHMENT
-                    | wgpu::TextureUsages::TEXTURE_BINDING
-                    | wgpu::TextureUsages::COPY_SRC,
-                view_formats: &[],
-            },
-        )
+    map_texture_layers(memory, device, label, format, res, 1)
         .create_view(&wgpu::TextureViewDescriptor::default())
 }
 
@@ -571,12 +577,7 @@ impl Layered {
         // textures), and the depth channel if there is one.
         let mut lookup_entries = vec![
             uniform_entry(0, LOOKUP_STAGES),
-            wgpu::BindGroupLayoutEntry {
-                binding: 1,
-                visibility: LOOKUP_STAGES,
-                ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
-                count: None,
-            },
+            sampler_entry(1, LOOKUP_STAGES),
         ];
         lookup_entries.push(wgpu::BindGroupLayoutEntry {
             binding: 2,
