@@ -2,10 +2,17 @@
 //! technique's 24-channel image is its baseline; wgpu's and vello's golden-image tests).
 //!
 //! `baselines/<scene>/<technique>.png` is each registered technique at 24 channels (DOM: one
-//! depth channel and 23 layers, FOM: 11 harmonics, HAS: 24 slices) on each embedded scene, `exact` at a high
-//! shadow resolution; `<technique>.json` beside it says what it was rendered from. [`check`]
-//! re-renders and compares with FLIP; [`bless`] is the only way the files change. A missing,
-//! mis-sized or stale baseline is a failure, never silently recreated.
+//! depth channel and 23 layers, FOM: 11 harmonics, HAS: 24 slices) on each embedded scene, `exact`
+//! at a high shadow resolution; `<technique>.blocks.exr` holds its HDR frame averaged over 16x16
+//! blocks, and `<technique>.json` says what it was rendered from. [`check`] re-renders and
+//! applies the CPU-independent [`criterion`]; [`bless`] is the only way the files change. A
+//! missing, mis-sized or stale baseline is a failure, never silently recreated.
+//!
+//! Baselines are lavapipe's: a hardware GPU's shader math (its `exp`, its texture filtering, its
+//! blending precision) moves pixels far more than another CPU does, so `check` refuses to compare
+//! a hardware adapter's renders with them (see [`require_software_adapter`]).
+
+pub mod criterion;
 
 use std::path::{Path, PathBuf};
 
@@ -16,28 +23,13 @@ use crate::gpu::Gpu;
 use crate::render::{RenderOptions, TechniqueConfig, render_offscreen};
 use crate::scene::{self, Scene};
 use crate::shadow::{self, TechniqueParams};
+use criterion::{HdrBlocks, Scores};
 
 /// The budget of every baseline (the thesis' baselines).
 pub const BASELINE_CHANNELS: u32 = 24;
 /// Shadow-map resolution of the `exact` baselines: the ground truth wants more rays than the
 /// techniques' 512² (1024² is what lavapipe's storage-binding limit allows for these scenes).
 pub const EXACT_RESOLUTION_PX: u32 = 1024;
-
-/// Highest FLIP mean a fresh render may have against its baseline.
-///
-/// lavapipe renders these scenes bit-identically run to run, so the value measured on the CI
-/// machine is 0; the margin admits only last-bit rounding from another Mesa/LLVM build. What
-/// it guards against, measured on thesis_plume with `osm`: one slice fewer (23 instead of 24)
-/// gives a FLIP mean of 0.012, a 2% smaller shadow map (500² instead of 512²) 0.0004, another
-/// emitter seed 0.18 — all above it.
-pub fn flip_threshold(technique: &str) -> f64 {
-    match technique {
-        // `exact` sorts its segment lists with an unstable sort after atomic appends whose order
-        // the API leaves open: equal-depth ties may sum in another order on another driver.
-        "exact" => 0.0003,
-        _ => 0.0002,
-    }
-}
 
 /// How a baseline of `technique` is rendered for `scene`.
 pub fn config(technique: &str, scene: &Scene) -> TechniqueConfig {
@@ -74,6 +66,8 @@ pub struct Baseline {
     pub scene: String,
     pub technique: String,
     pub png: PathBuf,
+    /// The HDR frame's block means ([`criterion::HdrBlocks`]).
+    pub blocks: PathBuf,
     pub sidecar: PathBuf,
 }
 
@@ -112,6 +106,7 @@ pub fn select(
                 scene: (*scene_name).to_owned(),
                 technique: entry.name.to_owned(),
                 png: folder.join(format!("{}.png", entry.name)),
+                blocks: folder.join(format!("{}.blocks.exr", entry.name)),
                 sidecar: folder.join(format!("{}.json", entry.name)),
             });
         }
@@ -119,28 +114,60 @@ pub fn select(
     Ok(out)
 }
 
-/// Renders a baseline's configuration: the tone-mapped frame.
-fn render(
-    gpu: &Gpu,
-    baseline: &Baseline,
-) -> anyhow::Result<(Scene, TechniqueConfig, image::RgbImage)> {
+/// A baseline's configuration, rendered.
+struct Rendered {
+    scene: Scene,
+    config: TechniqueConfig,
+    /// The tone-mapped frame.
+    image: image::RgbImage,
+    blocks: HdrBlocks,
+}
+
+/// Renders a baseline's configuration: the tone-mapped frame and the HDR frame's block means.
+fn render(gpu: &Gpu, baseline: &Baseline) -> anyhow::Result<Rendered> {
     let scene = Scene::embedded(&baseline.scene).expect("selected scenes are embedded");
     let particles = crate::sim::simulate(&scene);
     let config = config(&baseline.technique, &scene);
     let frame = render_offscreen(gpu, &scene, &particles, &config, &RenderOptions::default())?;
-    let rgb = image::DynamicImage::ImageRgba8(frame.image).into_rgb8();
-    Ok((scene, config, rgb))
+    Ok(Rendered {
+        blocks: HdrBlocks::from_hdr(&frame.hdr),
+        image: image::DynamicImage::ImageRgba8(frame.image).into_rgb8(),
+        scene,
+        config,
+    })
+}
+
+/// Fails unless `gpu` is a software (CPU) adapter: the baselines are lavapipe renders, and a
+/// hardware GPU's shader math differs from it by far more than any tolerance that would still
+/// catch a regression (a different `exp`, texture filtering in fixed point, blending at other
+/// precisions).
+pub fn require_software_adapter(gpu: &Gpu) -> anyhow::Result<()> {
+    if gpu.info.device_type == wgpu::DeviceType::Cpu {
+        Ok(())
+    } else {
+        anyhow::bail!(
+            "baselines are lavapipe renders and cannot be checked on the hardware adapter {}: \
+             run with --adapter cpu (install lavapipe with `apt-get install mesa-vulkan-drivers`)",
+            gpu.info.name
+        )
+    }
 }
 
 /// Renders and writes each baseline and its sidecar; returns the PNG paths written.
 pub fn bless(gpu: &Gpu, baselines: &[Baseline]) -> anyhow::Result<Vec<PathBuf>> {
     let mut written = Vec::new();
     for b in baselines {
-        let (scene, config, image) = render(gpu, b)?;
+        let Rendered {
+            scene,
+            config,
+            image,
+            blocks,
+        } = render(gpu, b)?;
         if let Some(folder) = b.png.parent() {
             std::fs::create_dir_all(folder)?;
         }
         crate::output::write_png_rgb(&b.png, &image)?;
+        blocks.save(&b.blocks)?;
         let sidecar = Sidecar {
             tool_version: env!("CARGO_PKG_VERSION").to_owned(),
             scene: b.scene.clone(),
@@ -166,9 +193,10 @@ pub fn bless(gpu: &Gpu, baselines: &[Baseline]) -> anyhow::Result<Vec<PathBuf>> 
 #[derive(Debug)]
 pub struct CheckRow {
     pub baseline: Baseline,
-    /// The comparison, when both images could be compared.
+    /// The comparison, when both images could be compared (FLIP and the rest, reported only).
     pub comparison: Option<Comparison>,
-    pub threshold: f64,
+    /// The criterion's measures, when both images and block files could be compared.
+    pub scores: Option<Scores>,
     /// `None`: passed; otherwise why it failed, in one line.
     pub failure: Option<String>,
 }
@@ -179,89 +207,111 @@ impl CheckRow {
     }
 }
 
-/// Re-renders every baseline and compares it with the committed image. On a failure, the
-/// fresh render, the 4x difference and the FLIP map go to `out_dir/<scene>/` as
+/// Re-renders every baseline and compares it with the committed files by the [`criterion`]. On
+/// a failure, the fresh render, the 4x difference and the FLIP map go to `out_dir/<scene>/` as
 /// `<technique>-actual.png`, `-diff.png` and `-flip.png`.
 pub fn check(gpu: &Gpu, baselines: &[Baseline], out_dir: &Path) -> anyhow::Result<Vec<CheckRow>> {
+    require_software_adapter(gpu)?;
     let mut rows = Vec::new();
     for b in baselines {
-        let threshold = flip_threshold(&b.technique);
-        let bless_hint = format!(
-            "run `smokeshadow baseline --bless --scene {} --technique {}` if the change is intended",
-            b.scene, b.technique
-        );
         let mut row = CheckRow {
             baseline: b.clone(),
             comparison: None,
-            threshold,
+            scores: None,
             failure: None,
         };
-        if !b.png.is_file() || !b.sidecar.is_file() {
-            row.failure = Some(format!(
-                "missing baseline {} (or its .json); create it with `smokeshadow baseline --bless --scene {} --technique {}`",
-                b.png.display(),
-                b.scene,
-                b.technique
-            ));
-            rows.push(row);
-            continue;
-        }
-        let sidecar: Sidecar = match std::fs::read_to_string(&b.sidecar)
-            .map_err(anyhow::Error::from)
-            .and_then(|t| serde_json::from_str(&t).map_err(anyhow::Error::from))
-        {
-            Ok(s) => s,
-            Err(err) => {
-                row.failure = Some(format!(
-                    "cannot read {}: {err}; {bless_hint}",
-                    b.sidecar.display()
-                ));
-                rows.push(row);
-                continue;
-            }
-        };
-        let (scene, _, actual) = render(gpu, b)?;
-        if sidecar.scene_sha256 != scene.content_hash() {
-            row.failure = Some(format!(
-                "the scene {} changed since this baseline was blessed; {bless_hint}",
-                b.scene
-            ));
-            rows.push(row);
-            continue;
-        }
-        let expected = match diff::load_png(&b.png) {
-            Ok(image) => image,
-            Err(err) => {
-                row.failure = Some(format!("{err}; {bless_hint}"));
-                rows.push(row);
-                continue;
-            }
-        };
-        match diff::compare(&expected, &actual) {
-            Err(err) => row.failure = Some(format!("{err}; {bless_hint}")),
-            Ok(comparison) => {
-                let flip = comparison.metrics.flip_mean;
-                if flip > threshold {
-                    let folder = out_dir.join(&b.scene);
-                    std::fs::create_dir_all(&folder)?;
-                    let stem = folder.join(&b.technique);
-                    let path =
-                        |suffix: &str| PathBuf::from(format!("{}-{suffix}.png", stem.display()));
-                    crate::output::write_png_rgb(&path("actual"), &actual)?;
-                    crate::output::write_png_rgb(
-                        &path("diff"),
-                        &diff::enhanced_difference(&expected, &actual, diff::DEFAULT_ENHANCE),
-                    )?;
-                    crate::output::write_png_rgb(&path("flip"), &diff::flip_heatmap(&comparison))?;
-                    row.failure = Some(format!(
-                        "FLIP mean {flip:.5} > {threshold}; actual, difference and FLIP map in {}; {bless_hint}",
-                        folder.display()
-                    ));
-                }
-                row.comparison = Some(comparison);
-            }
-        }
+        row.failure = check_one(gpu, b, out_dir, &mut row)?;
         rows.push(row);
     }
     Ok(rows)
+}
+
+/// Checks one baseline, filling `row`'s measures; returns why it failed, if it did. Errors are
+/// reserved for what stops the whole check (the GPU, the output folder).
+fn check_one(
+    gpu: &Gpu,
+    b: &Baseline,
+    out_dir: &Path,
+    row: &mut CheckRow,
+) -> anyhow::Result<Option<String>> {
+    let bless_hint = format!(
+        "run `smokeshadow baseline --bless --scene {} --technique {}` if the change is intended",
+        b.scene, b.technique
+    );
+    if !b.png.is_file() || !b.blocks.is_file() || !b.sidecar.is_file() {
+        return Ok(Some(format!(
+            "missing baseline {} (or its .blocks.exr or .json); create it with `smokeshadow baseline --bless --scene {} --technique {}`",
+            b.png.display(),
+            b.scene,
+            b.technique
+        )));
+    }
+    let sidecar: Sidecar = match std::fs::read_to_string(&b.sidecar)
+        .map_err(anyhow::Error::from)
+        .and_then(|t| serde_json::from_str(&t).map_err(anyhow::Error::from))
+    {
+        Ok(s) => s,
+        Err(err) => {
+            return Ok(Some(format!(
+                "cannot read {}: {err}; {bless_hint}",
+                b.sidecar.display()
+            )));
+        }
+    };
+    let actual = render(gpu, b)?;
+    if sidecar.scene_sha256 != actual.scene.content_hash() {
+        return Ok(Some(format!(
+            "the scene {} changed since this baseline was blessed; {bless_hint}",
+            b.scene
+        )));
+    }
+    if sidecar.params != actual.config.params {
+        return Ok(Some(format!(
+            "the baseline was rendered with other technique parameters ({}) than {} uses now; {bless_hint}",
+            serde_json::to_string(&sidecar.params)?,
+            b.technique
+        )));
+    }
+    let expected = match diff::load_png(&b.png) {
+        Ok(image) => image,
+        Err(err) => return Ok(Some(format!("{err}; {bless_hint}"))),
+    };
+    let expected_blocks = match HdrBlocks::load(&b.blocks) {
+        Ok(blocks) => blocks,
+        Err(err) => return Ok(Some(format!("{err:#}; {bless_hint}"))),
+    };
+    let comparison = match diff::compare(&expected, &actual.image) {
+        Ok(c) => c,
+        Err(err) => return Ok(Some(format!("{err}; {bless_hint}"))),
+    };
+    let Some(scores) = Scores::of(&expected, &actual.image, &expected_blocks, &actual.blocks)
+    else {
+        return Ok(Some(format!(
+            "{} holds {}x{} blocks, the render {}x{}; {bless_hint}",
+            b.blocks.display(),
+            expected_blocks.width,
+            expected_blocks.height,
+            actual.blocks.width,
+            actual.blocks.height
+        )));
+    };
+    row.scores = Some(scores);
+    let failure = scores.failure().map(|why| -> anyhow::Result<String> {
+        let folder = out_dir.join(&b.scene);
+        std::fs::create_dir_all(&folder)?;
+        let stem = folder.join(&b.technique);
+        let path = |suffix: &str| PathBuf::from(format!("{}-{suffix}.png", stem.display()));
+        crate::output::write_png_rgb(&path("actual"), &actual.image)?;
+        crate::output::write_png_rgb(
+            &path("diff"),
+            &diff::enhanced_difference(&expected, &actual.image, diff::DEFAULT_ENHANCE),
+        )?;
+        crate::output::write_png_rgb(&path("flip"), &diff::flip_heatmap(&comparison))?;
+        Ok(format!(
+            "{why}; actual, difference and FLIP map in {}; {bless_hint}",
+            folder.display()
+        ))
+    });
+    row.comparison = Some(comparison);
+    failure.transpose()
 }
