@@ -298,3 +298,44 @@ fn probe_prints_the_technique_beside_exact_along_the_light() {
         "{text}"
     );
 }
+
+#[test]
+fn the_largest_budget_at_the_largest_resolution_renders_or_fails_in_one_line() {
+    // 32 channels at 8192² asks for 4-8 GiB of maps: over the memory budget (refused before
+    // allocating), beyond a binding limit (`exact`), refused by the driver inside an error
+    // scope, or small enough to render (`has`'s light buffer, `none`). Never a panic, never a
+    // half-written file.
+    let dir = scratch("cli-largest");
+    for entry in smokeshadow::shadow::REGISTRY {
+        let png = dir.join(format!("{}.png", entry.name));
+        let out = smokeshadow(&[
+            "render",
+            "-t",
+            entry.name,
+            "-c",
+            "32",
+            "--shadow-res",
+            "8192",
+            "--size",
+            "64x48",
+            "-o",
+            png.to_str().unwrap(),
+        ]);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!stderr.contains("panicked"), "{}: {stderr}", entry.name);
+        if out.status.success() {
+            assert!(png.is_file(), "{} succeeded without writing", entry.name);
+            assert!(error_lines(&out).is_empty(), "{}: {stderr}", entry.name);
+        } else {
+            assert_eq!(out.status.code(), Some(2), "{}: {stderr}", entry.name);
+            assert_one_line_error(&out, &["error:"]);
+            assert!(!png.exists(), "{} left a file behind", entry.name);
+        }
+    }
+    let leftovers: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .filter(|n| !n.to_string_lossy().ends_with(".png"))
+        .collect();
+    assert!(leftovers.is_empty(), "temporary files left: {leftovers:?}");
+}

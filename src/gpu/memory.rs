@@ -4,40 +4,203 @@
 //! records its size computed from the descriptor wgpu received (format block size x extent x
 //! layers x mips, or the buffer size). The bytes a technique reports are the ledger's sum, so the
 //! number cannot drift from the allocations.
+//!
+//! The ledger is also where allocations are refused *before* they reach the driver: each
+//! texture and buffer is checked against the device's limits and against a memory budget
+//! ([`MemoryBudget`]), so a configuration that cannot be held is one [`AllocationError`] line,
+//! not an out-of-memory panic inside wgpu.
 
-/// A list of labelled allocations and their sizes in bytes.
-#[derive(Clone, Debug, Default)]
+/// Environment variable that sets the memory budget of one technique, in MiB.
+pub const BUDGET_ENV: &str = "SMOKESHADOW_MEMORY_BUDGET_MIB";
+
+/// Default budget of one technique's allocations: 4 GiB. wgpu cannot ask a device how much
+/// memory it has, so this is a fixed, documented ceiling that every current GPU and lavapipe on
+/// a 16 GB machine can hold next to the frame; set [`BUDGET_ENV`] to change it.
+pub const DEFAULT_BUDGET_BYTES: u64 = 4 << 30;
+
+/// What one allocation may not exceed: the device's limits and the budget.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct MemoryBudget {
+    pub max_texture_dimension_2d: u32,
+    pub max_texture_array_layers: u32,
+    pub max_buffer_size: u64,
+    /// Largest storage binding: a buffer bound as storage is checked against it.
+    pub max_storage_binding_bytes: u64,
+    /// Total bytes one ledger may hold.
+    pub total_bytes: u64,
+}
+
+impl MemoryBudget {
+    /// The device's limits and the budget from [`BUDGET_ENV`] (default [`DEFAULT_BUDGET_BYTES`]).
+    pub fn for_device(limits: &wgpu::Limits) -> Self {
+        let total_bytes = std::env::var(BUDGET_ENV)
+            .ok()
+            .and_then(|v| v.trim().parse::<u64>().ok())
+            .filter(|&mib| mib > 0)
+            .map_or(DEFAULT_BUDGET_BYTES, |mib| mib << 20);
+        Self {
+            max_texture_dimension_2d: limits.max_texture_dimension_2d,
+            max_texture_array_layers: limits.max_texture_array_layers,
+            max_buffer_size: limits.max_buffer_size,
+            max_storage_binding_bytes: limits.max_storage_buffer_binding_size,
+            total_bytes,
+        }
+    }
+
+    /// No limit at all (unit tests of the accounting).
+    pub fn unlimited() -> Self {
+        Self {
+            max_texture_dimension_2d: u32::MAX,
+            max_texture_array_layers: u32::MAX,
+            max_buffer_size: u64::MAX,
+            max_storage_binding_bytes: u64::MAX,
+            total_bytes: u64::MAX,
+        }
+    }
+}
+
+/// An allocation refused before it was made. Renders as one line naming it and the limit.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum AllocationError {
+    #[error(
+        "{label} would be {width}x{height} texels, but the device allows at most {max}x{max}: \
+         use a lower --shadow-res or output size"
+    )]
+    TextureTooLarge {
+        label: String,
+        width: u32,
+        height: u32,
+        max: u32,
+    },
+    #[error("{label} would have {layers} layers, but the device allows at most {max}")]
+    TooManyLayers {
+        label: String,
+        layers: u32,
+        max: u32,
+    },
+    #[error(
+        "{label} would be {bytes} bytes, but the device allows buffers of at most {max} bytes{binding}"
+    )]
+    BufferTooLarge {
+        label: String,
+        bytes: u64,
+        max: u64,
+        /// " (as a storage binding)" when the binding limit is the one exceeded.
+        binding: &'static str,
+    },
+    #[error(
+        "{label} ({bytes} bytes) would bring this technique to {total} bytes, over its memory \
+         budget of {budget} bytes ({budget_mib} MiB; set SMOKESHADOW_MEMORY_BUDGET_MIB to change \
+         it): use fewer channels or a lower --shadow-res"
+    )]
+    OverBudget {
+        label: String,
+        bytes: u64,
+        total: u64,
+        budget: u64,
+        budget_mib: u64,
+    },
+}
+
+/// A list of labelled allocations and their sizes in bytes, checked against a [`MemoryBudget`].
+#[derive(Clone, Debug)]
 pub struct MemoryLedger {
     entries: Vec<(String, u64)>,
+    budget: MemoryBudget,
 }
 
 impl MemoryLedger {
-    /// Creates a texture and records its size.
+    /// An empty ledger that refuses what `budget` does not allow.
+    pub fn new(budget: MemoryBudget) -> Self {
+        Self {
+            entries: Vec::new(),
+            budget,
+        }
+    }
+
+    /// An empty ledger for allocations on a device with `limits`.
+    pub fn for_device(limits: &wgpu::Limits) -> Self {
+        Self::new(MemoryBudget::for_device(limits))
+    }
+
+    /// Checks a texture against the limits and the budget, then creates and records it.
     pub fn texture(
         &mut self,
         device: &wgpu::Device,
         desc: &wgpu::TextureDescriptor<'_>,
-    ) -> wgpu::Texture {
-        let bytes = texture_bytes(desc);
-        self.entries
-            .push((desc.label.unwrap_or("texture").to_owned(), bytes));
-        device.create_texture(desc)
+    ) -> Result<wgpu::Texture, AllocationError> {
+        let label = desc.label.unwrap_or("texture");
+        let max = self.budget.max_texture_dimension_2d;
+        if desc.size.width > max || desc.size.height > max {
+            return Err(AllocationError::TextureTooLarge {
+                label: label.to_owned(),
+                width: desc.size.width,
+                height: desc.size.height,
+                max,
+            });
+        }
+        if desc.dimension == wgpu::TextureDimension::D2
+            && desc.size.depth_or_array_layers > self.budget.max_texture_array_layers
+        {
+            return Err(AllocationError::TooManyLayers {
+                label: label.to_owned(),
+                layers: desc.size.depth_or_array_layers,
+                max: self.budget.max_texture_array_layers,
+            });
+        }
+        self.reserve(label, texture_bytes(desc))?;
+        Ok(device.create_texture(desc))
     }
 
-    /// Creates a buffer and records its size.
+    /// Checks a buffer against the limits (the storage-binding limit for storage buffers) and
+    /// the budget, then creates and records it.
     pub fn buffer(
         &mut self,
         device: &wgpu::Device,
         desc: &wgpu::BufferDescriptor<'_>,
-    ) -> wgpu::Buffer {
-        self.entries
-            .push((desc.label.unwrap_or("buffer").to_owned(), desc.size));
-        device.create_buffer(desc)
+    ) -> Result<wgpu::Buffer, AllocationError> {
+        let label = desc.label.unwrap_or("buffer");
+        let storage = desc.usage.contains(wgpu::BufferUsages::STORAGE);
+        let (max, binding) =
+            if storage && self.budget.max_storage_binding_bytes < self.budget.max_buffer_size {
+                (
+                    self.budget.max_storage_binding_bytes,
+                    " (as a storage binding)",
+                )
+            } else {
+                (self.budget.max_buffer_size, "")
+            };
+        if desc.size > max {
+            return Err(AllocationError::BufferTooLarge {
+                label: label.to_owned(),
+                bytes: desc.size,
+                max,
+                binding,
+            });
+        }
+        self.reserve(label, desc.size)?;
+        Ok(device.create_buffer(desc))
     }
 
     /// Records an allocation made elsewhere, by the size of the buffer(s) actually created.
     pub fn record(&mut self, label: &str, bytes: u64) {
         self.entries.push((label.to_owned(), bytes));
+    }
+
+    /// Records `bytes` under `label` if the budget allows them.
+    fn reserve(&mut self, label: &str, bytes: u64) -> Result<(), AllocationError> {
+        let total = self.total_bytes().saturating_add(bytes);
+        if total > self.budget.total_bytes {
+            return Err(AllocationError::OverBudget {
+                label: label.to_owned(),
+                bytes,
+                total,
+                budget: self.budget.total_bytes,
+                budget_mib: self.budget.total_bytes >> 20,
+            });
+        }
+        self.entries.push((label.to_owned(), bytes));
+        Ok(())
     }
 
     /// Forgets the allocation labelled `label` (it was dropped or is about to be replaced).

@@ -9,7 +9,7 @@ mod memory;
 mod readback;
 mod timing;
 
-pub use memory::MemoryLedger;
+pub use memory::{AllocationError, MemoryBudget, MemoryLedger};
 pub use readback::{Rgba16fImage, read_buffer, read_texture_rgba8, read_texture_rgba16f};
 pub use timing::{GpuTimer, PassTimes};
 
@@ -30,6 +30,44 @@ pub enum GpuError {
     },
     #[error("GPU readback failed: {0}")]
     Readback(String),
+    /// The device refused work inside an error scope ([`Gpu::scoped`]): out of memory, or a
+    /// validation error.
+    #[error("{what}: the GPU refused it: {cause}")]
+    Refused { what: String, cause: String },
+}
+
+/// A wgpu error as one line: its description's lines joined, blank ones dropped.
+pub fn one_line(error: &wgpu::Error) -> String {
+    error
+        .to_string()
+        .lines()
+        .map(str::trim)
+        .filter(|l| !l.is_empty())
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+/// Keeps Mesa's implicit Vulkan device-selection layer from printing
+/// `error: XDG_RUNTIME_DIR is invalid or not set in the environment.` (twice) on a machine
+/// without a display session.
+///
+/// The layer (`VK_LAYER_MESA_device_select`) connects to a Wayland display while the instance
+/// enumerates devices, to move the display's GPU first; with no `XDG_RUNTIME_DIR` libwayland
+/// prints that line. The tool ranks adapters itself ([`rank`], `--adapter`), so the layer adds
+/// nothing: it is disabled through its own switch, `NODEVICE_SELECT=1`, unless the user set
+/// that or chose a device for it (`MESA_VK_DEVICE_SELECT`). Surfaces (the viewer on X11 or
+/// Wayland) do not depend on the layer.
+///
+/// Call it first in `main`, before any thread starts: it sets an environment variable.
+pub fn quiet_device_select_layer() {
+    let user_chose = ["NODEVICE_SELECT", "MESA_VK_DEVICE_SELECT"]
+        .iter()
+        .any(|v| std::env::var_os(v).is_some());
+    if !user_chose {
+        // SAFETY: called at the start of `main`, before any other thread exists, so nothing
+        // reads the environment concurrently.
+        unsafe { std::env::set_var("NODEVICE_SELECT", "1") };
+    }
 }
 
 /// Which adapter to use when several are present.
@@ -107,7 +145,24 @@ impl Gpu {
 
     /// Wraps a device someone else created (the viewer's, made by eframe with
     /// [`device_descriptor`]); features and limits are read from the device itself.
+    ///
+    /// Installs the device's last line of defence: a GPU error that no [`Gpu::scoped`] caught,
+    /// or a lost device, prints one `error:` line and ends the process with status 2 (wgpu's
+    /// default handler panics with a backtrace). Everything that can fail for a reason the
+    /// user controls (allocation sizes, budgets) is checked before or scoped, so this fires only
+    /// for driver failures.
     pub fn from_device(device: wgpu::Device, queue: wgpu::Queue, info: wgpu::AdapterInfo) -> Self {
+        device.on_uncaptured_error(std::sync::Arc::new(|error: wgpu::Error| {
+            eprintln!("error: GPU error: {}", one_line(&error));
+            std::process::exit(2);
+        }));
+        device.set_device_lost_callback(|reason, message| {
+            // `Destroyed` is the device being dropped on purpose.
+            if reason != wgpu::DeviceLostReason::Destroyed {
+                eprintln!("error: the GPU device was lost: {message}");
+                std::process::exit(2);
+            }
+        });
         Self {
             features: device.features(),
             limits: device.limits(),
@@ -125,6 +180,29 @@ impl Gpu {
     /// One line: adapter name, type, backend and driver.
     pub fn describe(&self) -> String {
         describe_adapter(&self.info)
+    }
+
+    /// Runs `f` inside out-of-memory and validation error scopes: what the device refuses
+    /// while `f` records or creates becomes [`GpuError::Refused`] naming `what`, instead of an
+    /// uncaptured error.
+    pub fn scoped<T>(
+        &self,
+        what: impl FnOnce() -> String,
+        f: impl FnOnce() -> T,
+    ) -> Result<T, GpuError> {
+        let out_of_memory = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        let validation = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let value = f();
+        // Scopes pop in reverse order of their pushes.
+        let validation = pollster::block_on(validation.pop());
+        let out_of_memory = pollster::block_on(out_of_memory.pop());
+        match out_of_memory.or(validation) {
+            None => Ok(value),
+            Some(error) => Err(GpuError::Refused {
+                what: what(),
+                cause: one_line(&error),
+            }),
+        }
     }
 
     /// Blocks until all submitted work is done.

@@ -321,17 +321,24 @@ impl Renderer {
         Ok(())
     }
 
-    /// Resizes the internal targets (the caller's output view must match).
-    pub fn resize(&mut self, gpu: &Gpu, width: u32, height: u32) {
+    /// Resizes the internal targets (the caller's output view must match); the old targets
+    /// stay when the device refuses the new ones.
+    pub fn resize(&mut self, gpu: &Gpu, width: u32, height: u32) -> Result<(), GpuError> {
         if (width, height) != (self.targets.width, self.targets.height) {
-            self.targets = Targets::new(
-                &gpu.device,
-                &self.depth_layout,
-                &self.hdr_layout,
-                width,
-                height,
-            );
+            self.targets = gpu.scoped(
+                || format!("resizing the frame to {width}x{height}"),
+                || {
+                    Targets::new(
+                        &gpu.device,
+                        &self.depth_layout,
+                        &self.hdr_layout,
+                        width,
+                        height,
+                    )
+                },
+            )?;
         }
+        Ok(())
     }
 
     /// The active technique.
@@ -361,7 +368,35 @@ impl Renderer {
     }
 
     /// Renders one frame of `scene` with `particles` into `output` (size = [`Renderer::size`]).
+    /// What the device refuses while recording and submitting the frame (a buffer it cannot
+    /// grow, a validation error) is a [`ShadowError::Gpu`] line, not a panic.
     pub fn render(
+        &mut self,
+        gpu: &Gpu,
+        scene: &Scene,
+        particles: &[Particle],
+        options: &RenderOptions,
+        output: &wgpu::TextureView,
+    ) -> Result<FrameStats, ShadowError> {
+        let config = &self.technique_config;
+        let what = || {
+            format!(
+                "rendering a frame with {} at {} channels and {}x{}",
+                config.name,
+                config.params.channels,
+                config.params.resolution_px,
+                config.params.resolution_px
+            )
+        };
+        let what = what();
+        gpu.scoped(
+            || what,
+            || self.render_unscoped(gpu, scene, particles, options, output),
+        )
+        .map_err(|e| ShadowError::Gpu(e.to_string()))?
+    }
+
+    fn render_unscoped(
         &mut self,
         gpu: &Gpu,
         scene: &Scene,
@@ -443,7 +478,7 @@ impl Renderer {
                     depth_view: &self.targets.depth_view,
                     spherical: options.spherical,
                 },
-            );
+            )?;
         } else {
             {
                 let depth_attachment =
@@ -585,6 +620,24 @@ impl Renderer {
     /// [`Renderer::render`], then a compute shader evaluates the same `shadow_transmittance` the
     /// lighting shaders call.
     pub fn probe(
+        &mut self,
+        gpu: &Gpu,
+        scene: &Scene,
+        particles: &[Particle],
+        points: &[Vec3],
+    ) -> anyhow::Result<Vec<f32>> {
+        let what = format!(
+            "probing {} at {} points",
+            self.technique_config.name,
+            points.len()
+        );
+        gpu.scoped(
+            || what,
+            || self.probe_unscoped(gpu, scene, particles, points),
+        )?
+    }
+
+    fn probe_unscoped(
         &mut self,
         gpu: &Gpu,
         scene: &Scene,

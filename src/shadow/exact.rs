@@ -26,7 +26,7 @@ use super::{
     BuildInputs, LOOKUP_STAGES, ShadowError, ShadowTechnique, TechniqueContext, TechniqueEntry,
     TechniqueParams,
 };
-use crate::gpu::{Gpu, MemoryLedger, read_buffer};
+use crate::gpu::{AllocationError, Gpu, MemoryLedger, read_buffer};
 use crate::shaders;
 
 pub const ENTRY: TechniqueEntry = TechniqueEntry {
@@ -113,7 +113,7 @@ fn storage_buffer(
     device: &wgpu::Device,
     label: &str,
     size: u64,
-) -> wgpu::Buffer {
+) -> Result<wgpu::Buffer, AllocationError> {
     memory.buffer(
         device,
         &wgpu::BufferDescriptor {
@@ -132,7 +132,7 @@ impl Exact {
         let device = &ctx.gpu.device;
         let res = params.resolution_px;
         let texels = u64::from(res) * u64::from(res);
-        let mut memory = MemoryLedger::default();
+        let mut memory = MemoryLedger::for_device(&ctx.gpu.limits);
         let params_buffer = memory.buffer(
             device,
             &wgpu::BufferDescriptor {
@@ -141,22 +141,22 @@ impl Exact {
                 usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             },
-        );
-        let counts = storage_buffer(&mut memory, device, "exact.counts", texels * 4);
-        let offsets = storage_buffer(&mut memory, device, "exact.offsets", (texels + 1) * 4);
+        )?;
+        let counts = storage_buffer(&mut memory, device, "exact.counts", texels * 4)?;
+        let offsets = storage_buffer(&mut memory, device, "exact.offsets", (texels + 1) * 4)?;
         let row_sums = storage_buffer(
             &mut memory,
             device,
             "exact.row_sums",
             (u64::from(res) + 1) * 4,
-        );
+        )?;
         let dummy_target = super::layered::map_texture(
             &mut memory,
             device,
             "exact.raster_target",
             DUMMY_FORMAT,
             res,
-        );
+        )?;
 
         let build_stages = wgpu::ShaderStages::VERTEX_FRAGMENT | wgpu::ShaderStages::COMPUTE;
         let build_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
@@ -231,7 +231,7 @@ impl Exact {
             &lookup_layout,
             [&params_buffer, &counts, &offsets, &row_sums],
             1 << 16,
-        );
+        )?;
         let exact = Self {
             resolution: res,
             scan_rows: compute("scan_rows"),
@@ -348,7 +348,7 @@ impl Lists {
         lookup_layout: &wgpu::BindGroupLayout,
         fixed: [&wgpu::Buffer; 4],
         capacity: u32,
-    ) -> Self {
+    ) -> Result<Self, AllocationError> {
         let [params, counts, offsets, row_sums] = fixed;
         memory.forget("exact.segments");
         memory.forget("exact.nodes");
@@ -357,13 +357,13 @@ impl Lists {
             device,
             "exact.segments",
             u64::from(capacity) * SEGMENT_BYTES,
-        );
+        )?;
         let nodes = storage_buffer(
             memory,
             device,
             "exact.nodes",
             u64::from(capacity) * NODE_BYTES_PER_SEGMENT,
-        );
+        )?;
         fn entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
             wgpu::BindGroupEntry {
                 binding,
@@ -387,13 +387,13 @@ impl Lists {
             layout: lookup_layout,
             entries: &[entry(0, params), entry(1, offsets), entry(2, &nodes)],
         });
-        Self {
+        Ok(Self {
             capacity,
             _segments: segments,
             _nodes: nodes,
             build_bind_group,
             lookup_bind_group,
-        }
+        })
     }
 }
 
@@ -473,7 +473,7 @@ impl ShadowTechnique for Exact {
                     &self.row_sums,
                 ],
                 capacity,
-            );
+            )?;
             self.write_params(&gpu.queue);
         }
         self.last_segment_count = total;

@@ -33,7 +33,7 @@ use super::{
     BuildInputs, DebugMap, LOOKUP_STAGES, MapKind, ParticlePass, ParticlePassInputs, ProbeInputs,
     ProbePass, ShadowError, ShadowTechnique, TechniqueContext, TechniqueEntry, TechniqueParams,
 };
-use crate::gpu::{Gpu, MemoryLedger};
+use crate::gpu::{AllocationError, Gpu, MemoryLedger};
 use crate::render::gpu_data::{BILLBOARD_VERTICES, ParticleInstance};
 use crate::render::particles::{LightBuffers, ParticleLighting};
 use crate::render::{HDR_FORMAT, OVER, ParticleLayouts, ParticlePipelines, UNDER};
@@ -148,7 +148,7 @@ fn instance_buffer(
     memory: &mut MemoryLedger,
     device: &wgpu::Device,
     capacity: u64,
-) -> wgpu::Buffer {
+) -> Result<wgpu::Buffer, AllocationError> {
     memory.forget("has.instances");
     memory.buffer(
         device,
@@ -182,7 +182,7 @@ impl HalfAngle {
     pub fn new(ctx: &TechniqueContext<'_>, params: &TechniqueParams) -> Result<Self, ShadowError> {
         let gpu = ctx.gpu;
         let device = &gpu.device;
-        let mut memory = MemoryLedger::default();
+        let mut memory = MemoryLedger::for_device(&gpu.limits);
         let params_buffer = memory.buffer(
             device,
             &wgpu::BufferDescriptor {
@@ -191,7 +191,7 @@ impl HalfAngle {
                 usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             },
-        );
+        )?;
         gpu.queue.write_buffer(
             &params_buffer,
             0,
@@ -206,7 +206,7 @@ impl HalfAngle {
             "has.light",
             LIGHT_FORMAT,
             params.resolution_px,
-        );
+        )?;
         let lookup_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("has.lookup.layout"),
             entries: &[
@@ -319,7 +319,7 @@ impl HalfAngle {
             cache: None,
         });
         let instance_capacity = 1024;
-        let instances = instance_buffer(&mut memory, device, instance_capacity);
+        let instances = instance_buffer(&mut memory, device, instance_capacity)?;
         let lights = light_buffers(
             &mut memory,
             device,
@@ -355,7 +355,7 @@ impl HalfAngle {
         gpu: &Gpu,
         particles: &[Particle],
         slicing: &Slicing,
-    ) -> Vec<Range<u32>> {
+    ) -> Result<Vec<Range<u32>>, AllocationError> {
         let order = slicing.order(particles);
         let instances: Vec<ParticleInstance> = order
             .iter()
@@ -365,7 +365,7 @@ impl HalfAngle {
         if needed > self.instance_capacity {
             self.instance_capacity = needed.next_power_of_two();
             self.instances =
-                instance_buffer(&mut self.memory, &self.device, self.instance_capacity);
+                instance_buffer(&mut self.memory, &self.device, self.instance_capacity)?;
             self.lights = light_buffers(
                 &mut self.memory,
                 &self.device,
@@ -379,7 +379,7 @@ impl HalfAngle {
             gpu.queue
                 .write_buffer(&self.instances, 0, bytemuck::cast_slice(&instances));
         }
-        batches(instances.len() as u32, self.slices)
+        Ok(batches(instances.len() as u32, self.slices))
     }
 
     /// Records a light pass drawing `batch` into the light buffer (`clear` first, or add).
@@ -420,9 +420,9 @@ impl HalfAngle {
         }
     }
 
-    fn ensure_eye_buffer(&mut self, size: (u32, u32)) {
+    fn ensure_eye_buffer(&mut self, size: (u32, u32)) -> Result<(), AllocationError> {
         if self.eye.as_ref().is_some_and(|e| e.size == size) {
-            return;
+            return Ok(());
         }
         self.memory.forget("has.eye");
         let texture = self.memory.texture(
@@ -442,7 +442,7 @@ impl HalfAngle {
                     | wgpu::TextureUsages::TEXTURE_BINDING,
                 view_formats: &[],
             },
-        );
+        )?;
         let view = texture.create_view(&Default::default());
         let bind_group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("has.composite.bind_group"),
@@ -457,6 +457,7 @@ impl HalfAngle {
             view,
             bind_group,
         });
+        Ok(())
     }
 }
 
@@ -519,12 +520,12 @@ impl ShadowTechnique for HalfAngle {
 }
 
 impl ParticlePass for HalfAngle {
-    fn record(&mut self, gpu: &Gpu, inputs: ParticlePassInputs<'_>) -> f64 {
+    fn record(&mut self, gpu: &Gpu, inputs: ParticlePassInputs<'_>) -> Result<f64, ShadowError> {
         let slicing = Slicing::new(inputs.camera.forward, inputs.light_axis);
         let sort_start = Instant::now();
-        let batches = self.upload_sorted(gpu, inputs.particles, &slicing);
+        let batches = self.upload_sorted(gpu, inputs.particles, &slicing)?;
         let sort_ms = sort_start.elapsed().as_secs_f64() * 1e3;
-        self.ensure_eye_buffer(inputs.hdr_size);
+        self.ensure_eye_buffer(inputs.hdr_size)?;
         let eye = self.eye.as_ref().expect("eye buffer was just made");
         let pipelines = if slicing.eye_front_to_back {
             &self.eye_under
@@ -601,7 +602,7 @@ impl ParticlePass for HalfAngle {
             );
         }
         if batches.is_empty() {
-            return sort_ms;
+            return Ok(sort_ms);
         }
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("has.composite"),
@@ -623,7 +624,7 @@ impl ParticlePass for HalfAngle {
         pass.set_bind_group(0, inputs.frame_bind_group, &[]);
         pass.set_bind_group(1, &eye.bind_group, &[]);
         pass.draw(0..3, 0..1);
-        sort_ms
+        Ok(sort_ms)
     }
 }
 
@@ -634,7 +635,7 @@ impl ProbePass for HalfAngle {
         let mut encoder = inputs.encoder;
         let slicing = Slicing::new(inputs.camera_forward, inputs.light_axis);
         let order = slicing.order(inputs.particles);
-        let batches = self.upload_sorted(gpu, inputs.particles, &slicing);
+        let batches = self.upload_sorted(gpu, inputs.particles, &slicing)?;
         let last_keys: Vec<f32> = batches
             .iter()
             .map(|b| {

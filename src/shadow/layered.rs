@@ -18,7 +18,7 @@ use super::{
     BuildInputs, DebugMap, LOOKUP_STAGES, MapKind, ShadowError, ShadowTechnique, SplatMode,
     TechniqueContext, TechniqueParams,
 };
-use crate::gpu::{Gpu, MemoryLedger};
+use crate::gpu::{AllocationError, Gpu, MemoryLedger};
 use crate::render::gpu_data::{BILLBOARD_VERTICES, ParticleInstance};
 use crate::shaders;
 
@@ -155,19 +155,23 @@ impl Maps {
         packed: u32,
         precision: Precision,
         res: u32,
-    ) -> Self {
+    ) -> Result<Self, AllocationError> {
         let full_layers = packed / 4;
         let mut texture = |label: String, format, layers| {
             map_texture_layers(memory, device, &label, format, res, layers)
         };
-        let full = (full_layers > 0).then(|| {
-            let format = target_format(packed, 0, precision);
-            texture(format!("{name}.maps"), format, full_layers)
-        });
-        let rest = (!packed.is_multiple_of(4)).then(|| {
-            let format = target_format(packed, full_layers, precision);
-            texture(format!("{name}.maps.rest"), format, 1)
-        });
+        let full = (full_layers > 0)
+            .then(|| {
+                let format = target_format(packed, 0, precision);
+                texture(format!("{name}.maps"), format, full_layers)
+            })
+            .transpose()?;
+        let rest = (!packed.is_multiple_of(4))
+            .then(|| {
+                let format = target_format(packed, full_layers, precision);
+                texture(format!("{name}.maps.rest"), format, 1)
+            })
+            .transpose()?;
         let array_view = |t: &wgpu::Texture| {
             t.create_view(&wgpu::TextureViewDescriptor {
                 dimension: Some(wgpu::TextureViewDimension::D2Array),
@@ -186,13 +190,13 @@ impl Maps {
             .as_ref()
             .or(rest.as_ref())
             .expect("at least one target");
-        Self {
+        Ok(Self {
             full_layers,
             full_view: array_view(full.as_ref().unwrap_or(any)),
             rest_view: layer_view(rest.as_ref().unwrap_or(any), 0),
             full,
             rest,
-        }
+        })
     }
 
     /// One render-target view per packed target, in channel order.
@@ -295,7 +299,7 @@ fn map_texture_layers(
     format: wgpu::TextureFormat,
     res: u32,
     layers: u32,
-) -> wgpu::Texture {
+) -> Result<wgpu::Texture, AllocationError> {
     memory.texture(
         device,
         &wgpu::TextureDescriptor {
@@ -324,9 +328,9 @@ pub(crate) fn map_texture(
     label: &str,
     format: wgpu::TextureFormat,
     res: u32,
-) -> wgpu::TextureView {
-    map_texture_layers(memory, device, label, format, res, 1)
-        .create_view(&wgpu::TextureViewDescriptor::default())
+) -> Result<wgpu::TextureView, AllocationError> {
+    Ok(map_texture_layers(memory, device, label, format, res, 1)?
+        .create_view(&wgpu::TextureViewDescriptor::default()))
 }
 
 /// Additive blending: every fragment adds to what is there.
@@ -460,18 +464,21 @@ impl Layered {
 
         let name = spec.name;
         let res = params.resolution_px;
-        let mut memory = MemoryLedger::default();
-        let maps = Maps::new(&mut memory, device, name, plan.packed, spec.precision, res);
+        let mut memory = MemoryLedger::for_device(&gpu.limits);
+        let maps = Maps::new(&mut memory, device, name, plan.packed, spec.precision, res)?;
         let targets = maps.attachments();
-        let depth_view = spec.depth_channel.then(|| {
-            map_texture(
-                &mut memory,
-                device,
-                &format!("{name}.depth"),
-                DEPTH_FORMAT,
-                res,
-            )
-        });
+        let depth_view = spec
+            .depth_channel
+            .then(|| {
+                map_texture(
+                    &mut memory,
+                    device,
+                    &format!("{name}.depth"),
+                    DEPTH_FORMAT,
+                    res,
+                )
+            })
+            .transpose()?;
         let params_buffer = memory.buffer(
             device,
             &wgpu::BufferDescriptor {
@@ -480,7 +487,7 @@ impl Layered {
                 usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             },
-        );
+        )?;
 
         // Build pass: group 1 holds the parameters and, after a depth pass, the depth channel it
         // reads (the maps themselves are render targets).

@@ -83,7 +83,9 @@ pub enum ShadowError {
         technique: &'static str,
         feature: &'static str,
     },
-    #[error("GPU error: {0}")]
+    #[error(transparent)]
+    Allocation(#[from] crate::gpu::AllocationError),
+    #[error("{0}")]
     Gpu(String),
 }
 
@@ -227,8 +229,9 @@ pub struct DebugMap<'a> {
 
 /// A technique's own particle pass.
 pub trait ParticlePass {
-    /// Records the eye pass; returns the CPU time spent sorting, milliseconds.
-    fn record(&mut self, gpu: &Gpu, inputs: ParticlePassInputs<'_>) -> f64;
+    /// Records the eye pass; returns the CPU time spent sorting, milliseconds. Fails only when a
+    /// buffer it must grow cannot be held.
+    fn record(&mut self, gpu: &Gpu, inputs: ParticlePassInputs<'_>) -> Result<f64, ShadowError>;
 }
 
 /// The interface every shadow technique implements.
@@ -342,7 +345,17 @@ pub fn create(
 ) -> Result<Box<dyn ShadowTechnique>, ShadowError> {
     let entry = find(name)?;
     check_channels(entry, params.channels)?;
-    (entry.create)(ctx, params)
+    ctx.gpu
+        .scoped(
+            || {
+                format!(
+                    "creating {name} at {} channels and {}x{}",
+                    params.channels, params.resolution_px, params.resolution_px
+                )
+            },
+            || (entry.create)(ctx, params),
+        )
+        .map_err(|e| ShadowError::Gpu(e.to_string()))?
 }
 
 /// Every WGSL module the renderer and the techniques compile, composed: (label, source).

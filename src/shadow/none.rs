@@ -37,7 +37,7 @@ impl NoShadow {
         Ok(Self {
             layout,
             bind_group,
-            memory: MemoryLedger::default(),
+            memory: MemoryLedger::for_device(&ctx.gpu.limits),
         })
     }
 }

@@ -127,7 +127,9 @@ impl View {
             return Ok(false);
         }
         if size != self.size {
-            self.renderer.resize(gpu, size.0, size.1);
+            self.renderer
+                .resize(gpu, size.0, size.1)
+                .map_err(|e| ShadowError::Gpu(e.to_string()))?;
             self.output = Output::new(&gpu.device, size);
             render_state
                 .renderer
