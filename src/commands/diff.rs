@@ -35,8 +35,10 @@ pub struct DiffArgs {
     #[arg(long, value_name = "FLIP.png")]
     pub flip_map: Option<PathBuf>,
     /// Exit with status 1 when METRIC is worse than VALUE (above it; below it for psnr and
-    /// ssim). Metrics: flip, flip_median, flip_max, rmse, rmse_linear, max_abs, visible, psnr,
-    /// ssim. Repeatable.
+    /// ssim). Metrics by their short name or the name `--json` prints: flip (flip_mean),
+    /// flip_q1, flip_median (flip_weighted_median), flip_q3, flip_max, rmse (rmse_srgb),
+    /// rmse_linear, max_abs (max_abs_srgb), beyond_one_step (beyond_one_step_share), visible
+    /// (visible_share), psnr (psnr_srgb_db), psnr_linear (psnr_linear_db), ssim. Repeatable.
     #[arg(long, value_name = "METRIC=VALUE", value_parser = diff::parse_threshold)]
     pub fail_above: Vec<(Metric, f64)>,
     /// Print one JSON object instead of a table.
@@ -132,7 +134,7 @@ fn print_table(args: &DiffArgs, comparison: &Comparison, thresholds: &[Threshold
         "share of pixels with a channel off by more than {}/255",
         diff::VISIBLE_THRESHOLD
     );
-    let rows: [(&str, String, &str); 12] = [
+    let rows: [(&str, String, &str); 13] = [
         (
             "flip",
             fraction(m.flip_mean),
@@ -174,6 +176,11 @@ fn print_table(args: &DiffArgs, comparison: &Comparison, thresholds: &[Threshold
             "max_abs",
             fraction(m.max_abs_srgb),
             "largest channel difference, sRGB in [0, 1]",
+        ),
+        (
+            "beyond_one_step",
+            fraction(m.beyond_one_step_share),
+            "share of pixels with a channel off by more than 1/255",
         ),
         ("visible", fraction(m.visible_share), &visible),
         (

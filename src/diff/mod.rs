@@ -94,6 +94,9 @@ pub struct Metrics {
     pub psnr_srgb_db: f64,
     /// Largest |reference - test| over all channels, sRGB in [0, 1].
     pub max_abs_srgb: f64,
+    /// Share of pixels whose largest channel difference exceeds one 8-bit step, in [0, 1]: what
+    /// another CPU's rounding never produces (see `baseline::criterion`).
+    pub beyond_one_step_share: f64,
     /// Share of pixels whose largest channel difference exceeds [`VISIBLE_THRESHOLD`] 8-bit
     /// steps, in [0, 1].
     pub visible_share: f64,
@@ -165,6 +168,8 @@ pub fn compare(reference: &RgbImage, test: &RgbImage) -> Result<Comparison, Diff
         rmse_srgb: pixels.mse_srgb.sqrt(),
         psnr_srgb_db: psnr_db(pixels.mse_srgb),
         max_abs_srgb: f64::from(pixels.max_abs_steps) / 255.0,
+        beyond_one_step_share: pixels.beyond_one_step_px as f64
+            / f64::from(width * height).max(1.0),
         visible_share: pixels.visible_px as f64 / f64::from(width * height).max(1.0),
         ssim,
     };
@@ -223,6 +228,7 @@ struct PixelStatistics {
     mse_srgb: f64,
     mse_linear: f64,
     max_abs_steps: u8,
+    beyond_one_step_px: u64,
     visible_px: u64,
 }
 
@@ -232,6 +238,7 @@ fn pixel_statistics(reference: &RgbImage, test: &RgbImage) -> PixelStatistics {
     let mut sum_sq_linear = 0.0;
     let mut max_abs_steps = 0u8;
     let mut visible_px = 0u64;
+    let mut beyond_one_step_px = 0u64;
     for (a, b) in reference.pixels().zip(test.pixels()) {
         let mut pixel_max = 0u8;
         for c in 0..3 {
@@ -242,6 +249,9 @@ fn pixel_statistics(reference: &RgbImage, test: &RgbImage) -> PixelStatistics {
             sum_sq_linear += (to_linear[usize::from(va)] - to_linear[usize::from(vb)]).powi(2);
         }
         max_abs_steps = max_abs_steps.max(pixel_max);
+        if pixel_max > 1 {
+            beyond_one_step_px += 1;
+        }
         if pixel_max > VISIBLE_THRESHOLD {
             visible_px += 1;
         }
@@ -251,6 +261,7 @@ fn pixel_statistics(reference: &RgbImage, test: &RgbImage) -> PixelStatistics {
         mse_srgb: sum_sq_srgb / values,
         mse_linear: sum_sq_linear / values,
         max_abs_steps,
+        beyond_one_step_px,
         visible_px,
     }
 }
@@ -299,6 +310,7 @@ mod tests {
             ("rmse_linear", m.rmse_linear),
             ("rmse_srgb", m.rmse_srgb),
             ("max_abs_srgb", m.max_abs_srgb),
+            ("beyond_one_step_share", m.beyond_one_step_share),
             ("visible_share", m.visible_share),
         ] {
             assert_eq!(v, 0.0, "{name}");
@@ -343,6 +355,8 @@ mod tests {
         assert!(close(m.psnr_linear_db, -10.0 * mse_linear.log10()), "{m:?}");
         assert!(close(m.max_abs_srgb, 0.2), "{m:?}");
         assert_eq!(m.visible_share, 3.0 / 16.0);
+        // The blue +3 pixel is beyond one step too, though not visible.
+        assert_eq!(m.beyond_one_step_share, 4.0 / 16.0);
         assert!(m.flip_mean > 0.0 && m.flip_max >= m.flip_q3, "{m:?}");
         assert!(m.flip_q3 >= m.flip_weighted_median && m.flip_weighted_median >= m.flip_q1);
         assert!(m.ssim < 1.0, "{m:?}");
