@@ -90,12 +90,12 @@ fn bad_inputs_get_one_clear_line_and_leave_no_file() {
             vec!["fom", "allowed 3..=32"],
         ),
         (
-            vec!["render", "--dom-ratio", "9", "-o", out],
-            vec!["--dom-ratio", "1..=4"],
+            vec!["render", "--param", "dom_layer_ratio=9", "-o", out],
+            vec!["dom_layer_ratio", "1..=4"],
         ),
         (
-            vec!["render", "--dom-thickness", "-1", "-o", out],
-            vec!["--dom-thickness"],
+            vec!["render", "--param", "dom_thickness_m=-1", "-o", out],
+            vec!["dom_thickness_m"],
         ),
         (vec!["probe", "--at", "1,2"], vec!["--at", "X,Y,Z"]),
         (
@@ -226,7 +226,7 @@ fn bench_prints_per_pass_gpu_times() {
 #[test]
 fn render_works_for_every_technique() {
     let dir = scratch("cli-every-technique");
-    for technique in ["none", "osm", "dom", "fom", "fom_sigma", "has", "exact"] {
+    for technique in smokeshadow::shadow::REGISTRY.iter().map(|e| e.name) {
         let png = dir.join(format!("{technique}.png"));
         let out = smokeshadow(&[
             "render",

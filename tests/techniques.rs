@@ -12,7 +12,7 @@ use smokeshadow::render::{
     OUTPUT_FORMAT, RenderOptions, Renderer, TechniqueConfig, render_offscreen,
 };
 use smokeshadow::scene::Scene;
-use smokeshadow::shadow::SplatMode;
+use smokeshadow::shadow::{MemoryCase, SplatMode};
 use smokeshadow::sim::{Particle, simulate};
 
 const W: u32 = 256;
@@ -134,21 +134,40 @@ fn exact_matches_the_analytic_sphere_and_layered_techniques_converge_to_it() {
         );
     }
 
-    for name in ["osm", "dom", "fom"] {
+    // Every technique: finite T in [0, 1] at every budget, within a bound of the analytic curve
+    // at 24 channels; the ones that converge get closer with every budget step.
+    for entry in smokeshadow::shadow::contenders() {
+        let name = entry.name;
         let configs: Vec<_> = [4, 8, 24]
             .iter()
-            .map(|&b| technique(name, b, res, SplatMode::Segment))
+            .map(|&b| technique(name, b.max(entry.min_channels), res, SplatMode::Segment))
             .collect();
         let results = probe_all(&gpu, &scene, &particles, &configs, &points);
+        for t in &results {
+            assert!(
+                t.iter().all(|v| v.is_finite() && (0.0..=1.0).contains(v)),
+                "{name}: T outside [0, 1]: {t:?}"
+            );
+        }
         let errors: Vec<f64> = results
             .iter()
             .map(|t| rms_difference(t, &expected))
             .collect();
         println!("{name}, segment splat: RMS T error at 4/8/24 channels: {errors:?}");
-        assert!(
-            errors[2] < errors[1] && errors[1] < errors[0],
-            "{name}: error must shrink as the budget grows: {errors:?}"
-        );
+        // The depth-resolving techniques (those that converge with the budget, on the chord
+        // splat `exact` uses) get closer at every step and end within 0.005 RMS at 24 channels
+        // (measured: 0.0009-0.0015; the slicing of `has` has no depth inside one particle, and
+        // `esm`/`bsm` keep a fixed number of values, so they are held only to T in [0, 1]).
+        if entry.converges_with_budget && entry.uses_splat {
+            assert!(
+                errors[2] < errors[1] && errors[1] < errors[0],
+                "{name}: error must shrink as the budget grows: {errors:?}"
+            );
+            assert!(
+                errors[2] < 0.005,
+                "{name}: RMS error {errors:?} at 24 channels"
+            );
+        }
     }
 }
 
@@ -178,7 +197,8 @@ fn error_against_exact_on_the_plume_shrinks_as_the_budget_grows() {
         "technique", "splat", 6, 8, 16, 24
     );
     for splat in [SplatMode::Segment, SplatMode::Point] {
-        for name in ["osm", "dom", "fom", "fom_sigma", "has"] {
+        for entry in smokeshadow::shadow::contenders() {
+            let name = entry.name;
             let configs: Vec<_> = budgets
                 .iter()
                 .map(|&b| technique(name, b, res, splat))
@@ -195,7 +215,9 @@ fn error_against_exact_on_the_plume_shrinks_as_the_budget_grows() {
                 errors[2],
                 errors[3]
             );
-            if splat == SplatMode::Segment && (name == "osm" || name == "dom") {
+            // With segment splats (the density model `exact` uses) every converging technique
+            // gets closer at each step; point splats converge to the point model instead.
+            if splat == SplatMode::Segment && entry.converges_with_budget {
                 assert!(
                     errors.windows(2).all(|w| w[1] < w[0]),
                     "{name} with segment splatting must converge 6 -> 8 -> 16 -> 24: {errors:?}"
@@ -217,7 +239,11 @@ fn order_independent_maps_do_not_depend_on_the_particle_order() {
     let particles = simulate(&scene);
     let points = shaded_points(&scene, &particles, W, H, 8);
     let res = scene.shadow.resolution_px;
-    for name in ["osm", "dom", "fom", "fom_sigma", "exact"] {
+    for entry in smokeshadow::shadow::REGISTRY
+        .iter()
+        .filter(|e| e.order_independent)
+    {
+        let name = entry.name;
         for splat in [SplatMode::Point, SplatMode::Segment] {
             let config = [technique(name, 16, res, splat)];
             let front = probe_all(&gpu, &scene, &particles, &config, &points).remove(0);
@@ -263,7 +289,11 @@ fn every_technique_at_every_thesis_budget_renders_a_finite_shadowed_plume() {
     );
     let mean = |t: &[f32], idx: &[usize]| idx.iter().map(|&i| t[i]).sum::<f32>() / idx.len() as f32;
 
-    for name in ["osm", "dom", "fom", "fom_sigma", "has", "exact"] {
+    let shadowing = smokeshadow::shadow::REGISTRY
+        .iter()
+        .filter(|e| e.role != smokeshadow::shadow::Role::FrameBaseline);
+    for entry in shadowing {
+        let name = entry.name;
         for channels in [6, 8, 16, 24] {
             let config = technique(name, channels, res, SplatMode::Point);
             let frame =
@@ -298,19 +328,6 @@ fn every_technique_at_every_thesis_budget_renders_a_finite_shadowed_plume() {
     }
 }
 
-/// Bytes of `packed` channels of `bytes_per_channel` per texel, packed 4 to a target, where a
-/// remainder of 1 or 2 channels gets an R or RG target and a remainder of 3 a 4-channel one.
-fn packed_bytes_per_texel(packed: u64, bytes_per_channel: u64) -> u64 {
-    let full = packed / 4;
-    let rest = match packed % 4 {
-        0 => 0,
-        1 => 1,
-        2 => 2,
-        _ => 4,
-    };
-    (full * 4 + rest) * bytes_per_channel
-}
-
 #[test]
 fn reported_channels_and_bytes_match_each_techniques_formula() {
     let gpu = gpu();
@@ -320,7 +337,6 @@ fn reported_channels_and_bytes_match_each_techniques_formula() {
     let particles = simulate(&scene);
     let n = particles.len() as u64;
     let res = 128u32;
-    let texels = u64::from(res) * u64::from(res);
     let pixels = 96 * 64;
     let mut renderer = Renderer::new(
         &gpu,
@@ -348,42 +364,27 @@ fn reported_channels_and_bytes_match_each_techniques_formula() {
                 .unwrap();
             let t = renderer.technique();
             let bytes = t.memory().total_bytes();
-            let b64 = u64::from(b);
-            // Layered uniforms: 32 bytes; has/exact uniforms: 16 bytes.
-            let (channels, expected) = match entry.name {
-                "none" => (0, 0),
-                "osm" => (b64, texels * packed_bytes_per_texel(b64, 2) + 32),
-                // One R16F depth channel plus B - 1 layers.
-                "dom" => (b64, texels * (packed_bytes_per_texel(b64 - 1, 2) + 2) + 32),
-                // 2n + 1 coefficients in 32-bit floats.
-                "fom" | "fom_sigma" => {
-                    let used = 2 * ((b64 - 1) / 2) + 1;
-                    (used, texels * packed_bytes_per_texel(used, 4) + 32)
-                }
-                // R16F light buffer, RGBA16F eye buffer, the re-sorted instances (32 bytes each,
-                // capacity a power of two from 1024), their lighting (64 bytes each) and one
-                // 256-byte lighting range per slice.
-                "has" => {
-                    let capacity = n.next_power_of_two().max(1024);
-                    (
-                        b64,
-                        16 + texels * 2 + pixels * 8 + 32 * capacity + 64 * capacity + 256 * b64,
-                    )
-                }
-                // Counts, offsets (+1 for the total), row sums (+1), an R8 raster target, and
-                // 12 + 16 bytes of segment and node storage per segment of capacity.
-                "exact" => {
-                    let counters = t.counters();
-                    let get = |k| counters.iter().find(|(n, _)| *n == k).unwrap().1;
-                    let (segments, capacity) = (get("segments"), get("segment_capacity"));
-                    assert!(segments > n, "exact stored only {segments} segments");
-                    assert!(capacity >= segments && capacity <= segments * 5 / 4 + 65536);
-                    let fixed =
-                        16 + texels * 4 + (texels + 1) * 4 + (u64::from(res) + 1) * 4 + texels;
-                    (0, fixed + capacity * 28)
-                }
-                other => panic!("no formula for technique {other}: add one"),
-            };
+            // The formula each technique documents in its registry entry.
+            let counters = t.counters();
+            let expected = (entry.memory)(&MemoryCase {
+                channels: b,
+                resolution_px: res,
+                particles: n,
+                frame_pixels: pixels,
+                counters: &counters,
+            });
+            if entry.name == smokeshadow::shadow::reference().name {
+                // The lists hold every segment, with bounded headroom.
+                let segments = counters.iter().find(|(k, _)| *k == "segments").unwrap().1;
+                let capacity = counters
+                    .iter()
+                    .find(|(k, _)| *k == "segment_capacity")
+                    .unwrap()
+                    .1;
+                assert!(segments > n, "exact stored only {segments} segments");
+                assert!(capacity >= segments && capacity <= segments * 5 / 4 + 65536);
+            }
+            let (channels, expected) = (expected.channels, expected.bytes);
             assert_eq!(
                 u64::from(t.channels_used()),
                 channels,
@@ -405,7 +406,11 @@ fn reported_channels_and_bytes_match_each_techniques_formula() {
 fn budgets_below_a_techniques_minimum_name_it() {
     let gpu = gpu();
     let scene = reduced_plume();
-    for (name, min) in [("dom", 2), ("fom", 3), ("fom_sigma", 3)] {
+    for entry in smokeshadow::shadow::REGISTRY
+        .iter()
+        .filter(|e| e.min_channels > 1)
+    {
+        let (name, min) = (entry.name, entry.min_channels);
         let err = Renderer::new(
             &gpu,
             W,

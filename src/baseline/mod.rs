@@ -34,7 +34,7 @@ pub const EXACT_RESOLUTION_PX: u32 = 1024;
 /// How a baseline of `technique` is rendered for `scene`.
 pub fn config(technique: &str, scene: &Scene) -> TechniqueConfig {
     let mut params: TechniqueParams = scene.shadow.params(BASELINE_CHANNELS);
-    if technique == "exact" {
+    if technique == shadow::reference().name {
         params.resolution_px = EXACT_RESOLUTION_PX;
     }
     TechniqueConfig {

@@ -20,7 +20,7 @@ pub struct CompareArgs {
     #[arg(
         long,
         value_delimiter = ',',
-        default_value = "osm,dom,fom,fom_sigma,has"
+        default_values_t = crate::shadow::default_compare()
     )]
     pub techniques: Vec<String>,
     /// Budgets, comma-separated; the first is each technique's baseline.

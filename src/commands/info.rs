@@ -46,9 +46,32 @@ pub fn run(preference: &AdapterPreference) -> anyhow::Result<()> {
     );
     println!("techniques:");
     for e in shadow::REGISTRY {
+        let role = match e.role {
+            shadow::Role::FrameBaseline => "frame-time baseline",
+            shadow::Role::Reference => "reference",
+            shadow::Role::Contender => "contender",
+        };
         println!(
-            "  {:<10} min {} channels  {}",
-            e.name, e.min_channels, e.description
+            "  {:<10} {role:<19} min {} channels (24: {})  {}",
+            e.name,
+            e.min_channels,
+            (e.budget_caption)(24),
+            e.description
+        );
+    }
+    println!("technique parameters ([shadow.params] in a scene file, --param KEY=VALUE):");
+    for (e, p) in shadow::all_params() {
+        let default = p
+            .default
+            .map_or_else(|| "derived per frame".to_owned(), |d| d.to_string());
+        println!(
+            "  {:<18} {:<4} {}..={}, default {default} ({}): {}",
+            p.key,
+            p.unit,
+            p.min,
+            p.max,
+            e.name,
+            p.doc.split_whitespace().collect::<Vec<_>>().join(" ")
         );
     }
     Ok(())

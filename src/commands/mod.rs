@@ -27,26 +27,11 @@ pub struct TechniqueArgs {
     /// the scene's `shadow.splat`, point unless set).
     #[arg(long, value_enum)]
     pub splat: Option<SplatMode>,
-    /// DOM: metres covered by the layers (default: the scene's, else derived per frame).
-    #[arg(long, value_parser = positive_f32, allow_negative_numbers = true)]
-    pub dom_thickness: Option<f32>,
-    /// DOM: ratio between successive layer thicknesses, 1..=4 (1 = uniform).
-    #[arg(long, value_parser = dom_ratio, allow_negative_numbers = true)]
-    pub dom_ratio: Option<f32>,
-}
-
-fn positive_f32(s: &str) -> Result<f32, String> {
-    match s.parse::<f32>() {
-        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
-        _ => Err(format!("\"{s}\" is not a positive number")),
-    }
-}
-
-fn dom_ratio(s: &str) -> Result<f32, String> {
-    match s.parse::<f32>() {
-        Ok(v) if (1.0..=4.0).contains(&v) => Ok(v),
-        _ => Err(format!("\"{s}\" is out of range: allowed 1..=4")),
-    }
+    /// A technique parameter, KEY=VALUE (repeatable; over the scene's `[shadow.params]`), e.g.
+    /// `--param dom_layer_ratio=2`. `smokeshadow info` lists every key with its range.
+    #[arg(long = "param", value_name = "KEY=VALUE", value_parser = crate::shadow::parse_param,
+          allow_negative_numbers = true)]
+    pub params: Vec<(String, f32)>,
 }
 
 impl TechniqueArgs {
@@ -57,15 +42,17 @@ impl TechniqueArgs {
     ) -> anyhow::Result<crate::render::TechniqueConfig> {
         let entry = crate::shadow::find(&self.technique)?;
         crate::shadow::check_channels(entry, self.channels)?;
+        let mut params = TechniqueParams {
+            resolution_px: self.shadow_res.unwrap_or(scene.shadow.resolution_px),
+            splat: self.splat.unwrap_or(scene.shadow.splat),
+            ..scene.shadow.params(self.channels)
+        };
+        for (key, value) in &self.params {
+            params.set(key, *value)?;
+        }
         Ok(crate::render::TechniqueConfig {
             name: entry.name.to_owned(),
-            params: TechniqueParams {
-                resolution_px: self.shadow_res.unwrap_or(scene.shadow.resolution_px),
-                splat: self.splat.unwrap_or(scene.shadow.splat),
-                dom_thickness_m: self.dom_thickness.or(scene.shadow.dom_thickness_m),
-                dom_layer_ratio: self.dom_ratio.unwrap_or(scene.shadow.dom_layer_ratio),
-                ..scene.shadow.params(self.channels)
-            },
+            params,
         })
     }
 }

@@ -15,7 +15,7 @@ pub struct SweepArgs {
     pub scene: Option<String>,
     /// Techniques, comma-separated (`none` and `exact` are always measured, as the frame-time
     /// baseline and the reference).
-    #[arg(long, value_delimiter = ',', default_value = "osm,dom,fom,has")]
+    #[arg(long, value_delimiter = ',', default_values_t = crate::shadow::default_sweep())]
     pub techniques: Vec<String>,
     /// Channel budgets, comma-separated; a budget below a technique's minimum skips that cell
     /// (noted in the report).

@@ -35,9 +35,7 @@ pub struct CompareOptions {
 impl Default for CompareOptions {
     fn default() -> Self {
         Self {
-            techniques: ["osm", "dom", "fom", "fom_sigma", "has"]
-                .map(String::from)
-                .to_vec(),
+            techniques: crate::shadow::default_compare(),
             budgets: vec![24, 16, 8, 6],
             splat: SplatMode::Point,
             exact_resolution_px: crate::baseline::EXACT_RESOLUTION_PX,
@@ -112,7 +110,13 @@ pub fn run(
             params,
         }
     };
-    let mut renderer = Renderer::new(gpu, w, h, OUTPUT_FORMAT, &config("none", 1))?;
+    let mut renderer = Renderer::new(
+        gpu,
+        w,
+        h,
+        OUTPUT_FORMAT,
+        &config(crate::shadow::frame_baseline().name, 1),
+    )?;
     let target = OffscreenTarget::new(gpu, w, h);
     let mut render =
         |config: &TechniqueConfig, file: &str| -> anyhow::Result<(image::RgbImage, u32, u64)> {
@@ -131,7 +135,7 @@ pub fn run(
             Ok((rgb, t.channels_used(), t.memory().total_bytes()))
         };
 
-    let mut exact_config = config("exact", 1);
+    let mut exact_config = config(crate::shadow::reference().name, 1);
     exact_config.params.resolution_px = options.exact_resolution_px;
     let exact_image = "images/exact.png".to_owned();
     let (exact, _, exact_bytes) = render(&exact_config, &exact_image)?;
@@ -279,7 +283,13 @@ fn write_csv(report: &CompareReport, baseline_budget: u32, path: &Path) -> anyho
     };
     for c in &report.cells {
         let label = format!("{}_{}", c.technique, c.channels);
-        row(&label, "exact", "vs_exact", Some(c), &c.vs_exact.metrics)?;
+        row(
+            &label,
+            crate::shadow::reference().name,
+            "vs_exact",
+            Some(c),
+            &c.vs_exact.metrics,
+        )?;
         if let Some(own) = &c.vs_baseline {
             let reference = format!("{}_{baseline_budget}", c.technique);
             row(&label, &reference, "vs_own_baseline", Some(c), &own.metrics)?;

@@ -12,6 +12,7 @@
 
 mod validate;
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use crate::shadow::{SplatMode, TechniqueParams};
@@ -213,11 +214,11 @@ pub struct ShadowSettings {
     /// Where the layered techniques put a particle's optical depth along the light ray:
     /// `point` (the thesis, default) or `segment`.
     pub splat: SplatMode,
-    /// `dom`: total thickness covered by the layers, metres, > 0; absent (the default) derives
-    /// it from the frame's bounds and particle sizes.
-    pub dom_thickness_m: Option<f32>,
-    /// `dom`: ratio between successive layer thicknesses, [1, 4]; 1 (default) is uniform.
-    pub dom_layer_ratio: f32,
+    /// Technique-specific parameters (`[shadow.params]`, e.g. `dom_layer_ratio = 2`): each key
+    /// is declared, documented and range-checked by its technique's registry entry
+    /// (`smokeshadow info` lists them); absent keys take the entry's defaults.
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    pub params: BTreeMap<String, f32>,
 }
 
 impl ShadowSettings {
@@ -227,8 +228,7 @@ impl ShadowSettings {
             channels,
             resolution_px: self.resolution_px,
             splat: self.splat,
-            dom_thickness_m: self.dom_thickness_m,
-            dom_layer_ratio: self.dom_layer_ratio,
+            values: self.params.clone(),
         }
     }
 }
@@ -361,8 +361,7 @@ impl Default for ShadowSettings {
         Self {
             resolution_px: defaults.resolution_px,
             splat: defaults.splat,
-            dom_thickness_m: defaults.dom_thickness_m,
-            dom_layer_ratio: defaults.dom_layer_ratio,
+            params: BTreeMap::new(),
         }
     }
 }

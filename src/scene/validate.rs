@@ -204,16 +204,12 @@ pub(super) fn validate(scene: &Scene) -> Result<(), String> {
         1,
         max_px,
     );
-    if let Some(thickness) = scene.shadow.dom_thickness_m {
-        c.positive("shadow.dom_thickness_m", thickness);
+    for (key, &value) in &scene.shadow.params {
+        // The registry owns each parameter's range and its message.
+        if let Err(err) = crate::shadow::find_param(key).and_then(|spec| spec.check(value)) {
+            c.errors.push(format!("shadow.params: {err}"));
+        }
     }
-    c.range(
-        "shadow.dom_layer_ratio",
-        scene.shadow.dom_layer_ratio,
-        1.0,
-        4.0,
-        true,
-    );
 
     let s = &scene.shading;
     c.range("shading.hg_g", s.hg_g, -1.0, 1.0, false);

@@ -11,7 +11,29 @@
 //! Shaders: `shaders/shadow/dom.wgsl` and `dom_build.wgsl`.
 
 use super::layered::{ChannelPlan, Layered, LayeredSpec, Precision};
-use super::{MapKind, TechniqueEntry};
+use super::{MapKind, MemoryUse, ParamSpec, Role, TechniqueEntry, packed_bytes_per_texel};
+
+/// `dom_thickness_m`: the depth range the layers cover.
+pub const THICKNESS: ParamSpec = ParamSpec {
+    key: "dom_thickness_m",
+    unit: "m",
+    doc: "the depth range the layers cover from where the smoke starts along each texel's ray; \
+          unset: from each texel's start to the far bound of the smoke",
+    min: 1e-3,
+    max: 1e3,
+    default: None,
+};
+
+/// `dom_layer_ratio`: geometric layer spacing.
+pub const LAYER_RATIO: ParamSpec = ParamSpec {
+    key: "dom_layer_ratio",
+    unit: "-",
+    doc: "ratio between successive layer thicknesses; 1 spaces the layers uniformly, more packs \
+          them towards the lit side where transmittance changes fastest",
+    min: 1.0,
+    max: 4.0,
+    default: Some(1.0),
+};
 
 pub const SPEC: LayeredSpec = LayeredSpec {
     name: "dom",
@@ -23,6 +45,8 @@ pub const SPEC: LayeredSpec = LayeredSpec {
         used: channels,
     },
     depth_channel: true,
+    layer_thickness: Some(&THICKNESS),
+    layer_ratio: Some(&LAYER_RATIO),
     sigma: false,
     precision: Precision::Half,
     channel_name: |c, plan| {
@@ -38,7 +62,20 @@ pub const SPEC: LayeredSpec = LayeredSpec {
 pub const ENTRY: TechniqueEntry = TechniqueEntry {
     name: SPEC.name,
     description: "deep opacity maps: a start-depth channel and B-1 layers that follow the smoke",
+    role: Role::Contender,
+    budget_caption: |channels| format!("1 depth + {} layers", channels.saturating_sub(1)),
     min_channels: 2,
+    in_default_sweep: true,
+    in_default_compare: true,
+    build_reads_back: false,
+    params: &[THICKNESS, LAYER_RATIO],
+    order_independent: true,
+    converges_with_budget: true,
+    // One R16F start-depth channel, B - 1 half-float layers and a 32-byte uniform.
+    memory: |c| MemoryUse {
+        channels: c.channels.into(),
+        bytes: c.texels() * (packed_bytes_per_texel(u64::from(c.channels) - 1, 2) + 2) + 32,
+    },
     lookup_shader: "shadow/dom.wgsl",
     extra_shaders: || SPEC.all_build_shaders(),
     create: |ctx, params| Ok(Box::new(Layered::new(ctx, &SPEC, params)?)),

@@ -23,8 +23,8 @@ use bytemuck::{Pod, Zeroable};
 
 use super::layered::{billboard_pipeline, cleared_attachment, draw_particles, uniform_entry};
 use super::{
-    BuildInputs, LOOKUP_STAGES, ShadowError, ShadowTechnique, TechniqueContext, TechniqueEntry,
-    TechniqueParams,
+    BuildInputs, LOOKUP_STAGES, MemoryUse, Role, ShadowError, ShadowTechnique, TechniqueContext,
+    TechniqueEntry, TechniqueParams,
 };
 use crate::gpu::{AllocationError, Gpu, MemoryLedger, read_buffer};
 use crate::shaders;
@@ -32,7 +32,29 @@ use crate::shaders;
 pub const ENTRY: TechniqueEntry = TechniqueEntry {
     name: "exact",
     description: "reference: per-texel sorted segment lists (deep shadow map), exact T(z)",
+    role: Role::Reference,
+    budget_caption: |_| "no budget (exact lists)".to_owned(),
     min_channels: 1,
+    in_default_sweep: false,
+    in_default_compare: false,
+    build_reads_back: true,
+    params: &[],
+    order_independent: true,
+    converges_with_budget: false,
+    // Counts, offsets (+1 for the total), row sums (+1), an R8 raster target, a 16-byte uniform
+    // and 12 + 16 bytes of segment and node storage per segment of capacity.
+    memory: |c| {
+        let texels = c.texels();
+        MemoryUse {
+            channels: 0,
+            bytes: 16
+                + texels * 4
+                + (texels + 1) * 4
+                + (u64::from(c.resolution_px) + 1) * 4
+                + texels
+                + c.counter("segment_capacity") * (SEGMENT_BYTES + NODE_BYTES_PER_SEGMENT),
+        }
+    },
     lookup_shader: "shadow/exact.wgsl",
     extra_shaders: || {
         vec![(

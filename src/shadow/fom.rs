@@ -11,7 +11,22 @@
 //! made T depend on the order the particles were drawn in by up to 0.2. Shaders: `shaders/shadow/fom.wgsl`, `fom_build.wgsl`.
 
 use super::layered::{ChannelPlan, Layered, LayeredSpec, Precision};
-use super::{MapKind, TechniqueEntry};
+use super::{MapKind, MemoryCase, MemoryUse, Role, TechniqueEntry, packed_bytes_per_texel};
+
+/// 2n + 1 coefficients in 32-bit floats and a 32-byte uniform.
+fn coefficient_memory(c: &MemoryCase<'_>) -> MemoryUse {
+    let used = u64::from(plan(c.channels).used);
+    MemoryUse {
+        channels: used,
+        bytes: c.texels() * packed_bytes_per_texel(used, 4) + 32,
+    }
+}
+
+/// "11 harmonics (23 channels)".
+fn harmonics_caption(channels: u32) -> String {
+    let plan = plan(channels.max(3));
+    format!("{} harmonics ({} channels)", plan.count, plan.used)
+}
 
 /// a0, a1..an, b1..bn: n = floor((B - 1) / 2) harmonics in 2n + 1 channels.
 fn plan(channels: u32) -> ChannelPlan {
@@ -28,6 +43,8 @@ pub const FOM: LayeredSpec = LayeredSpec {
     build_shader: "shadow/fom_build.wgsl",
     plan,
     depth_channel: false,
+    layer_thickness: None,
+    layer_ratio: None,
     sigma: false,
     precision: Precision::Float,
     channel_name: |c, plan| match c {
@@ -47,7 +64,16 @@ pub const FOM_SIGMA: LayeredSpec = LayeredSpec {
 pub const ENTRY: TechniqueEntry = TechniqueEntry {
     name: FOM.name,
     description: "Fourier opacity maps: floor((B-1)/2) harmonics of the extinction along each ray",
+    role: Role::Contender,
+    budget_caption: harmonics_caption,
     min_channels: 3,
+    in_default_sweep: true,
+    in_default_compare: true,
+    build_reads_back: false,
+    params: &[],
+    order_independent: true,
+    converges_with_budget: true,
+    memory: coefficient_memory,
     lookup_shader: "shadow/fom.wgsl",
     extra_shaders: || FOM.all_build_shaders(),
     create: |ctx, params| Ok(Box::new(Layered::new(ctx, &FOM, params)?)),
@@ -57,7 +83,16 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
 pub const SIGMA_ENTRY: TechniqueEntry = TechniqueEntry {
     name: FOM_SIGMA.name,
     description: "Fourier opacity maps with Lanczos sigma-factors damping the ringing",
+    role: Role::Contender,
+    budget_caption: harmonics_caption,
     min_channels: 3,
+    in_default_sweep: false,
+    in_default_compare: true,
+    build_reads_back: false,
+    params: &[],
+    order_independent: true,
+    converges_with_budget: true,
+    memory: coefficient_memory,
     lookup_shader: "shadow/fom.wgsl",
     // Same build shaders as `fom`: the σ-factors apply at lookup.
     extra_shaders: Vec::new,

@@ -30,8 +30,9 @@ use super::layered::{
 };
 use super::probe::PendingProbe;
 use super::{
-    BuildInputs, DebugMap, LOOKUP_STAGES, MapKind, ParticlePass, ParticlePassInputs, ProbeInputs,
-    ProbePass, ShadowError, ShadowTechnique, TechniqueContext, TechniqueEntry, TechniqueParams,
+    BuildInputs, DebugMap, LOOKUP_STAGES, MapKind, MemoryUse, ParticlePass, ParticlePassInputs,
+    ProbeInputs, ProbePass, Role, ShadowError, ShadowTechnique, TechniqueContext, TechniqueEntry,
+    TechniqueParams,
 };
 use crate::gpu::{AllocationError, Gpu, MemoryLedger};
 use crate::render::gpu_data::{BILLBOARD_VERTICES, ParticleInstance};
@@ -43,7 +44,29 @@ use crate::sim::Particle;
 pub const ENTRY: TechniqueEntry = TechniqueEntry {
     name: "has",
     description: "half-angle slicing: S batches along the half-angle, eye and light interleaved",
+    role: Role::Contender,
+    budget_caption: |channels| format!("{channels} slices (batches)"),
     min_channels: 1,
+    in_default_sweep: true,
+    in_default_compare: true,
+    build_reads_back: false,
+    params: &[],
+    order_independent: false,
+    converges_with_budget: true,
+    // R16F light buffer, RGBA16F eye buffer, the re-sorted instances (32 bytes each, capacity a
+    // power of two from 1024), their lighting (64 bytes each), one 256-byte lighting range per
+    // slice and a 16-byte uniform.
+    memory: |c| {
+        let capacity = c.particles.next_power_of_two().max(1024);
+        MemoryUse {
+            channels: c.channels.into(),
+            bytes: 16
+                + c.texels() * 2
+                + c.frame_pixels * 8
+                + 96 * capacity
+                + 256 * u64::from(c.channels),
+        }
+    },
     lookup_shader: "shadow/has.wgsl",
     extra_shaders: || {
         vec![(

@@ -15,8 +15,8 @@
 use bytemuck::{Pod, Zeroable};
 
 use super::{
-    BuildInputs, DebugMap, LOOKUP_STAGES, MapKind, ShadowError, ShadowTechnique, SplatMode,
-    TechniqueContext, TechniqueParams,
+    BuildInputs, DebugMap, LOOKUP_STAGES, MapKind, ParamSpec, ShadowError, ShadowTechnique,
+    SplatMode, TechniqueContext, TechniqueParams,
 };
 use crate::gpu::{AllocationError, Gpu, MemoryLedger};
 use crate::render::gpu_data::{BILLBOARD_VERTICES, ParticleInstance};
@@ -50,6 +50,10 @@ pub struct LayeredSpec {
     pub plan: fn(u32) -> ChannelPlan,
     /// Whether a first pass writes the depth where the smoke starts (`dom`).
     pub depth_channel: bool,
+    /// The parameters, if any, that set the depth range the layers cover (0 in the shader:
+    /// from each texel's start to the far bound) and their spacing ratio (1 when absent).
+    pub layer_thickness: Option<&'static ParamSpec>,
+    pub layer_ratio: Option<&'static ParamSpec>,
     /// Whether the lookup damps harmonics with Lanczos σ-factors (`fom_sigma`).
     pub sigma: bool,
     /// Storage precision of the packed channels.
@@ -350,14 +354,42 @@ pub(crate) fn billboard_pipeline(
     formats: &[wgpu::TextureFormat],
     blend: wgpu::BlendComponent,
 ) -> wgpu::RenderPipeline {
+    let targets: Vec<_> = formats.iter().map(|&f| (f, blend)).collect();
+    billboard_pipeline_blends(device, label, module, fragment_entry, layouts, &targets)
+}
+
+/// MIN blending: each texel keeps the smallest value written (a start depth).
+pub const MIN_BLEND: wgpu::BlendComponent = wgpu::BlendComponent {
+    src_factor: wgpu::BlendFactor::One,
+    dst_factor: wgpu::BlendFactor::One,
+    operation: wgpu::BlendOperation::Min,
+};
+
+/// MAX blending: each texel keeps the largest value written (an end depth).
+pub const MAX_BLEND: wgpu::BlendComponent = wgpu::BlendComponent {
+    src_factor: wgpu::BlendFactor::One,
+    dst_factor: wgpu::BlendFactor::One,
+    operation: wgpu::BlendOperation::Max,
+};
+
+/// A light-space billboard pipeline whose render targets each get their own format and blend
+/// (a start depth MIN-blended beside optical depth added, say).
+pub(crate) fn billboard_pipeline_blends(
+    device: &wgpu::Device,
+    label: &str,
+    module: &wgpu::ShaderModule,
+    fragment_entry: &str,
+    layouts: &[Option<&wgpu::BindGroupLayout>],
+    targets: &[(wgpu::TextureFormat, wgpu::BlendComponent)],
+) -> wgpu::RenderPipeline {
     let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
         label: Some(label),
         bind_group_layouts: layouts,
         immediate_size: 0,
     });
-    let targets: Vec<_> = formats
+    let targets: Vec<_> = targets
         .iter()
-        .map(|&format| {
+        .map(|&(format, blend)| {
             Some(wgpu::ColorTargetState {
                 format,
                 blend: Some(wgpu::BlendState {
@@ -553,11 +585,7 @@ impl Layered {
                     "fs_depth",
                     &[Some(ctx.frame_layout), Some(&params_layout)],
                     &[DEPTH_FORMAT],
-                    wgpu::BlendComponent {
-                        src_factor: wgpu::BlendFactor::One,
-                        dst_factor: wgpu::BlendFactor::One,
-                        operation: wgpu::BlendOperation::Min,
-                    },
+                    MIN_BLEND,
                 );
                 (
                     billboard_pipeline(
@@ -662,8 +690,16 @@ impl Layered {
             },
             sigma: u32::from(self.spec.sigma),
             // 0 tells the shader: from each texel's start to the far bound.
-            dom_thickness_m: self.params.dom_thickness_m.unwrap_or(0.0),
-            dom_ratio: self.params.dom_layer_ratio,
+            dom_thickness_m: self
+                .spec
+                .layer_thickness
+                .and_then(|p| self.params.get(p))
+                .unwrap_or(0.0),
+            dom_ratio: self
+                .spec
+                .layer_ratio
+                .and_then(|p| self.params.get(p))
+                .unwrap_or(1.0),
             full_targets: self.full_targets,
             _pad: 0,
         }

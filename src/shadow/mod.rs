@@ -20,12 +20,15 @@ pub mod exact;
 pub mod fom;
 pub mod half_angle;
 pub mod layered;
+pub mod light_maps;
 pub mod light_space;
 pub mod none;
 pub mod osm;
 pub mod probe;
 
 pub use light_space::LightSpace;
+
+use std::collections::BTreeMap;
 
 use serde::{Deserialize, Serialize};
 
@@ -78,6 +81,18 @@ pub enum ShadowError {
         bytes: u64,
         limit: u64,
     },
+    #[error(
+        "unknown technique parameter \"{key}\"; valid parameters: {valid} (`smokeshadow info` \
+         describes them)"
+    )]
+    UnknownParam { key: String, valid: String },
+    #[error("parameter {key} = {value} is out of range: allowed {min}..={max}")]
+    ParamOutOfRange {
+        key: &'static str,
+        value: f32,
+        min: f32,
+        max: f32,
+    },
     #[error("{technique} needs the adapter feature {feature}, which this adapter lacks")]
     MissingFeature {
         technique: &'static str,
@@ -111,21 +126,23 @@ impl SplatMode {
     }
 }
 
-/// The parameters every technique receives; each technique reads the ones that concern it.
+/// The parameters every technique receives: the budget, the resolution and the splat mode that
+/// all of them share, and the values of technique-specific parameters ([`ParamSpec`]) that were
+/// set; each technique reads the ones its registry entry declares.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct TechniqueParams {
-    /// Channel budget, 1..=32 (each technique may have a larger minimum). Slices for `osm`,
-    /// 1 depth channel + layers for `dom`, 2n + 1 coefficients for `fom`, slices for `has`.
+    /// Channel budget, 1..=32 (each technique may have a larger minimum); what it buys is the
+    /// entry's [`TechniqueEntry::budget_caption`].
     pub channels: u32,
     /// Square shadow-map resolution in pixels (light buffer for `has`, list grid for `exact`).
     pub resolution_px: u32,
-    /// Where particle optical depth is splatted (`osm`, `dom`, `fom`). Default: point.
+    /// Where particle optical depth is splatted (layered techniques). Default: point.
     pub splat: SplatMode,
-    /// `dom`: thickness covered by the layers from where the smoke starts, metres; `None` (the
-    /// default): from each texel's start to the far bound of the smoke.
-    pub dom_thickness_m: Option<f32>,
-    /// `dom`: ratio between successive layer thicknesses, >= 1; 1 (the default) is uniform.
-    pub dom_layer_ratio: f32,
+    /// Technique-specific parameters that were set, by [`ParamSpec::key`] (validated against
+    /// the registry); an absent key takes its spec's default. Ordered, so equal settings
+    /// serialize equally.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub values: BTreeMap<String, f32>,
 }
 
 impl TechniqueParams {
@@ -135,10 +152,67 @@ impl TechniqueParams {
             channels,
             resolution_px,
             splat: SplatMode::Point,
-            dom_thickness_m: None,
-            dom_layer_ratio: 1.0,
+            values: BTreeMap::new(),
         }
     }
+
+    /// The value of `spec`: the one set, else its default (`None`: derived per frame).
+    pub fn get(&self, spec: &ParamSpec) -> Option<f32> {
+        self.values.get(spec.key).copied().or(spec.default)
+    }
+
+    /// Sets `key` to `value` after checking both against the registry.
+    pub fn set(&mut self, key: &str, value: f32) -> Result<(), ShadowError> {
+        let spec = find_param(key)?;
+        spec.check(value)?;
+        self.values.insert(spec.key.to_owned(), value);
+        Ok(())
+    }
+}
+
+/// A technique-specific parameter, declared once in its technique's registry entry: the scene
+/// file spells it `[shadow.params] KEY = VALUE`, the CLI `--param KEY=VALUE`, the viewer draws a
+/// slider for it, and `info` lists it with this documentation.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ParamSpec {
+    /// Unique across the registry, snake_case, prefixed with the technique's name.
+    pub key: &'static str,
+    /// Unit of the value ("m", "1/m", "-" for a ratio).
+    pub unit: &'static str,
+    /// What it changes, in one sentence.
+    pub doc: &'static str,
+    /// Smallest and largest accepted value, inclusive.
+    pub min: f32,
+    pub max: f32,
+    /// The value when unset; `None` means the technique derives it each frame (the doc says how).
+    pub default: Option<f32>,
+}
+
+impl ParamSpec {
+    /// Checks `value` against the range.
+    pub fn check(&self, value: f32) -> Result<(), ShadowError> {
+        if value.is_finite() && (self.min..=self.max).contains(&value) {
+            Ok(())
+        } else {
+            Err(ShadowError::ParamOutOfRange {
+                key: self.key,
+                value,
+                min: self.min,
+                max: self.max,
+            })
+        }
+    }
+}
+
+/// What a technique is for, which decides where the program uses it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Role {
+    /// No shadow at all: the frame time every overhead is measured against (one sweep row).
+    FrameBaseline,
+    /// The exact transmittance every error is measured against.
+    Reference,
+    /// A technique under comparison.
+    Contender,
 }
 
 /// What a technique needs from the renderer to build its pipelines.
@@ -271,16 +345,82 @@ pub trait ShadowTechnique: Send {
     }
 }
 
+/// What a technique's memory depends on.
+pub struct MemoryCase<'a> {
+    pub channels: u32,
+    pub resolution_px: u32,
+    /// Particles drawn this frame.
+    pub particles: u64,
+    /// Pixels of the frame.
+    pub frame_pixels: u64,
+    /// The technique's [`ShadowTechnique::counters`] after the frame (list capacities).
+    pub counters: &'a [(&'static str, u64)],
+}
+
+impl MemoryCase<'_> {
+    /// Texels of one shadow map.
+    pub fn texels(&self) -> u64 {
+        u64::from(self.resolution_px) * u64::from(self.resolution_px)
+    }
+
+    /// A counter by name (0 when absent).
+    pub fn counter(&self, name: &str) -> u64 {
+        self.counters
+            .iter()
+            .find(|(n, _)| *n == name)
+            .map_or(0, |(_, v)| *v)
+    }
+}
+
+/// The channels a configuration uses and the bytes it allocates.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct MemoryUse {
+    pub channels: u64,
+    pub bytes: u64,
+}
+
+/// Bytes of `packed` channels of `bytes_per_channel` per texel, packed 4 to a target, where a
+/// remainder of 1 or 2 channels gets an R or RG target and a remainder of 3 a 4-channel one.
+pub fn packed_bytes_per_texel(packed: u64, bytes_per_channel: u64) -> u64 {
+    let rest = match packed % 4 {
+        0 => 0,
+        1 => 1,
+        2 => 2,
+        _ => 4,
+    };
+    (packed / 4 * 4 + rest) * bytes_per_channel
+}
+
 /// Builds a technique from the GPU context and its (already range-checked) parameters.
 pub type CreateFn =
     fn(&TechniqueContext<'_>, &TechniqueParams) -> Result<Box<dyn ShadowTechnique>, ShadowError>;
 
-/// One registry line.
+/// One registry line: everything the program asks about a technique.
 pub struct TechniqueEntry {
     pub name: &'static str,
     pub description: &'static str,
+    pub role: Role,
+    /// What a budget of B channels buys, for captions ("24 slices", "1 depth + 23 layers").
+    pub budget_caption: fn(u32) -> String,
     /// Smallest channel budget the technique can work with.
     pub min_channels: u32,
+    /// Whether the default sweep and the default comparison include it.
+    pub in_default_sweep: bool,
+    pub in_default_compare: bool,
+    /// Whether its build reads back from the GPU (and so stalls the frame): the viewer renders
+    /// such a technique on its worker thread.
+    pub build_reads_back: bool,
+    /// Its own parameters.
+    pub params: &'static [ParamSpec],
+    /// Whether T(p) is independent of the order the particles are drawn in (additive, min or
+    /// max blending); the order-independence test holds every such technique to it.
+    pub order_independent: bool,
+    /// Whether its error against `exact` shrinks as the budget grows (segment splats, where the
+    /// splat mode applies); the convergence tests hold every such technique to it.
+    pub converges_with_budget: bool,
+    /// Its documented memory formula: the channels it uses and the bytes it allocates for a
+    /// case. The tests check every technique's ledger against it.
+    pub memory: fn(&MemoryCase<'_>) -> MemoryUse,
     /// Path (under `shaders/`) of the lookup shader defining group 1 and `shadow_transmittance`.
     pub lookup_shader: &'static str,
     /// Every other WGSL module the technique compiles, composed: (label, source). The naga test
@@ -302,6 +442,86 @@ pub static REGISTRY: &[TechniqueEntry] = &[
     half_angle::ENTRY,
     exact::ENTRY,
 ];
+
+/// The technique with `role` (the first, for [`Role::Contender`]).
+fn with_role(role: Role) -> &'static TechniqueEntry {
+    REGISTRY
+        .iter()
+        .find(|e| e.role == role)
+        .expect("the registry has a frame baseline, a reference and contenders")
+}
+
+/// The frame-time baseline (`none`).
+pub fn frame_baseline() -> &'static TechniqueEntry {
+    with_role(Role::FrameBaseline)
+}
+
+/// The exact reference (`exact`).
+pub fn reference() -> &'static TechniqueEntry {
+    with_role(Role::Reference)
+}
+
+/// The techniques under comparison, in registry order.
+pub fn contenders() -> impl Iterator<Item = &'static TechniqueEntry> {
+    REGISTRY.iter().filter(|e| e.role == Role::Contender)
+}
+
+/// Names of the techniques the default sweep runs.
+pub fn default_sweep() -> Vec<String> {
+    REGISTRY
+        .iter()
+        .filter(|e| e.in_default_sweep)
+        .map(|e| e.name.to_owned())
+        .collect()
+}
+
+/// Names of the techniques the default comparison shows.
+pub fn default_compare() -> Vec<String> {
+    REGISTRY
+        .iter()
+        .filter(|e| e.in_default_compare)
+        .map(|e| e.name.to_owned())
+        .collect()
+}
+
+/// Every technique parameter of the registry, with the technique that declares it.
+pub fn all_params() -> impl Iterator<Item = (&'static TechniqueEntry, &'static ParamSpec)> {
+    REGISTRY
+        .iter()
+        .flat_map(|e| e.params.iter().map(move |p| (e, p)))
+}
+
+/// The parameter named `key`.
+pub fn find_param(key: &str) -> Result<&'static ParamSpec, ShadowError> {
+    all_params()
+        .map(|(_, p)| p)
+        .find(|p| p.key == key)
+        .ok_or_else(|| ShadowError::UnknownParam {
+            key: key.to_owned(),
+            valid: all_params()
+                .map(|(_, p)| p.key)
+                .collect::<Vec<_>>()
+                .join(", "),
+        })
+}
+
+/// Parses `KEY=VALUE` for `--param`, checked against the registry.
+pub fn parse_param(s: &str) -> Result<(String, f32), String> {
+    let (key, value) = s
+        .split_once('=')
+        .ok_or_else(|| format!("\"{s}\" is not KEY=VALUE (e.g. dom_layer_ratio=2)"))?;
+    let spec = find_param(key.trim()).map_err(|e| e.to_string())?;
+    let value: f32 = value
+        .trim()
+        .parse()
+        .map_err(|_| format!("\"{}\" in \"{s}\" is not a number", value.trim()))?;
+    spec.check(value).map_err(|e| e.to_string())?;
+    Ok((spec.key.to_owned(), value))
+}
+
+/// The viewer's opening sides: A shows this technique (at 8 channels), B this one's 24-channel
+/// image when switched from `exact`.
+pub const VIEWER_SIDES: (&str, &str) = ("fom", "osm");
 
 /// Comma-separated registry names.
 pub fn technique_names() -> String {
@@ -411,6 +631,72 @@ mod tests {
         names.sort();
         names.dedup();
         assert_eq!(names.len(), REGISTRY.len());
+    }
+
+    #[test]
+    fn roles_and_parameters_are_consistent() {
+        assert_eq!(frame_baseline().name, "none");
+        assert_eq!(reference().name, "exact");
+        let roles = |r| REGISTRY.iter().filter(|e| e.role == r).count();
+        assert_eq!(roles(Role::FrameBaseline), 1);
+        assert_eq!(roles(Role::Reference), 1);
+        for entry in REGISTRY {
+            // Defaults list contenders only, and every contender's budget reads as something.
+            if entry.in_default_sweep || entry.in_default_compare {
+                assert_eq!(entry.role, Role::Contender, "{}", entry.name);
+            }
+            assert!(!(entry.budget_caption)(24).is_empty(), "{}", entry.name);
+            for p in entry.params {
+                assert!(
+                    p.key.starts_with(entry.name),
+                    "{} owns {}",
+                    entry.name,
+                    p.key
+                );
+                assert!(p.min <= p.max && !p.doc.is_empty(), "{}", p.key);
+                if let Some(d) = p.default {
+                    assert!(
+                        p.check(d).is_ok(),
+                        "{}'s default is out of its range",
+                        p.key
+                    );
+                }
+            }
+        }
+        let mut keys: Vec<_> = all_params().map(|(_, p)| p.key).collect();
+        let n = keys.len();
+        keys.sort();
+        keys.dedup();
+        assert_eq!(keys.len(), n, "parameter keys are unique");
+    }
+
+    #[test]
+    fn parameters_parse_and_bad_ones_say_why() {
+        let (key, value) = parse_param("dom_layer_ratio=2").unwrap();
+        assert_eq!((key.as_str(), value), ("dom_layer_ratio", 2.0));
+        let err = parse_param("dom_layer_ratio=9").unwrap_err();
+        assert!(err.contains("1..=4"), "{err}");
+        let err = parse_param("fancy=1").unwrap_err();
+        assert!(
+            err.contains("\"fancy\"") && err.contains("dom_layer_ratio"),
+            "{err}"
+        );
+        assert!(
+            parse_param("dom_layer_ratio")
+                .unwrap_err()
+                .contains("KEY=VALUE")
+        );
+        assert!(
+            parse_param("dom_layer_ratio=x")
+                .unwrap_err()
+                .contains("not a number")
+        );
+        let mut params = TechniqueParams::new(8, 256);
+        let ratio = find_param("dom_layer_ratio").unwrap();
+        assert_eq!(params.get(ratio), Some(1.0));
+        params.set("dom_layer_ratio", 3.0).unwrap();
+        assert_eq!(params.get(ratio), Some(3.0));
+        assert!(params.set("dom_layer_ratio", 0.5).is_err());
     }
 
     #[test]

@@ -2,14 +2,27 @@
 //! `none` are the baseline for a technique's overhead ratio.
 
 use super::{
-    BuildInputs, ShadowError, ShadowTechnique, TechniqueContext, TechniqueEntry, TechniqueParams,
+    BuildInputs, MemoryUse, Role, ShadowError, ShadowTechnique, TechniqueContext, TechniqueEntry,
+    TechniqueParams,
 };
 use crate::gpu::{Gpu, MemoryLedger};
 
 pub const ENTRY: TechniqueEntry = TechniqueEntry {
     name: "none",
     description: "no self-shadowing (T = 1); the frame-time baseline",
+    role: Role::FrameBaseline,
+    budget_caption: |_| "no maps".to_owned(),
     min_channels: 1,
+    in_default_sweep: false,
+    in_default_compare: false,
+    build_reads_back: false,
+    params: &[],
+    order_independent: true,
+    converges_with_budget: false,
+    memory: |_| MemoryUse {
+        channels: 0,
+        bytes: 0,
+    },
     lookup_shader: "shadow/none.wgsl",
     extra_shaders: Vec::new,
     create: |ctx, params| Ok(Box::new(NoShadow::new(ctx, params)?)),

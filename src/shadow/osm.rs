@@ -8,7 +8,7 @@
 //! (lookup) and `osm_build.wgsl`; the packing and passes are shared in [`super::layered`].
 
 use super::layered::{ChannelPlan, Layered, LayeredSpec, Precision};
-use super::{MapKind, TechniqueEntry};
+use super::{MapKind, MemoryUse, Role, TechniqueEntry, packed_bytes_per_texel};
 
 pub const SPEC: LayeredSpec = LayeredSpec {
     name: "osm",
@@ -19,6 +19,8 @@ pub const SPEC: LayeredSpec = LayeredSpec {
         used: channels,
     },
     depth_channel: false,
+    layer_thickness: None,
+    layer_ratio: None,
     sigma: false,
     precision: Precision::Half,
     channel_name: |c, plan| {
@@ -34,7 +36,20 @@ pub const SPEC: LayeredSpec = LayeredSpec {
 pub const ENTRY: TechniqueEntry = TechniqueEntry {
     name: SPEC.name,
     description: "opacity shadow maps: B uniform depth slices of accumulated optical depth",
+    role: Role::Contender,
+    budget_caption: |channels| format!("{channels} slices"),
     min_channels: 1,
+    in_default_sweep: true,
+    in_default_compare: true,
+    build_reads_back: false,
+    params: &[],
+    order_independent: true,
+    converges_with_budget: true,
+    // B half-float slices and a 32-byte uniform.
+    memory: |c| MemoryUse {
+        channels: c.channels.into(),
+        bytes: c.texels() * packed_bytes_per_texel(c.channels.into(), 2) + 32,
+    },
     lookup_shader: "shadow/osm.wgsl",
     extra_shaders: || SPEC.all_build_shaders(),
     create: |ctx, params| Ok(Box::new(Layered::new(ctx, &SPEC, params)?)),

@@ -203,7 +203,7 @@ fn time_vs_bytes(results: &SweepResults) -> Plot {
     let reference = results
         .cells
         .iter()
-        .find(|c| c.technique == "none")
+        .find(|c| c.technique == crate::shadow::frame_baseline().name)
         .map(|c| c.frame_ms.median)
         .filter(|ms| ms.is_finite())
         .map(|ms| Reference {
@@ -322,7 +322,7 @@ fn shadowed(results: &SweepResults) -> Vec<&CellResult> {
     results
         .cells
         .iter()
-        .filter(|c| c.technique != "none")
+        .filter(|c| c.technique != crate::shadow::frame_baseline().name)
         .collect()
 }
 

@@ -193,7 +193,7 @@ fn table(body: &mut String, results: &SweepResults, variants: &Variants, pareto:
     for (c, &on_front) in results.cells.iter().zip(pareto) {
         let class = if on_front {
             " class=\"pareto\""
-        } else if c.technique == "none" {
+        } else if c.technique == crate::shadow::frame_baseline().name {
             " class=\"baseline\""
         } else {
             ""
@@ -277,7 +277,11 @@ fn image_grid(body: &mut String, results: &SweepResults, variants: &Variants) {
         report::bytes(results.metadata.exact_bytes),
         x = e(&results.exact_image),
     );
-    for c in results.cells.iter().filter(|c| c.technique == "none") {
+    for c in results
+        .cells
+        .iter()
+        .filter(|c| c.technique == crate::shadow::frame_baseline().name)
+    {
         let _ = writeln!(
             body,
             "<figure><a href=\"{x}\"><img loading=\"lazy\" src=\"{x}\" alt=\"none\"></a>\
@@ -291,7 +295,7 @@ fn image_grid(body: &mut String, results: &SweepResults, variants: &Variants) {
     let shadowed: Vec<&CellResult> = results
         .cells
         .iter()
-        .filter(|c| c.technique != "none")
+        .filter(|c| c.technique != crate::shadow::frame_baseline().name)
         .collect();
     if shadowed.is_empty() {
         return;
@@ -367,7 +371,11 @@ struct Variants {
 
 impl Variants {
     fn of(cells: &[CellResult]) -> Self {
-        let shadowed = || cells.iter().filter(|c| c.technique != "none");
+        let shadowed = || {
+            cells
+                .iter()
+                .filter(|c| c.technique != crate::shadow::frame_baseline().name)
+        };
         let several = |differ: &dyn Fn(&CellResult, &CellResult) -> bool| {
             shadowed()
                 .next()

@@ -36,7 +36,7 @@ pub struct SweepOptions {
 impl Default for SweepOptions {
     fn default() -> Self {
         Self {
-            techniques: ["osm", "dom", "fom", "has"].map(String::from).to_vec(),
+            techniques: shadow::default_sweep(),
             channels: vec![24, 16, 8, 6],
             shadow_res: vec![512],
             splats: vec![SplatMode::Point],
@@ -65,8 +65,8 @@ impl Plan {
         let mut params = scene.shadow.params(channels);
         params.resolution_px = res;
         params.splat = splat;
-        let name = if technique == "none" {
-            "none".to_owned()
+        let name = if technique == shadow::frame_baseline().name {
+            technique.to_owned()
         } else {
             format!("{technique}_{channels}_{res}_{}", splat.name())
         };
@@ -104,7 +104,7 @@ fn plan(scene: &Scene, options: &SweepOptions) -> anyhow::Result<(Vec<Plan>, Vec
     }
     let mut cells = vec![Plan::new(
         scene,
-        "none",
+        shadow::frame_baseline().name,
         1,
         options.shadow_res[0],
         options.splats[0],
@@ -112,9 +112,11 @@ fn plan(scene: &Scene, options: &SweepOptions) -> anyhow::Result<(Vec<Plan>, Vec
     let mut skipped = Vec::new();
     for name in &options.techniques {
         let entry = shadow::find(name)?;
-        if matches!(entry.name, "none" | "exact") {
+        if entry.role != shadow::Role::Contender {
             anyhow::bail!(
-                "--techniques {name}: `none` and `exact` are the sweep's baseline and reference, always measured; list the techniques to compare"
+                "--techniques {name}: `{}` and `{}` are the sweep's baseline and reference, always measured; list the techniques to compare",
+                shadow::frame_baseline().name,
+                shadow::reference().name
             );
         }
         for &b in &options.channels {
@@ -326,7 +328,7 @@ impl Sweeper<'_> {
             flip_exact: None,
             settings_key: key,
         };
-        if plan.config.name == "none" {
+        if plan.config.name == shadow::frame_baseline().name {
             return Ok(cell);
         }
         let (vs_exact, x4, flip) = self.compare(
@@ -444,7 +446,7 @@ pub fn run(
     let particles = crate::sim::simulate(scene);
     let (w, h) = (scene.output.width_px, scene.output.height_px);
     let mut exact_config = plans[0].config.clone();
-    exact_config.name = "exact".to_owned();
+    exact_config.name = shadow::reference().name.to_owned();
     exact_config.params.resolution_px = options.exact_res;
     let mut progress = Progress::new(plans.len() + 1);
     progress.start("exact reference");
@@ -561,7 +563,7 @@ fn results(
 ) -> SweepResults {
     let baseline = cells
         .iter()
-        .find(|c| c.technique == "none")
+        .find(|c| c.technique == shadow::frame_baseline().name)
         .map(|c| c.frame_ms.median);
     let cells = cells
         .iter()

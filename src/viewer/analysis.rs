@@ -309,8 +309,8 @@ impl Worker {
                     let (_, _, renderer, _) = self.renderer(config, size)?;
                     let t = renderer.probe(&gpu, &frame.scene, &frame.particles, &points)?;
                     series.push(ProbeSeries {
-                        label: if config.name == "exact" {
-                            "exact".to_owned()
+                        label: if config.name == crate::shadow::reference().name {
+                            config.name.clone()
                         } else {
                             format!("{} {}", config.name, config.params.channels)
                         },

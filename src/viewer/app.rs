@@ -282,12 +282,12 @@ impl ViewerApp {
             playing: false,
             a: Side {
                 source: Source::Technique,
-                technique: "fom".to_owned(),
+                technique: shadow::VIEWER_SIDES.0.to_owned(),
                 channels: 8,
             },
             b: Side {
                 source: Source::Exact,
-                technique: "osm".to_owned(),
+                technique: shadow::VIEWER_SIDES.1.to_owned(),
                 channels: 24,
             },
             mode: CompareMode::Single,
@@ -403,7 +403,7 @@ impl ViewerApp {
         let (name, channels) = match side.source {
             Source::Technique => (side.technique.as_str(), side.channels),
             Source::Baseline24 => (side.technique.as_str(), 24),
-            Source::Exact => ("exact", 1),
+            Source::Exact => (shadow::reference().name, 1),
         };
         TechniqueConfig {
             name: name.to_owned(),
@@ -722,8 +722,8 @@ impl ViewerApp {
             });
         let a = self.config(&self.state.a);
         let mut configs = vec![a.clone()];
-        for name in ["osm", "dom", "fom", "fom_sigma", "has"] {
-            let entry = shadow::find(name).expect("registered");
+        for entry in shadow::contenders() {
+            let name = entry.name;
             let channels = a.params.channels.max(entry.min_channels);
             if name != a.name {
                 configs.push(TechniqueConfig {
@@ -863,16 +863,12 @@ impl ViewerApp {
 
 /// Whether a configuration is rendered on the analysis worker instead of the UI thread.
 fn renders_on_worker(config: &TechniqueConfig) -> bool {
-    config.name == "exact"
+    shadow::find(&config.name).is_ok_and(|e| e.build_reads_back)
 }
 
 /// Techniques a side can pick (everything but `none`, which the numbers use as a baseline).
 fn comparable_techniques() -> Vec<&'static str> {
-    shadow::REGISTRY
-        .iter()
-        .map(|e| e.name)
-        .filter(|n| *n != "none" && *n != "exact")
-        .collect()
+    shadow::contenders().map(|e| e.name).collect()
 }
 
 fn clamp_channels(side: &mut Side) {
@@ -884,14 +880,8 @@ fn clamp_channels(side: &mut Side) {
 
 /// What a budget means for a technique, for the slider's caption.
 pub fn budget_meaning(technique: &str, channels: u32) -> String {
-    match technique {
-        "osm" => format!("{channels} slices"),
-        "dom" => format!("1 depth + {} layers", channels.saturating_sub(1)),
-        "fom" | "fom_sigma" => {
-            let n = channels.saturating_sub(1) / 2;
-            format!("{n} harmonics ({} channels)", 2 * n + 1)
-        }
-        "has" => format!("{channels} slices (batches)"),
+    match shadow::find(technique) {
+        Ok(entry) if entry.role == shadow::Role::Contender => (entry.budget_caption)(channels),
         _ => String::new(),
     }
 }
@@ -1011,15 +1001,46 @@ impl ViewerApp {
             ui.radio_value(&mut shadow.splat, SplatMode::Point, "point (thesis)");
             ui.radio_value(&mut shadow.splat, SplatMode::Segment, "segment");
         });
-        let mut fixed = shadow.dom_thickness_m.is_some();
-        ui.checkbox(&mut fixed, "DOM: fixed layer thickness");
-        if fixed {
-            let t = shadow.dom_thickness_m.get_or_insert(2.0);
-            ui.add(egui::Slider::new(t, 0.1..=10.0).text("DOM thickness (m)"));
-        } else {
-            shadow.dom_thickness_m = None;
+        // Every technique parameter the registry declares: a slider over its range, and for one
+        // whose default is derived per frame, a checkbox that fixes it.
+        for (_, spec) in shadow::all_params() {
+            let range = spec.min..=spec.max;
+            let text = format!("{} ({})", spec.key, spec.unit);
+            let logarithmic = spec.max / spec.min.max(1e-6) > 100.0;
+            match spec.default {
+                Some(default) => {
+                    let value = shadow.params.entry(spec.key.to_owned()).or_insert(default);
+                    ui.add(
+                        egui::Slider::new(value, range)
+                            .logarithmic(logarithmic)
+                            .text(text),
+                    )
+                    .on_hover_text(spec.doc);
+                    if *value == default {
+                        // Unset and default are the same setting: keep the scene canonical.
+                        shadow.params.remove(spec.key);
+                    }
+                }
+                None => {
+                    let mut fixed = shadow.params.contains_key(spec.key);
+                    ui.checkbox(&mut fixed, format!("fixed {}", spec.key))
+                        .on_hover_text(spec.doc);
+                    if fixed {
+                        let value = shadow
+                            .params
+                            .entry(spec.key.to_owned())
+                            .or_insert(spec.min.max(1.0).min(spec.max));
+                        ui.add(
+                            egui::Slider::new(value, range)
+                                .logarithmic(logarithmic)
+                                .text(text),
+                        );
+                    } else {
+                        shadow.params.remove(spec.key);
+                    }
+                }
+            }
         }
-        ui.add(egui::Slider::new(&mut shadow.dom_layer_ratio, 1.0..=4.0).text("DOM layer ratio"));
         ui.checkbox(&mut self.state.spherical, "Spherical billboards");
         ui.checkbox(&mut self.state.fit_window, "Render at window size");
         ui.add(
@@ -1384,7 +1405,7 @@ impl ViewerApp {
                 .show(ui, |plot| {
                     for s in &probe.series {
                         let mut line = egui_plot::Line::new(s.label.clone(), s.points.clone());
-                        if s.label == "exact" {
+                        if s.label == shadow::reference().name {
                             line = line.color(exact_colour).width(2.5);
                         }
                         plot.line(line);
@@ -1538,7 +1559,7 @@ impl ViewerApp {
         let label = |side: &Side| match side.source {
             Source::Technique => format!("{} {} ch", side.technique, side.channels),
             Source::Baseline24 => format!("{} 24 ch (baseline)", side.technique),
-            Source::Exact => "exact".to_owned(),
+            Source::Exact => shadow::reference().name.to_owned(),
         };
         let text = match self.state.mode {
             CompareMode::Single | CompareMode::Flip => format!("A: {}", label(&self.state.a)),
@@ -1772,7 +1793,7 @@ fn side_editor(ui: &mut egui::Ui, label: &str, side: &mut Side) {
     ui.horizontal(|ui| {
         ui.radio_value(&mut side.source, Source::Technique, "technique");
         ui.radio_value(&mut side.source, Source::Baseline24, "24-ch baseline");
-        ui.radio_value(&mut side.source, Source::Exact, "exact");
+        ui.radio_value(&mut side.source, Source::Exact, shadow::reference().name);
     });
     if side.source == Source::Exact {
         return;
