@@ -16,6 +16,7 @@
 //! `shaders/shadow/`, and one line in [`REGISTRY`].
 
 pub mod dom;
+pub mod esm;
 pub mod exact;
 pub mod fom;
 pub mod half_angle;
@@ -440,6 +441,7 @@ pub static REGISTRY: &[TechniqueEntry] = &[
     fom::ENTRY,
     fom::SIGMA_ENTRY,
     half_angle::ENTRY,
+    esm::ENTRY,
     exact::ENTRY,
 ];
 

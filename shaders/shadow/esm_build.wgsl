@@ -1,0 +1,8 @@
+// `esm` build: each light-space particle fragment writes the depth where its ray enters the
+// particle sphere; MIN blending leaves each texel the depth where its smoke starts.
+#import shadow/layered_build.wgsl
+
+@fragment
+fn fs_build(in: BuildVertexOut) -> @location(0) vec4<f32> {
+    return vec4<f32>(splat_fragment(in, true).z0);
+}
