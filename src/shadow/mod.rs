@@ -15,6 +15,7 @@
 //! Adding a technique: a new `src/shadow/<name>.rs` with a `pub const ENTRY`, its shaders under
 //! `shaders/shadow/`, and one line in [`REGISTRY`].
 
+pub mod bsm;
 pub mod dom;
 pub mod esm;
 pub mod exact;
@@ -442,6 +443,7 @@ pub static REGISTRY: &[TechniqueEntry] = &[
     fom::SIGMA_ENTRY,
     half_angle::ENTRY,
     esm::ENTRY,
+    bsm::ENTRY,
     exact::ENTRY,
 ];
 

@@ -1,0 +1,20 @@
+// `bsm` build: each light-space particle fragment writes where its ray enters the particle
+// sphere (MIN-blended: the front of the smoke), where it leaves it (MAX-blended: the back) and
+// the chord's optical depth (added: the whole ray's optical depth).
+#import shadow/layered_build.wgsl
+
+struct BsmTargets {
+    @location(0) front: vec4<f32>,
+    @location(1) back: vec4<f32>,
+    @location(2) optical_depth: vec4<f32>,
+};
+
+@fragment
+fn fs_build(in: BuildVertexOut) -> BsmTargets {
+    let s = splat_fragment(in, true);
+    var out: BsmTargets;
+    out.front = vec4<f32>(s.z0);
+    out.back = vec4<f32>(s.z1);
+    out.optical_depth = vec4<f32>(s.optical_depth);
+    return out;
+}
