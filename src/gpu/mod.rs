@@ -5,10 +5,12 @@
 //! [`AdapterPreference`]) and then by name, so a result never depends on enumeration order.
 //! Tests ask for [`AdapterPreference::Cpu`] (lavapipe) so they run the same everywhere.
 
+mod layout;
 mod memory;
 mod readback;
 mod timing;
 
+pub use layout::MirrorLayout;
 pub use memory::{AllocationError, MemoryBudget, MemoryLedger};
 pub use readback::{Rgba16fImage, read_buffer, read_texture_rgba8, read_texture_rgba16f};
 pub use timing::{GpuTimer, PassTimes};

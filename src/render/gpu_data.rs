@@ -76,6 +76,29 @@ impl OpaqueVertex {
     };
 }
 
+/// The WGSL structs mirrored here (vertex inputs are laid out by their buffer layouts instead).
+pub fn layouts() -> Vec<crate::gpu::MirrorLayout> {
+    vec![crate::mirror_layout!(
+        FrameUniforms,
+        "common/frame.wgsl",
+        "Frame",
+        [
+            clip_from_world,
+            world_from_clip,
+            light_clip_from_world,
+            camera_pos,
+            camera_forward,
+            viewport,
+            light_pos,
+            light_dir,
+            light_radiance,
+            light_depth,
+            ambient,
+            background,
+        ]
+    )]
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -45,6 +45,24 @@ struct LightRange {
     count: u32,
 }
 
+/// The WGSL structs mirrored here.
+pub fn layouts() -> Vec<crate::gpu::MirrorLayout> {
+    vec![
+        crate::mirror_layout!(
+            ParticleLight,
+            "render/particle_lighting.wgsl",
+            "ParticleLight",
+            [radiance]
+        ),
+        crate::mirror_layout!(
+            LightRange,
+            "render/particle_lighting.wgsl",
+            "LightRange",
+            [start, count]
+        ),
+    ]
+}
+
 /// Uniform offsets must be multiples of this (the WebGPU minimum, which every adapter meets).
 const RANGE_STRIDE: u64 = 256;
 

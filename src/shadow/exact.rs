@@ -64,6 +64,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     },
     create: |ctx, params| Ok(Box::new(Exact::new(ctx, params)?)),
     uses_splat: false,
+    uses_budget: false,
 };
 
 /// Keep in sync with `ExactParams` in shaders/shadow/exact.wgsl and exact_build.wgsl.
@@ -73,6 +74,16 @@ struct ExactParams {
     resolution: u32,
     capacity: u32,
     _pad: [u32; 2],
+}
+
+/// The WGSL structs mirrored here.
+pub fn layouts() -> Vec<crate::gpu::MirrorLayout> {
+    vec![crate::mirror_layout!(
+        ExactParams,
+        "shadow/exact.wgsl",
+        "ExactParams",
+        [resolution, capacity]
+    )]
 }
 
 /// Bytes per stored segment (z0, z1, optical depth) and per texel's share of nodes (2 per

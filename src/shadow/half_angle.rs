@@ -76,6 +76,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     },
     create: |ctx, params| Ok(Box::new(HalfAngle::new(ctx, params)?)),
     uses_splat: false,
+    uses_budget: true,
 };
 
 /// Format of the light buffer (accumulated optical depth).
@@ -87,6 +88,16 @@ const LIGHT_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R16Float;
 struct HasParams {
     slices: u32,
     _pad: [u32; 3],
+}
+
+/// The WGSL structs mirrored here.
+pub fn layouts() -> Vec<crate::gpu::MirrorLayout> {
+    vec![crate::mirror_layout!(
+        HasParams,
+        "shadow/has.wgsl",
+        "HasParams",
+        [slices]
+    )]
 }
 
 /// The slicing axis and how the eye composites along it.

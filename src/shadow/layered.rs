@@ -92,6 +92,24 @@ struct LayeredParams {
     _pad: u32,
 }
 
+/// The WGSL structs mirrored here.
+pub fn layouts() -> Vec<crate::gpu::MirrorLayout> {
+    vec![crate::mirror_layout!(
+        LayeredParams,
+        "shadow/layered.wgsl",
+        "LayeredParams",
+        [
+            count,
+            packed,
+            splat,
+            sigma,
+            dom_thickness_m,
+            dom_ratio,
+            full_targets
+        ]
+    )]
+}
+
 /// Format of packed target `index` for `packed` channels of `precision`.
 pub fn target_format(packed: u32, index: u32, precision: Precision) -> wgpu::TextureFormat {
     use wgpu::TextureFormat as F;

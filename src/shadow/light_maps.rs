@@ -76,6 +76,16 @@ struct LightMapsParams {
     values: [f32; 4],
 }
 
+/// The WGSL structs mirrored here.
+pub fn layouts() -> Vec<crate::gpu::MirrorLayout> {
+    vec![crate::mirror_layout!(
+        LightMapsParams,
+        "shadow/light_maps.wgsl",
+        "LightMapsParams",
+        [values]
+    )]
+}
+
 struct Map {
     view: wgpu::TextureView,
     clear: wgpu::Color,
