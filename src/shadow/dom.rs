@@ -80,4 +80,5 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     extra_shaders: || SPEC.all_build_shaders(),
     create: |ctx, params| Ok(Box::new(Layered::new(ctx, &SPEC, params)?)),
     uses_splat: true,
+    uses_budget: true,
 };

@@ -62,4 +62,5 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     extra_shaders: || SPEC.build_shaders(),
     create: |ctx, params| Ok(Box::new(LightMaps::new(ctx, &SPEC, params)?)),
     uses_splat: false,
+    uses_budget: false,
 };

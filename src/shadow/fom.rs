@@ -78,6 +78,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     extra_shaders: || FOM.all_build_shaders(),
     create: |ctx, params| Ok(Box::new(Layered::new(ctx, &FOM, params)?)),
     uses_splat: true,
+    uses_budget: true,
 };
 
 pub const SIGMA_ENTRY: TechniqueEntry = TechniqueEntry {
@@ -98,4 +99,5 @@ pub const SIGMA_ENTRY: TechniqueEntry = TechniqueEntry {
     extra_shaders: Vec::new,
     create: |ctx, params| Ok(Box::new(Layered::new(ctx, &FOM_SIGMA, params)?)),
     uses_splat: true,
+    uses_budget: true,
 };

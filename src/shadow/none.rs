@@ -27,6 +27,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     extra_shaders: Vec::new,
     create: |ctx, params| Ok(Box::new(NoShadow::new(ctx, params)?)),
     uses_splat: false,
+    uses_budget: false,
 };
 
 pub struct NoShadow {

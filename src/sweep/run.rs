@@ -132,6 +132,17 @@ fn plan(scene: &Scene, options: &SweepOptions) -> anyhow::Result<(Vec<Plan>, Vec
                     channels: b,
                     reason: err.to_string(),
                 });
+            } else if !entry.uses_budget && Some(b) != first_budget(entry, &options.channels) {
+                skipped.push(SkippedCell {
+                    technique: entry.name.to_owned(),
+                    channels: b,
+                    reason: format!(
+                        "{} gives the same result at any budget ({}): measured once, at {} channels",
+                        entry.name,
+                        (entry.budget_caption)(b),
+                        first_budget(entry, &options.channels).unwrap_or(b)
+                    ),
+                });
             }
         }
     }
@@ -143,7 +154,9 @@ fn plan(scene: &Scene, options: &SweepOptions) -> anyhow::Result<(Vec<Plan>, Vec
                     continue;
                 }
                 for &b in &options.channels {
-                    if shadow::check_channels(entry, b).is_ok() {
+                    let once =
+                        entry.uses_budget || Some(b) == first_budget(entry, &options.channels);
+                    if shadow::check_channels(entry, b).is_ok() && once {
                         cells.push(Plan::new(scene, entry.name, b, res, splat));
                     }
                 }
@@ -151,6 +164,15 @@ fn plan(scene: &Scene, options: &SweepOptions) -> anyhow::Result<(Vec<Plan>, Vec
         }
     }
     Ok((cells, skipped))
+}
+
+/// The first of `budgets` that `entry` accepts: where a technique whose result does not depend
+/// on the budget is measured.
+fn first_budget(entry: &shadow::TechniqueEntry, budgets: &[u32]) -> Option<u32> {
+    budgets
+        .iter()
+        .copied()
+        .find(|&b| shadow::check_channels(entry, b).is_ok())
 }
 
 /// What a cell's measurement depends on, as a string (`--resume` reuses a cell only when equal).
