@@ -6,6 +6,7 @@ pub mod baseline;
 pub mod commands;
 pub mod compare;
 pub mod diff;
+pub mod frame;
 pub mod gpu;
 pub mod output;
 pub mod render;

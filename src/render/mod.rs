@@ -13,14 +13,18 @@
 //! Long-lived state (pipelines, layouts, targets, buffers) is built in [`Renderer::new`] and when
 //! the technique or size changes; a frame only uploads uniforms and particles and records passes.
 
-pub mod geometry;
-pub mod gpu_data;
-pub mod particles;
 pub mod shaded;
+
+// The frame's building blocks live in `crate::frame` (the techniques share them); re-exported
+// here, where callers of the renderer look for them.
+pub use crate::frame::{
+    CameraMatrices, DEPTH_FORMAT, HDR_FORMAT, OUTPUT_FORMAT, OVER, ParticleLayouts,
+    ParticlePipelines, UNDER, geometry, gpu_data, particles,
+};
 
 use std::time::Instant;
 
-use glam::{Mat4, Vec3};
+use glam::Vec3;
 
 use crate::gpu::{Gpu, GpuError, GpuTimer, PassTimes};
 use crate::scene::Scene;
@@ -32,14 +36,6 @@ use crate::shadow::{
 use crate::sim::Particle;
 use gpu_data::{FrameUniforms, OpaqueVertex, ParticleInstance};
 use particles::{LightBuffers, ParticleLighting};
-pub use particles::{OVER, ParticleLayouts, ParticlePipelines, UNDER};
-
-/// Format of the HDR frame (premultiplied radiance; alpha = smoke opacity).
-pub const HDR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
-/// Format of the opaque depth.
-pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
-/// Format of the tone-mapped output the CLI writes to PNG.
-pub const OUTPUT_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
 
 /// Per-frame switches.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -174,52 +170,19 @@ impl Renderer {
                 count: None,
             }],
         });
-        let hdr_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("tonemap.layout"),
-            entries: &[wgpu::BindGroupLayoutEntry {
-                binding: 0,
-                visibility: wgpu::ShaderStages::FRAGMENT,
-                ty: wgpu::BindingType::Texture {
-                    sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                    view_dimension: wgpu::TextureViewDimension::D2,
-                    multisampled: false,
-                },
-                count: None,
-            }],
-        });
-        let tonemap_pipeline = {
-            let module = shaders::module(
+        let hdr_layout = crate::frame::fullscreen::texture_layout(device, "tonemap.layout");
+        let tonemap_pipeline = crate::frame::fullscreen::pipeline(
+            device,
+            "tonemap.pipeline",
+            &shaders::module(
                 device,
                 "tonemap",
                 &shaders::compose("render/tonemap.wgsl", &[]),
-            );
-            let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                label: Some("tonemap.pipeline_layout"),
-                bind_group_layouts: &[Some(&frame_layout), Some(&hdr_layout)],
-                immediate_size: 0,
-            });
-            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                label: Some("tonemap.pipeline"),
-                layout: Some(&layout),
-                vertex: wgpu::VertexState {
-                    module: &module,
-                    entry_point: Some("vs_main"),
-                    compilation_options: Default::default(),
-                    buffers: &[],
-                },
-                primitive: wgpu::PrimitiveState::default(),
-                depth_stencil: None,
-                multisample: wgpu::MultisampleState::default(),
-                fragment: Some(wgpu::FragmentState {
-                    module: &module,
-                    entry_point: Some("fs_main"),
-                    compilation_options: Default::default(),
-                    targets: &[Some(output_format.into())],
-                }),
-                multiview_mask: None,
-                cache: None,
-            })
-        };
+            ),
+            ("vs_main", "fs_main"),
+            &[Some(&frame_layout), Some(&hdr_layout)],
+            output_format.into(),
+        );
         let targets = Targets::new(device, &depth_layout, &hdr_layout, width, height);
         let particle_layouts = ParticleLayouts::new(device);
         let particle_pipelines = ParticlePipelines::new(
@@ -887,55 +850,6 @@ impl TechniquePipelines {
             particle_layouts,
         );
         Self { opaque, lighting }
-    }
-}
-
-/// The camera's matrices and frame.
-#[derive(Clone, Copy, Debug)]
-pub struct CameraMatrices {
-    pub position: Vec3,
-    pub forward: Vec3,
-    pub view_from_world: Mat4,
-    pub clip_from_view: Mat4,
-}
-
-impl CameraMatrices {
-    pub fn new(scene: &Scene, width: u32, height: u32) -> Self {
-        let cam = &scene.camera;
-        let forward = (cam.target - cam.position).normalize();
-        let up = if forward.y.abs() > 0.999 {
-            Vec3::Z
-        } else {
-            Vec3::Y
-        };
-        Self {
-            position: cam.position,
-            forward,
-            view_from_world: Mat4::look_at_rh(cam.position, cam.target, up),
-            clip_from_view: Mat4::perspective_rh(
-                cam.fov_y_deg.to_radians(),
-                width as f32 / height as f32,
-                cam.near_m,
-                cam.far_m,
-            ),
-        }
-    }
-
-    pub fn clip_from_world(&self) -> Mat4 {
-        self.clip_from_view * self.view_from_world
-    }
-
-    /// Pixel coordinates (x right, y down, pixel centres at +0.5) of a world point, if in front.
-    pub fn project_to_pixel(&self, p: Vec3, width: u32, height: u32) -> Option<glam::Vec2> {
-        let clip = self.clip_from_world() * p.extend(1.0);
-        if clip.w <= 0.0 {
-            return None;
-        }
-        let ndc = clip.truncate() / clip.w;
-        Some(glam::Vec2::new(
-            (ndc.x * 0.5 + 0.5) * width as f32,
-            (0.5 - ndc.y * 0.5) * height as f32,
-        ))
     }
 }
 

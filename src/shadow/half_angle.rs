@@ -34,10 +34,10 @@ use super::{
     ProbeInputs, ProbePass, Role, ShadowError, ShadowTechnique, TechniqueContext, TechniqueEntry,
     TechniqueParams,
 };
+use crate::frame::gpu_data::{BILLBOARD_VERTICES, ParticleInstance};
+use crate::frame::particles::{LightBuffers, ParticleLighting};
+use crate::frame::{HDR_FORMAT, OVER, ParticleLayouts, ParticlePipelines, UNDER, fullscreen};
 use crate::gpu::{AllocationError, Gpu, MemoryLedger};
-use crate::render::gpu_data::{BILLBOARD_VERTICES, ParticleInstance};
-use crate::render::particles::{LightBuffers, ParticleLighting};
-use crate::render::{HDR_FORMAT, OVER, ParticleLayouts, ParticlePipelines, UNDER};
 use crate::shaders;
 use crate::sim::Particle;
 
@@ -305,53 +305,22 @@ impl HalfAngle {
             ctx.particle_layouts,
         );
 
-        let composite_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("has.composite.layout"),
-            entries: &[wgpu::BindGroupLayoutEntry {
-                binding: 0,
-                visibility: wgpu::ShaderStages::FRAGMENT,
-                ty: wgpu::BindingType::Texture {
-                    sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                    view_dimension: wgpu::TextureViewDimension::D2,
-                    multisampled: false,
-                },
-                count: None,
-            }],
-        });
-        let composite_pipeline_layout =
-            device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                label: Some("has.composite.pipeline_layout"),
-                bind_group_layouts: &[Some(ctx.frame_layout), Some(&composite_layout)],
-                immediate_size: 0,
-            });
-        let composite_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("has.composite.pipeline"),
-            layout: Some(&composite_pipeline_layout),
-            vertex: wgpu::VertexState {
-                module: &module,
-                entry_point: Some("vs_composite"),
-                compilation_options: Default::default(),
-                buffers: &[],
+        let composite_layout = fullscreen::texture_layout(device, "has.composite.layout");
+        let composite_pipeline = fullscreen::pipeline(
+            device,
+            "has.composite.pipeline",
+            &module,
+            ("vs_composite", "fs_composite"),
+            &[Some(ctx.frame_layout), Some(&composite_layout)],
+            wgpu::ColorTargetState {
+                format: HDR_FORMAT,
+                blend: Some(wgpu::BlendState {
+                    color: OVER,
+                    alpha: OVER,
+                }),
+                write_mask: wgpu::ColorWrites::ALL,
             },
-            primitive: wgpu::PrimitiveState::default(),
-            depth_stencil: None,
-            multisample: wgpu::MultisampleState::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &module,
-                entry_point: Some("fs_composite"),
-                compilation_options: Default::default(),
-                targets: &[Some(wgpu::ColorTargetState {
-                    format: HDR_FORMAT,
-                    blend: Some(wgpu::BlendState {
-                        color: OVER,
-                        alpha: OVER,
-                    }),
-                    write_mask: wgpu::ColorWrites::ALL,
-                })],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
+        );
         let instance_capacity = 1024;
         let instances = instance_buffer(&mut memory, device, instance_capacity)?;
         let lights = light_buffers(

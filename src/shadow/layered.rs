@@ -18,8 +18,8 @@ use super::{
     BuildInputs, DebugMap, LOOKUP_STAGES, MapKind, ParamSpec, ShadowError, ShadowTechnique,
     SplatMode, TechniqueContext, TechniqueParams,
 };
+use crate::frame::gpu_data::{BILLBOARD_VERTICES, ParticleInstance};
 use crate::gpu::{AllocationError, Gpu, MemoryLedger};
-use crate::render::gpu_data::{BILLBOARD_VERTICES, ParticleInstance};
 use crate::shaders;
 
 /// Most render targets a layered technique writes (8 x 4 = 32 channels).

@@ -34,8 +34,8 @@ use std::collections::BTreeMap;
 
 use serde::{Deserialize, Serialize};
 
+use crate::frame::CameraMatrices;
 use crate::gpu::{Gpu, GpuTimer, MemoryLedger};
-use crate::render::CameraMatrices;
 use crate::sim::Particle;
 
 /// Stages that call `shadow_transmittance`: the particle pass lights per vertex, the opaque pass
@@ -226,7 +226,7 @@ pub struct TechniqueContext<'a> {
     /// for techniques that draw the particles themselves.
     pub depth_layout: &'a wgpu::BindGroupLayout,
     /// Layouts of the per-particle lighting buffers, for the same.
-    pub particle_layouts: &'a crate::render::ParticleLayouts,
+    pub particle_layouts: &'a crate::frame::ParticleLayouts,
 }
 
 /// What a technique gets each frame to build its maps.
@@ -644,8 +644,8 @@ mod tests {
     fn every_rust_mirror_matches_nagas_reflection_of_its_wgsl_struct() {
         use crate::shaders::{SHADOW_TECHNIQUE, compose, source};
         let mirrors = [
-            crate::render::gpu_data::layouts(),
-            crate::render::particles::layouts(),
+            crate::frame::gpu_data::layouts(),
+            crate::frame::particles::layouts(),
             layered::layouts(),
             exact::layouts(),
             half_angle::layouts(),
