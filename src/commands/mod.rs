@@ -48,7 +48,7 @@ impl TechniqueArgs {
             ..scene.shadow.params(self.channels)
         };
         for (key, value) in &self.params {
-            params.set(key, *value)?;
+            crate::shadow::set_param(&mut params, key, *value)?;
         }
         Ok(crate::render::TechniqueConfig {
             name: entry.name.to_owned(),

@@ -10,15 +10,16 @@
 //! To add a field: add it to the struct with a `///` doc line giving unit and range, give it a
 //! default in the `Default` impl, check it in `validate`, and document it in `scenes/README.md`.
 
+pub mod technique;
 mod validate;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use crate::shadow::{SplatMode, TechniqueParams};
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
+pub use technique::{SplatMode, TechniqueParams};
 pub use validate::LIMITS;
 
 /// The thesis experiment (chapter 4), embedded so the binary runs without any file.

@@ -30,10 +30,6 @@ pub mod probe;
 
 pub use light_space::LightSpace;
 
-use std::collections::BTreeMap;
-
-use serde::{Deserialize, Serialize};
-
 use crate::frame::CameraMatrices;
 use crate::gpu::{Gpu, GpuTimer, MemoryLedger};
 use crate::sim::Particle;
@@ -88,13 +84,8 @@ pub enum ShadowError {
          describes them)"
     )]
     UnknownParam { key: String, valid: String },
-    #[error("parameter {key} = {value} is out of range: allowed {min}..={max}")]
-    ParamOutOfRange {
-        key: &'static str,
-        value: f32,
-        min: f32,
-        max: f32,
-    },
+    #[error(transparent)]
+    Param(#[from] ParamError),
     #[error("{technique} needs the adapter feature {feature}, which this adapter lacks")]
     MissingFeature {
         technique: &'static str,
@@ -106,104 +97,23 @@ pub enum ShadowError {
     Gpu(String),
 }
 
-/// How a particle's optical depth is placed along the light ray when building layered maps.
-#[derive(
-    Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize, clap::ValueEnum,
-)]
-#[serde(rename_all = "snake_case")]
-pub enum SplatMode {
-    /// All of it at the particle centre's depth (the thesis).
-    #[default]
-    Point,
-    /// Spread uniformly over the chord through the sphere (converges to `exact`).
-    Segment,
+pub use crate::scene::technique::{ParamError, ParamSpec, SplatMode, TechniqueParams};
+
+/// Sets `key` to `value` in `params` after checking both against the registry.
+pub fn set_param(params: &mut TechniqueParams, key: &str, value: f32) -> Result<(), ShadowError> {
+    let spec = find_param(key)?;
+    spec.check(value)?;
+    params.values.insert(spec.key.to_owned(), value);
+    Ok(())
 }
 
-impl SplatMode {
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::Point => "point",
-            Self::Segment => "segment",
-        }
+/// Checks every parameter value set in `params` against the registry: a scene's
+/// `[shadow.params]` reaches a technique only through here.
+pub fn check_params(params: &TechniqueParams) -> Result<(), ShadowError> {
+    for (key, &value) in &params.values {
+        find_param(key)?.check(value)?;
     }
-}
-
-/// The parameters every technique receives: the budget, the resolution and the splat mode that
-/// all of them share, and the values of technique-specific parameters ([`ParamSpec`]) that were
-/// set; each technique reads the ones its registry entry declares.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct TechniqueParams {
-    /// Channel budget, 1..=32 (each technique may have a larger minimum); what it buys is the
-    /// entry's [`TechniqueEntry::budget_caption`].
-    pub channels: u32,
-    /// Square shadow-map resolution in pixels (light buffer for `has`, list grid for `exact`).
-    pub resolution_px: u32,
-    /// Where particle optical depth is splatted (layered techniques). Default: point.
-    pub splat: SplatMode,
-    /// Technique-specific parameters that were set, by [`ParamSpec::key`] (validated against
-    /// the registry); an absent key takes its spec's default. Ordered, so equal settings
-    /// serialize equally.
-    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
-    pub values: BTreeMap<String, f32>,
-}
-
-impl TechniqueParams {
-    /// `channels` at `resolution_px` with every other parameter at its default.
-    pub fn new(channels: u32, resolution_px: u32) -> Self {
-        Self {
-            channels,
-            resolution_px,
-            splat: SplatMode::Point,
-            values: BTreeMap::new(),
-        }
-    }
-
-    /// The value of `spec`: the one set, else its default (`None`: derived per frame).
-    pub fn get(&self, spec: &ParamSpec) -> Option<f32> {
-        self.values.get(spec.key).copied().or(spec.default)
-    }
-
-    /// Sets `key` to `value` after checking both against the registry.
-    pub fn set(&mut self, key: &str, value: f32) -> Result<(), ShadowError> {
-        let spec = find_param(key)?;
-        spec.check(value)?;
-        self.values.insert(spec.key.to_owned(), value);
-        Ok(())
-    }
-}
-
-/// A technique-specific parameter, declared once in its technique's registry entry: the scene
-/// file spells it `[shadow.params] KEY = VALUE`, the CLI `--param KEY=VALUE`, the viewer draws a
-/// slider for it, and `info` lists it with this documentation.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ParamSpec {
-    /// Unique across the registry, snake_case, prefixed with the technique's name.
-    pub key: &'static str,
-    /// Unit of the value ("m", "1/m", "-" for a ratio).
-    pub unit: &'static str,
-    /// What it changes, in one sentence.
-    pub doc: &'static str,
-    /// Smallest and largest accepted value, inclusive.
-    pub min: f32,
-    pub max: f32,
-    /// The value when unset; `None` means the technique derives it each frame (the doc says how).
-    pub default: Option<f32>,
-}
-
-impl ParamSpec {
-    /// Checks `value` against the range.
-    pub fn check(&self, value: f32) -> Result<(), ShadowError> {
-        if value.is_finite() && (self.min..=self.max).contains(&value) {
-            Ok(())
-        } else {
-            Err(ShadowError::ParamOutOfRange {
-                key: self.key,
-                value,
-                min: self.min,
-                max: self.max,
-            })
-        }
-    }
+    Ok(())
 }
 
 /// What a technique is for, which decides where the program uses it.
@@ -572,6 +482,7 @@ pub fn create(
 ) -> Result<Box<dyn ShadowTechnique>, ShadowError> {
     let entry = find(name)?;
     check_channels(entry, params.channels)?;
+    check_params(params)?;
     ctx.gpu
         .scoped(
             || {
@@ -750,9 +661,9 @@ mod tests {
         let mut params = TechniqueParams::new(8, 256);
         let ratio = find_param("dom_layer_ratio").unwrap();
         assert_eq!(params.get(ratio), Some(1.0));
-        params.set("dom_layer_ratio", 3.0).unwrap();
+        set_param(&mut params, "dom_layer_ratio", 3.0).unwrap();
         assert_eq!(params.get(ratio), Some(3.0));
-        assert!(params.set("dom_layer_ratio", 0.5).is_err());
+        assert!(set_param(&mut params, "dom_layer_ratio", 0.5).is_err());
     }
 
     #[test]
