@@ -56,7 +56,13 @@ fn main() -> ExitCode {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
     smokeshadow::gpu::quiet_device_select_layer();
-    env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("warn")).init();
+    // wgpu-core warns, over several lines, that an adapter is not a fully compliant WebGPU
+    // implementation (lavapipe on a CPU without F16C lacks SHADER_F16_IN_F32): nothing the tool
+    // uses, so that module speaks only of errors unless RUST_LOG says otherwise.
+    env_logger::Builder::from_env(
+        env_logger::Env::default().default_filter_or("warn,wgpu_core::instance=error"),
+    )
+    .init();
     let cli = match Cli::try_parse() {
         Ok(cli) => cli,
         Err(err) => {
