@@ -343,6 +343,32 @@ fn map_texture_layers(
     )
 }
 
+/// The first two entries of a lookup layout: the technique's uniform parameters (binding 0) and
+/// a bilinear sampler (binding 1); its maps follow from binding 2.
+pub(crate) fn lookup_layout_head() -> Vec<wgpu::BindGroupLayoutEntry> {
+    vec![
+        uniform_entry(0, LOOKUP_STAGES),
+        sampler_entry(1, LOOKUP_STAGES),
+    ]
+}
+
+/// The bind-group entries matching [`lookup_layout_head`].
+pub(crate) fn lookup_group_head<'a>(
+    params: &'a wgpu::Buffer,
+    sampler: &'a wgpu::Sampler,
+) -> Vec<wgpu::BindGroupEntry<'a>> {
+    vec![
+        wgpu::BindGroupEntry {
+            binding: 0,
+            resource: params.as_entire_binding(),
+        },
+        wgpu::BindGroupEntry {
+            binding: 1,
+            resource: wgpu::BindingResource::Sampler(sampler),
+        },
+    ]
+}
+
 /// A square single-layer shadow-map texture, recorded in `memory`, and its view.
 pub(crate) fn map_texture(
     memory: &mut MemoryLedger,
@@ -628,10 +654,7 @@ impl Layered {
         // Lookup: parameters, a bilinear sampler, the full layers as one array and the remainder
         // (one texture each, so a lookup picks a layer by index instead of switching between
         // textures), and the depth channel if there is one.
-        let mut lookup_entries = vec![
-            uniform_entry(0, LOOKUP_STAGES),
-            sampler_entry(1, LOOKUP_STAGES),
-        ];
+        let mut lookup_entries = lookup_layout_head();
         lookup_entries.push(wgpu::BindGroupLayoutEntry {
             binding: 2,
             visibility: LOOKUP_STAGES,
@@ -651,16 +674,7 @@ impl Layered {
             entries: &lookup_entries,
         });
         let sampler = super::map_sampler(device, &format!("{name}.sampler"));
-        let mut entries = vec![
-            wgpu::BindGroupEntry {
-                binding: 0,
-                resource: params_buffer.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 1,
-                resource: wgpu::BindingResource::Sampler(&sampler),
-            },
-        ];
+        let mut entries = lookup_group_head(&params_buffer, &sampler);
         entries.push(wgpu::BindGroupEntry {
             binding: 2,
             resource: wgpu::BindingResource::TextureView(&maps.full_view),

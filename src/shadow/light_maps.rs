@@ -13,8 +13,8 @@
 use bytemuck::{Pod, Zeroable};
 
 use super::layered::{
-    billboard_pipeline_blends, cleared_attachment, draw_particles, map_texture, sampler_entry,
-    texture_entry, uniform_entry,
+    billboard_pipeline_blends, cleared_attachment, draw_particles, lookup_group_head,
+    lookup_layout_head, map_texture, texture_entry, uniform_entry,
 };
 use super::{
     BuildInputs, DebugMap, LOOKUP_STAGES, MapKind, ParamSpec, ShadowError, ShadowTechnique,
@@ -181,10 +181,7 @@ impl LightMaps {
             &targets,
         );
 
-        let mut lookup_entries = vec![
-            uniform_entry(0, LOOKUP_STAGES),
-            sampler_entry(1, LOOKUP_STAGES),
-        ];
+        let mut lookup_entries = lookup_layout_head();
         for i in 0..spec.maps.len() {
             lookup_entries.push(texture_entry(2 + i as u32, LOOKUP_STAGES));
         }
@@ -193,16 +190,7 @@ impl LightMaps {
             entries: &lookup_entries,
         });
         let sampler = super::map_sampler(device, &format!("{name}.sampler"));
-        let mut entries = vec![
-            wgpu::BindGroupEntry {
-                binding: 0,
-                resource: params_buffer.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 1,
-                resource: wgpu::BindingResource::Sampler(&sampler),
-            },
-        ];
+        let mut entries = lookup_group_head(&params_buffer, &sampler);
         for (i, map) in maps.iter().enumerate() {
             entries.push(wgpu::BindGroupEntry {
                 binding: 2 + i as u32,
