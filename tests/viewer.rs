@@ -1,7 +1,8 @@
 //! The viewer's real eframe app driven headless through egui_kittest on lavapipe (no display):
 //! widgets change the state and the pixels, the viewport shows what `render` writes, a bad scene
 //! file is reported and the scene kept, and the default window matches its committed snapshot
-//! (updated only with `UPDATE_SNAPSHOTS=1`, never implicitly).
+//! (updated only with `UPDATE_SNAPSHOTS=1`, never implicitly). The controller alone, without
+//! egui or a GPU, answers the same controls, and the help lists every row of the shortcut table.
 
 mod common;
 
@@ -12,7 +13,7 @@ use egui_kittest::kittest::Queryable;
 use smokeshadow::gpu::AdapterPreference;
 use smokeshadow::render::{RenderOptions, render_offscreen};
 use smokeshadow::scene::Scene;
-use smokeshadow::viewer::{CompareMode, Source, ViewerApp};
+use smokeshadow::viewer::{CompareMode, Controller, Source, ViewerApp};
 
 /// The thesis scene at a size that keeps the tests quick.
 fn small_scene() -> Scene {
@@ -235,4 +236,91 @@ fn the_snapshot_comparison_tolerates_another_cpus_rounding_and_nothing_more() {
         egui_kittest::try_image_snapshot_options(&shifted, "viewer_default", &options).is_err(),
         "three steps on 20 pixels must fail"
     );
+}
+
+#[test]
+fn the_controller_answers_the_controls_without_egui_or_a_gpu() {
+    let scene = small_scene();
+    let mut c = Controller::new(scene.clone(), None, None);
+    assert_eq!(c.state.a.technique, "fom");
+
+    // The budget keys step A's channels within its technique's range.
+    let channels = c.state.a.channels;
+    c.more_channels();
+    assert_eq!(c.state.a.channels, channels + 1);
+    for _ in 0..100 {
+        c.fewer_channels();
+    }
+    let fom = smokeshadow::shadow::find("fom").unwrap();
+    assert_eq!(c.state.a.channels, fom.min_channels);
+
+    // T visits every technique a side can pick, once each, and comes back.
+    let contenders: Vec<&str> = smokeshadow::shadow::contenders().map(|e| e.name).collect();
+    let mut seen = Vec::new();
+    for _ in 0..contenders.len() {
+        c.next_technique();
+        seen.push(c.state.a.technique.clone());
+    }
+    seen.sort();
+    let mut expected: Vec<String> = contenders.iter().map(|n| n.to_string()).collect();
+    expected.sort();
+    assert_eq!(seen, expected);
+    assert_eq!(c.state.a.technique, "fom");
+
+    // What each source stands for.
+    c.state.a.source = Source::Baseline24;
+    assert_eq!(c.config(&c.state.a).params.channels, 24);
+    let exact = c.config(&c.state.b);
+    assert_eq!(
+        (exact.name.as_str(), exact.params.channels),
+        (smokeshadow::shadow::reference().name, 1)
+    );
+
+    // An edit that does not validate is reported and reverted; a valid one is kept.
+    c.edit_scene(|s| s.emitter.lifetime_s = -1.0);
+    let err = c.scene_error.clone().expect("the edit is reported");
+    assert!(err.contains("emitter.lifetime_s"), "{err}");
+    assert_eq!(c.state.scene, scene);
+    c.edit_scene(|s| s.emitter.lifetime_s = 2.0);
+    assert_eq!(
+        (c.scene_error.as_ref(), c.state.scene.emitter.lifetime_s),
+        (None, 2.0)
+    );
+
+    // Without a GPU the frame renders nothing and never claims to be settled.
+    c.toggle_help();
+    assert!(c.state.show_help);
+    c.update((640, 480), false);
+    assert!(c.read_view_a().is_none());
+    assert!(!c.settled(), "{}", c.progress());
+}
+
+#[test]
+fn the_help_lists_every_row_of_the_shortcut_table() {
+    use smokeshadow::viewer::shortcuts::{MOUSE, SHORTCUTS};
+    let mut harness = harness(small_scene());
+    harness.step();
+    harness.key_press(eframe::egui::Key::F1);
+    harness.step();
+    assert!(harness.state().state.show_help, "F1 opens the help");
+    // Within the help window itself (a key such as "S" may be written elsewhere too).
+    let help = harness.get_by_role_and_label(eframe::egui::Role::Window, "Keyboard and mouse");
+    let shown = |text: &str| help.query_all_by_label(text).next().is_some();
+    assert!(!shown("Load"), "the query is scoped to the help window");
+    for shortcut in SHORTCUTS {
+        assert!(
+            !shortcut.bindings.is_empty(),
+            "{} binds no key",
+            shortcut.keys
+        );
+        assert!(shown(shortcut.keys), "the help misses {:?}", shortcut.keys);
+        assert!(
+            shown(shortcut.description),
+            "the help misses {:?}",
+            shortcut.description
+        );
+    }
+    for (gesture, what) in MOUSE {
+        assert!(shown(gesture) && shown(what), "the help misses {gesture:?}");
+    }
 }

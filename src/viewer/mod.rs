@@ -3,11 +3,18 @@
 //! flips between techniques and budgets and sees, side by side, what each gets wrong and what it
 //! costs.
 //!
-//! - [`app`]: the eframe application: state, panels, shortcuts;
-//! - [`view`]: the two configurations A and B rendered into textures egui shows;
+//! Without egui (tests drive these directly):
+//! - [`controller`]: what the user set and what each control does; when to render and measure;
+//! - [`view`]: the two configurations A and B rendered into textures;
 //! - [`analysis`]: a worker thread for everything that reads back (errors against `exact`,
 //!   difference and FLIP images, the transmittance probe, screenshots), so the UI never waits;
 //! - [`camera`]: the orbit camera; [`map_view`]: the inspector's shadow-map pictures.
+//!
+//! With egui:
+//! - [`app`]: the eframe application gluing the controller to the rest;
+//! - [`panels`]: one file per panel; [`viewport`]: the pictures and the mouse;
+//! - [`shortcuts`]: the one table of keys, which also feeds the help;
+//! - [`textures`]: the controller's pictures as egui textures.
 //!
 //! eframe creates the wgpu device with what the renderer needs ([`wgpu_setup`]: the adapter
 //! the user asked for, its own limits, timestamp queries and 32-bit float blending/filtering).
@@ -15,8 +22,13 @@
 pub mod analysis;
 pub mod app;
 pub mod camera;
+pub mod controller;
 pub mod map_view;
+pub mod panels;
+pub mod shortcuts;
+pub mod textures;
 pub mod view;
+pub mod viewport;
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -26,7 +38,8 @@ use eframe::egui_wgpu;
 use crate::gpu::{self, AdapterPreference};
 use crate::scene::Scene;
 
-pub use app::{CompareMode, Source, ViewerApp};
+pub use app::ViewerApp;
+pub use controller::{CompareMode, Controller, Side, Source, ViewState};
 
 /// How eframe (or a test harness) should create the wgpu device: the adapter matching
 /// `preference` in the tool's usual order, the adapter's own limits, and the optional features

@@ -1,9 +1,8 @@
 //! One configuration of the viewer (A or B) rendered by the shared [`Renderer`] into a texture
-//! that egui shows. The texture is `Rgba8UnormSrgb`, as for the CLI, and egui samples it through
-//! an `Rgba8Unorm` view: egui expects already-encoded values, so the sRGB bytes pass through.
-
-use eframe::egui;
-use eframe::egui_wgpu;
+//! that the UI shows. The texture is `Rgba8UnormSrgb`, as for the CLI, and egui samples it
+//! through an `Rgba8Unorm` view: egui expects already-encoded values, so the sRGB bytes pass
+//! through. The view knows nothing of egui: [`super::textures`] registers `display_view` with
+//! egui's renderer, and again whenever `output_generation` says the texture was replaced.
 
 use crate::gpu::{Gpu, PassTimes};
 use crate::render::{FrameStats, OUTPUT_FORMAT, RenderOptions, Renderer, TechniqueConfig};
@@ -19,11 +18,11 @@ struct Rendered {
     size: (u32, u32),
 }
 
-/// The output texture and its egui registration.
+/// The output texture and the two views of it.
 struct Output {
     texture: wgpu::Texture,
     render_view: wgpu::TextureView,
-    egui_view: wgpu::TextureView,
+    display_view: wgpu::TextureView,
 }
 
 impl Output {
@@ -45,14 +44,14 @@ impl Output {
             view_formats: &[wgpu::TextureFormat::Rgba8Unorm],
         });
         let render_view = texture.create_view(&Default::default());
-        let egui_view = texture.create_view(&wgpu::TextureViewDescriptor {
+        let display_view = texture.create_view(&wgpu::TextureViewDescriptor {
             format: Some(wgpu::TextureFormat::Rgba8Unorm),
             ..Default::default()
         });
         Self {
             texture,
             render_view,
-            egui_view,
+            display_view,
         }
     }
 }
@@ -63,33 +62,23 @@ pub struct View {
     config: TechniqueConfig,
     output: Output,
     size: (u32, u32),
-    /// The texture as egui knows it.
-    pub texture_id: egui::TextureId,
+    /// Bumped whenever `output` is replaced (on a resize), so the UI registers the new one.
+    output_generation: u64,
     rendered: Option<Rendered>,
     /// The last frame's CPU-side numbers.
     pub stats: Option<FrameStats>,
 }
 
 impl View {
-    pub fn new(
-        gpu: &Gpu,
-        render_state: &egui_wgpu::RenderState,
-        config: &TechniqueConfig,
-        size: (u32, u32),
-    ) -> Result<Self, ShadowError> {
+    pub fn new(gpu: &Gpu, config: &TechniqueConfig, size: (u32, u32)) -> Result<Self, ShadowError> {
         let renderer = Renderer::new(gpu, size.0, size.1, OUTPUT_FORMAT, config)?;
         let output = Output::new(&gpu.device, size);
-        let texture_id = render_state.renderer.write().register_native_texture(
-            &gpu.device,
-            &output.egui_view,
-            wgpu::FilterMode::Linear,
-        );
         Ok(Self {
             renderer,
             config: config.clone(),
             output,
             size,
-            texture_id,
+            output_generation: 0,
             rendered: None,
             stats: None,
         })
@@ -107,11 +96,9 @@ impl View {
 
     /// Renders `scene` at `size` unless this exact frame is already shown. Returns whether it
     /// rendered.
-    #[allow(clippy::too_many_arguments)]
     pub fn render(
         &mut self,
         gpu: &Gpu,
-        render_state: &egui_wgpu::RenderState,
         scene: &Scene,
         particles: &[Particle],
         options: &RenderOptions,
@@ -131,15 +118,7 @@ impl View {
                 .resize(gpu, size.0, size.1)
                 .map_err(|e| ShadowError::Gpu(e.to_string()))?;
             self.output = Output::new(&gpu.device, size);
-            render_state
-                .renderer
-                .write()
-                .update_egui_texture_from_wgpu_texture(
-                    &gpu.device,
-                    &self.output.egui_view,
-                    wgpu::FilterMode::Linear,
-                    self.texture_id,
-                );
+            self.output_generation += 1;
             self.size = size;
         }
         let stats =
@@ -166,6 +145,16 @@ impl View {
 
     pub fn config(&self) -> &TechniqueConfig {
         &self.config
+    }
+
+    /// The `Rgba8Unorm` view of the output for the UI to sample.
+    pub fn display_view(&self) -> &wgpu::TextureView {
+        &self.output.display_view
+    }
+
+    /// Which output texture `display_view` is of: it changes when the view is resized.
+    pub fn output_generation(&self) -> u64 {
+        self.output_generation
     }
 
     /// The size the view last rendered at.

@@ -1,0 +1,140 @@
+//! The comparison panel: the mode, configurations A and B (source, technique, budget), and the
+//! settings they share: shadow-map resolution and splatting, every technique parameter the
+//! registry declares (a slider over its range), billboards, render size and exposure.
+
+use eframe::egui::{self, Color32};
+
+use crate::shadow::{self, SplatMode};
+use crate::viewer::controller::{
+    CompareMode, Controller, Side, Source, budget_meaning, clamp_channels, comparable_techniques,
+};
+
+/// Left panel, top: the comparison (mode, A, B) and the shared technique settings.
+pub fn show(controller: &mut Controller, ui: &mut egui::Ui) {
+    ui.heading("Compare");
+    ui.horizontal_wrapped(|ui| {
+        for (mode, label) in CompareMode::ALL {
+            ui.radio_value(&mut controller.state.mode, mode, label);
+        }
+    });
+    if controller.state.mode == CompareMode::Split {
+        ui.add(egui::Slider::new(&mut controller.state.split, 0.0..=1.0).text("Divider"));
+    }
+    ui.separator();
+    for (i, label) in ["A", "B"].iter().enumerate() {
+        let side = if i == 0 {
+            &mut controller.state.a
+        } else {
+            &mut controller.state.b
+        };
+        side_editor(ui, label, side);
+        ui.separator();
+    }
+    if let Some(err) = &controller.technique_error {
+        ui.colored_label(Color32::RED, err);
+    }
+
+    ui.heading("Shadow settings");
+    let shadow = &mut controller.state.scene.shadow;
+    ui.horizontal(|ui| {
+        let label = ui.label("Shadow map");
+        egui::ComboBox::from_id_salt("shadow_res")
+            .selected_text(format!("{0}x{0}", shadow.resolution_px))
+            .show_ui(ui, |ui| {
+                for res in [128, 256, 512, 1024, 2048] {
+                    ui.selectable_value(&mut shadow.resolution_px, res, format!("{res}x{res}"));
+                }
+            })
+            .response
+            .labelled_by(label.id);
+    });
+    ui.horizontal(|ui| {
+        ui.label("Splat");
+        ui.radio_value(&mut shadow.splat, SplatMode::Point, "point (thesis)");
+        ui.radio_value(&mut shadow.splat, SplatMode::Segment, "segment");
+    });
+    // Every technique parameter the registry declares: a slider over its range, and for one
+    // whose default is derived per frame, a checkbox that fixes it.
+    for (_, spec) in shadow::all_params() {
+        let range = spec.min..=spec.max;
+        let text = format!("{} ({})", spec.key, spec.unit);
+        let logarithmic = spec.max / spec.min.max(1e-6) > 100.0;
+        match spec.default {
+            Some(default) => {
+                let value = shadow.params.entry(spec.key.to_owned()).or_insert(default);
+                ui.add(
+                    egui::Slider::new(value, range)
+                        .logarithmic(logarithmic)
+                        .text(text),
+                )
+                .on_hover_text(spec.doc);
+                if *value == default {
+                    // Unset and default are the same setting: keep the scene canonical.
+                    shadow.params.remove(spec.key);
+                }
+            }
+            None => {
+                let mut fixed = shadow.params.contains_key(spec.key);
+                ui.checkbox(&mut fixed, format!("fixed {}", spec.key))
+                    .on_hover_text(spec.doc);
+                if fixed {
+                    let value = shadow
+                        .params
+                        .entry(spec.key.to_owned())
+                        .or_insert(spec.min.max(1.0).min(spec.max));
+                    ui.add(
+                        egui::Slider::new(value, range)
+                            .logarithmic(logarithmic)
+                            .text(text),
+                    );
+                } else {
+                    shadow.params.remove(spec.key);
+                }
+            }
+        }
+    }
+    ui.checkbox(&mut controller.state.spherical, "Spherical billboards");
+    ui.checkbox(&mut controller.state.fit_window, "Render at window size");
+    ui.add(
+        egui::Slider::new(&mut controller.state.scene.shading.exposure, 0.1..=8.0)
+            .logarithmic(true)
+            .text("Exposure"),
+    );
+}
+
+/// A side's pickers: source, technique, budget.
+fn side_editor(ui: &mut egui::Ui, label: &str, side: &mut Side) {
+    ui.strong(format!("Configuration {label}"));
+    ui.horizontal(|ui| {
+        ui.radio_value(&mut side.source, Source::Technique, "technique");
+        ui.radio_value(&mut side.source, Source::Baseline24, "24-ch baseline");
+        ui.radio_value(&mut side.source, Source::Exact, shadow::reference().name);
+    });
+    if side.source == Source::Exact {
+        return;
+    }
+    ui.horizontal(|ui| {
+        let l = ui.label(format!("Technique {label}"));
+        egui::ComboBox::from_id_salt(format!("technique_{label}"))
+            .selected_text(side.technique.clone())
+            .show_ui(ui, |ui| {
+                for name in comparable_techniques() {
+                    ui.selectable_value(&mut side.technique, name.to_owned(), name);
+                }
+            })
+            .response
+            .labelled_by(l.id);
+    });
+    clamp_channels(side);
+    if side.source == Source::Technique {
+        let entry = shadow::find(&side.technique).expect("registered");
+        ui.add(
+            egui::Slider::new(
+                &mut side.channels,
+                entry.min_channels..=shadow::MAX_CHANNELS,
+            )
+            .text(format!("Channels {label}")),
+        );
+        ui.label(budget_meaning(&side.technique, side.channels));
+    }
+}

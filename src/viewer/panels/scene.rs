@@ -1,0 +1,124 @@
+//! The scene panel: the scene file (load, save, the thesis scene, reset the camera) and the
+//! scene's emitter, wind and spotlight as drag values. Edits go through
+//! [`Controller::edit_scene`], which reverts one that does not validate and reports it.
+
+use eframe::egui::{self, Color32};
+
+use crate::scene::Scene;
+use crate::viewer::controller::Controller;
+
+/// Right panel, top: the scene file and the scene's settings.
+pub fn show(controller: &mut Controller, ui: &mut egui::Ui) {
+    ui.heading("Scene");
+    ui.horizontal(|ui| {
+        let label = ui.label("File");
+        ui.text_edit_singleline(&mut controller.scene_path)
+            .labelled_by(label.id);
+    });
+    ui.horizontal(|ui| {
+        if ui.button("Load").clicked() {
+            controller.load_scene();
+        }
+        if ui.button("Save").clicked() {
+            controller.save_scene();
+        }
+        if ui.button("Thesis scene").clicked() {
+            controller.set_scene(Scene::thesis_plume());
+        }
+        if ui.button("Reset camera").clicked() {
+            controller.reset_camera();
+        }
+    });
+    if let Some(err) = &controller.scene_error {
+        ui.colored_label(Color32::RED, err);
+    }
+    controller.edit_scene(|s| {
+        let e = &mut s.emitter;
+        egui::CollapsingHeader::new("Emitter")
+            .default_open(true)
+            .show(ui, |ui| {
+                egui::Grid::new("emitter").show(ui, |ui| {
+                    drag(ui, "Particles", &mut e.count, 1.0, 1.0..=100_000.0);
+                    drag(ui, "Seed", &mut e.seed, 1.0, 0.0..=1e9);
+                    drag(
+                        ui,
+                        "Density τ (1/m)",
+                        &mut e.density_per_m,
+                        0.01,
+                        0.0..=50.0,
+                    );
+                    drag(
+                        ui,
+                        "Radius at birth (m)",
+                        &mut e.radius_birth_m,
+                        0.005,
+                        0.01..=5.0,
+                    );
+                    drag(ui, "Growth (m/s)", &mut e.growth_m_per_s, 0.002, 0.0..=2.0);
+                    drag(ui, "Lifetime (s)", &mut e.lifetime_s, 0.05, 0.1..=60.0);
+                    drag(
+                        ui,
+                        "Buoyancy (m/s²)",
+                        &mut e.buoyancy_m_per_s2,
+                        0.02,
+                        0.0..=20.0,
+                    );
+                    drag(
+                        ui,
+                        "Turbulence (m/s²)",
+                        &mut e.turbulence_m_per_s2,
+                        0.02,
+                        0.0..=20.0,
+                    );
+                });
+            });
+        let w = &mut s.wind;
+        egui::CollapsingHeader::new("Wind").show(ui, |ui| {
+            egui::Grid::new("wind").show(ui, |ui| {
+                drag(
+                    ui,
+                    "Strength (m/s)",
+                    &mut w.strength_m_per_s,
+                    0.05,
+                    0.0..=30.0,
+                );
+                drag(ui, "Direction x", &mut w.direction.x, 0.05, -1.0..=1.0);
+                drag(ui, "Direction z", &mut w.direction.z, 0.05, -1.0..=1.0);
+                drag(ui, "Starts at (s)", &mut w.start_s, 0.1, 0.0..=60.0);
+                drag(ui, "Ramp (s)", &mut w.ramp_s, 0.05, 0.0..=10.0);
+            });
+        });
+        let l = &mut s.light;
+        egui::CollapsingHeader::new("Spotlight").show(ui, |ui| {
+            egui::Grid::new("light").show(ui, |ui| {
+                drag(ui, "Position x", &mut l.position.x, 0.05, -100.0..=100.0);
+                drag(ui, "Position y", &mut l.position.y, 0.05, -100.0..=100.0);
+                drag(ui, "Position z", &mut l.position.z, 0.05, -100.0..=100.0);
+                drag(ui, "Target x", &mut l.target.x, 0.05, -100.0..=100.0);
+                drag(ui, "Target y", &mut l.target.y, 0.05, -100.0..=100.0);
+                drag(ui, "Target z", &mut l.target.z, 0.05, -100.0..=100.0);
+                drag(ui, "Cone (deg)", &mut l.cone_angle_deg, 0.2, 1.0..=79.0);
+                drag(ui, "Intensity", &mut l.intensity, 1.0, 0.0..=1e5);
+            });
+            ui.label("In the view: drag the yellow ring to aim the light; shift-drag moves the light around its target.");
+        });
+    });
+}
+
+/// A labelled drag value in a grid row.
+fn drag<N: egui::emath::Numeric>(
+    ui: &mut egui::Ui,
+    label: &str,
+    value: &mut N,
+    speed: f64,
+    range: std::ops::RangeInclusive<f64>,
+) {
+    let l = ui.label(label);
+    ui.add(
+        egui::DragValue::new(value)
+            .speed(speed)
+            .range(N::from_f64(*range.start())..=N::from_f64(*range.end())),
+    )
+    .labelled_by(l.id);
+    ui.end_row();
+}
