@@ -552,55 +552,6 @@ mod tests {
     }
 
     #[test]
-    fn every_rust_mirror_matches_nagas_reflection_of_its_wgsl_struct() {
-        use crate::shaders::{SHADOW_TECHNIQUE, compose, source};
-        let mirrors = [
-            crate::frame::gpu_data::layouts(),
-            crate::frame::particles::layouts(),
-            layered::layouts(),
-            exact::layouts(),
-            half_angle::layouts(),
-            light_maps::layouts(),
-        ]
-        .concat();
-        let none = source("shadow/none.wgsl").unwrap();
-        for m in &mirrors {
-            let text = compose(m.wgsl_file, &[(SHADOW_TECHNIQUE, none)]);
-            let module = naga::front::wgsl::parse_str(&text)
-                .unwrap_or_else(|e| panic!("{}: {}", m.wgsl_file, e.emit_to_string(&text)));
-            let (members, span) = module
-                .types
-                .iter()
-                .find_map(|(_, ty)| match (&ty.name, &ty.inner) {
-                    (Some(name), naga::TypeInner::Struct { members, span })
-                        if name == m.wgsl_struct =>
-                    {
-                        Some((members.clone(), *span))
-                    }
-                    _ => None,
-                })
-                .unwrap_or_else(|| panic!("{} declares no struct {}", m.wgsl_file, m.wgsl_struct));
-            assert_eq!(
-                m.size, span as usize,
-                "{} is {} bytes, WGSL {} is {span}",
-                m.rust, m.size, m.wgsl_struct
-            );
-            let named: Vec<_> = members
-                .iter()
-                .filter(|mem| mem.name.as_deref().is_some_and(|n| !n.starts_with('_')))
-                .map(|mem| (mem.name.clone().unwrap(), mem.offset as usize))
-                .collect();
-            let rust: Vec<_> = m
-                .fields
-                .iter()
-                .filter(|(n, _)| !n.starts_with('_'))
-                .map(|(n, o)| ((*n).to_owned(), *o))
-                .collect();
-            assert_eq!(rust, named, "{} against WGSL {}", m.rust, m.wgsl_struct);
-        }
-    }
-
-    #[test]
     fn roles_and_parameters_are_consistent() {
         assert_eq!(frame_baseline().name, "none");
         assert_eq!(reference().name, "exact");

@@ -16,6 +16,16 @@ struct MapViewParams {
     _pad: u32,
 }
 
+/// The WGSL structs mirrored here.
+pub fn layouts() -> Vec<crate::gpu::MirrorLayout> {
+    vec![crate::mirror_layout!(
+        MapViewParams,
+        "render/map_view.wgsl",
+        "MapViewParams",
+        [component, kind, scale]
+    )]
+}
+
 /// Format of the inspector image.
 pub const MAP_VIEW_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
 
