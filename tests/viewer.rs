@@ -324,3 +324,38 @@ fn the_help_lists_every_row_of_the_shortcut_table() {
         assert!(shown(gesture) && shown(what), "the help misses {gesture:?}");
     }
 }
+
+#[test]
+fn a_configuration_the_gpu_cannot_hold_is_shown_in_red_and_the_previous_one_kept() {
+    // fom at 32 channels and 8192²: 7.5 GB of 32-bit coefficients, over the 4 GiB memory budget
+    // the ledger enforces before anything is allocated (the same on every machine).
+    let mut harness = harness(small_scene());
+    settle(&mut harness);
+    let before = harness.state().read_view_a().expect("view A renders");
+    let shown_config = harness.state().config(&harness.state().state.a);
+    {
+        let app = harness.state_mut();
+        app.state.a.channels = 32;
+        app.state.scene.shadow.resolution_px = 8192;
+    }
+    step_until(&mut harness, "the allocation error", |app| {
+        app.technique_error.is_some()
+    });
+    let err = harness.state().technique_error.clone().unwrap();
+    assert!(
+        err.starts_with("A: ") && err.contains("fom.maps") && err.contains("memory budget"),
+        "{err}"
+    );
+    harness.get_by_label(&err);
+    for _ in 0..5 {
+        harness.step();
+    }
+    // View A still holds the previous configuration, and shows what it showed.
+    let after = harness.state().read_view_a().expect("view A still renders");
+    assert_eq!(before.dimensions(), after.dimensions());
+    assert_eq!(
+        differing(&before, &after),
+        0,
+        "{shown_config:?} still shows"
+    );
+}
