@@ -59,6 +59,10 @@ pub struct Sample {
     pub depth01: f32,
     pub transmittance: f32,
     pub exact: f32,
+    /// The exact transmittance of the particle model at the point itself, on the CPU
+    /// ([`crate::shadow::closed_form`]): no texels, so `exact - closed_form` is `exact`'s own
+    /// shadow-map error.
+    pub closed_form: f32,
 }
 
 #[derive(Debug, Serialize)]
@@ -116,6 +120,11 @@ pub fn run(args: &ProbeArgs, adapter: &AdapterPreference) -> anyhow::Result<()> 
                 depth01: (distance_m - light.near_m) / (light.far_m - light.near_m),
                 transmittance: t,
                 exact: e,
+                closed_form: crate::shadow::closed_form::transmittance(
+                    scene.light.position,
+                    *p,
+                    &particles,
+                ),
             }
         });
     let at = samples.next().expect("the probed point is always first");
@@ -149,17 +158,18 @@ pub fn run(args: &ProbeArgs, adapter: &AdapterPreference) -> anyhow::Result<()> 
         report.light_far_m
     );
     let header = format!(
-        "{:>9} {:>8} {:>12} {:>12} {:>10}",
-        "dist m", "depth01", report.technique, "exact", "diff"
+        "{:>9} {:>8} {:>12} {:>12} {:>10} {:>12}",
+        "dist m", "depth01", report.technique, "exact", "diff", "closed form"
     );
     let row = |s: &Sample| {
         format!(
-            "{:>9.3} {:>8.3} {:>12.6} {:>12.6} {:>+10.6}",
+            "{:>9.3} {:>8.3} {:>12.6} {:>12.6} {:>+10.6} {:>12.6}",
             s.distance_m,
             s.depth01,
             s.transmittance,
             s.exact,
-            s.transmittance - s.exact
+            s.transmittance - s.exact,
+            s.closed_form
         )
     };
     let p = report.at.point;

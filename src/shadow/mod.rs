@@ -16,6 +16,7 @@
 //! `shaders/shadow/`, and one line in [`REGISTRY`].
 
 pub mod bsm;
+pub mod closed_form;
 pub mod dom;
 pub mod esm;
 pub mod exact;
