@@ -38,6 +38,22 @@ pub enum GpuError {
     Refused { what: String, cause: String },
 }
 
+/// What the device refused inside [`Gpu::scoped`], in one line.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Refusal {
+    pub cause: String,
+}
+
+impl Refusal {
+    /// The refusal as the error of `what` was being done ("creating osm at 32 channels ...").
+    pub fn during(self, what: impl Into<String>) -> GpuError {
+        GpuError::Refused {
+            what: what.into(),
+            cause: self.cause,
+        }
+    }
+}
+
 /// A wgpu error as one line: its description's lines joined, blank ones dropped.
 pub fn one_line(error: &wgpu::Error) -> String {
     error
@@ -185,13 +201,9 @@ impl Gpu {
     }
 
     /// Runs `f` inside out-of-memory and validation error scopes: what the device refuses
-    /// while `f` records or creates becomes [`GpuError::Refused`] naming `what`, instead of an
-    /// uncaptured error.
-    pub fn scoped<T>(
-        &self,
-        what: impl FnOnce() -> String,
-        f: impl FnOnce() -> T,
-    ) -> Result<T, GpuError> {
+    /// while `f` records or creates becomes a [`Refusal`] (the caller says what it was doing
+    /// with [`Refusal::during`]), instead of an uncaptured error.
+    pub fn scoped<T>(&self, f: impl FnOnce() -> T) -> Result<T, Refusal> {
         let out_of_memory = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
         let validation = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
         let value = f();
@@ -200,8 +212,7 @@ impl Gpu {
         let out_of_memory = pollster::block_on(out_of_memory.pop());
         match out_of_memory.or(validation) {
             None => Ok(value),
-            Some(error) => Err(GpuError::Refused {
-                what: what(),
+            Some(error) => Err(Refusal {
                 cause: one_line(&error),
             }),
         }

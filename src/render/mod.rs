@@ -288,9 +288,8 @@ impl Renderer {
     /// stay when the device refuses the new ones.
     pub fn resize(&mut self, gpu: &Gpu, width: u32, height: u32) -> Result<(), GpuError> {
         if (width, height) != (self.targets.width, self.targets.height) {
-            self.targets = gpu.scoped(
-                || format!("resizing the frame to {width}x{height}"),
-                || {
+            self.targets = gpu
+                .scoped(|| {
                     Targets::new(
                         &gpu.device,
                         &self.depth_layout,
@@ -298,8 +297,8 @@ impl Renderer {
                         width,
                         height,
                     )
-                },
-            )?;
+                })
+                .map_err(|r| r.during(format!("resizing the frame to {width}x{height}")))?;
         }
         Ok(())
     }
@@ -341,22 +340,17 @@ impl Renderer {
         options: &RenderOptions,
         output: &wgpu::TextureView,
     ) -> Result<FrameStats, ShadowError> {
-        let config = &self.technique_config;
-        let what = || {
-            format!(
-                "rendering a frame with {} at {} channels and {}x{}",
-                config.name,
-                config.params.channels,
-                config.params.resolution_px,
-                config.params.resolution_px
+        let frame = gpu.scoped(|| self.render_unscoped(gpu, scene, particles, options, output));
+        frame.map_err(|r| {
+            let c = &self.technique_config;
+            ShadowError::Gpu(
+                r.during(format!(
+                    "rendering a frame with {} at {} channels and {}x{}",
+                    c.name, c.params.channels, c.params.resolution_px, c.params.resolution_px
+                ))
+                .to_string(),
             )
-        };
-        let what = what();
-        gpu.scoped(
-            || what,
-            || self.render_unscoped(gpu, scene, particles, options, output),
-        )
-        .map_err(|e| ShadowError::Gpu(e.to_string()))?
+        })?
     }
 
     fn render_unscoped(
@@ -589,15 +583,14 @@ impl Renderer {
         particles: &[Particle],
         points: &[Vec3],
     ) -> anyhow::Result<Vec<f32>> {
-        let what = format!(
-            "probing {} at {} points",
-            self.technique_config.name,
-            points.len()
-        );
-        gpu.scoped(
-            || what,
-            || self.probe_unscoped(gpu, scene, particles, points),
-        )?
+        let t = gpu.scoped(|| self.probe_unscoped(gpu, scene, particles, points));
+        t.map_err(|r| {
+            r.during(format!(
+                "probing {} at {} points",
+                self.technique_config.name,
+                points.len()
+            ))
+        })?
     }
 
     fn probe_unscoped(

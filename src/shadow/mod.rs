@@ -485,16 +485,14 @@ pub fn create(
     check_channels(entry, params.channels)?;
     check_params(params)?;
     ctx.gpu
-        .scoped(
-            || {
-                format!(
-                    "creating {name} at {} channels and {}x{}",
-                    params.channels, params.resolution_px, params.resolution_px
-                )
-            },
-            || (entry.create)(ctx, params),
-        )
-        .map_err(|e| ShadowError::Gpu(e.to_string()))?
+        .scoped(|| (entry.create)(ctx, params))
+        .map_err(|r| {
+            let what = format!(
+                "creating {name} at {} channels and {}x{}",
+                params.channels, params.resolution_px, params.resolution_px
+            );
+            ShadowError::Gpu(r.during(what).to_string())
+        })?
 }
 
 /// Every WGSL module the renderer and the techniques compile, composed: (label, source).
