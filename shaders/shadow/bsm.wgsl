@@ -26,7 +26,7 @@ fn shadow_transmittance(p: vec3<f32>) -> f32 {
     if !l.inside {
         return 1.0;
     }
-    let fp = footprint(l.uv, textureDimensions(bsm_front));
+    let fp = bilinear_taps(l.uv, vec2<i32>(textureDimensions(bsm_front)));
     return fp.weights.x * bsm_texel(fp.texels[0], l.depth01)
         + fp.weights.y * bsm_texel(fp.texels[1], l.depth01)
         + fp.weights.z * bsm_texel(fp.texels[2], l.depth01)

@@ -22,7 +22,7 @@ fn shadow_transmittance(p: vec3<f32>) -> f32 {
     if !l.inside {
         return 1.0;
     }
-    let fp = footprint(l.uv, textureDimensions(esm_start));
+    let fp = bilinear_taps(l.uv, vec2<i32>(textureDimensions(esm_start)));
     return fp.weights.x * esm_texel(fp.texels[0], l.depth01)
         + fp.weights.y * esm_texel(fp.texels[1], l.depth01)
         + fp.weights.z * esm_texel(fp.texels[2], l.depth01)
