@@ -67,32 +67,14 @@ impl MapView {
             "map_view",
             &shaders::compose("render/map_view.wgsl", &[]),
         );
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("map_view.pipeline_layout"),
-            bind_group_layouts: &[Some(&layout)],
-            immediate_size: 0,
-        });
-        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("map_view.pipeline"),
-            layout: Some(&pipeline_layout),
-            vertex: wgpu::VertexState {
-                module: &module,
-                entry_point: Some("vs_main"),
-                compilation_options: Default::default(),
-                buffers: &[],
-            },
-            primitive: wgpu::PrimitiveState::default(),
-            depth_stencil: None,
-            multisample: wgpu::MultisampleState::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &module,
-                entry_point: Some("fs_main"),
-                compilation_options: Default::default(),
-                targets: &[Some(MAP_VIEW_FORMAT.into())],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
+        let pipeline = crate::frame::fullscreen::pipeline(
+            device,
+            "map_view.pipeline",
+            &module,
+            ("vs_main", "fs_main"),
+            &[Some(&layout)],
+            MAP_VIEW_FORMAT.into(),
+        );
         let params = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("map_view.params"),
             size: std::mem::size_of::<MapViewParams>() as u64,
