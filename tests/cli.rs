@@ -339,3 +339,45 @@ fn the_largest_budget_at_the_largest_resolution_renders_or_fails_in_one_line() {
         .collect();
     assert!(leftovers.is_empty(), "temporary files left: {leftovers:?}");
 }
+
+#[test]
+fn every_command_takes_an_embedded_scenes_name() {
+    let dir = scratch("cli-embedded-names");
+    let png = dir.join("wind.png");
+    let out = smokeshadow(&[
+        "render",
+        "thesis_wind",
+        "-t",
+        "osm",
+        "-c",
+        "4",
+        "--shadow-res",
+        "64",
+        "--size",
+        "64x48",
+        "-o",
+        png.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(png.is_file());
+    let probe = smokeshadow(&["probe", "thesis_wind", "--at", "0,2,0", "--json"]);
+    assert!(
+        probe.status.success(),
+        "{}",
+        String::from_utf8_lossy(&probe.stderr)
+    );
+    assert!(String::from_utf8_lossy(&probe.stdout).contains("\"thesis_wind\""));
+    // Neither a file nor an embedded scene: the line names the embedded ones.
+    let missing = smokeshadow(&["render", "thesis_breeze", "-o", png.to_str().unwrap()]);
+    assert_one_line_error(
+        &missing,
+        &[
+            "thesis_breeze",
+            "embedded scenes: thesis_plume, thesis_wind",
+        ],
+    );
+}

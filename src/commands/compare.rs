@@ -39,13 +39,7 @@ pub struct CompareArgs {
 
 /// A scene argument: an embedded scene's name, or a path.
 pub fn load_scene(arg: Option<&str>) -> anyhow::Result<Scene> {
-    Ok(match arg {
-        None => Scene::thesis_plume(),
-        Some(name) => match Scene::embedded(name) {
-            Some(scene) => scene,
-            None => Scene::load(std::path::Path::new(name))?,
-        },
-    })
+    Ok(Scene::load_or_default(arg.map(std::path::Path::new))?)
 }
 
 pub fn run(args: &CompareArgs, adapter: &AdapterPreference) -> anyhow::Result<()> {

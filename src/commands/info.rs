@@ -44,6 +44,10 @@ pub fn run(preference: &AdapterPreference) -> anyhow::Result<()> {
         shadow::MAX_CHANNELS,
         yes_no(ok)
     );
+    println!(
+        "embedded scenes (any command takes their name for a scene file): {}",
+        crate::scene::embedded_names()
+    );
     println!("techniques:");
     for e in shadow::REGISTRY {
         let role = match e.role {

@@ -15,7 +15,8 @@ use crate::shadow::LightSpace;
 
 #[derive(Clone, Debug, clap::Args)]
 pub struct ProbeArgs {
-    /// Scene file (TOML); the embedded thesis scene when omitted.
+    /// Scene file (TOML), or the name of an embedded scene (`smokeshadow info` lists them); the
+    /// embedded thesis scene when omitted.
     pub scene: Option<PathBuf>,
     #[command(flatten)]
     pub technique: TechniqueArgs,

@@ -13,7 +13,8 @@ use crate::scene::Scene;
 
 #[derive(Clone, Debug, clap::Args)]
 pub struct RenderArgs {
-    /// Scene file (TOML); the embedded thesis scene when omitted.
+    /// Scene file (TOML), or the name of an embedded scene (`smokeshadow info` lists them); the
+    /// embedded thesis scene when omitted.
     pub scene: Option<PathBuf>,
     #[command(flatten)]
     pub technique: TechniqueArgs,

@@ -6,7 +6,8 @@ use crate::gpu::AdapterPreference;
 
 #[derive(Clone, Debug, clap::Args)]
 pub struct ViewArgs {
-    /// Scene file (TOML); the embedded thesis scene when omitted.
+    /// Scene file (TOML), or the name of an embedded scene (`smokeshadow info` lists them); the
+    /// embedded thesis scene when omitted.
     pub scene: Option<PathBuf>,
 }
 

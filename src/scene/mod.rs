@@ -33,13 +33,24 @@ pub const EMBEDDED: &[(&str, &str)] = &[
     ("thesis_wind", THESIS_WIND_TOML),
 ];
 
+/// The embedded scenes' names, comma-separated.
+pub fn embedded_names() -> String {
+    EMBEDDED
+        .iter()
+        .map(|(n, _)| *n)
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
 /// Errors from loading or validating a scene. Each renders as one line for the user.
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
-    #[error("cannot read scene file {path}: {cause}")]
+    #[error("cannot read scene file {path}: {cause}{hint}")]
     Read {
         path: PathBuf,
         cause: std::io::Error,
+        /// For a file that does not exist: the embedded scenes a name could have meant.
+        hint: String,
     },
     #[error("{origin}: line {line}, column {column}: {message}")]
     Parse {
@@ -426,15 +437,28 @@ impl Scene {
     pub fn load(path: &Path) -> Result<Self, SceneError> {
         let text = std::fs::read_to_string(path).map_err(|cause| SceneError::Read {
             path: path.to_owned(),
+            hint: if cause.kind() == std::io::ErrorKind::NotFound {
+                format!("; embedded scenes: {}", embedded_names())
+            } else {
+                String::new()
+            },
             cause,
         })?;
         Self::from_toml_str(&text, &path.display().to_string())
     }
 
-    /// Loads `path`, or the embedded thesis scene when `path` is `None`.
-    pub fn load_or_default(path: Option<&Path>) -> Result<Self, SceneError> {
-        match path {
-            Some(path) => Self::load(path),
+    /// A scene argument: the name of an embedded scene (`thesis_wind`), else a file path.
+    pub fn open(name_or_path: &Path) -> Result<Self, SceneError> {
+        match name_or_path.to_str().and_then(Self::embedded) {
+            Some(scene) => Ok(scene),
+            None => Self::load(name_or_path),
+        }
+    }
+
+    /// [`Scene::open`] of `arg`, or the embedded thesis scene when `arg` is `None`.
+    pub fn load_or_default(arg: Option<&Path>) -> Result<Self, SceneError> {
+        match arg {
+            Some(arg) => Self::open(arg),
             None => Ok(Self::thesis_plume()),
         }
     }

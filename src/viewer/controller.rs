@@ -539,7 +539,7 @@ impl Controller {
 
     /// Loads the scene named in the path field; on an error the current scene stays.
     pub fn load_scene(&mut self) {
-        match Scene::load(std::path::Path::new(&self.scene_path)) {
+        match Scene::open(std::path::Path::new(&self.scene_path)) {
             Ok(scene) => {
                 self.set_scene(scene);
                 self.status = format!("loaded {}", self.scene_path);

@@ -82,7 +82,7 @@ pub fn native_options(preference: AdapterPreference) -> eframe::NativeOptions {
 /// returned as one-line errors.
 pub fn run(scene_path: Option<PathBuf>, preference: AdapterPreference) -> anyhow::Result<()> {
     let scene = match &scene_path {
-        Some(path) => Scene::load(path)?,
+        Some(path) => Scene::open(path)?,
         None => Scene::thesis_plume(),
     };
     let adapters = pollster::block_on(gpu::ranked_adapters(&gpu::instance()));
