@@ -343,6 +343,29 @@ fn map_texture_layers(
     )
 }
 
+/// A group holding only `buffer` as a uniform at binding 0 (a build pass's parameters): its
+/// layout (`<label>_layout`) and bind group (`<label>_bind_group`).
+pub(crate) fn uniform_group(
+    device: &wgpu::Device,
+    label: &str,
+    buffer: &wgpu::Buffer,
+    stages: wgpu::ShaderStages,
+) -> (wgpu::BindGroupLayout, wgpu::BindGroup) {
+    let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some(&format!("{label}_layout")),
+        entries: &[uniform_entry(0, stages)],
+    });
+    let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some(&format!("{label}_bind_group")),
+        layout: &layout,
+        entries: &[wgpu::BindGroupEntry {
+            binding: 0,
+            resource: buffer.as_entire_binding(),
+        }],
+    });
+    (layout, group)
+}
+
 /// The first two entries of a lookup layout: the technique's uniform parameters (binding 0) and
 /// a bilinear sampler (binding 1); its maps follow from binding 2.
 pub(crate) fn lookup_layout_head() -> Vec<wgpu::BindGroupLayoutEntry> {
@@ -568,18 +591,12 @@ impl Layered {
         // Build pass: group 1 holds the parameters and, after a depth pass, the depth channel it
         // reads (the maps themselves are render targets).
         let build_stages = wgpu::ShaderStages::VERTEX_FRAGMENT;
-        let params_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some(&format!("{name}.build.params_layout")),
-            entries: &[uniform_entry(0, build_stages)],
-        });
-        let params_bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some(&format!("{name}.build.params_bind_group")),
-            layout: &params_layout,
-            entries: &[wgpu::BindGroupEntry {
-                binding: 0,
-                resource: params_buffer.as_entire_binding(),
-            }],
-        });
+        let (params_layout, params_bind_group) = uniform_group(
+            device,
+            &format!("{name}.build.params"),
+            &params_buffer,
+            build_stages,
+        );
         let module = shaders::module(
             device,
             &format!("{name}.build"),

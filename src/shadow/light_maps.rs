@@ -14,7 +14,7 @@ use bytemuck::{Pod, Zeroable};
 
 use super::layered::{
     billboard_pipeline_blends, cleared_attachment, draw_particles, lookup_group_head,
-    lookup_layout_head, map_texture, texture_entry, uniform_entry,
+    lookup_layout_head, map_texture, texture_entry, uniform_group,
 };
 use super::{
     BuildInputs, DebugMap, LOOKUP_STAGES, MapKind, ParamSpec, ShadowError, ShadowTechnique,
@@ -154,18 +154,12 @@ impl LightMaps {
             bytemuck::bytes_of(&LightMapsParams { values }),
         );
 
-        let build_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some(&format!("{name}.build.layout")),
-            entries: &[uniform_entry(0, wgpu::ShaderStages::VERTEX_FRAGMENT)],
-        });
-        let build_bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some(&format!("{name}.build.bind_group")),
-            layout: &build_layout,
-            entries: &[wgpu::BindGroupEntry {
-                binding: 0,
-                resource: params_buffer.as_entire_binding(),
-            }],
-        });
+        let (build_layout, build_bind_group) = uniform_group(
+            device,
+            &format!("{name}.build.params"),
+            &params_buffer,
+            wgpu::ShaderStages::VERTEX_FRAGMENT,
+        );
         let module = shaders::module(
             device,
             &format!("{name}.build"),
