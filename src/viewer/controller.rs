@@ -442,6 +442,15 @@ impl Controller {
         }
     }
 
+    /// The reference's configuration (what a side showing `exact` stands for).
+    pub fn exact_config(&self) -> TechniqueConfig {
+        self.config(&Side {
+            source: Source::Exact,
+            technique: String::new(),
+            channels: 1,
+        })
+    }
+
     /// Whether side `i` is shown through the worker's images instead of a [`View`].
     pub fn side_on_worker(&self, i: usize) -> bool {
         let side = if i == 0 { &self.state.a } else { &self.state.b };
@@ -872,11 +881,7 @@ impl Controller {
                 ..RenderOptions::default()
             },
         };
-        let exact = self.config(&Side {
-            source: Source::Exact,
-            technique: String::new(),
-            channels: 1,
-        });
+        let exact = self.exact_config();
         self.next_request += 1;
         analysis.send(Request::Compare {
             id: self.next_request,
@@ -922,11 +927,7 @@ impl Controller {
                 });
             }
         }
-        configs.push(self.config(&Side {
-            source: Source::Exact,
-            technique: String::new(),
-            channels: 1,
-        }));
+        configs.push(self.exact_config());
         self.next_request += 1;
         analysis.send(Request::Probe {
             id: self.next_request,
