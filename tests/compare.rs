@@ -18,8 +18,6 @@ fn compare_writes_every_listed_file_and_a_page_without_dangling_links() {
             "osm,dom,fom",
             "--channels",
             "8,6,4",
-            "--exact-res",
-            "256",
             "-o",
             dir.to_str().unwrap(),
         ])

@@ -28,8 +28,6 @@ fn tiny_sweep_frames(dir: &Path, frames: &str, extra: &[&str]) -> Output {
         frames,
         "--warmup",
         "1",
-        "--exact-res",
-        "256",
         "-o",
         dir.to_str().unwrap(),
     ];

@@ -1,62 +1,94 @@
-// `exact` lookup: a deep shadow map with unbounded memory (Lokovic & Veach 2000, thesis 3.3.3.1).
-// Every shadow-map texel holds the visibility function of its light ray as a sorted list of
-// nodes (z, Ω(z)), z the radial distance from the light in metres: the optical depth in front of
-// z is piecewise linear between nodes, exact for the particles' density model (each particle
-// adds τ(1 - d/r)·2w spread uniformly over its chord [t - w, t + w]). Texel i's nodes are
-// exact_nodes[2·offsets[i] .. 2·offsets[i + 1]). The four texels around a point are evaluated
-// separately and blended bilinearly. Keep `ExactParams` in sync with src/shadow/exact.rs.
+// `exact` lookup: the particle model's transmittance in closed form at the point itself, with no
+// texels: T(p) = exp(-Σ_i τ_i (1 - d_i/r_i) ℓ_i(p)), d_i the distance from particle i's centre
+// to the segment light -> p and ℓ_i(p) the part of its chord between the light and p (the density
+// model of the spherical billboards and the chord splat).
+//
+// The particles that can cross the segment are those whose light-space footprint covers p's
+// point of the light's image plane: the build bins them into light-space tiles (seeds/001, "light
+// occlusion": particles appended to the tiles they cover, lists walked per query with early
+// exit). Each tile's list is sorted by the distance from the light to the sphere's near side, so
+// the walk stops at the first sphere that begins beyond p. Keep `ExactParams` in sync with
+// src/shadow/exact.rs and exact_build.wgsl, and the arithmetic with src/shadow/closed_form.rs.
 #import common/lighting.wgsl
 
 struct ExactParams {
-    // Shadow-map resolution (texels per side).
-    resolution: u32,
-    // Segments the list buffers can hold.
+    // The light's view matrix (it looks down -z) and tan of half its field of view.
+    view_from_world: mat4x4<f32>,
+    tan_half_fov: f32,
+    // Tiles per side of the light's image plane.
+    tiles: u32,
+    // Particles binned this frame, and entries the list buffer can hold.
+    particle_count: u32,
     capacity: u32,
-    _pad0: u32,
-    _pad1: u32,
+};
+
+// A particle as the renderer's instance buffer holds it (`ParticleInstance`).
+struct Sphere {
+    // xyz: centre (m); w: radius (m).
+    center_radius: vec4<f32>,
+    // rgb: albedo; w: extinction τ (1/m).
+    albedo_density: vec4<f32>,
 };
 
 @group(1) @binding(0) var<uniform> exact: ExactParams;
 @group(1) @binding(1) var<storage, read> exact_offsets: array<u32>;
-@group(1) @binding(2) var<storage, read> exact_nodes: array<vec2<f32>>;
+// (near distance bits, particle index), sorted per tile.
+@group(1) @binding(2) var<storage, read> exact_entries: array<vec2<u32>>;
+@group(1) @binding(3) var<storage, read> exact_spheres: array<Sphere>;
 
-// Optical depth in front of distance z (m) along the ray of one texel.
-fn exact_texel_omega(texel: vec2<i32>, z: f32) -> f32 {
-    let index = u32(texel.y) * exact.resolution + u32(texel.x);
-    let first = 2u * exact_offsets[index];
-    let count = 2u * exact_offsets[index + 1u] - first;
-    if count == 0u || z <= exact_nodes[first].x {
+// The tile a light-view point falls in, or -1 outside the light's image plane.
+fn exact_tile(view: vec3<f32>) -> i32 {
+    if view.z >= 0.0 {
+        return -1;
+    }
+    let ndc = view.xy / (-view.z * exact.tan_half_fov);
+    if any(abs(ndc) > vec2<f32>(1.0)) {
+        return -1;
+    }
+    let uv = ndc * vec2<f32>(0.5, -0.5) + vec2<f32>(0.5);
+    let n = i32(exact.tiles);
+    let tile = clamp(vec2<i32>(floor(uv * f32(n))), vec2<i32>(0), vec2<i32>(n - 1));
+    return tile.y * n + tile.x;
+}
+
+// Optical depth from the light to `p` through the spheres of p's tile.
+fn exact_optical_depth(p: vec3<f32>) -> f32 {
+    let view = (exact.view_from_world * vec4<f32>(p, 1.0)).xyz;
+    let tile = exact_tile(view);
+    if tile < 0 {
         return 0.0;
     }
-    let last = exact_nodes[first + count - 1u];
-    if z >= last.x {
-        return last.y;
+    let origin = frame.light_pos.xyz;
+    let to_p = p - origin;
+    let length_m = length(to_p);
+    if length_m <= 0.0 {
+        return 0.0;
     }
-    // The last node at or before z, by bisection: nodes[lo].x <= z < nodes[hi].x.
-    var lo = 0u;
-    var hi = count - 1u;
-    while hi - lo > 1u {
-        let mid = (lo + hi) / 2u;
-        if exact_nodes[first + mid].x <= z {
-            lo = mid;
-        } else {
-            hi = mid;
+    let dir = to_p / length_m;
+    var omega = 0.0;
+    let end = exact_offsets[tile + 1];
+    for (var i = exact_offsets[tile]; i < end; i++) {
+        let entry = exact_entries[i];
+        // Sorted by near distance: every later sphere starts beyond p.
+        if bitcast<f32>(entry.x) >= length_m {
+            break;
         }
+        let sphere = exact_spheres[entry.y];
+        let r = sphere.center_radius.w;
+        let oc = sphere.center_radius.xyz - origin;
+        let t_mid = dot(oc, dir);
+        // The perpendicular offset, not |oc|² - t², which cancels catastrophically.
+        let d2 = dot(oc - dir * t_mid, oc - dir * t_mid);
+        if d2 >= r * r {
+            continue;
+        }
+        let half = sqrt(r * r - d2);
+        let inside = max(min(t_mid + half, length_m) - max(t_mid - half, 0.0), 0.0);
+        omega += sphere.albedo_density.w * (1.0 - sqrt(d2) / r) * inside;
     }
-    let a = exact_nodes[first + lo];
-    let b = exact_nodes[first + hi];
-    return mix(a.y, b.y, clamp((z - a.x) / max(b.x - a.x, 1e-12), 0.0, 1.0));
+    return omega;
 }
 
 fn shadow_transmittance(p: vec3<f32>) -> f32 {
-    let l = light_coords(p);
-    if !l.inside {
-        return 1.0;
-    }
-    var taps = bilinear_taps(l.uv, vec2<i32>(i32(exact.resolution)));
-    var omega = 0.0;
-    for (var i = 0; i < 4; i++) {
-        omega += taps.weights[i] * exact_texel_omega(taps.texels[i], l.dist_m);
-    }
-    return exp(-omega);
+    return exp(-exact_optical_depth(p));
 }

@@ -1,248 +1,193 @@
-// `exact` build: per-texel segment lists, sorted, turned into visibility functions.
-// 1. fs_count: every light-space particle fragment (one light ray through one particle) counts
-//    itself in its texel (atomic add).
-// 2. scan_rows, scan_total, scan_write: exclusive prefix sum of the counts -> list offsets
-//    (offsets[res²] = total).
-// 3. fs_fill: every fragment writes its segment (z0, z1, optical depth) into its texel's list
-//    (counts, cleared, serve as cursors).
-// 4. resolve: per texel, sort the segments by start, sort their ends, and merge both into the
-//    nodes (z, Ω(z)) of the piecewise-linear optical depth: between events Ω grows by the sum of
-//    the slopes (optical depth per metre) of the segments open there.
-// Keep `ExactParams` in sync with src/shadow/exact.rs.
-#import shadow/layered_build.wgsl
+// `exact` build: the particles binned into light-space tiles, each tile's list sorted.
+// 1. count: each particle adds 1 to every tile its light-space footprint covers (atomics).
+// 2. scan_rows, scan_total, scan_write: exclusive prefix sum of the counts -> list offsets (offsets[tiles²] = total).
+// 3. fill: each particle writes (near distance, index) into the lists of its tiles (the counts,
+//    cleared, serve as cursors). Invocation i takes the i-th particle nearest the light (`order`,
+//    sorted on the CPU), so each list fills almost in order.
+// 4. sort: each tile's list by near distance, then index, by insertion sort (linear in the few
+//    places where concurrent invocations swapped neighbours): the order, and so every sum over
+//    a list, does not depend on the order the atomics ran in.
+// Keep `ExactParams` in sync with src/shadow/exact.rs and exact.wgsl.
 
 struct ExactParams {
-    resolution: u32,
+    view_from_world: mat4x4<f32>,
+    tan_half_fov: f32,
+    tiles: u32,
+    particle_count: u32,
     capacity: u32,
-    _pad0: u32,
-    _pad1: u32,
 };
 
-struct Segment {
-    // Radial distances from the light where the chord enters and leaves the sphere (m).
-    z0: f32,
-    z1: f32,
-    // Optical depth of the whole chord: τ(1 - d/r)·2w.
-    optical_depth: f32,
+struct Sphere {
+    center_radius: vec4<f32>,
+    albedo_density: vec4<f32>,
 };
 
 @group(1) @binding(0) var<uniform> exact: ExactParams;
 @group(1) @binding(1) var<storage, read_write> counts: array<atomic<u32>>;
 @group(1) @binding(2) var<storage, read_write> offsets: array<u32>;
-@group(1) @binding(3) var<storage, read_write> segments: array<Segment>;
-@group(1) @binding(4) var<storage, read_write> nodes: array<vec2<f32>>;
-@group(1) @binding(5) var<storage, read_write> row_sums: array<u32>;
+@group(1) @binding(3) var<storage, read_write> entries: array<vec2<u32>>;
+@group(1) @binding(4) var<storage, read> spheres: array<Sphere>;
+@group(1) @binding(5) var<storage, read> order: array<u32>;
+@group(1) @binding(6) var<storage, read_write> row_sums: array<u32>;
 
-// Shortest chord kept, metres: shorter ones (grazing rays) are widened to this so that every
-// segment has a finite slope; their optical depth τ(1 - d/r)·2w is vanishingly small anyway.
-const MIN_WIDTH_M: f32 = 1e-4;
+const HALF_PI: f32 = 1.5707963;
 
-// The fragment's segment, or optical depth < 0 when its ray misses the sphere.
-fn fragment_segment(in: BuildVertexOut) -> Segment {
-    var out: Segment;
-    let origin = frame.light_pos.xyz;
-    let dir = normalize(in.world - origin);
-    let chord = sphere_chord(origin, dir, in.center_radius.xyz, in.center_radius.w);
-    if chord.d >= in.center_radius.w {
-        out.optical_depth = -1.0;
-        return out;
+// The range of one light-view axis a sphere covers, as tile indices [x, y], or x > y when it
+// covers none. `a` is the centre's coordinate along the axis, `z` its view depth (< 0 in front).
+// The sphere's extreme directions in the (a, z) plane are θ ± asin(r/ρ): exact, and widened by a
+// relative 1e-4 so that rounding never drops a sphere the lookup's tile test would reach.
+fn axis_tiles(a: f32, z: f32, r: f32, flip: bool) -> vec2<i32> {
+    let n = i32(exact.tiles);
+    let rho = sqrt(a * a + z * z);
+    var lo = -1e30;
+    var hi = 1e30;
+    if rho > r {
+        let theta = atan2(a, -z);
+        let alpha = asin(r / rho) * 1.0001 + 1e-6;
+        if theta - alpha > -HALF_PI {
+            lo = tan(theta - alpha) / exact.tan_half_fov;
+        }
+        if theta + alpha < HALF_PI {
+            hi = tan(theta + alpha) / exact.tan_half_fov;
+        }
+        if theta - alpha >= HALF_PI || theta + alpha <= -HALF_PI {
+            return vec2<i32>(1, 0);
+        }
     }
-    let w = max(chord.half_width, 0.5 * MIN_WIDTH_M);
-    out.z0 = chord.t_mid - w;
-    out.z1 = chord.t_mid + w;
-    out.optical_depth = chord_extinction(in.density, chord.d, in.center_radius.w) * 2.0 * chord.half_width;
+    // NDC -> uv; the image's y runs downwards.
+    var u0 = 0.5 + 0.5 * lo;
+    var u1 = 0.5 + 0.5 * hi;
+    if flip {
+        u0 = 0.5 - 0.5 * hi;
+        u1 = 0.5 - 0.5 * lo;
+    }
+    if u1 < 0.0 || u0 > 1.0 {
+        return vec2<i32>(1, 0);
+    }
+    let first = i32(floor(clamp(u0, 0.0, 1.0) * f32(n)));
+    let last = i32(floor(clamp(u1, 0.0, 1.0) * f32(n)));
+    return vec2<i32>(clamp(first, 0, n - 1), clamp(last, 0, n - 1));
+}
+
+struct Footprint {
+    x: vec2<i32>,
+    y: vec2<i32>,
+    // Radial distance from the light to the sphere's near side (m), never below 0.
+    near_m: f32,
+};
+
+fn footprint(index: u32) -> Footprint {
+    var out: Footprint;
+    let sphere = spheres[index];
+    let r = sphere.center_radius.w;
+    let view = (exact.view_from_world * vec4<f32>(sphere.center_radius.xyz, 1.0)).xyz;
+    out.x = axis_tiles(view.x, view.z, r, false);
+    out.y = axis_tiles(view.y, view.z, r, true);
+    if sphere.albedo_density.w <= 0.0 || r <= 0.0 {
+        out.x = vec2<i32>(1, 0);
+    }
+    out.near_m = max(length(view) - r, 0.0);
     return out;
 }
 
-fn texel_index(clip: vec4<f32>) -> u32 {
-    let texel = vec2<u32>(clip.xy);
-    return texel.y * exact.resolution + texel.x;
+@compute @workgroup_size(64)
+fn count(@builtin(global_invocation_id) id: vec3<u32>) {
+    if id.x >= exact.particle_count {
+        return;
+    }
+    let f = footprint(id.x);
+    let n = i32(exact.tiles);
+    for (var y = f.y.x; y <= f.y.y; y++) {
+        for (var x = f.x.x; x <= f.x.y; x++) {
+            atomicAdd(&counts[y * n + x], 1u);
+        }
+    }
 }
 
-// The colour output is a dummy (its target's write mask is empty): the lists are the result.
-@fragment
-fn fs_count(in: BuildVertexOut) -> @location(0) vec4<f32> {
-    if fragment_segment(in).optical_depth < 0.0 {
-        discard;
-    }
-    atomicAdd(&counts[texel_index(in.clip)], 1u);
-    return vec4<f32>(0.0);
-}
-
-@fragment
-fn fs_fill(in: BuildVertexOut) -> @location(0) vec4<f32> {
-    let segment = fragment_segment(in);
-    if segment.optical_depth < 0.0 {
-        discard;
-    }
-    let index = texel_index(in.clip);
-    let slot = offsets[index] + atomicAdd(&counts[index], 1u);
-    if slot < exact.capacity {
-        segments[slot] = segment;
-    }
-    return vec4<f32>(0.0);
-}
-
-const SCAN_GROUP: u32 = 64u;
-
-// Sum of each row's counts.
+// The exclusive scan in three steps: each row's sum, the scan of the row sums (one invocation:
+// there are at most 512 rows), each row's offsets.
 @compute @workgroup_size(64)
 fn scan_rows(@builtin(global_invocation_id) id: vec3<u32>) {
     let row = id.x;
-    if row >= exact.resolution {
+    if row >= exact.tiles {
         return;
     }
     var sum = 0u;
-    for (var x = 0u; x < exact.resolution; x++) {
-        sum += atomicLoad(&counts[row * exact.resolution + x]);
+    for (var x = 0u; x < exact.tiles; x++) {
+        sum += atomicLoad(&counts[row * exact.tiles + x]);
     }
     row_sums[row] = sum;
 }
 
-// Exclusive scan of the row sums (one invocation: there are only `resolution` of them).
 @compute @workgroup_size(1)
 fn scan_total() {
     var running = 0u;
-    for (var row = 0u; row < exact.resolution; row++) {
+    for (var row = 0u; row < exact.tiles; row++) {
         let sum = row_sums[row];
         row_sums[row] = running;
         running += sum;
     }
-    row_sums[exact.resolution] = running;
-    offsets[exact.resolution * exact.resolution] = running;
+    row_sums[exact.tiles] = running;
+    offsets[exact.tiles * exact.tiles] = running;
 }
 
-// Each row's exclusive offsets.
 @compute @workgroup_size(64)
 fn scan_write(@builtin(global_invocation_id) id: vec3<u32>) {
     let row = id.x;
-    if row >= exact.resolution {
+    if row >= exact.tiles {
         return;
     }
     var running = row_sums[row];
-    for (var x = 0u; x < exact.resolution; x++) {
-        let index = row * exact.resolution + x;
+    for (var x = 0u; x < exact.tiles; x++) {
+        let index = row * exact.tiles + x;
         offsets[index] = running;
         running += atomicLoad(&counts[index]);
     }
 }
 
-fn segment_slope(s: Segment) -> f32 {
-    return s.optical_depth / (s.z1 - s.z0);
-}
-
-// Heapsort of segments[base .. base + n) by start depth.
-fn sort_segments(base: u32, n: u32) {
-    // Build a max-heap, then repeatedly move the largest to the end.
-    for (var start = n / 2u; start > 0u; start--) {
-        sift_segment(base, start - 1u, n);
-    }
-    for (var end = n; end > 1u; end--) {
-        let top = segments[base];
-        segments[base] = segments[base + end - 1u];
-        segments[base + end - 1u] = top;
-        sift_segment(base, 0u, end - 1u);
-    }
-}
-
-fn sift_segment(base: u32, root_in: u32, n: u32) {
-    var root = root_in;
-    let value = segments[base + root];
-    loop {
-        var child = 2u * root + 1u;
-        if child >= n {
-            break;
-        }
-        if child + 1u < n && segments[base + child + 1u].z0 > segments[base + child].z0 {
-            child += 1u;
-        }
-        if segments[base + child].z0 <= value.z0 {
-            break;
-        }
-        segments[base + root] = segments[base + child];
-        root = child;
-    }
-    segments[base + root] = value;
-}
-
-// Heapsort of nodes[base .. base + n) by depth (x).
-fn sort_ends(base: u32, n: u32) {
-    for (var start = n / 2u; start > 0u; start--) {
-        sift_end(base, start - 1u, n);
-    }
-    for (var end = n; end > 1u; end--) {
-        let top = nodes[base];
-        nodes[base] = nodes[base + end - 1u];
-        nodes[base + end - 1u] = top;
-        sift_end(base, 0u, end - 1u);
-    }
-}
-
-fn sift_end(base: u32, root_in: u32, n: u32) {
-    var root = root_in;
-    let value = nodes[base + root];
-    loop {
-        var child = 2u * root + 1u;
-        if child >= n {
-            break;
-        }
-        if child + 1u < n && nodes[base + child + 1u].x > nodes[base + child].x {
-            child += 1u;
-        }
-        if nodes[base + child].x <= value.x {
-            break;
-        }
-        nodes[base + root] = nodes[base + child];
-        root = child;
-    }
-    nodes[base + root] = value;
-}
-
-@compute @workgroup_size(8, 8)
-fn resolve(@builtin(global_invocation_id) id: vec3<u32>) {
-    if id.x >= exact.resolution || id.y >= exact.resolution {
+@compute @workgroup_size(64)
+fn fill(@builtin(global_invocation_id) id: vec3<u32>) {
+    if id.x >= exact.particle_count {
         return;
     }
-    let index = id.y * exact.resolution + id.x;
-    let first = offsets[index];
-    let n = offsets[index + 1u] - first;
-    if n == 0u || first + n > exact.capacity {
+    let index = order[id.x];
+    let f = footprint(index);
+    let n = i32(exact.tiles);
+    let key = bitcast<u32>(f.near_m);
+    for (var y = f.y.x; y <= f.y.y; y++) {
+        for (var x = f.x.x; x <= f.x.y; x++) {
+            let tile = y * n + x;
+            let slot = offsets[tile] + atomicAdd(&counts[tile], 1u);
+            if slot < exact.capacity {
+                entries[slot] = vec2<u32>(key, index);
+            }
+        }
+    }
+}
+
+// Lexicographic order of (key, index); keys are non-negative floats, whose bits order as u32s.
+fn entry_less(a: vec2<u32>, b: vec2<u32>) -> bool {
+    return a.x < b.x || (a.x == b.x && a.y < b.y);
+}
+
+// Insertion sort of one tile's list.
+@compute @workgroup_size(64)
+fn sort(@builtin(global_invocation_id) id: vec3<u32>) {
+    if id.x >= exact.tiles * exact.tiles {
         return;
     }
-    // Segments by start, then their ends with the slope each one closes (in the upper half of
-    // the texel's nodes), each sorted by depth with heapsort: O(n log n) whatever the order the
-    // fragments arrived in (the longest lists hold hundreds of segments).
-    sort_segments(first, n);
-    let ends = 2u * first + n;
-    for (var i = 0u; i < n; i++) {
-        let s = segments[first + i];
-        nodes[ends + i] = vec2<f32>(s.z1, segment_slope(s));
+    let base = offsets[id.x];
+    let n = offsets[id.x + 1u] - base;
+    if base + n > exact.capacity {
+        return;
     }
-    sort_ends(ends, n);
-    // Merge starts and ends into nodes [2·first, 2·first + 2n). Writing node k = i + j never
-    // overtakes the unread ends (k <= n + j), so the merge works in place.
-    var i = 0u;
-    var j = 0u;
-    var omega = 0.0;
-    var slope = 0.0;
-    var z_prev = segments[first].z0;
-    for (var k = 0u; k < 2u * n; k++) {
-        var z: f32;
-        var delta: f32;
-        if i < n && (j >= n || segments[first + i].z0 <= nodes[ends + j].x) {
-            let s = segments[first + i];
-            z = s.z0;
-            delta = segment_slope(s);
-            i++;
-        } else {
-            let e = nodes[ends + j];
-            z = e.x;
-            delta = -e.y;
-            j++;
+    for (var i = 1u; i < n; i++) {
+        let value = entries[base + i];
+        var j = i;
+        while j > 0u && entry_less(value, entries[base + j - 1u]) {
+            entries[base + j] = entries[base + j - 1u];
+            j--;
         }
-        omega += slope * (z - z_prev);
-        slope = max(slope + delta, 0.0);
-        z_prev = z;
-        nodes[2u * first + k] = vec2<f32>(z, omega);
+        entries[base + j] = value;
     }
 }

@@ -27,16 +27,9 @@ use criterion::{HdrBlocks, Scores};
 
 /// The budget of every baseline (the thesis' baselines).
 pub const BASELINE_CHANNELS: u32 = 24;
-/// Shadow-map resolution of the `exact` baselines: the ground truth wants more rays than the
-/// techniques' 512² (1024² is what lavapipe's storage-binding limit allows for these scenes).
-pub const EXACT_RESOLUTION_PX: u32 = 1024;
-
 /// How a baseline of `technique` is rendered for `scene`.
 pub fn config(technique: &str, scene: &Scene) -> TechniqueConfig {
-    let mut params: TechniqueParams = scene.shadow.params(BASELINE_CHANNELS);
-    if technique == shadow::reference().name {
-        params.resolution_px = EXACT_RESOLUTION_PX;
-    }
+    let params: TechniqueParams = scene.shadow.params(BASELINE_CHANNELS);
     TechniqueConfig {
         name: technique.to_owned(),
         params,

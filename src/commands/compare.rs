@@ -29,9 +29,6 @@ pub struct CompareArgs {
     /// How the layered techniques place optical depth (default: the scene's).
     #[arg(long, value_enum)]
     pub splat: Option<SplatMode>,
-    /// Shadow resolution of the `exact` reference.
-    #[arg(long, default_value_t = crate::baseline::EXACT_RESOLUTION_PX, value_parser = clap::value_parser!(u32).range(1..=8192))]
-    pub exact_res: u32,
     /// Output size as WIDTHxHEIGHT (default: the scene's).
     #[arg(long)]
     pub size: Option<super::Size>,
@@ -52,7 +49,6 @@ pub fn run(args: &CompareArgs, adapter: &AdapterPreference) -> anyhow::Result<()
         techniques: args.techniques.clone(),
         budgets: args.channels.clone(),
         splat: args.splat.unwrap_or(scene.shadow.splat),
-        exact_resolution_px: args.exact_res,
     };
     let gpu = Gpu::new(adapter)?;
     let report = compare::run(&gpu, &scene, &options, &args.output)?;

@@ -27,10 +27,6 @@ pub struct ProbeArgs {
     /// light-space depth range.
     #[arg(long, value_parser = clap::value_parser!(u32).range(2..=100_000))]
     pub along_light: Option<u32>,
-    /// Shadow resolution of the `exact` reference (default: the technique's, so that only the
-    /// depth representation differs).
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=8192))]
-    pub exact_res: Option<u32>,
     /// Print JSON instead of a table.
     #[arg(long)]
     pub json: bool,
@@ -73,7 +69,6 @@ struct Report<'a> {
     channels: u32,
     channels_used: u32,
     shadow_res: u32,
-    exact_res: u32,
     splat: &'a str,
     light_near_m: f32,
     light_far_m: f32,
@@ -86,10 +81,7 @@ pub fn run(args: &ProbeArgs, adapter: &AdapterPreference) -> anyhow::Result<()> 
     let technique = args.technique.config(&scene)?;
     let exact = TechniqueConfig {
         name: "exact".to_owned(),
-        params: crate::shadow::TechniqueParams {
-            resolution_px: args.exact_res.unwrap_or(technique.params.resolution_px),
-            ..technique.params.clone()
-        },
+        params: technique.params.clone(),
     };
     let gpu = Gpu::new(adapter)?;
     let particles = crate::sim::simulate(&scene);
@@ -135,7 +127,6 @@ pub fn run(args: &ProbeArgs, adapter: &AdapterPreference) -> anyhow::Result<()> 
         channels: technique.params.channels,
         channels_used,
         shadow_res: technique.params.resolution_px,
-        exact_res: exact.params.resolution_px,
         splat: technique.params.splat.name(),
         light_near_m: light.near_m,
         light_far_m: light.far_m,
@@ -147,14 +138,13 @@ pub fn run(args: &ProbeArgs, adapter: &AdapterPreference) -> anyhow::Result<()> 
         return Ok(());
     }
     println!(
-        "{} / {} at {} channels ({} used), {} splat, shadow map {}², exact {}²; smoke between {:.3} and {:.3} m from the light",
+        "{} / {} at {} channels ({} used), {} splat, shadow map {}²; smoke between {:.3} and {:.3} m from the light",
         report.scene,
         report.technique,
         report.channels,
         report.channels_used,
         report.splat,
         report.shadow_res,
-        report.exact_res,
         report.light_near_m,
         report.light_far_m
     );

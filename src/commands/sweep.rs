@@ -33,9 +33,6 @@ pub struct SweepArgs {
     /// Untimed warm-up frames before them (the first frames compile shaders).
     #[arg(long, default_value_t = 3)]
     pub warmup: u32,
-    /// Shadow resolution of the `exact` reference every cell is compared with.
-    #[arg(long, default_value_t = crate::baseline::EXACT_RESOLUTION_PX, value_parser = clap::value_parser!(u32).range(1..=8192))]
-    pub exact_res: u32,
     /// Output size as WIDTHxHEIGHT (default: the scene's).
     #[arg(long)]
     pub size: Option<super::Size>,
@@ -61,7 +58,6 @@ pub fn run(args: &SweepArgs, adapter: &AdapterPreference) -> anyhow::Result<()> 
         frames: args.frames,
         warmup: args.warmup,
         resume: args.resume,
-        exact_res: args.exact_res,
     };
     let gpu = Gpu::new(adapter)?;
     let results = sweep::run(&gpu, &scene, &options, &args.output)?;

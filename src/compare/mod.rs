@@ -28,8 +28,6 @@ pub struct CompareOptions {
     /// Budgets, the first being the baseline budget (the thesis: 24, 16, 8, 6).
     pub budgets: Vec<u32>,
     pub splat: SplatMode,
-    /// Shadow resolution of the `exact` reference.
-    pub exact_resolution_px: u32,
 }
 
 impl Default for CompareOptions {
@@ -38,7 +36,6 @@ impl Default for CompareOptions {
             techniques: crate::shadow::default_compare(),
             budgets: vec![24, 16, 8, 6],
             splat: SplatMode::Point,
-            exact_resolution_px: crate::baseline::EXACT_RESOLUTION_PX,
         }
     }
 }
@@ -135,8 +132,7 @@ pub fn run(
             Ok((rgb, t.channels_used(), t.memory().total_bytes()))
         };
 
-    let mut exact_config = config(crate::shadow::reference().name, 1);
-    exact_config.params.resolution_px = options.exact_resolution_px;
+    let exact_config = config(crate::shadow::reference().name, 1);
     let exact_image = "images/exact.png".to_owned();
     let (exact, _, exact_bytes) = render(&exact_config, &exact_image)?;
 
@@ -316,14 +312,13 @@ fn html(report: &CompareReport, options: &CompareOptions, scene: &Scene) -> Stri
     let _ = write!(
         body,
         "<h1>smokeshadow compare: {}</h1>\n<p class=\"muted\">{}x{} frame, {} particles, shadow map {}², {} splat; \
-         reference: <code>exact</code> at {}² ({}). Differences are |a − b| × {} as in the thesis; FLIP maps use the magma scale.</p>\n",
+         reference: <code>exact</code>, the closed form per point ({}). Differences are |a − b| × {} as in the thesis; FLIP maps use the magma scale.</p>\n",
         e(&report.scene),
         scene.output.width_px,
         scene.output.height_px,
         scene.emitter.count,
         scene.shadow.resolution_px,
         options.splat.name(),
-        options.exact_resolution_px,
         report::bytes(report.exact_bytes),
         diff::DEFAULT_ENHANCE
     );

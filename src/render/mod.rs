@@ -559,6 +559,7 @@ impl Renderer {
                     frame_bind_group: &self.frame_bind_group,
                     particles: &self.particles,
                     particle_count,
+                    instances: &self.instances,
                     light: &light,
                 },
             )?;

@@ -1,27 +1,33 @@
-//! `exact`: the reference every technique is measured against, a deep shadow map with unbounded
-//! memory (Lokovic & Veach 2000; thesis 3.3.3.1).
+//! `exact`: the reference every technique is measured against. It evaluates the particle
+//! model's transmittance in closed form at each point that asks for it, with no shadow map:
 //!
-//! In light space every particle fragment (one light ray through one particle sphere) becomes a
-//! segment along its ray: the chord [z_c − w, z_c + w], w = sqrt(r² − d²), carrying optical depth
-//! τ(1 − d/r)·2w spread uniformly along it — the density model the spherical billboards use. All
-//! segments of a texel are stored (count, prefix sum, fill into storage buffers), sorted in a
-//! compute pass and turned into the texel's piecewise-linear optical depth Ω(z), so the lookup
-//! evaluates T(z) = exp(−Ω(z)) exactly, partial overlap with a segment included.
+//! T(p) = exp(−Σ_i τ_i (1 − d_i/r_i) ℓ_i(p)),
 //!
-//! Memory grows with the number of fragments: the list buffers are sized each frame from a count
-//! pass that is submitted and read back first (a CPU–GPU sync: this is the reference, not a
-//! contender), and the ledger reports what is allocated.
+//! d_i the distance from particle i's centre to the segment light→p and ℓ_i(p) the part of its
+//! chord between the light and p — the density model of the spherical billboards and the chord
+//! splat, and the same arithmetic as the CPU mirror [`super::closed_form`]. There are no texels,
+//! so a technique's error against `exact` includes its shadow-map resolution error.
 //!
-//! What it still approximates: the light's spatial sampling (one ray per texel, the four rays
-//! around a point blended bilinearly, as every technique here does), float32 depths, and, like
-//! the renderer, the particle density model itself (constant extinction along each chord).
-//! At a high shadow resolution it is the ground truth for that model.
+//! Finding the particles a segment can cross: a light-space tile grid (the light-occlusion tile
+//! lists of Yusov's slides, seeds/001). One compute pass counts, for every tile, the particles
+//! whose footprint in the light's image plane covers it; a scan turns the counts into offsets; a
+//! second pass appends (near distance, index) to each covered tile's list, taking the particles
+//! nearest the light first (an order sorted on the CPU, timed: `order_sort_us`); a third sorts
+//! each list by (near distance, index) — an insertion sort, linear on lists that arrive almost
+//! sorted — so a query walks its tile's list front to back and stops at the first sphere that
+//! begins beyond the point, and every sum is independent of the order the atomics ran in.
 //!
-//! The budget does not apply: `channels_used` reports 0 and any budget is accepted.
+//! Memory grows with particles × tiles covered, not with a map resolution: the grid is sized so
+//! that a typical particle spans about four tiles across, and when the lists would exceed the
+//! adapter's storage-binding limit the grid is halved until they fit (coarser tiles, longer
+//! lists, the same result). The entries are counted first in a submission of their own and read
+//! back (a CPU–GPU sync: this is the reference, not a contender).
+//!
+//! The budget and the shadow resolution do not apply: `channels_used` reports 0.
 
 use bytemuck::{Pod, Zeroable};
 
-use super::layered::{billboard_pipeline, cleared_attachment, draw_particles, uniform_entry};
+use super::layered::uniform_entry;
 use super::{
     BuildInputs, LOOKUP_STAGES, MemoryUse, Role, ShadowError, ShadowTechnique, TechniqueContext,
     TechniqueEntry, TechniqueParams,
@@ -31,9 +37,9 @@ use crate::shaders;
 
 pub const ENTRY: TechniqueEntry = TechniqueEntry {
     name: "exact",
-    description: "reference: per-texel sorted segment lists (deep shadow map), exact T(z)",
+    description: "reference: closed-form T at every point, particles found through light-space tile lists",
     role: Role::Reference,
-    budget_caption: |_| "no budget (exact lists)".to_owned(),
+    budget_caption: |_| "no budget (closed form)".to_owned(),
     min_channels: 1,
     in_default_sweep: false,
     in_default_compare: false,
@@ -41,18 +47,21 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     params: &[],
     order_independent: true,
     converges_with_budget: false,
-    // Counts, offsets (+1 for the total), row sums (+1), an R8 raster target, a 16-byte uniform
-    // and 12 + 16 bytes of segment and node storage per segment of capacity.
+    // The uniform, the per-tile counts and offsets (+1 for the total), the row sums (+1), 8 bytes per list entry of
+    // capacity, and per particle of capacity its sphere (32 bytes: the lists index this copy,
+    // so a frame that reuses them after the renderer re-sorted its instances still reads the
+    // spheres they were built from) and its place in the fill order (4 bytes).
     memory: |c| {
-        let texels = c.texels();
+        let side = c.counter("tiles_per_side");
+        let tiles = side * side;
         MemoryUse {
             channels: 0,
-            bytes: 16
-                + texels * 4
-                + (texels + 1) * 4
-                + (u64::from(c.resolution_px) + 1) * 4
-                + texels
-                + c.counter("segment_capacity") * (SEGMENT_BYTES + NODE_BYTES_PER_SEGMENT),
+            bytes: std::mem::size_of::<ExactParams>() as u64
+                + (tiles * 4).max(16)
+                + ((tiles + 1) * 4).max(16)
+                + ((side + 1) * 4).max(16)
+                + c.counter("entry_capacity") * ENTRY_BYTES
+                + c.counter("sphere_capacity") * (SPHERE_BYTES + 4),
         }
     },
     lookup_shader: "shadow/exact.wgsl",
@@ -71,57 +80,89 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 struct ExactParams {
-    resolution: u32,
+    view_from_world: [[f32; 4]; 4],
+    tan_half_fov: f32,
+    tiles: u32,
+    particle_count: u32,
     capacity: u32,
-    _pad: [u32; 2],
 }
 
 /// The WGSL structs mirrored here.
 pub fn layouts() -> Vec<crate::gpu::MirrorLayout> {
-    vec![crate::mirror_layout!(
-        ExactParams,
-        "shadow/exact.wgsl",
-        "ExactParams",
-        [resolution, capacity]
-    )]
+    ["shadow/exact.wgsl", "shadow/exact_build.wgsl"]
+        .into_iter()
+        .map(|path| {
+            crate::mirror_layout!(
+                ExactParams,
+                path,
+                "ExactParams",
+                [
+                    view_from_world,
+                    tan_half_fov,
+                    tiles,
+                    particle_count,
+                    capacity
+                ]
+            )
+        })
+        .collect()
 }
 
-/// Bytes per stored segment (z0, z1, optical depth) and per texel's share of nodes (2 per
-/// segment, (z, Ω) each).
-const SEGMENT_BYTES: u64 = 12;
-const NODE_BYTES_PER_SEGMENT: u64 = 16;
-/// Format of the dummy colour target the list passes rasterise into (nothing is written).
-const DUMMY_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R8Unorm;
+/// Bytes per list entry: (near distance bits, particle index).
+const ENTRY_BYTES: u64 = 8;
+/// Bytes per sphere (one `ParticleInstance`).
+const SPHERE_BYTES: u64 = std::mem::size_of::<crate::frame::gpu_data::ParticleInstance>() as u64;
+/// Bounds on the tiles per side (the scan of the row sums is one invocation over the rows).
+const MIN_TILES: u32 = 8;
+const MAX_TILES: u32 = 512;
+/// Tiles across a typical particle's footprint.
+const TILES_PER_FOOTPRINT: f32 = 4.0;
 
-/// Buffers sized by the segment capacity, and the bind groups that reference them.
-struct Lists {
-    capacity: u32,
-    /// Held with the bind groups that use them (the ledger records their sizes).
-    _segments: wgpu::Buffer,
-    _nodes: wgpu::Buffer,
-    build_bind_group: wgpu::BindGroup,
-    lookup_bind_group: wgpu::BindGroup,
+/// The tiles per side for this frame's light space: a typical particle (mean radius at the mean
+/// distance) spans about [`TILES_PER_FOOTPRINT`] tiles of the light's image plane.
+fn tiles_for(light: &super::LightSpace) -> u32 {
+    if light.mean_radius_m <= 0.0 {
+        return MIN_TILES;
+    }
+    // The footprint's width in uv: 2r / (2 · dist · tan(fov/2)).
+    let footprint_uv = light.mean_radius_m / (light.mean_dist_m.max(1e-3) * light.tan_half_fov);
+    let tiles = (TILES_PER_FOOTPRINT / footprint_uv).ceil();
+    (tiles as u32).clamp(MIN_TILES, MAX_TILES)
+}
+
+/// The per-tile buffers for one grid size.
+struct Grid {
+    tiles: u32,
+    counts: wgpu::Buffer,
+    offsets: wgpu::Buffer,
+    /// Per-row sums for the scan (+1 for the total).
+    row_sums: wgpu::Buffer,
 }
 
 pub struct Exact {
-    resolution: u32,
     params_buffer: wgpu::Buffer,
-    counts: wgpu::Buffer,
-    offsets: wgpu::Buffer,
-    row_sums: wgpu::Buffer,
-    dummy_target: wgpu::TextureView,
+    grid: Grid,
+    entries: wgpu::Buffer,
+    capacity: u32,
+    /// The spheres the lists index (a copy of the instances), the fill order (instance
+    /// indices, nearest the light first), and the particles both hold.
+    spheres: wgpu::Buffer,
+    order: wgpu::Buffer,
+    sphere_capacity: u32,
+    /// CPU time of the last frame's order sort, microseconds.
+    order_sort_us: u64,
     build_layout: wgpu::BindGroupLayout,
-    count_pipeline: wgpu::RenderPipeline,
-    fill_pipeline: wgpu::RenderPipeline,
+    count: wgpu::ComputePipeline,
     scan_rows: wgpu::ComputePipeline,
     scan_total: wgpu::ComputePipeline,
     scan_write: wgpu::ComputePipeline,
-    resolve: wgpu::ComputePipeline,
+    fill: wgpu::ComputePipeline,
+    sort: wgpu::ComputePipeline,
     lookup_layout: wgpu::BindGroupLayout,
-    lists: Lists,
+    lookup_bind_group: wgpu::BindGroup,
     memory: MemoryLedger,
-    /// Segments stored last frame.
-    last_segment_count: u32,
+    /// Entries stored last frame.
+    last_entries: u32,
 }
 
 fn storage_entry(
@@ -147,6 +188,7 @@ fn storage_buffer(
     label: &str,
     size: u64,
 ) -> Result<wgpu::Buffer, AllocationError> {
+    memory.forget(label);
     memory.buffer(
         device,
         &wgpu::BufferDescriptor {
@@ -160,11 +202,32 @@ fn storage_buffer(
     )
 }
 
+fn entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
+    wgpu::BindGroupEntry {
+        binding,
+        resource: buffer.as_entire_binding(),
+    }
+}
+
+impl Grid {
+    fn new(
+        memory: &mut MemoryLedger,
+        device: &wgpu::Device,
+        tiles: u32,
+    ) -> Result<Self, AllocationError> {
+        let n = u64::from(tiles) * u64::from(tiles);
+        Ok(Self {
+            tiles,
+            counts: storage_buffer(memory, device, "exact.tile_counts", n * 4)?,
+            offsets: storage_buffer(memory, device, "exact.tile_offsets", (n + 1) * 4)?,
+            row_sums: storage_buffer(memory, device, "exact.row_sums", (u64::from(tiles) + 1) * 4)?,
+        })
+    }
+}
+
 impl Exact {
-    pub fn new(ctx: &TechniqueContext<'_>, params: &TechniqueParams) -> Result<Self, ShadowError> {
+    pub fn new(ctx: &TechniqueContext<'_>, _params: &TechniqueParams) -> Result<Self, ShadowError> {
         let device = &ctx.gpu.device;
-        let res = params.resolution_px;
-        let texels = u64::from(res) * u64::from(res);
         let mut memory = MemoryLedger::for_device(&ctx.gpu.limits);
         let params_buffer = memory.buffer(
             device,
@@ -175,44 +238,39 @@ impl Exact {
                 mapped_at_creation: false,
             },
         )?;
-        let counts = storage_buffer(&mut memory, device, "exact.counts", texels * 4)?;
-        let offsets = storage_buffer(&mut memory, device, "exact.offsets", (texels + 1) * 4)?;
-        let row_sums = storage_buffer(
+        let grid = Grid::new(&mut memory, device, MIN_TILES)?;
+        let sphere_capacity = 1024u32;
+        let spheres = storage_buffer(
             &mut memory,
             device,
-            "exact.row_sums",
-            (u64::from(res) + 1) * 4,
+            "exact.spheres",
+            u64::from(sphere_capacity) * SPHERE_BYTES,
         )?;
-        let dummy_target = super::layered::map_texture(
+        let order = storage_buffer(
             &mut memory,
             device,
-            "exact.raster_target",
-            DUMMY_FORMAT,
-            res,
+            "exact.order",
+            u64::from(sphere_capacity) * 4,
+        )?;
+        let capacity = 1u32 << 16;
+        let entries = storage_buffer(
+            &mut memory,
+            device,
+            "exact.entries",
+            u64::from(capacity) * ENTRY_BYTES,
         )?;
 
-        let build_stages = wgpu::ShaderStages::VERTEX_FRAGMENT | wgpu::ShaderStages::COMPUTE;
+        let compute = wgpu::ShaderStages::COMPUTE;
         let build_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("exact.build.layout"),
             entries: &[
-                uniform_entry(0, build_stages),
-                storage_entry(
-                    1,
-                    wgpu::ShaderStages::FRAGMENT | wgpu::ShaderStages::COMPUTE,
-                    false,
-                ),
-                storage_entry(
-                    2,
-                    wgpu::ShaderStages::FRAGMENT | wgpu::ShaderStages::COMPUTE,
-                    false,
-                ),
-                storage_entry(
-                    3,
-                    wgpu::ShaderStages::FRAGMENT | wgpu::ShaderStages::COMPUTE,
-                    false,
-                ),
-                storage_entry(4, wgpu::ShaderStages::COMPUTE, false),
-                storage_entry(5, wgpu::ShaderStages::COMPUTE, false),
+                uniform_entry(0, compute),
+                storage_entry(1, compute, false),
+                storage_entry(2, compute, false),
+                storage_entry(3, compute, false),
+                storage_entry(4, compute, true),
+                storage_entry(5, compute, true),
+                storage_entry(6, compute, false),
             ],
         });
         let lookup_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
@@ -221,6 +279,7 @@ impl Exact {
                 uniform_entry(0, LOOKUP_STAGES),
                 storage_entry(1, LOOKUP_STAGES, true),
                 storage_entry(2, LOOKUP_STAGES, true),
+                storage_entry(3, LOOKUP_STAGES, true),
             ],
         });
         let module = shaders::module(
@@ -228,206 +287,199 @@ impl Exact {
             "exact.build",
             &shaders::compose("shadow/exact_build.wgsl", &[]),
         );
-        let groups = [Some(ctx.frame_layout), Some(&build_layout)];
-        let raster = |label: &str, entry: &str| {
-            billboard_pipeline(
-                device,
-                label,
-                &module,
-                entry,
-                &groups,
-                &[DUMMY_FORMAT],
-                super::layered::ADDITIVE,
-            )
-        };
-        let count_pipeline = raster("exact.build.count", "fs_count");
-        let fill_pipeline = raster("exact.build.fill", "fs_fill");
-        let compute_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("exact.compute.pipeline_layout"),
-            bind_group_layouts: &groups,
+        let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("exact.build.pipeline_layout"),
+            bind_group_layouts: &[Some(ctx.frame_layout), Some(&build_layout)],
             immediate_size: 0,
         });
-        let compute = |entry: &str| {
+        let pipeline = |entry: &str| {
             device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                 label: Some(&format!("exact.{entry}")),
-                layout: Some(&compute_layout),
+                layout: Some(&layout),
                 module: &module,
                 entry_point: Some(entry),
                 compilation_options: Default::default(),
                 cache: None,
             })
         };
-        let lists = Lists::new(
+        let lookup_bind_group = lookup_bind_group(
             device,
-            &mut memory,
-            &build_layout,
             &lookup_layout,
-            [&params_buffer, &counts, &offsets, &row_sums],
-            1 << 16,
-        )?;
-        let exact = Self {
-            resolution: res,
-            scan_rows: compute("scan_rows"),
-            scan_total: compute("scan_total"),
-            scan_write: compute("scan_write"),
-            resolve: compute("resolve"),
+            [&params_buffer, &grid.offsets, &entries, &spheres],
+        );
+        Ok(Self {
+            count: pipeline("count"),
+            scan_rows: pipeline("scan_rows"),
+            scan_total: pipeline("scan_total"),
+            scan_write: pipeline("scan_write"),
+            fill: pipeline("fill"),
+            sort: pipeline("sort"),
             params_buffer,
-            counts,
-            offsets,
-            row_sums,
-            dummy_target,
+            grid,
+            entries,
+            capacity,
+            spheres,
+            order,
+            sphere_capacity,
+            order_sort_us: 0,
             build_layout,
-            count_pipeline,
-            fill_pipeline,
             lookup_layout,
-            lists,
+            lookup_bind_group,
             memory,
-            last_segment_count: 0,
-        };
-        exact.write_params(&ctx.gpu.queue);
-        Ok(exact)
+            last_entries: 0,
+        })
     }
 
-    fn write_params(&self, queue: &wgpu::Queue) {
-        queue.write_buffer(
+    fn write_params(&self, gpu: &Gpu, light: &super::LightSpace, particle_count: u32) {
+        gpu.queue.write_buffer(
             &self.params_buffer,
             0,
             bytemuck::bytes_of(&ExactParams {
-                resolution: self.resolution,
-                capacity: self.lists.capacity,
-                _pad: [0; 2],
+                view_from_world: light.view_from_world.to_cols_array_2d(),
+                tan_half_fov: light.tan_half_fov,
+                tiles: self.grid.tiles,
+                particle_count,
+                capacity: self.capacity,
             }),
         );
     }
 
-    /// Records the count raster pass and the prefix sum.
-    fn record_count_and_scan(
-        &self,
-        encoder: &mut wgpu::CommandEncoder,
-        timer: &mut crate::gpu::GpuTimer,
-        frame_bind_group: &wgpu::BindGroup,
-        particles: &wgpu::Buffer,
-        particle_count: u32,
-    ) {
-        encoder.clear_buffer(&self.counts, 0, None);
-        self.raster(
-            encoder,
-            timer,
-            false,
-            frame_bind_group,
-            particles,
-            particle_count,
-        );
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("exact.scan"),
-            timestamp_writes: timer.compute_pass("shadow"),
-        });
-        pass.set_bind_group(0, frame_bind_group, &[]);
-        pass.set_bind_group(1, &self.lists.build_bind_group, &[]);
-        let row_groups = self.resolution.div_ceil(64);
-        pass.set_pipeline(&self.scan_rows);
-        pass.dispatch_workgroups(row_groups, 1, 1);
-        pass.set_pipeline(&self.scan_total);
-        pass.dispatch_workgroups(1, 1, 1);
-        pass.set_pipeline(&self.scan_write);
-        pass.dispatch_workgroups(row_groups, 1, 1);
+    fn build_bind_group(&self, device: &wgpu::Device) -> wgpu::BindGroup {
+        device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("exact.build.bind_group"),
+            layout: &self.build_layout,
+            entries: &[
+                entry(0, &self.params_buffer),
+                entry(1, &self.grid.counts),
+                entry(2, &self.grid.offsets),
+                entry(3, &self.entries),
+                entry(4, &self.spheres),
+                entry(5, &self.order),
+                entry(6, &self.grid.row_sums),
+            ],
+        })
     }
 
-    /// Records one raster pass of the light-space particles: the count pass, or with `fill` the
-    /// fill pass.
-    fn raster(
+    /// Records the count and scan passes: afterwards the last offset holds the entries total.
+    fn record_count(
         &self,
         encoder: &mut wgpu::CommandEncoder,
-        timer: &mut crate::gpu::GpuTimer,
-        fill: bool,
-        frame_bind_group: &wgpu::BindGroup,
-        particles: &wgpu::Buffer,
-        particle_count: u32,
+        inputs: &mut BuildInputs<'_>,
+        bind_group: &wgpu::BindGroup,
     ) {
-        let (label, pipeline) = if fill {
-            ("exact.fill", &self.fill_pipeline)
-        } else {
-            ("exact.count", &self.count_pipeline)
-        };
-        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some(label),
-            color_attachments: &[cleared_attachment(
-                &self.dummy_target,
-                wgpu::Color::TRANSPARENT,
-            )],
-            depth_stencil_attachment: None,
-            timestamp_writes: timer.pass("shadow"),
-            occlusion_query_set: None,
-            multiview_mask: None,
-        });
-        draw_particles(
-            &mut pass,
-            pipeline,
-            frame_bind_group,
-            &self.lists.build_bind_group,
-            particles.slice(..),
-            particle_count,
-        );
+        encoder.clear_buffer(&self.grid.counts, 0, None);
+        let rows = self.grid.tiles.div_ceil(64);
+        let steps = [
+            (&self.count, inputs.particle_count.div_ceil(64)),
+            (&self.scan_rows, rows),
+            (&self.scan_total, 1),
+            (&self.scan_write, rows),
+        ];
+        self.dispatch_each(encoder, inputs, bind_group, &steps);
+    }
+
+    /// Records each (pipeline, workgroups) dispatch in a compute pass of its own, so that each
+    /// one sees the previous one's writes whatever the backend's barriers within a pass.
+    fn dispatch_each(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        inputs: &mut BuildInputs<'_>,
+        bind_group: &wgpu::BindGroup,
+        steps: &[(&wgpu::ComputePipeline, u32)],
+    ) {
+        for &(pipeline, groups) in steps {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("exact.build"),
+                timestamp_writes: inputs.timer.compute_pass("shadow"),
+            });
+            pass.set_bind_group(0, inputs.frame_bind_group, &[]);
+            pass.set_bind_group(1, bind_group, &[]);
+            pass.set_pipeline(pipeline);
+            pass.dispatch_workgroups(groups, 1, 1);
+        }
+    }
+
+    /// Counts this frame's entries at the current grid (a submission and a readback).
+    fn count_entries(
+        &self,
+        gpu: &Gpu,
+        inputs: &mut BuildInputs<'_>,
+        bind_group: &wgpu::BindGroup,
+    ) -> Result<u64, ShadowError> {
+        let mut encoder = gpu
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("exact.count.encoder"),
+            });
+        self.record_count(&mut encoder, inputs, bind_group);
+        gpu.queue.submit([encoder.finish()]);
+        let tiles = u64::from(self.grid.tiles).pow(2);
+        let bytes = read_buffer(gpu, &self.grid.offsets, tiles * 4, 4)
+            .map_err(|err| ShadowError::Gpu(err.to_string()))?;
+        Ok(u64::from(u32::from_le_bytes([
+            bytes[0], bytes[1], bytes[2], bytes[3],
+        ])))
     }
 }
 
-impl Lists {
-    /// Allocates list buffers for `capacity` segments and the bind groups over them and the
-    /// fixed buffers `[params, counts, offsets, row_sums]`.
-    fn new(
-        device: &wgpu::Device,
-        memory: &mut MemoryLedger,
-        build_layout: &wgpu::BindGroupLayout,
-        lookup_layout: &wgpu::BindGroupLayout,
-        fixed: [&wgpu::Buffer; 4],
-        capacity: u32,
-    ) -> Result<Self, AllocationError> {
-        let [params, counts, offsets, row_sums] = fixed;
-        memory.forget("exact.segments");
-        memory.forget("exact.nodes");
-        let segments = storage_buffer(
-            memory,
-            device,
-            "exact.segments",
-            u64::from(capacity) * SEGMENT_BYTES,
-        )?;
-        let nodes = storage_buffer(
-            memory,
-            device,
-            "exact.nodes",
-            u64::from(capacity) * NODE_BYTES_PER_SEGMENT,
-        )?;
-        fn entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
-            wgpu::BindGroupEntry {
-                binding,
-                resource: buffer.as_entire_binding(),
-            }
+impl Exact {
+    /// Uploads the spheres, and their order by the distance from the light to their near side
+    /// (sorted here, timed) that the fill pass takes them in.
+    fn upload_spheres(
+        &mut self,
+        gpu: &Gpu,
+        light: &super::LightSpace,
+        instances: &[crate::frame::gpu_data::ParticleInstance],
+    ) -> Result<(), ShadowError> {
+        let start = std::time::Instant::now();
+        let mut keyed: Vec<(u32, u32)> = instances
+            .iter()
+            .enumerate()
+            .map(|(i, p)| {
+                let [x, y, z, r] = p.center_radius;
+                let near = (glam::Vec3::new(x, y, z).distance(light.position) - r).max(0.0);
+                (near.to_bits(), i as u32)
+            })
+            .collect();
+        keyed.sort_unstable();
+        let order: Vec<u32> = keyed.into_iter().map(|(_, i)| i).collect();
+        self.order_sort_us = start.elapsed().as_micros() as u64;
+        let needed = (order.len() as u32).max(1);
+        if needed > self.sphere_capacity {
+            self.sphere_capacity = needed.next_power_of_two();
+            let capacity = u64::from(self.sphere_capacity);
+            self.spheres = storage_buffer(
+                &mut self.memory,
+                &gpu.device,
+                "exact.spheres",
+                capacity * SPHERE_BYTES,
+            )?;
+            self.order =
+                storage_buffer(&mut self.memory, &gpu.device, "exact.order", capacity * 4)?;
         }
-        let build_bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("exact.build.bind_group"),
-            layout: build_layout,
-            entries: &[
-                entry(0, params),
-                entry(1, counts),
-                entry(2, offsets),
-                entry(3, &segments),
-                entry(4, &nodes),
-                entry(5, row_sums),
-            ],
-        });
-        let lookup_bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("exact.lookup.bind_group"),
-            layout: lookup_layout,
-            entries: &[entry(0, params), entry(1, offsets), entry(2, &nodes)],
-        });
-        Ok(Self {
-            capacity,
-            _segments: segments,
-            _nodes: nodes,
-            build_bind_group,
-            lookup_bind_group,
-        })
+        gpu.queue
+            .write_buffer(&self.spheres, 0, bytemuck::cast_slice(instances));
+        gpu.queue
+            .write_buffer(&self.order, 0, bytemuck::cast_slice(&order));
+        Ok(())
     }
+}
+
+fn lookup_bind_group(
+    device: &wgpu::Device,
+    layout: &wgpu::BindGroupLayout,
+    [params, offsets, entries, spheres]: [&wgpu::Buffer; 4],
+) -> wgpu::BindGroup {
+    device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("exact.lookup.bind_group"),
+        layout,
+        entries: &[
+            entry(0, params),
+            entry(1, offsets),
+            entry(2, entries),
+            entry(3, spheres),
+        ],
+    })
 }
 
 impl ShadowTechnique for Exact {
@@ -444,93 +496,117 @@ impl ShadowTechnique for Exact {
         &self.lookup_layout
     }
     fn bind_group(&self) -> &wgpu::BindGroup {
-        &self.lists.lookup_bind_group
+        &self.lookup_bind_group
     }
 
-    /// `segments`: stored last frame (light-space particle fragments); `segment_capacity`: what
-    /// the list buffers hold.
+    /// `tiles_per_side`: the light-space grid; `tile_entries`: (particle, tile) pairs stored
+    /// last frame; `entry_capacity`: what the list buffer holds.
     fn counters(&self) -> Vec<(&'static str, u64)> {
         vec![
-            ("segments", u64::from(self.last_segment_count)),
-            ("segment_capacity", u64::from(self.lists.capacity)),
+            ("tiles_per_side", u64::from(self.grid.tiles)),
+            ("tile_entries", u64::from(self.last_entries)),
+            ("entry_capacity", u64::from(self.capacity)),
+            ("sphere_capacity", u64::from(self.sphere_capacity)),
+            ("order_sort_us", self.order_sort_us),
         ]
     }
 
-    fn build(&mut self, gpu: &Gpu, inputs: BuildInputs<'_>) -> Result<(), ShadowError> {
+    fn build(&mut self, gpu: &Gpu, mut inputs: BuildInputs<'_>) -> Result<(), ShadowError> {
         let device = &gpu.device;
-        let particle_count = inputs.particle_count;
-        let particles = inputs.particles;
+        let limit = gpu.limits.max_storage_buffer_binding_size;
+        let fits = |entries: u64| entries * ENTRY_BYTES <= limit;
+        self.upload_spheres(gpu, inputs.light, inputs.instances)?;
 
-        // How many segments this frame has: count and scan in a submission of their own, read
-        // the total back, and grow the lists before filling them.
-        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
-            label: Some("exact.count.encoder"),
-        });
-        self.record_count_and_scan(
-            &mut encoder,
-            inputs.timer,
-            inputs.frame_bind_group,
-            particles,
-            particle_count,
-        );
-        gpu.queue.submit([encoder.finish()]);
-        let texels = u64::from(self.resolution) * u64::from(self.resolution);
-        let total = read_buffer(gpu, &self.offsets, texels * 4, 4)
-            .map(|bytes| u32::from_le_bytes([bytes[0], bytes[1], bytes[2], bytes[3]]))
-            .map_err(|err| ShadowError::Gpu(err.to_string()))?;
-        if total > self.lists.capacity {
-            let limit = gpu.limits.max_storage_buffer_binding_size;
-            let fits = |segments: u64| segments * NODE_BYTES_PER_SEGMENT <= limit;
-            if !fits(u64::from(total)) {
-                return Err(ShadowError::ListsTooLarge {
-                    resolution_px: self.resolution,
-                    segments: u64::from(total),
-                    bytes: u64::from(total) * (SEGMENT_BYTES + NODE_BYTES_PER_SEGMENT),
+        // Count at the grid this frame's particles ask for, halving it while the lists would not
+        // fit one binding.
+        let mut tiles = tiles_for(inputs.light);
+        let total = loop {
+            if self.grid.tiles != tiles {
+                self.grid = Grid::new(&mut self.memory, device, tiles)?;
+            }
+            self.write_params(gpu, inputs.light, inputs.particle_count);
+            let bind_group = self.build_bind_group(device);
+            let total = self.count_entries(gpu, &mut inputs, &bind_group)?;
+            if fits(total) {
+                break total;
+            }
+            if tiles == 1 {
+                return Err(ShadowError::TileListsTooLarge {
+                    particles: inputs.particle_count,
+                    bytes: total * ENTRY_BYTES,
                     limit,
                 });
             }
+            tiles = (tiles / 2).max(1);
+        };
+        if total > u64::from(self.capacity) {
             // Headroom so that a slowly changing scene does not reallocate every frame.
-            let mut capacity = total.saturating_add(total / 4).max(1 << 16);
-            if !fits(u64::from(capacity)) {
+            let mut capacity = (total + total / 4).max(1 << 16);
+            if !fits(capacity) {
                 capacity = total;
             }
-            self.lists = Lists::new(
-                device,
+            self.capacity = capacity as u32;
+            self.entries = storage_buffer(
                 &mut self.memory,
-                &self.build_layout,
-                &self.lookup_layout,
-                [
-                    &self.params_buffer,
-                    &self.counts,
-                    &self.offsets,
-                    &self.row_sums,
-                ],
-                capacity,
+                device,
+                "exact.entries",
+                capacity * ENTRY_BYTES,
             )?;
-            self.write_params(&gpu.queue);
         }
-        self.last_segment_count = total;
-
-        // Fill (counts, cleared, become the cursors), then sort and resolve.
-        let encoder = &mut *inputs.encoder;
-        encoder.clear_buffer(&self.counts, 0, None);
-        self.raster(
-            encoder,
-            inputs.timer,
-            true,
-            inputs.frame_bind_group,
-            particles,
-            particle_count,
+        self.last_entries = total as u32;
+        self.write_params(gpu, inputs.light, inputs.particle_count);
+        let bind_group = self.build_bind_group(device);
+        self.lookup_bind_group = lookup_bind_group(
+            device,
+            &self.lookup_layout,
+            [
+                &self.params_buffer,
+                &self.grid.offsets,
+                &self.entries,
+                &self.spheres,
+            ],
         );
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("exact.resolve"),
-            timestamp_writes: inputs.timer.compute_pass("shadow"),
-        });
-        pass.set_pipeline(&self.resolve);
-        pass.set_bind_group(0, inputs.frame_bind_group, &[]);
-        pass.set_bind_group(1, &self.lists.build_bind_group, &[]);
-        let groups = self.resolution.div_ceil(8);
-        pass.dispatch_workgroups(groups, groups, 1);
+
+        // The counts, cleared, become the fill's cursors; then fill and sort.
+        let mut encoder = std::mem::replace(
+            inputs.encoder,
+            device.create_command_encoder(&wgpu::CommandEncoderDescriptor::default()),
+        );
+        encoder.clear_buffer(&self.grid.counts, 0, None);
+        let steps = [
+            (&self.fill, inputs.particle_count.div_ceil(64)),
+            (&self.sort, (self.grid.tiles * self.grid.tiles).div_ceil(64)),
+        ];
+        self.dispatch_each(&mut encoder, &mut inputs, &bind_group, &steps);
+        *inputs.encoder = encoder;
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn light(mean_radius_m: f32, mean_dist_m: f32) -> super::super::LightSpace {
+        super::super::LightSpace {
+            position: glam::Vec3::ZERO,
+            clip_from_world: glam::Mat4::IDENTITY,
+            view_from_world: glam::Mat4::IDENTITY,
+            tan_half_fov: 0.5,
+            near_m: 1.0,
+            far_m: 2.0,
+            max_radius_m: mean_radius_m,
+            mean_radius_m,
+            mean_dist_m,
+        }
+    }
+
+    #[test]
+    fn a_typical_particle_spans_four_tiles_within_the_bounds() {
+        // Footprint 2r / (2 · 10 · 0.5) = 0.05 of the image: 4 / 0.05 = 80 tiles.
+        assert_eq!(tiles_for(&light(0.25, 10.0)), 80);
+        assert_eq!(tiles_for(&light(5.0, 10.0)), MIN_TILES);
+        assert_eq!(tiles_for(&light(1e-4, 10.0)), MAX_TILES);
+        assert_eq!(tiles_for(&light(0.0, 0.0)), MIN_TILES);
     }
 }

@@ -18,12 +18,21 @@ pub struct LightSpace {
     pub position: Vec3,
     /// Perspective projection x view of the spotlight covering its cone.
     pub clip_from_world: Mat4,
+    /// The view part alone (right-handed: the light looks down −z).
+    pub view_from_world: Mat4,
+    /// tan of half the projection's field of view: a view-space point (x, y, z) lands at
+    /// NDC (x, y) / (−z · tan_half_fov).
+    pub tan_half_fov: f32,
     /// Radial distance from the light to the nearest particle surface, metres.
     pub near_m: f32,
     /// Radial distance from the light to the farthest particle surface, metres.
     pub far_m: f32,
     /// The largest particle radius this frame, metres (0 without particles).
     pub max_radius_m: f32,
+    /// The mean particle radius and the mean radial distance of the particles from the light,
+    /// metres (0 without particles): the typical footprint `exact` sizes its tiles by.
+    pub mean_radius_m: f32,
+    pub mean_dist_m: f32,
 }
 
 impl LightSpace {
@@ -38,12 +47,16 @@ impl LightSpace {
         // A small margin so the penumbra edge is inside the map.
         let fov = (2.0 * light.cone_angle_deg.to_radians() * 1.04).min(170f32.to_radians());
         let (mut near, mut far, mut max_radius) = (f32::INFINITY, 0.0f32, 0.0f32);
+        let (mut radius_sum, mut dist_sum) = (0.0f64, 0.0f64);
         for p in particles {
             let dist = p.position.distance(light.position);
             near = near.min(dist - p.radius_m);
             far = far.max(dist + p.radius_m);
             max_radius = max_radius.max(p.radius_m);
+            radius_sum += f64::from(p.radius_m);
+            dist_sum += f64::from(dist);
         }
+        let count = particles.len().max(1) as f64;
         if !near.is_finite() {
             (near, far) = (1.0, 2.0);
         }
@@ -53,9 +66,13 @@ impl LightSpace {
         Self {
             position: light.position,
             clip_from_world: proj * view,
+            view_from_world: view,
+            tan_half_fov: (0.5 * fov).tan(),
             near_m: near,
             far_m: far,
             max_radius_m: max_radius,
+            mean_radius_m: (radius_sum / count) as f32,
+            mean_dist_m: (dist_sum / count) as f32,
         }
     }
 }
@@ -86,5 +103,15 @@ mod tests {
         // The target is at the centre of the shadow map.
         let c = ls.clip_from_world.project_point3(Vec3::new(0.0, 1.0, 0.0));
         assert!(c.x.abs() < 1e-5 && c.y.abs() < 1e-5);
+        // The view and tan(fov/2) give the same NDC as the full projection.
+        let p = Vec3::new(1.5, 2.0, -0.7);
+        let (v, c) = (
+            ls.view_from_world.transform_point3(p),
+            ls.clip_from_world.project_point3(p),
+        );
+        let ndc = v.truncate() / (-v.z * ls.tan_half_fov);
+        assert!((ndc.x - c.x).abs() < 1e-5 && (ndc.y - c.y).abs() < 1e-5);
+        assert!((ls.mean_radius_m - 0.75).abs() < 1e-6);
+        assert!((ls.mean_dist_m - 6.5).abs() < 1e-5);
     }
 }

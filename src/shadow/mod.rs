@@ -81,6 +81,15 @@ pub enum ShadowError {
         limit: u64,
     },
     #[error(
+        "exact's tile lists for {particles} particles need {bytes} bytes even as one tile, but \
+         the adapter binds at most {limit} bytes per buffer"
+    )]
+    TileListsTooLarge {
+        particles: u32,
+        bytes: u64,
+        limit: u64,
+    },
+    #[error(
         "unknown technique parameter \"{key}\"; valid parameters: {valid} (`smokeshadow info` \
          describes them)"
     )]
@@ -149,6 +158,8 @@ pub struct BuildInputs<'a> {
     /// front for the camera.
     pub particles: &'a wgpu::Buffer,
     pub particle_count: u32,
+    /// The same instances on the CPU, in the buffer's order.
+    pub instances: &'a [crate::frame::gpu_data::ParticleInstance],
     pub light: &'a LightSpace,
 }
 

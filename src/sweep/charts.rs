@@ -838,7 +838,7 @@ mod tests {
             timestamp_queries: true,
             frames: 30,
             warmup: 5,
-            exact_res: 1024,
+            exact_tiles: 64,
             exact_bytes: 63 << 20,
             started: "2026-01-01T00:00:00Z".into(),
             wall_s: 12.5,

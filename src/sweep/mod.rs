@@ -109,9 +109,9 @@ pub struct SweepMetadata {
     pub timestamp_queries: bool,
     pub frames: u32,
     pub warmup: u32,
-    /// Shadow resolution of the `exact` reference every cell is compared with.
-    pub exact_res: u32,
-    /// Bytes `exact` allocated at that resolution.
+    /// Light-space tiles per side of the `exact` reference every cell is compared with.
+    pub exact_tiles: u32,
+    /// Bytes `exact` allocated.
     pub exact_bytes: u64,
     /// RFC 3339 (UTC) start of this run, and its wall time in seconds.
     pub started: String,

@@ -77,8 +77,8 @@ fn metadata_line(body: &mut String, results: &SweepResults) {
         body,
         "<p class=\"muted\">Scene <code>{scene}</code> at {w}x{h}, {particles} particles, seed {seed}; \
          adapter {adapter} ({backend}, driver {driver}); timestamp queries: {ts}; \
-         {frames} timed frames after {warmup} warm-up; reference <code>exact</code> at {exact_res}² \
-         ({exact_bytes}); smokeshadow {version}; ran {wall}, started {started}.</p>",
+         {frames} timed frames after {warmup} warm-up; reference <code>exact</code>: the closed form per point \
+         through {exact_tiles}² light-space tiles ({exact_bytes}); smokeshadow {version}; ran {wall}, started {started}.</p>",
         scene = e(&m.scene),
         w = m.width_px,
         h = m.height_px,
@@ -94,7 +94,7 @@ fn metadata_line(body: &mut String, results: &SweepResults) {
         },
         frames = m.frames,
         warmup = m.warmup,
-        exact_res = m.exact_res,
+        exact_tiles = m.exact_tiles,
         exact_bytes = report::bytes(m.exact_bytes),
         version = e(&m.tool_version),
         started = e(&m.started),
@@ -272,8 +272,8 @@ fn image_grid(body: &mut String, results: &SweepResults, variants: &Variants) {
     let _ = writeln!(
         body,
         "<figure><a href=\"{x}\"><img loading=\"lazy\" src=\"{x}\" alt=\"exact\"></a>\
-         <figcaption><b>exact</b> at {}² · {} · the reference</figcaption></figure>",
-        results.metadata.exact_res,
+         <figcaption><b>exact</b> · closed form, {}² tiles · {} · the reference</figcaption></figure>",
+        results.metadata.exact_tiles,
         report::bytes(results.metadata.exact_bytes),
         x = e(&results.exact_image),
     );
@@ -524,7 +524,7 @@ mod tests {
                 timestamp_queries: true,
                 frames: 30,
                 warmup: 5,
-                exact_res: 1024,
+                exact_tiles: 64,
                 exact_bytes: 63 << 20,
                 started: "2026-01-01T00:00:00Z".into(),
                 wall_s: 75.0,

@@ -29,8 +29,6 @@ pub struct SweepOptions {
     pub warmup: u32,
     /// Reuse cells already finished with identical settings.
     pub resume: bool,
-    /// Shadow resolution of the `exact` reference.
-    pub exact_res: u32,
 }
 
 impl Default for SweepOptions {
@@ -43,7 +41,6 @@ impl Default for SweepOptions {
             frames: 20,
             warmup: 3,
             resume: false,
-            exact_res: crate::baseline::EXACT_RESOLUTION_PX,
         }
     }
 }
@@ -178,17 +175,24 @@ fn first_budget(entry: &shadow::TechniqueEntry, budgets: &[u32]) -> Option<u32> 
 /// What a cell's measurement depends on, as a string (`--resume` reuses a cell only when equal).
 fn settings_key(scene: &Scene, options: &SweepOptions, plan: &Plan) -> String {
     format!(
-        "tool={} scene={} size={}x{} frames={} warmup={} exact_res={} technique={} params={}",
+        "tool={} scene={} size={}x{} frames={} warmup={} exact=closed-form technique={} params={}",
         env!("CARGO_PKG_VERSION"),
         scene.content_hash(),
         scene.output.width_px,
         scene.output.height_px,
         options.frames,
         options.warmup,
-        options.exact_res,
         plan.config.name,
         serde_json::to_string(&plan.config.params).expect("params serialise"),
     )
+}
+
+/// A technique's counter by name (0 when absent).
+fn counter(counters: &[(&'static str, u64)], name: &str) -> u64 {
+    counters
+        .iter()
+        .find(|(n, _)| *n == name)
+        .map_or(0, |(_, v)| *v)
 }
 
 /// Median, minimum and maximum of samples.
@@ -469,7 +473,6 @@ pub fn run(
     let (w, h) = (scene.output.width_px, scene.output.height_px);
     let mut exact_config = plans[0].config.clone();
     exact_config.name = shadow::reference().name.to_owned();
-    exact_config.params.resolution_px = options.exact_res;
     let mut progress = Progress::new(plans.len() + 1);
     progress.start("exact reference");
     let mut renderer = Renderer::new(gpu, w, h, OUTPUT_FORMAT, &exact_config)?;
@@ -482,6 +485,7 @@ pub fn run(
         &target.view,
     )?;
     let exact_bytes = renderer.technique().memory().total_bytes();
+    let exact_tiles = counter(&renderer.technique().counters(), "tiles_per_side") as u32;
     let exact_image =
         image::DynamicImage::ImageRgba8(crate::gpu::read_texture_rgba8(gpu, &target.texture)?)
             .into_rgb8();
@@ -490,8 +494,8 @@ pub fn run(
     let points = shaded_points(scene, &particles, w, h, SHADED_STRIDE_PX);
     let exact_t = renderer.probe(gpu, scene, &particles, &points)?;
     progress.finish(format!(
-        "exact reference at {}²: {} bytes, T at {} shaded points",
-        options.exact_res,
+        "exact reference ({}² light tiles): {} bytes, T at {} shaded points",
+        exact_tiles,
         exact_bytes,
         points.len()
     ));
@@ -522,7 +526,7 @@ pub fn run(
         timestamp_queries: gpu.has_timestamps(),
         frames: options.frames,
         warmup: options.warmup,
-        exact_res: options.exact_res,
+        exact_tiles,
         exact_bytes,
         started: humantime::format_rfc3339_seconds(started).to_string(),
         wall_s,

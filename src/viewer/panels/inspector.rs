@@ -17,7 +17,7 @@ pub fn show(controller: &mut Controller, textures: &Textures, ui: &mut egui::Ui)
             let channels = inspect_channels(view);
             if channels.is_empty() {
                 ui.label(format!(
-                    "{} keeps no maps to show (exact stores per-texel segment lists).",
+                    "{} keeps no maps to show (exact evaluates T in closed form through light-space tile lists).",
                     view.config().name
                 ));
                 return;
