@@ -394,6 +394,13 @@ fn reported_channels_and_bytes_match_each_techniques_formula() {
                 assert!(segments > n, "exact stored only {segments} segments");
                 assert!(capacity >= segments && capacity <= segments * 5 / 4 + 65536);
             }
+            assert_eq!(
+                t.memory().transient_bytes(),
+                expected.transient_bytes,
+                "{} at {b} channels: transient part of the ledger {:?}",
+                entry.name,
+                t.memory().entries()
+            );
             let (channels, expected) = (expected.channels, expected.bytes);
             assert_eq!(
                 u64::from(t.channels_used()),

@@ -56,6 +56,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     memory: |c| MemoryUse {
         channels: 3,
         bytes: c.texels() * 3 * 2 + 16,
+        transient_bytes: 0,
     },
     lookup_shader: "shadow/bsm.wgsl",
     extra_shaders: || SPEC.build_shaders(),

@@ -75,6 +75,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     memory: |c| MemoryUse {
         channels: c.channels.into(),
         bytes: c.texels() * (packed_bytes_per_texel(u64::from(c.channels) - 1, 2) + 2) + 32,
+        transient_bytes: 0,
     },
     lookup_shader: "shadow/dom.wgsl",
     extra_shaders: || SPEC.all_build_shaders(),

@@ -57,6 +57,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     memory: |c| MemoryUse {
         channels: 1,
         bytes: c.texels() * 2 + 16,
+        transient_bytes: 0,
     },
     lookup_shader: "shadow/esm.wgsl",
     extra_shaders: || SPEC.build_shaders(),

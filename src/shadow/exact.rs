@@ -53,6 +53,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
                 + (u64::from(c.resolution_px) + 1) * 4
                 + texels
                 + c.counter("segment_capacity") * (SEGMENT_BYTES + NODE_BYTES_PER_SEGMENT),
+            transient_bytes: 0,
         }
     },
     lookup_shader: "shadow/exact.wgsl",

@@ -19,6 +19,7 @@ fn coefficient_memory(c: &MemoryCase<'_>) -> MemoryUse {
     MemoryUse {
         channels: used,
         bytes: c.texels() * packed_bytes_per_texel(used, 4) + 32,
+        transient_bytes: 0,
     }
 }
 

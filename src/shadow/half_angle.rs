@@ -65,6 +65,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
                 + c.frame_pixels * 8
                 + 96 * capacity
                 + 256 * u64::from(c.channels),
+            transient_bytes: 0,
         }
     },
     lookup_shader: "shadow/has.wgsl",

@@ -289,7 +289,11 @@ impl MemoryCase<'_> {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct MemoryUse {
     pub channels: u64,
+    /// Everything allocated, transient bytes included.
     pub bytes: u64,
+    /// The part of `bytes` that is build scratch the lookup never reads (a deep capture's
+    /// uncompressed lists; see `MemoryLedger::transient_bytes`).
+    pub transient_bytes: u64,
 }
 
 /// Bytes of `packed` channels of `bytes_per_channel` per texel, packed 4 to a target, where a

@@ -22,6 +22,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     memory: |_| MemoryUse {
         channels: 0,
         bytes: 0,
+        transient_bytes: 0,
     },
     lookup_shader: "shadow/none.wgsl",
     extra_shaders: Vec::new,

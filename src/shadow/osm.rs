@@ -49,6 +49,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     memory: |c| MemoryUse {
         channels: c.channels.into(),
         bytes: c.texels() * packed_bytes_per_texel(c.channels.into(), 2) + 32,
+        transient_bytes: 0,
     },
     lookup_shader: "shadow/osm.wgsl",
     extra_shaders: || SPEC.all_build_shaders(),
