@@ -52,6 +52,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     params: &[],
     order_independent: true,
     converges_with_budget: false,
+    compresses_captured_lists: false,
     // Three R16F maps and a 16-byte uniform.
     memory: |c| MemoryUse {
         channels: 3,

@@ -71,6 +71,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     params: &[THICKNESS, LAYER_RATIO],
     order_independent: true,
     converges_with_budget: true,
+    compresses_captured_lists: false,
     // One R16F start-depth channel, B - 1 half-float layers and a 32-byte uniform.
     memory: |c| MemoryUse {
         channels: c.channels.into(),

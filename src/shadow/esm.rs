@@ -53,6 +53,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     params: &[EXPONENT],
     order_independent: true,
     converges_with_budget: false,
+    compresses_captured_lists: false,
     // An R16F start depth and a 16-byte uniform.
     memory: |c| MemoryUse {
         channels: 1,

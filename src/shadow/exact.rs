@@ -41,6 +41,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     params: &[],
     order_independent: true,
     converges_with_budget: false,
+    compresses_captured_lists: false,
     // Counts, offsets (+1 for the total), row sums (+1), an R8 raster target, a 16-byte uniform
     // and 12 + 16 bytes of segment and node storage per segment of capacity.
     memory: |c| {

@@ -74,6 +74,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     params: &[],
     order_independent: true,
     converges_with_budget: true,
+    compresses_captured_lists: false,
     memory: coefficient_memory,
     lookup_shader: "shadow/fom.wgsl",
     extra_shaders: || FOM.all_build_shaders(),
@@ -94,6 +95,7 @@ pub const SIGMA_ENTRY: TechniqueEntry = TechniqueEntry {
     params: &[],
     order_independent: true,
     converges_with_budget: true,
+    compresses_captured_lists: false,
     memory: coefficient_memory,
     lookup_shader: "shadow/fom.wgsl",
     // Same build shaders as `fom`: the σ-factors apply at lookup.

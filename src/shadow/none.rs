@@ -19,6 +19,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     params: &[],
     order_independent: true,
     converges_with_budget: false,
+    compresses_captured_lists: false,
     memory: |_| MemoryUse {
         channels: 0,
         bytes: 0,

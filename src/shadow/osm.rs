@@ -45,6 +45,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     params: &[],
     order_independent: true,
     converges_with_budget: true,
+    compresses_captured_lists: false,
     // B half-float slices and a 32-byte uniform.
     memory: |c| MemoryUse {
         channels: c.channels.into(),

@@ -216,7 +216,11 @@ fn table(body: &mut String, results: &SweepResults, variants: &Variants, pareto:
             c.splat.name(),
             match c.transient_bytes {
                 0 => report::bytes(c.bytes),
-                t => format!("{} ({} transient)", report::bytes(c.bytes), report::bytes(t)),
+                t => format!(
+                    "{} ({} transient)",
+                    report::bytes(c.bytes),
+                    report::bytes(t)
+                ),
             },
             gpu_time(&c.gpu_shadow_ms),
             if gpu {

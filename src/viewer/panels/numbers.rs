@@ -73,18 +73,17 @@ pub fn show(controller: &mut Controller, ui: &mut egui::Ui) {
                 crate::report::bytes(transient)
             ),
         };
-        ui.label(shown)
-            .on_hover_text(
-                memory
-                    .entries()
-                    .iter()
-                    .map(|e| {
-                        let transient = if e.transient { " (transient)" } else { "" };
-                        format!("{}: {} bytes{transient}", e.label, e.bytes)
-                    })
-                    .collect::<Vec<_>>()
-                    .join("\n"),
-            );
+        ui.label(shown).on_hover_text(
+            memory
+                .entries()
+                .iter()
+                .map(|e| {
+                    let transient = if e.transient { " (transient)" } else { "" };
+                    format!("{}: {} bytes{transient}", e.label, e.bytes)
+                })
+                .collect::<Vec<_>>()
+                .join("\n"),
+        );
         ui.end_row();
         if let Some(b) = &controller.views[1]
             && controller.state.mode.shows_b()
