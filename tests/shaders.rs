@@ -68,12 +68,14 @@ fn every_shader_file_is_embedded_and_composes() {
 #[test]
 fn every_rust_mirror_matches_nagas_reflection_of_its_wgsl_struct() {
     use smokeshadow::shaders::{SHADOW_TECHNIQUE, compose, source};
-    use smokeshadow::shadow::{exact, half_angle, layered, light_maps};
+    use smokeshadow::shadow::{deep_capture, deep_nodes, exact, half_angle, layered, light_maps};
     let mirrors = [
         smokeshadow::frame::gpu_data::layouts(),
         smokeshadow::frame::particles::layouts(),
         layered::layouts(),
         exact::layouts(),
+        deep_capture::layouts(),
+        deep_nodes::layouts(),
         half_angle::layouts(),
         light_maps::layouts(),
         smokeshadow::viewer::map_view::layouts(),

@@ -80,13 +80,14 @@ pub fn run(args: &RenderArgs, adapter: &AdapterPreference) -> anyhow::Result<()>
     crate::output::write_png(&args.output, &image)?;
     let t = renderer.technique();
     println!(
-        "wrote {} ({w}x{h}, {} particles simulated to t = {} s in {sim_ms:.0} ms, technique {} with {} channels, {} bytes of shadow memory, {} billboards)",
+        "wrote {} ({w}x{h}, {} particles simulated to t = {} s in {sim_ms:.0} ms, technique {} with {} channels, {} bytes of shadow memory{}, {} billboards)",
         args.output.display(),
         particles.len(),
         scene.sim.duration_s,
         t.name(),
         t.channels_used(),
         t.memory().total_bytes(),
+        transient_note(t.memory()),
         if options.spherical {
             "spherical"
         } else {
@@ -94,6 +95,14 @@ pub fn run(args: &RenderArgs, adapter: &AdapterPreference) -> anyhow::Result<()>
         },
     );
     Ok(())
+}
+
+/// " (N of them transient)" when part of the bytes is build scratch the lookup never reads.
+fn transient_note(memory: &crate::gpu::MemoryLedger) -> String {
+    match memory.transient_bytes() {
+        0 => String::new(),
+        t => format!(" ({t} of them transient)"),
+    }
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -131,13 +140,14 @@ fn bench(
     }
     let t = renderer.technique();
     println!(
-        "bench: {} x {} ({} particles), technique {} / {} channels, {} bytes; {frames} frames after {warmup} warm-up",
+        "bench: {} x {} ({} particles), technique {} / {} channels, {} bytes{}; {frames} frames after {warmup} warm-up",
         scene.output.width_px,
         scene.output.height_px,
         particles.len(),
         t.name(),
         t.channels_used(),
-        t.memory().total_bytes()
+        t.memory().total_bytes(),
+        transient_note(t.memory()),
     );
     if !gpu.has_timestamps() {
         println!("  GPU pass times: not available (the adapter has no timestamp queries)");

@@ -69,12 +69,13 @@ pub fn run(args: &SweepArgs, adapter: &AdapterPreference) -> anyhow::Result<()> 
         args.output.join("index.html").display()
     );
     println!(
-        "{:<10} {:>4} {:>5} {:>8} {:>11} {:>10} {:>9} {:>9} {:>11} {:>9}",
+        "{:<10} {:>4} {:>5} {:>8} {:>11} {:>11} {:>10} {:>9} {:>9} {:>11} {:>9}",
         "technique",
         "ch",
         "res",
         "splat",
         "bytes",
+        "transient",
         "frame ms",
         "overhead",
         "FLIP own",
@@ -84,12 +85,13 @@ pub fn run(args: &SweepArgs, adapter: &AdapterPreference) -> anyhow::Result<()> 
     let opt = |v: Option<f64>| v.map_or("-".to_owned(), |v| format!("{v:.4}"));
     for c in &results.cells {
         println!(
-            "{:<10} {:>4} {:>5} {:>8} {:>11} {:>10.2} {:>9} {:>9} {:>11} {:>9}",
+            "{:<10} {:>4} {:>5} {:>8} {:>11} {:>11} {:>10.2} {:>9} {:>9} {:>11} {:>9}",
             c.technique,
             c.channels,
             c.shadow_res,
             c.splat.name(),
             c.bytes,
+            c.transient_bytes,
             c.frame_ms.median,
             c.overhead_ratio
                 .map_or("-".to_owned(), |r| format!("{r:.2}x")),

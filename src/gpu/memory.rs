@@ -102,10 +102,20 @@ pub enum AllocationError {
     },
 }
 
+/// One recorded allocation.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct LedgerEntry {
+    pub label: String,
+    pub bytes: u64,
+    /// Scratch the build needs while it runs but the lookup never reads (a deep capture's
+    /// per-texel lists before compression): still allocated and counted, reported apart.
+    pub transient: bool,
+}
+
 /// A list of labelled allocations and their sizes in bytes, checked against a [`MemoryBudget`].
 #[derive(Clone, Debug)]
 pub struct MemoryLedger {
-    entries: Vec<(String, u64)>,
+    entries: Vec<LedgerEntry>,
     budget: MemoryBudget,
 }
 
@@ -129,6 +139,24 @@ impl MemoryLedger {
         device: &wgpu::Device,
         desc: &wgpu::TextureDescriptor<'_>,
     ) -> Result<wgpu::Texture, AllocationError> {
+        self.texture_as(device, desc, false)
+    }
+
+    /// [`MemoryLedger::texture`], recorded as transient (build scratch the lookup never reads).
+    pub fn texture_transient(
+        &mut self,
+        device: &wgpu::Device,
+        desc: &wgpu::TextureDescriptor<'_>,
+    ) -> Result<wgpu::Texture, AllocationError> {
+        self.texture_as(device, desc, true)
+    }
+
+    fn texture_as(
+        &mut self,
+        device: &wgpu::Device,
+        desc: &wgpu::TextureDescriptor<'_>,
+        transient: bool,
+    ) -> Result<wgpu::Texture, AllocationError> {
         let label = desc.label.unwrap_or("texture");
         let max = self.budget.max_texture_dimension_2d;
         if desc.size.width > max || desc.size.height > max {
@@ -148,7 +176,7 @@ impl MemoryLedger {
                 max: self.budget.max_texture_array_layers,
             });
         }
-        self.reserve(label, texture_bytes(desc))?;
+        self.reserve(label, texture_bytes(desc), transient)?;
         Ok(device.create_texture(desc))
     }
 
@@ -158,6 +186,24 @@ impl MemoryLedger {
         &mut self,
         device: &wgpu::Device,
         desc: &wgpu::BufferDescriptor<'_>,
+    ) -> Result<wgpu::Buffer, AllocationError> {
+        self.buffer_as(device, desc, false)
+    }
+
+    /// [`MemoryLedger::buffer`], recorded as transient (build scratch the lookup never reads).
+    pub fn buffer_transient(
+        &mut self,
+        device: &wgpu::Device,
+        desc: &wgpu::BufferDescriptor<'_>,
+    ) -> Result<wgpu::Buffer, AllocationError> {
+        self.buffer_as(device, desc, true)
+    }
+
+    fn buffer_as(
+        &mut self,
+        device: &wgpu::Device,
+        desc: &wgpu::BufferDescriptor<'_>,
+        transient: bool,
     ) -> Result<wgpu::Buffer, AllocationError> {
         let label = desc.label.unwrap_or("buffer");
         let storage = desc.usage.contains(wgpu::BufferUsages::STORAGE);
@@ -178,17 +224,21 @@ impl MemoryLedger {
                 binding,
             });
         }
-        self.reserve(label, desc.size)?;
+        self.reserve(label, desc.size, transient)?;
         Ok(device.create_buffer(desc))
     }
 
     /// Records an allocation made elsewhere, by the size of the buffer(s) actually created.
     pub fn record(&mut self, label: &str, bytes: u64) {
-        self.entries.push((label.to_owned(), bytes));
+        self.entries.push(LedgerEntry {
+            label: label.to_owned(),
+            bytes,
+            transient: false,
+        });
     }
 
     /// Records `bytes` under `label` if the budget allows them.
-    fn reserve(&mut self, label: &str, bytes: u64) -> Result<(), AllocationError> {
+    fn reserve(&mut self, label: &str, bytes: u64, transient: bool) -> Result<(), AllocationError> {
         let total = self.total_bytes().saturating_add(bytes);
         if total > self.budget.total_bytes {
             return Err(AllocationError::OverBudget {
@@ -199,22 +249,36 @@ impl MemoryLedger {
                 budget_mib: self.budget.total_bytes >> 20,
             });
         }
-        self.entries.push((label.to_owned(), bytes));
+        self.entries.push(LedgerEntry {
+            label: label.to_owned(),
+            bytes,
+            transient,
+        });
         Ok(())
     }
 
     /// Forgets the allocation labelled `label` (it was dropped or is about to be replaced).
     pub fn forget(&mut self, label: &str) {
-        self.entries.retain(|(l, _)| l != label);
+        self.entries.retain(|e| e.label != label);
     }
 
-    /// Total bytes recorded.
+    /// Total bytes recorded, transient ones included.
     pub fn total_bytes(&self) -> u64 {
-        self.entries.iter().map(|(_, b)| b).sum()
+        self.entries.iter().map(|e| e.bytes).sum()
+    }
+
+    /// The part of [`MemoryLedger::total_bytes`] recorded as transient: build scratch the
+    /// lookup never reads (a deep capture's uncompressed lists).
+    pub fn transient_bytes(&self) -> u64 {
+        self.entries
+            .iter()
+            .filter(|e| e.transient)
+            .map(|e| e.bytes)
+            .sum()
     }
 
     /// The recorded allocations, in creation order.
-    pub fn entries(&self) -> &[(String, u64)] {
+    pub fn entries(&self) -> &[LedgerEntry] {
         &self.entries
     }
 }
@@ -263,5 +327,16 @@ mod tests {
             ..desc
         };
         assert_eq!(texture_bytes(&r16), 512 * 512 * 3 * 2);
+    }
+
+    #[test]
+    fn transient_bytes_are_part_of_the_total_and_reported_apart() {
+        let mut ledger = MemoryLedger::new(MemoryBudget::unlimited());
+        ledger.record("kept", 100);
+        ledger.reserve("scratch", 40, true).unwrap();
+        ledger.reserve("more scratch", 2, true).unwrap();
+        assert_eq!((ledger.total_bytes(), ledger.transient_bytes()), (142, 42));
+        ledger.forget("scratch");
+        assert_eq!((ledger.total_bytes(), ledger.transient_bytes()), (102, 2));
     }
 }

@@ -11,7 +11,7 @@ mod readback;
 mod timing;
 
 pub use layout::MirrorLayout;
-pub use memory::{AllocationError, MemoryBudget, MemoryLedger};
+pub use memory::{AllocationError, LedgerEntry, MemoryBudget, MemoryLedger};
 pub use readback::{Rgba16fImage, read_buffer, read_texture_rgba8, read_texture_rgba16f};
 pub use timing::{GpuTimer, PassTimes};
 

@@ -52,10 +52,12 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     params: &[],
     order_independent: true,
     converges_with_budget: false,
+    compresses_captured_lists: false,
     // Three R16F maps and a 16-byte uniform.
     memory: |c| MemoryUse {
         channels: 3,
         bytes: c.texels() * 3 * 2 + 16,
+        transient_bytes: 0,
     },
     lookup_shader: "shadow/bsm.wgsl",
     extra_shaders: || SPEC.build_shaders(),

@@ -71,10 +71,12 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     params: &[THICKNESS, LAYER_RATIO],
     order_independent: true,
     converges_with_budget: true,
+    compresses_captured_lists: false,
     // One R16F start-depth channel, B - 1 half-float layers and a 32-byte uniform.
     memory: |c| MemoryUse {
         channels: c.channels.into(),
         bytes: c.texels() * (packed_bytes_per_texel(u64::from(c.channels) - 1, 2) + 2) + 32,
+        transient_bytes: 0,
     },
     lookup_shader: "shadow/dom.wgsl",
     extra_shaders: || SPEC.all_build_shaders(),

@@ -53,10 +53,12 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     params: &[EXPONENT],
     order_independent: true,
     converges_with_budget: false,
+    compresses_captured_lists: false,
     // An R16F start depth and a 16-byte uniform.
     memory: |c| MemoryUse {
         channels: 1,
         bytes: c.texels() * 2 + 16,
+        transient_bytes: 0,
     },
     lookup_shader: "shadow/esm.wgsl",
     extra_shaders: || SPEC.build_shaders(),

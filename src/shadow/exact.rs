@@ -47,10 +47,12 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     params: &[],
     order_independent: true,
     converges_with_budget: false,
+    compresses_captured_lists: false,
     // The uniform, the per-tile counts and offsets (+1 for the total), the row sums (+1), 8 bytes per list entry of
     // capacity, and per particle of capacity its sphere (32 bytes: the lists index this copy,
     // so a frame that reuses them after the renderer re-sorted its instances still reads the
-    // spheres they were built from) and its place in the fill order (4 bytes).
+    // spheres they were built from) and its place in the fill order (4 bytes). Nothing is
+    // reported as transient: the counts and the fill order are scratch, but small.
     memory: |c| {
         let side = c.counter("tiles_per_side");
         let tiles = side * side;
@@ -62,6 +64,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
                 + ((side + 1) * 4).max(16)
                 + c.counter("entry_capacity") * ENTRY_BYTES
                 + c.counter("sphere_capacity") * (SPHERE_BYTES + 4),
+            transient_bytes: 0,
         }
     },
     lookup_shader: "shadow/exact.wgsl",

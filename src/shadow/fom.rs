@@ -19,6 +19,7 @@ fn coefficient_memory(c: &MemoryCase<'_>) -> MemoryUse {
     MemoryUse {
         channels: used,
         bytes: c.texels() * packed_bytes_per_texel(used, 4) + 32,
+        transient_bytes: 0,
     }
 }
 
@@ -73,6 +74,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     params: &[],
     order_independent: true,
     converges_with_budget: true,
+    compresses_captured_lists: false,
     memory: coefficient_memory,
     lookup_shader: "shadow/fom.wgsl",
     extra_shaders: || FOM.all_build_shaders(),
@@ -93,6 +95,7 @@ pub const SIGMA_ENTRY: TechniqueEntry = TechniqueEntry {
     params: &[],
     order_independent: true,
     converges_with_budget: true,
+    compresses_captured_lists: false,
     memory: coefficient_memory,
     lookup_shader: "shadow/fom.wgsl",
     // Same build shaders as `fom`: the σ-factors apply at lookup.

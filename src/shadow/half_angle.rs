@@ -53,6 +53,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     params: &[],
     order_independent: false,
     converges_with_budget: true,
+    compresses_captured_lists: false,
     // R16F light buffer, RGBA16F eye buffer, the re-sorted instances (32 bytes each, capacity a
     // power of two from 1024), their lighting (64 bytes each), one 256-byte lighting range per
     // slice and a 16-byte uniform.
@@ -65,6 +66,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
                 + c.frame_pixels * 8
                 + 96 * capacity
                 + 256 * u64::from(c.channels),
+            transient_bytes: 0,
         }
     },
     lookup_shader: "shadow/has.wgsl",

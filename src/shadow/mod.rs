@@ -15,9 +15,14 @@
 //! Adding a technique: a new `src/shadow/<name>.rs` with a `pub const ENTRY`, its shaders under
 //! `shaders/shadow/`, and one line in [`REGISTRY`].
 
+pub mod avsm;
 pub mod bsm;
 pub mod closed_form;
+pub mod deep_capture;
+pub mod deep_compress;
+pub mod deep_nodes;
 pub mod dom;
+pub mod dsm;
 pub mod esm;
 pub mod exact;
 pub mod fom;
@@ -70,22 +75,23 @@ pub enum ShadowError {
         allowed_bytes: u32,
     },
     #[error(
-        "exact at {resolution_px}x{resolution_px} needs {segments} segments ({bytes} bytes of \
-         lists) this frame, but the adapter binds at most {limit} bytes per buffer: use a lower \
-         --shadow-res"
-    )]
-    ListsTooLarge {
-        resolution_px: u32,
-        segments: u64,
-        bytes: u64,
-        limit: u64,
-    },
-    #[error(
         "exact's tile lists for {particles} particles need {bytes} bytes even as one tile, but \
          the adapter binds at most {limit} bytes per buffer"
     )]
     TileListsTooLarge {
         particles: u32,
+        bytes: u64,
+        limit: u64,
+    },
+    #[error(
+        "{technique} at {resolution_px}x{resolution_px} captures {segments} segments ({bytes} \
+         bytes of lists) this frame, but the adapter binds at most {limit} bytes per buffer: use \
+         a lower --shadow-res"
+    )]
+    CaptureTooLarge {
+        technique: &'static str,
+        resolution_px: u32,
+        segments: u64,
         bytes: u64,
         limit: u64,
     },
@@ -300,7 +306,11 @@ impl MemoryCase<'_> {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct MemoryUse {
     pub channels: u64,
+    /// Everything allocated, transient bytes included.
     pub bytes: u64,
+    /// The part of `bytes` that is build scratch the lookup never reads (a deep capture's
+    /// uncompressed lists; see `MemoryLedger::transient_bytes`).
+    pub transient_bytes: u64,
 }
 
 /// Bytes of `packed` channels of `bytes_per_channel` per texel, packed 4 to a target, where a
@@ -342,6 +352,10 @@ pub struct TechniqueEntry {
     /// Whether its error against `exact` shrinks as the budget grows (segment splats, where the
     /// splat mode applies); the convergence tests hold every such technique to it.
     pub converges_with_budget: bool,
+    /// Whether it keeps each texel's captured segment list whole when the budget holds it and
+    /// compresses it only beyond (`dsm`, `avsm`): on one particle every budget holds the lists,
+    /// so the analytic-sphere test holds its T to be the same at every budget.
+    pub compresses_captured_lists: bool,
     /// Its documented memory formula: the channels it uses and the bytes it allocates for a
     /// case. The tests check every technique's ledger against it.
     pub memory: fn(&MemoryCase<'_>) -> MemoryUse,
@@ -369,6 +383,8 @@ pub static REGISTRY: &[TechniqueEntry] = &[
     half_angle::ENTRY,
     esm::ENTRY,
     bsm::ENTRY,
+    dsm::ENTRY,
+    avsm::ENTRY,
     exact::ENTRY,
 ];
 

@@ -19,9 +19,11 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     params: &[],
     order_independent: true,
     converges_with_budget: false,
+    compresses_captured_lists: false,
     memory: |_| MemoryUse {
         channels: 0,
         bytes: 0,
+        transient_bytes: 0,
     },
     lookup_shader: "shadow/none.wgsl",
     extra_shaders: Vec::new,

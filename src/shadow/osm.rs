@@ -45,10 +45,12 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     params: &[],
     order_independent: true,
     converges_with_budget: true,
+    compresses_captured_lists: false,
     // B half-float slices and a 32-byte uniform.
     memory: |c| MemoryUse {
         channels: c.channels.into(),
         bytes: c.texels() * packed_bytes_per_texel(c.channels.into(), 2) + 32,
+        transient_bytes: 0,
     },
     lookup_shader: "shadow/osm.wgsl",
     extra_shaders: || SPEC.all_build_shaders(),

@@ -805,6 +805,7 @@ mod tests {
             shadow_res: res,
             splat: SplatMode::Point,
             bytes,
+            transient_bytes: 0,
             gpu_shadow_ms: timing(1.0),
             gpu_render_ms: timing(4.0),
             cpu_sort_ms: timing(0.5),

@@ -51,6 +51,10 @@ pub struct CellResult {
     pub splat: SplatMode,
     /// Bytes the technique allocated (its memory ledger).
     pub bytes: u64,
+    /// The part of `bytes` that is build scratch the lookup never reads (a deep capture's
+    /// uncompressed lists); 0 for most techniques, and in cells written before it existed.
+    #[serde(default)]
+    pub transient_bytes: u64,
     /// GPU time of the technique's shadow build passes.
     pub gpu_shadow_ms: Timing,
     /// GPU time of everything else in the frame: opaque, particles (with their lighting), tone

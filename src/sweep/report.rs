@@ -214,7 +214,14 @@ fn table(body: &mut String, results: &SweepResults, variants: &Variants, pareto:
             e(&c.technique),
             c.shadow_res,
             c.splat.name(),
-            report::bytes(c.bytes),
+            match c.transient_bytes {
+                0 => report::bytes(c.bytes),
+                t => format!(
+                    "{} ({} transient)",
+                    report::bytes(c.bytes),
+                    report::bytes(t)
+                ),
+            },
             gpu_time(&c.gpu_shadow_ms),
             if gpu {
                 ms(c.gpu_render_ms.median)
@@ -490,6 +497,7 @@ mod tests {
             shadow_res: 512,
             splat: SplatMode::Point,
             bytes,
+            transient_bytes: 0,
             gpu_shadow_ms: timing(1.0),
             gpu_render_ms: timing(4.0),
             cpu_sort_ms: timing(0.5),

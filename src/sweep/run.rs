@@ -325,7 +325,11 @@ impl Sweeper<'_> {
             frame_ms.push(times.total_ms() + stats.sort_ms);
         }
         let technique = self.renderer.technique();
-        let (channels_used, bytes) = (technique.channels_used(), technique.memory().total_bytes());
+        let (channels_used, bytes, transient_bytes) = (
+            technique.channels_used(),
+            technique.memory().total_bytes(),
+            technique.memory().transient_bytes(),
+        );
         let rgba = crate::gpu::read_texture_rgba8(self.gpu, &self.target.texture)?;
         let image = image::DynamicImage::ImageRgba8(rgba).into_rgb8();
         let image_path = format!("images/{}.png", plan.name);
@@ -338,6 +342,7 @@ impl Sweeper<'_> {
             shadow_res: plan.config.params.resolution_px,
             splat: plan.config.params.splat,
             bytes,
+            transient_bytes,
             gpu_shadow_ms: timing(&shadow_ms),
             gpu_render_ms: timing(&render_ms),
             cpu_sort_ms: timing(&sort_ms),
@@ -634,6 +639,7 @@ pub const CSV_COLUMNS: &[&str] = &[
     "shadow_res",
     "splat",
     "bytes",
+    "transient_bytes",
     "shadow_ms_median",
     "shadow_ms_min",
     "shadow_ms_max",
@@ -667,6 +673,7 @@ pub fn write_results(results: &SweepResults, dir: &Path) -> anyhow::Result<()> {
             c.shadow_res.to_string(),
             c.splat.name().to_owned(),
             c.bytes.to_string(),
+            c.transient_bytes.to_string(),
             format!("{:.3}", c.gpu_shadow_ms.median),
             format!("{:.3}", c.gpu_shadow_ms.min),
             format!("{:.3}", c.gpu_shadow_ms.max),

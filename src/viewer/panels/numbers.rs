@@ -64,15 +64,26 @@ pub fn show(controller: &mut Controller, ui: &mut egui::Ui) {
         ui.end_row();
         let memory = view.renderer().technique().memory();
         ui.label("Shadow memory");
-        ui.label(crate::report::bytes(memory.total_bytes()))
-            .on_hover_text(
-                memory
-                    .entries()
-                    .iter()
-                    .map(|(l, b)| format!("{l}: {b} bytes"))
-                    .collect::<Vec<_>>()
-                    .join("\n"),
-            );
+        // The build's scratch (a deep capture's lists) is allocated and counted, and said apart.
+        let shown = match memory.transient_bytes() {
+            0 => crate::report::bytes(memory.total_bytes()),
+            transient => format!(
+                "{} ({} transient)",
+                crate::report::bytes(memory.total_bytes()),
+                crate::report::bytes(transient)
+            ),
+        };
+        ui.label(shown).on_hover_text(
+            memory
+                .entries()
+                .iter()
+                .map(|e| {
+                    let transient = if e.transient { " (transient)" } else { "" };
+                    format!("{}: {} bytes{transient}", e.label, e.bytes)
+                })
+                .collect::<Vec<_>>()
+                .join("\n"),
+        );
         ui.end_row();
         if let Some(b) = &controller.views[1]
             && controller.state.mode.shows_b()

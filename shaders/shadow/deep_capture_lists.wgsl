@@ -1,0 +1,47 @@
+// The per-texel segment lists of a deep capture (src/shadow/deep_capture.rs), as its own passes
+// and the compression passes that read them declare them in group 1. Texel i's segments are
+// segments[offsets[i] .. offsets[i + 1]) and, once resolved, its nodes (z, Ω(z)) of the
+// piecewise-linear optical depth are nodes[2·offsets[i] .. 2·offsets[i + 1]); after the resolve
+// pass the segments are sorted by (z0, z1, optical depth). Every binding is read_write because
+// the capture's bind group layout is shared by all of its passes.
+// Keep `CaptureParams` in sync with src/shadow/deep_capture.rs.
+
+struct CaptureParams {
+    // Shadow-map resolution (texels per side).
+    resolution: u32,
+    // Segments the list buffers can hold.
+    capacity: u32,
+    _pad0: u32,
+    _pad1: u32,
+};
+
+struct Segment {
+    // Radial distances from the light where the chord enters and leaves the sphere (m).
+    z0: f32,
+    z1: f32,
+    // Optical depth of the whole chord: τ(1 - d/r)·2w.
+    optical_depth: f32,
+};
+
+@group(1) @binding(0) var<uniform> capture: CaptureParams;
+@group(1) @binding(2) var<storage, read_write> offsets: array<u32>;
+@group(1) @binding(3) var<storage, read_write> segments: array<Segment>;
+@group(1) @binding(4) var<storage, read_write> nodes: array<vec2<f32>>;
+
+// One texel's list: segments [first, first + count), nodes [2·first, 2·first + 2·count).
+struct TexelList {
+    first: u32,
+    count: u32,
+};
+
+// Texel `index`'s list; empty when the lists did not hold it (never, once the capture has grown
+// them to this frame's count).
+fn texel_list(index: u32) -> TexelList {
+    var out: TexelList;
+    out.first = offsets[index];
+    out.count = offsets[index + 1u] - out.first;
+    if out.first + out.count > capture.capacity {
+        out.count = 0u;
+    }
+    return out;
+}

@@ -1,0 +1,173 @@
+// `dsm` build: compresses each texel's captured optical depth (the nodes (z, Ω) of
+// shaders/shadow/deep_capture.wgsl) to at most N = deep.nodes_per_texel nodes with Lokovic &
+// Veach's error-bounded greedy fit (2000, section 4.2): every output segment starts at the last
+// output vertex and extends over the input nodes while some slope passes within ±ε of all of
+// them; the output vertices sit at input depths, so between them the fit, like the input, is
+// linear and stays within ε everywhere. Per texel the smallest ε whose fit takes at most N nodes
+// is found by bisection over [0, Ω_max] (a fit at ε = Ω_max is one flat segment: 2 nodes);
+// lists that already fit are copied as they are (ε = 0). Since dT/dΩ = -T, |ΔT| <= |ΔΩ| <= ε.
+// The tolerances are summed into `stats` for the report (src/shadow/dsm.rs reads them back).
+// Keep `DeepParams` in sync with src/shadow/deep_nodes.rs. The CPU mirror of the fit is
+// src/shadow/deep_compress.rs.
+#import shadow/deep_capture_lists.wgsl
+#import shadow/deep_params.wgsl
+
+@group(2) @binding(0) var<uniform> deep: DeepParams;
+@group(2) @binding(1) var<storage, read_write> out_nodes: array<vec2<f32>>;
+@group(2) @binding(2) var<storage, read_write> stats: array<atomic<u32>>;
+
+// Words of `stats` (src/shadow/dsm.rs names them).
+// The largest ε, as its bits (non-negative floats order like their bits).
+const STAT_MAX_TOLERANCE: u32 = 0u;
+// Σ ε in millionths, 64 bits (low, high word).
+const STAT_SUM_LO: u32 = 1u;
+const STAT_SUM_HI: u32 = 2u;
+// Texels with a non-empty list, and those of them fitted with ε > 0.
+const STAT_TEXELS: u32 = 3u;
+const STAT_LOSSY: u32 = 4u;
+
+// An unbounded slope, for the feasible interval before it has met a node.
+const ANY_SLOPE: f32 = 3.0e38;
+
+// The vertex that closes a segment from `origin` over input nodes up to `last`, with a slope in
+// the feasible interval [lo, hi]: its middle, raised to 0 when that is feasible so that the fit
+// of a non-decreasing Ω does not decrease; the value clamped to last.y ± eps (float rounding),
+// which makes an ε = 0 fit reproduce every vertex it keeps exactly.
+fn close_segment(origin: vec2<f32>, last: vec2<f32>, lo: f32, hi: f32, eps: f32) -> vec2<f32> {
+    let slope = clamp(max(0.5 * (lo + hi), 0.0), lo, hi);
+    let value = origin.y + slope * (last.x - origin.x);
+    return vec2<f32>(last.x, clamp(value, last.y - eps, last.y + eps));
+}
+
+// Greedy fit of nodes[base .. base + n) within ±eps. Returns the number of vertices, stopping as
+// soon as it passes `limit`; with `write` it stores them at out_nodes[out ..] (at most `limit`).
+fn greedy_fit(base: u32, n: u32, eps: f32, limit: u32, write: bool, out: u32) -> u32 {
+    var origin = nodes[base];
+    var count = 1u;
+    if write {
+        out_nodes[out] = origin;
+    }
+    var lo = -ANY_SLOPE;
+    var hi = ANY_SLOPE;
+    // The last input node the open segment covers, if it covers any.
+    var last = origin;
+    var open = false;
+    var i = 1u;
+    loop {
+        if i >= n {
+            break;
+        }
+        let p = nodes[base + i];
+        let dz = p.x - origin.x;
+        var new_lo = lo;
+        var new_hi = hi;
+        if dz > 0.0 {
+            new_lo = max(lo, (p.y - eps - origin.y) / dz);
+            new_hi = min(hi, (p.y + eps - origin.y) / dz);
+        } else if abs(p.y - origin.y) > eps {
+            new_lo = ANY_SLOPE;
+            new_hi = -ANY_SLOPE;
+        }
+        if new_lo <= new_hi {
+            lo = new_lo;
+            hi = new_hi;
+            last = p;
+            open = true;
+            i++;
+            continue;
+        }
+        // p does not fit: close the segment at the last node it covers and look at p again
+        // from there. A step at the origin's own depth (never in a capture, where equal depths
+        // carry equal Ω) becomes a vertex of its own.
+        var vertex = p;
+        if open {
+            vertex = close_segment(origin, last, lo, hi, eps);
+        } else {
+            i++;
+        }
+        count++;
+        if count > limit {
+            return count;
+        }
+        if write {
+            out_nodes[out + count - 1u] = vertex;
+        }
+        origin = vertex;
+        lo = -ANY_SLOPE;
+        hi = ANY_SLOPE;
+        open = false;
+    }
+    if open {
+        count++;
+        if count > limit {
+            return count;
+        }
+        if write {
+            out_nodes[out + count - 1u] = close_segment(origin, last, lo, hi, eps);
+        }
+    }
+    return count;
+}
+
+@compute @workgroup_size(8, 8)
+fn compress(@builtin(global_invocation_id) id: vec3<u32>) {
+    if id.x >= deep.resolution || id.y >= deep.resolution {
+        return;
+    }
+    let index = id.y * deep.resolution + id.x;
+    let list = texel_list(index);
+    let limit = deep.nodes_per_texel;
+    let out = index * limit;
+    let base = 2u * list.first;
+    let n = 2u * list.count;
+    if n == 0u {
+        // No smoke on this ray: Ω = 0 at every depth.
+        for (var k = 0u; k < limit; k++) {
+            out_nodes[out + k] = vec2<f32>(0.0);
+        }
+        return;
+    }
+    var eps = 0.0;
+    var written = 0u;
+    if n <= limit {
+        for (var k = 0u; k < n; k++) {
+            out_nodes[out + k] = nodes[base + k];
+        }
+        written = n;
+    } else {
+        if greedy_fit(base, n, 0.0, limit, false, out) > limit {
+            // Ω is non-decreasing, so its last node holds the largest value; a fit within that
+            // is one flat segment. Doubling is a guard against rounding only.
+            var hi = nodes[base + n - 1u].y;
+            for (var k = 0u; k < 8u && greedy_fit(base, n, hi, limit, false, out) > limit; k++) {
+                hi = 2.0 * hi + 1e-6;
+            }
+            var lo = 0.0;
+            for (var step = 0u; step < deep.bisection_steps; step++) {
+                let mid = 0.5 * (lo + hi);
+                if greedy_fit(base, n, mid, limit, false, out) <= limit {
+                    hi = mid;
+                } else {
+                    lo = mid;
+                }
+            }
+            eps = hi;
+        }
+        written = min(greedy_fit(base, n, eps, limit, true, out), limit);
+    }
+    // Fewer nodes than slots: repeat the last (the lookup reads it as "constant from here").
+    let tail = out_nodes[out + written - 1u];
+    for (var k = written; k < limit; k++) {
+        out_nodes[out + k] = tail;
+    }
+    atomicMax(&stats[STAT_MAX_TOLERANCE], bitcast<u32>(eps));
+    let millionths = u32(round(eps * 1e6));
+    let before = atomicAdd(&stats[STAT_SUM_LO], millionths);
+    if before > 0xffffffffu - millionths {
+        atomicAdd(&stats[STAT_SUM_HI], 1u);
+    }
+    atomicAdd(&stats[STAT_TEXELS], 1u);
+    if eps > 0.0 {
+        atomicAdd(&stats[STAT_LOSSY], 1u);
+    }
+}

@@ -1,0 +1,445 @@
+//! CPU mirrors of the deep shadow map passes, in the same f32 arithmetic and order as the
+//! shaders, so that a test can tell a compression bug from a build or lookup bug:
+//! - [`sort_segments`] and [`optical_depth_nodes`]: the deep capture's resolve
+//!   (shaders/shadow/deep_capture.wgsl): segments by (z0, z1, optical depth), merged into the
+//!   nodes (z, Ω(z)) of the piecewise-linear optical depth;
+//! - [`greedy_fit`] and [`dsm_compress`]: `dsm`'s error-bounded greedy fit (Lokovic & Veach
+//!   2000) and the per-texel bisection of its tolerance (shaders/shadow/dsm_build.wgsl);
+//! - [`AvsmCurve`] and [`avsm_compress`]: `avsm`'s sorted insertion and least-area removal
+//!   (Salvi et al. 2010; shaders/shadow/avsm_build.wgsl);
+//! - [`evaluate`]: one texel's lookup (shaders/shadow/deep_nodes.wgsl).
+
+/// A node of a texel's function: a light depth (m) and the value there (Ω or T).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Node {
+    pub z: f32,
+    pub value: f32,
+}
+
+impl Node {
+    pub const fn new(z: f32, value: f32) -> Self {
+        Self { z, value }
+    }
+}
+
+/// A captured chord: entered at `z0`, left at `z1` (m), `optical_depth` spread uniformly.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Segment {
+    pub z0: f32,
+    pub z1: f32,
+    pub optical_depth: f32,
+}
+
+impl Segment {
+    pub const fn new(z0: f32, z1: f32, optical_depth: f32) -> Self {
+        Self {
+            z0,
+            z1,
+            optical_depth,
+        }
+    }
+
+    fn slope(&self) -> f32 {
+        self.optical_depth / (self.z1 - self.z0)
+    }
+}
+
+/// Sorts by the capture's total key: z0, then z1, then optical depth.
+pub fn sort_segments(segments: &mut [Segment]) {
+    segments.sort_by(|a, b| {
+        a.z0.total_cmp(&b.z0)
+            .then(a.z1.total_cmp(&b.z1))
+            .then(a.optical_depth.total_cmp(&b.optical_depth))
+    });
+}
+
+/// The nodes (z, Ω(z)) of sorted segments' optical depth, two per segment: every start and end
+/// is an event where the sum of the open segments' slopes changes.
+pub fn optical_depth_nodes(sorted: &[Segment]) -> Vec<Node> {
+    let mut ends: Vec<(f32, f32)> = sorted.iter().map(|s| (s.z1, s.slope())).collect();
+    ends.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
+    let n = sorted.len();
+    let (mut i, mut j) = (0, 0);
+    let (mut omega, mut slope) = (0.0f32, 0.0f32);
+    let mut z_prev = sorted.first().map_or(0.0, |s| s.z0);
+    let mut out = Vec::with_capacity(2 * n);
+    while i < n || j < n {
+        let (z, delta) = if i < n && (j >= n || sorted[i].z0 <= ends[j].0) {
+            i += 1;
+            (sorted[i - 1].z0, sorted[i - 1].slope())
+        } else {
+            j += 1;
+            (ends[j - 1].0, -ends[j - 1].1)
+        };
+        omega += slope * (z - z_prev);
+        slope = (slope + delta).max(0.0);
+        z_prev = z;
+        out.push(Node::new(z, omega));
+    }
+    out
+}
+
+/// An unbounded slope, for the feasible interval before it has met a node.
+const ANY_SLOPE: f32 = 3.0e38;
+
+/// The vertex closing a segment from `origin` over nodes up to `last` with a slope in [lo, hi]
+/// (its middle, raised to 0 when feasible), its value clamped to `last` ± eps.
+fn close_segment(origin: Node, last: Node, lo: f32, hi: f32, eps: f32) -> Node {
+    let slope = (0.5 * (lo + hi)).max(0.0).clamp(lo, hi);
+    let value = origin.value + slope * (last.z - origin.z);
+    Node::new(last.z, value.clamp(last.value - eps, last.value + eps))
+}
+
+/// Lokovic & Veach's greedy fit of `nodes` within ±`eps`: each output segment starts at the
+/// previous output vertex (the first input node to begin with) and extends over the input nodes
+/// while some slope passes within eps of all of them, ending at the last one it covers. Stops
+/// once it has more than `limit` vertices (and returns `limit` + 1 of them).
+pub fn greedy_fit(nodes: &[Node], eps: f32, limit: usize) -> Vec<Node> {
+    let Some(&first) = nodes.first() else {
+        return Vec::new();
+    };
+    let mut out = vec![first];
+    let mut origin = first;
+    let (mut lo, mut hi) = (-ANY_SLOPE, ANY_SLOPE);
+    let mut last = origin;
+    let mut open = false;
+    let mut i = 1;
+    while i < nodes.len() {
+        let p = nodes[i];
+        let dz = p.z - origin.z;
+        let (mut new_lo, mut new_hi) = (lo, hi);
+        if dz > 0.0 {
+            new_lo = lo.max((p.value - eps - origin.value) / dz);
+            new_hi = hi.min((p.value + eps - origin.value) / dz);
+        } else if (p.value - origin.value).abs() > eps {
+            (new_lo, new_hi) = (ANY_SLOPE, -ANY_SLOPE);
+        }
+        if new_lo <= new_hi {
+            (lo, hi, last, open) = (new_lo, new_hi, p, true);
+            i += 1;
+            continue;
+        }
+        let vertex = if open {
+            close_segment(origin, last, lo, hi, eps)
+        } else {
+            i += 1;
+            p
+        };
+        out.push(vertex);
+        if out.len() > limit {
+            return out;
+        }
+        (origin, lo, hi, open) = (vertex, -ANY_SLOPE, ANY_SLOPE, false);
+    }
+    if open {
+        out.push(close_segment(origin, last, lo, hi, eps));
+    }
+    out
+}
+
+/// A texel's `dsm` nodes and the tolerance they were fitted with.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DsmFit {
+    pub nodes: Vec<Node>,
+    pub tolerance: f32,
+}
+
+/// `dsm`'s compression of one texel's optical depth nodes to at most `limit` (≥ 2): the list
+/// itself when it fits, else the fit at ε = 0 when that fits, else the fit at the smallest ε
+/// that fits found by `steps` bisection steps over [0, Ω_max] (a fit within Ω_max is one flat
+/// segment).
+pub fn dsm_compress(nodes: &[Node], limit: usize, steps: u32) -> DsmFit {
+    if nodes.len() <= limit {
+        return DsmFit {
+            nodes: nodes.to_vec(),
+            tolerance: 0.0,
+        };
+    }
+    let fits = |eps: f32| greedy_fit(nodes, eps, limit).len() <= limit;
+    let mut eps = 0.0;
+    if !fits(0.0) {
+        let mut hi = nodes[nodes.len() - 1].value;
+        for _ in 0..8 {
+            if fits(hi) {
+                break;
+            }
+            hi = 2.0 * hi + 1e-6;
+        }
+        let mut lo = 0.0;
+        for _ in 0..steps {
+            let mid = 0.5 * (lo + hi);
+            if fits(mid) {
+                hi = mid;
+            } else {
+                lo = mid;
+            }
+        }
+        eps = hi;
+    }
+    let mut fitted = greedy_fit(nodes, eps, limit);
+    fitted.truncate(limit);
+    DsmFit {
+        nodes: fitted,
+        tolerance: eps,
+    }
+}
+
+/// One texel's value at `z`: `before` in front of the first node (or with none), the last
+/// node's value behind the last, linear between.
+pub fn evaluate(nodes: &[Node], z: f32, before: f32) -> f32 {
+    let (Some(first), Some(last)) = (nodes.first(), nodes.last()) else {
+        return before;
+    };
+    if z <= first.z {
+        return before;
+    }
+    if z >= last.z {
+        return last.value;
+    }
+    let hi = nodes.partition_point(|n| n.z <= z);
+    let (a, b) = (nodes[hi - 1], nodes[hi]);
+    let t = ((z - a.z) / (b.z - a.z).max(1e-12)).clamp(0.0, 1.0);
+    a.value + (b.value - a.value) * t
+}
+
+/// A texel's `avsm` transmittance curve while it is built: nodes (z, T) sorted by z.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct AvsmCurve {
+    pub nodes: Vec<Node>,
+}
+
+impl AvsmCurve {
+    /// T at z: 1 in front of the first node, the last node's T behind the last, linear between.
+    pub fn at(&self, z: f32) -> f32 {
+        evaluate(&self.nodes, z, 1.0)
+    }
+
+    /// Inserts a segment: an entry node at z0 with the curve's T there, an exit node at z1 with
+    /// the curve's T there times e^−optical_depth, and every node behind z0 multiplied by the
+    /// segment's ramp (1 at z0, e^−optical_depth at z1 and beyond).
+    pub fn insert_segment(&mut self, s: Segment) {
+        let t_exit = (-s.optical_depth).exp();
+        let t_entry = self.at(s.z0);
+        let t_behind = self.at(s.z1) * t_exit;
+        let width = (s.z1 - s.z0).max(1e-12);
+        for n in &mut self.nodes {
+            if n.z > s.z0 {
+                let u = ((n.z - s.z0) / width).min(1.0);
+                n.value *= 1.0 + (t_exit - 1.0) * u;
+            }
+        }
+        self.insert_node(Node::new(s.z0, t_entry));
+        self.insert_node(Node::new(s.z1, t_behind));
+    }
+
+    /// Inserts after every node at depth <= z.
+    fn insert_node(&mut self, node: Node) {
+        let at = self.nodes.partition_point(|n| n.z <= node.z);
+        self.nodes.insert(at, node);
+    }
+
+    /// Removes the interior node whose removal changes the area under the curve least (twice
+    /// the triangle it forms with its neighbours; the first of equals). Needs 3 nodes or more.
+    pub fn remove_least_area(&mut self) {
+        let n = &self.nodes;
+        let area = |k: usize| {
+            let (a, b, c) = (n[k - 1], n[k], n[k + 1]);
+            ((b.z - a.z) * (c.value - a.value) - (c.z - a.z) * (b.value - a.value)).abs()
+        };
+        let mut best = 1;
+        for k in 2..n.len() - 1 {
+            if area(k) < area(best) {
+                best = k;
+            }
+        }
+        self.nodes.remove(best);
+    }
+}
+
+/// `avsm`'s curve of one texel under `limit` (≥ 2) nodes: `sorted` inserted in order, the
+/// least-area interior node removed after each while there are more than `limit`.
+pub fn avsm_compress(sorted: &[Segment], limit: usize) -> Vec<Node> {
+    let mut curve = AvsmCurve::default();
+    for &s in sorted {
+        curve.insert_segment(s);
+        while curve.nodes.len() > limit {
+            curve.remove_least_area();
+        }
+    }
+    curve.nodes
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn nodes(pairs: &[(f32, f32)]) -> Vec<Node> {
+        pairs.iter().map(|&(z, v)| Node::new(z, v)).collect()
+    }
+
+    /// A ramp of slope 1 to (2, 2), then flat to (4, 2).
+    fn ramp_then_flat() -> Vec<Node> {
+        nodes(&[(0.0, 0.0), (1.0, 1.0), (2.0, 2.0), (3.0, 2.0), (4.0, 2.0)])
+    }
+
+    #[test]
+    fn the_merge_adds_the_slopes_of_open_segments() {
+        // Slopes 0.5 on [0, 2] and 1 on [1, 3]: Ω(1) = 0.5, Ω(2) = 0.5 + 1.5, Ω(3) = 2 + 1.
+        let mut segments = vec![Segment::new(1.0, 3.0, 2.0), Segment::new(0.0, 2.0, 1.0)];
+        sort_segments(&mut segments);
+        assert_eq!(
+            optical_depth_nodes(&segments),
+            nodes(&[(0.0, 0.0), (1.0, 0.5), (2.0, 2.0), (3.0, 3.0)])
+        );
+    }
+
+    #[test]
+    fn the_sort_key_is_total() {
+        let mut a = vec![
+            Segment::new(1.0, 2.0, 0.5),
+            Segment::new(1.0, 2.0, 0.25),
+            Segment::new(1.0, 1.5, 0.75),
+        ];
+        let mut b = a.clone();
+        b.reverse();
+        sort_segments(&mut a);
+        sort_segments(&mut b);
+        assert_eq!(a, b);
+        assert_eq!(a[0], Segment::new(1.0, 1.5, 0.75));
+        assert_eq!(a[1], Segment::new(1.0, 2.0, 0.25));
+    }
+
+    #[test]
+    fn a_lossless_fit_keeps_the_corners_and_drops_collinear_nodes() {
+        // Slope 1 up to z = 2, then 0: (1, 1) and (3, 2) lie on the segments.
+        assert_eq!(
+            greedy_fit(&ramp_then_flat(), 0.0, usize::MAX),
+            nodes(&[(0.0, 0.0), (2.0, 2.0), (4.0, 2.0)])
+        );
+    }
+
+    #[test]
+    fn a_tolerant_fit_extends_each_segment_while_a_slope_fits() {
+        // eps = 0.5 from (0, 0): the slope intervals narrow to [0.75, 0.833] after (3, 2) and
+        // empty at (4, 2) ([0.75, 0.625]), so the first segment ends at z = 3 with the middle
+        // slope 0.7917: value 2.375. From there the interval is [-0.875, 0.125]; slope 0.
+        let fit = greedy_fit(&ramp_then_flat(), 0.5, usize::MAX);
+        assert_eq!(fit.len(), 3);
+        assert_eq!(
+            (fit[0], fit[1].z, fit[2].z),
+            (Node::new(0.0, 0.0), 3.0, 4.0)
+        );
+        assert!((fit[1].value - 2.375).abs() < 1e-6, "{fit:?}");
+        assert!((fit[2].value - 2.375).abs() < 1e-6, "{fit:?}");
+        // Within the tolerance at every input node (and so, both being linear between input
+        // depths, everywhere).
+        for n in ramp_then_flat() {
+            assert!((evaluate(&fit, n.z, 0.0) - n.value).abs() <= 0.5 + 1e-6);
+        }
+        // Within Ω_max = 2 the whole list is one segment.
+        assert_eq!(greedy_fit(&ramp_then_flat(), 2.0, usize::MAX).len(), 2);
+        // A limit stops the count early.
+        assert_eq!(greedy_fit(&ramp_then_flat(), 0.0, 1).len(), 2);
+    }
+
+    #[test]
+    fn the_bisection_finds_the_smallest_tolerance_for_the_budget() {
+        // Two nodes: one line from (0, 0) to z = 4 with slope m, off by |m - 1|, |2m - 2|,
+        // |3m - 2| and |4m - 2| at the inner nodes; the largest is smallest at m = 2/3, where
+        // 2|m - 1| = |4m - 2| = 2/3.
+        let fit = dsm_compress(&ramp_then_flat(), 2, 20);
+        assert!((fit.tolerance - 2.0 / 3.0).abs() < 1e-5, "{fit:?}");
+        assert_eq!(fit.nodes.len(), 2);
+        assert!((fit.nodes[1].value - 8.0 / 3.0).abs() < 1e-4, "{fit:?}");
+        // Three nodes hold it exactly; five hold the list as it is.
+        let three = dsm_compress(&ramp_then_flat(), 3, 20);
+        assert_eq!((three.tolerance, three.nodes.len()), (0.0, 3));
+        assert_eq!(
+            dsm_compress(&ramp_then_flat(), 5, 20).nodes,
+            ramp_then_flat()
+        );
+    }
+
+    /// A deterministic list of overlapping segments (a 32-bit LCG).
+    fn random_segments(seed: u32, count: usize) -> Vec<Segment> {
+        let mut state = seed;
+        let mut next = || {
+            state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (state >> 8) as f32 / (1u32 << 24) as f32
+        };
+        let mut segments: Vec<_> = (0..count)
+            .map(|_| {
+                let z0 = 10.0 + 4.0 * next();
+                Segment::new(z0, z0 + 0.05 + next(), 0.5 * next())
+            })
+            .collect();
+        sort_segments(&mut segments);
+        segments
+    }
+
+    #[test]
+    fn fits_of_random_lists_stay_within_their_tolerance_and_budget() {
+        for seed in 0..20 {
+            let input = optical_depth_nodes(&random_segments(seed, 40));
+            for limit in [2, 3, 5, 8, 16] {
+                let fit = dsm_compress(&input, limit, 20);
+                assert!(fit.nodes.len() <= limit && fit.nodes.len() >= 2);
+                assert_eq!(fit.nodes[0], input[0], "the first node is kept");
+                assert!(fit.nodes.windows(2).all(|w| w[0].z <= w[1].z));
+                assert!(
+                    fit.nodes.windows(2).all(|w| w[0].value <= w[1].value),
+                    "a fit of a non-decreasing Ω does not decrease"
+                );
+                let slack = 1e-5 * input.last().unwrap().value;
+                for n in &input {
+                    let off = (evaluate(&fit.nodes, n.z, 0.0) - n.value).abs();
+                    assert!(off <= fit.tolerance + slack, "seed {seed}, {limit} nodes");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn avsm_multiplies_the_nodes_behind_an_entry_by_its_ramp() {
+        // A: T from 1 at 0 to 1/2 at 2. B (T 1 -> 1/2 over [1, 3]) enters where A's T is 3/4,
+        // scales A's exit by its ramp at the middle (3/4): 3/8, and leaves at 1/2 · 1/2.
+        let half = std::f32::consts::LN_2;
+        let mut curve = AvsmCurve::default();
+        curve.insert_segment(Segment::new(0.0, 2.0, half));
+        assert_eq!(curve.nodes, nodes(&[(0.0, 1.0), (2.0, 0.5)]));
+        curve.insert_segment(Segment::new(1.0, 3.0, half));
+        let expected = [(0.0, 1.0), (1.0, 0.75), (2.0, 0.375), (3.0, 0.25)];
+        assert_eq!(curve.nodes.len(), 4);
+        for (n, (z, t)) in curve.nodes.iter().zip(expected) {
+            assert_eq!(n.z, z);
+            assert!((n.value - t).abs() < 1e-6, "{:?}", curve.nodes);
+        }
+        // Twice the triangle areas: 0.125 at z = 1, 0.25 at z = 2: the node at 1 goes.
+        curve.remove_least_area();
+        assert_eq!(curve.nodes.len(), 3);
+        assert_eq!((curve.nodes[1].z, curve.nodes[2].z), (2.0, 3.0));
+        let sorted = [Segment::new(0.0, 2.0, half), Segment::new(1.0, 3.0, half)];
+        assert_eq!(avsm_compress(&sorted, 3), curve.nodes);
+        assert_eq!(avsm_compress(&sorted, 4).len(), 4);
+    }
+
+    #[test]
+    fn avsm_keeps_its_ends_and_the_budget() {
+        for seed in 0..20 {
+            let segments = random_segments(seed, 40);
+            let total: f32 = segments.iter().map(|s| s.optical_depth).sum();
+            let last_exit = segments.iter().map(|s| s.z1).fold(f32::MIN, f32::max);
+            for limit in [2, 3, 8, 16] {
+                let curve = avsm_compress(&segments, limit);
+                assert_eq!(curve.len(), limit);
+                assert_eq!(curve[0], Node::new(segments[0].z0, 1.0));
+                let last = curve[limit - 1];
+                // The last node is the deepest exit, with the whole ray's transmittance.
+                assert_eq!(last.z, last_exit);
+                assert!((last.value - (-total).exp()).abs() < 1e-4, "seed {seed}");
+                assert!(curve.windows(2).all(|w| w[0].z <= w[1].z));
+                assert!(curve.windows(2).all(|w| w[0].value >= w[1].value - 1e-6));
+            }
+        }
+    }
+}

@@ -1,0 +1,332 @@
+//! Compressed deep shadow maps: the machinery `dsm` and `avsm` share. A [`DeepCapture`] stores
+//! every texel's segments and their optical depth nodes (transient), then the technique's
+//! compression pass (its `compress` entry point) reduces each texel to N = floor(B / 2) nodes
+//! (depth in metres, value) of 32-bit floats in one storage buffer, texel i's at
+//! [i·N, (i + 1)·N), a texel with fewer repeating its last. That buffer and a 16-byte uniform
+//! are all the lookup reads (shaders/shadow/deep_nodes.wgsl evaluates a texel; each technique's
+//! lookup blends four).
+//!
+//! A technique of this kind is a [`DeepNodesSpec`]: its compression shader, and optionally a
+//! few words of statistics the compression accumulates (atomics) and the build reads back for
+//! [`ShadowTechnique::counters`] (`dsm`'s error tolerances). Adding one: a spec and an entry in
+//! `src/shadow/<name>.rs`, a lookup shader that imports `shadow/deep_nodes.wgsl`, a build shader
+//! that imports `shadow/deep_capture_lists.wgsl` and `shadow/deep_params.wgsl` and declares
+//! group 2 as [`DeepNodes::new`] lays it out.
+
+use bytemuck::{Pod, Zeroable};
+
+use super::deep_capture::{DeepCapture, bind_entry, storage_descriptor, storage_entry};
+use super::layered::uniform_entry;
+use super::{
+    BuildInputs, LOOKUP_STAGES, MemoryCase, MemoryUse, ShadowError, ShadowTechnique,
+    TechniqueContext, TechniqueParams,
+};
+use crate::gpu::{Gpu, MemoryLedger, read_buffer};
+use crate::shaders;
+
+/// Keep in sync with `DeepParams` in shaders/shadow/deep_params.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+struct DeepParams {
+    resolution: u32,
+    nodes_per_texel: u32,
+    bisection_steps: u32,
+    _pad: u32,
+}
+
+/// The WGSL structs mirrored here.
+pub fn layouts() -> Vec<crate::gpu::MirrorLayout> {
+    vec![crate::mirror_layout!(
+        DeepParams,
+        "shadow/deep_params.wgsl",
+        "DeepParams",
+        [resolution, nodes_per_texel, bisection_steps]
+    )]
+}
+
+/// Bytes of one node: depth and value, two 32-bit floats.
+pub const NODE_BYTES: u64 = 8;
+
+/// Nodes per texel under a budget of `channels`: two channels (depth, value) per node.
+pub fn nodes_per_texel(channels: u32) -> u32 {
+    channels / 2
+}
+
+/// What one compressed deep shadow map technique is.
+pub struct DeepNodesSpec {
+    pub name: &'static str,
+    /// Its compression shader (entry point `compress`), under `shaders/`.
+    pub build_shader: &'static str,
+    /// Bisection steps of a per-texel search the compression runs (`dsm`'s tolerance); 0 when
+    /// it runs none.
+    pub bisection_steps: u32,
+    /// Words of statistics the compression accumulates in group 2, binding 2 (cleared before
+    /// each build, read back after it: a second CPU–GPU sync); 0 for none, and no binding.
+    pub stats_words: u32,
+    /// The counters reported from those words (called with all `stats_words` of them).
+    pub stats_counters: fn(&[u32]) -> Vec<(&'static str, u64)>,
+}
+
+impl DeepNodesSpec {
+    /// The capture's and the compression's shaders, composed, for the naga test.
+    pub fn build_shaders(&self) -> Vec<(String, String)> {
+        vec![
+            (
+                format!("{}.capture", self.name),
+                shaders::compose("shadow/deep_capture.wgsl", &[]),
+            ),
+            (
+                format!("{}.compress", self.name),
+                shaders::compose(self.build_shader, &[]),
+            ),
+        ]
+    }
+
+    /// Bytes of the statistics buffer (none without statistics).
+    fn stats_bytes(&self) -> u64 {
+        match self.stats_words {
+            0 => 0,
+            words => (u64::from(words) * 4).max(16),
+        }
+    }
+
+    /// The memory formula: 2N channels; a 16-byte uniform and N nodes of 8 bytes per texel kept
+    /// for the lookup, plus the transient capture (`deep_capture::bytes`, its lists as large as
+    /// the `segment_capacity` counter says) and the statistics words.
+    pub fn memory(&self, c: &MemoryCase<'_>) -> MemoryUse {
+        let nodes = u64::from(nodes_per_texel(c.channels));
+        let transient = super::deep_capture::bytes(c.resolution_px, c.counter("segment_capacity"))
+            + self.stats_bytes();
+        MemoryUse {
+            channels: 2 * nodes,
+            bytes: 16 + c.texels() * nodes * NODE_BYTES + transient,
+            transient_bytes: transient,
+        }
+    }
+}
+
+/// A compressed deep shadow map: the capture, the compression pass and the nodes it writes.
+pub struct DeepNodes {
+    spec: &'static DeepNodesSpec,
+    resolution: u32,
+    nodes_per_texel: u32,
+    capture: DeepCapture,
+    /// Held with the bind groups that use them (the ledger records their sizes).
+    _params_buffer: wgpu::Buffer,
+    _nodes: wgpu::Buffer,
+    stats: Option<wgpu::Buffer>,
+    compress_pipeline: wgpu::ComputePipeline,
+    compress_bind_group: wgpu::BindGroup,
+    lookup_layout: wgpu::BindGroupLayout,
+    lookup_bind_group: wgpu::BindGroup,
+    memory: MemoryLedger,
+    /// The statistics words after the last build.
+    last_stats: Vec<u32>,
+}
+
+impl DeepNodes {
+    pub fn new(
+        ctx: &TechniqueContext<'_>,
+        spec: &'static DeepNodesSpec,
+        params: &TechniqueParams,
+    ) -> Result<Self, ShadowError> {
+        let gpu = ctx.gpu;
+        let device = &gpu.device;
+        let res = params.resolution_px;
+        let nodes_per_texel = nodes_per_texel(params.channels);
+        let texels = u64::from(res) * u64::from(res);
+        let mut memory = MemoryLedger::for_device(&gpu.limits);
+        let label = |what: &str| format!("{}.{what}", spec.name);
+
+        // What the lookup reads: the parameters and the nodes.
+        let params_buffer = memory.buffer(
+            device,
+            &wgpu::BufferDescriptor {
+                label: Some(&label("params")),
+                size: std::mem::size_of::<DeepParams>() as u64,
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            },
+        )?;
+        let nodes = memory.buffer(
+            device,
+            &storage_descriptor(
+                &label("nodes"),
+                texels * u64::from(nodes_per_texel) * NODE_BYTES,
+            ),
+        )?;
+        // Build scratch: the capture and the statistics.
+        let capture = DeepCapture::new(gpu, ctx.frame_layout, spec.name, res, &mut memory)?;
+        let stats = match spec.stats_words {
+            0 => None,
+            _ => Some(memory.buffer_transient(
+                device,
+                &storage_descriptor(&label("stats"), spec.stats_bytes()),
+            )?),
+        };
+        gpu.queue.write_buffer(
+            &params_buffer,
+            0,
+            bytemuck::bytes_of(&DeepParams {
+                resolution: res,
+                nodes_per_texel,
+                bisection_steps: spec.bisection_steps,
+                _pad: 0,
+            }),
+        );
+
+        let entry = bind_entry;
+        let compute = wgpu::ShaderStages::COMPUTE;
+        let mut compress_entries =
+            vec![uniform_entry(0, compute), storage_entry(1, compute, false)];
+        let mut compress_resources = vec![entry(0, &params_buffer), entry(1, &nodes)];
+        if let Some(stats) = &stats {
+            compress_entries.push(storage_entry(2, compute, false));
+            compress_resources.push(entry(2, stats));
+        }
+        let compress_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some(&label("compress.layout")),
+            entries: &compress_entries,
+        });
+        let compress_bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some(&label("compress.bind_group")),
+            layout: &compress_layout,
+            entries: &compress_resources,
+        });
+        let module = shaders::module(
+            device,
+            &label("compress"),
+            &shaders::compose(spec.build_shader, &[]),
+        );
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some(&label("compress.pipeline_layout")),
+            bind_group_layouts: &[
+                Some(ctx.frame_layout),
+                Some(capture.layout()),
+                Some(&compress_layout),
+            ],
+            immediate_size: 0,
+        });
+        let compress_pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some(&label("compress")),
+            layout: Some(&pipeline_layout),
+            module: &module,
+            entry_point: Some("compress"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+
+        let lookup_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some(&label("lookup.layout")),
+            entries: &[
+                uniform_entry(0, LOOKUP_STAGES),
+                storage_entry(1, LOOKUP_STAGES, true),
+            ],
+        });
+        let lookup_bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some(&label("lookup.bind_group")),
+            layout: &lookup_layout,
+            entries: &[entry(0, &params_buffer), entry(1, &nodes)],
+        });
+        Ok(Self {
+            spec,
+            resolution: res,
+            nodes_per_texel,
+            capture,
+            _params_buffer: params_buffer,
+            _nodes: nodes,
+            stats,
+            compress_pipeline,
+            compress_bind_group,
+            lookup_layout,
+            lookup_bind_group,
+            memory,
+            last_stats: vec![0; spec.stats_words as usize],
+        })
+    }
+
+    /// Records the compression pass over the captured lists.
+    fn record_compress(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        timer: &mut crate::gpu::GpuTimer,
+        frame_bind_group: &wgpu::BindGroup,
+    ) {
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some(&format!("{}.compress", self.spec.name)),
+            timestamp_writes: timer.compute_pass("shadow"),
+        });
+        pass.set_pipeline(&self.compress_pipeline);
+        pass.set_bind_group(0, frame_bind_group, &[]);
+        pass.set_bind_group(1, self.capture.bind_group(), &[]);
+        pass.set_bind_group(2, &self.compress_bind_group, &[]);
+        let groups = self.resolution.div_ceil(8);
+        pass.dispatch_workgroups(groups, groups, 1);
+    }
+}
+
+impl ShadowTechnique for DeepNodes {
+    fn name(&self) -> &'static str {
+        self.spec.name
+    }
+    fn channels_used(&self) -> u32 {
+        2 * self.nodes_per_texel
+    }
+    fn memory(&self) -> &MemoryLedger {
+        &self.memory
+    }
+    fn bind_group_layout(&self) -> &wgpu::BindGroupLayout {
+        &self.lookup_layout
+    }
+    fn bind_group(&self) -> &wgpu::BindGroup {
+        &self.lookup_bind_group
+    }
+
+    /// `segments`: captured last frame; `segment_capacity`: what the capture's lists hold; then
+    /// the technique's own statistics.
+    fn counters(&self) -> Vec<(&'static str, u64)> {
+        let mut out = vec![
+            ("segments", u64::from(self.capture.segments())),
+            ("segment_capacity", u64::from(self.capture.capacity())),
+        ];
+        out.extend((self.spec.stats_counters)(&self.last_stats));
+        out
+    }
+
+    fn build(&mut self, gpu: &Gpu, inputs: BuildInputs<'_>) -> Result<(), ShadowError> {
+        // With statistics to read back, the capture's fill and the compression go in a
+        // submission of their own; otherwise they join the frame.
+        let mut own = None;
+        let encoder = match &self.stats {
+            Some(_) => own.insert(gpu.device.create_command_encoder(
+                &wgpu::CommandEncoderDescriptor {
+                    label: Some(&format!("{}.build.encoder", self.spec.name)),
+                },
+            )),
+            None => &mut *inputs.encoder,
+        };
+        self.capture.record(
+            gpu,
+            &mut self.memory,
+            encoder,
+            inputs.timer,
+            inputs.frame_bind_group,
+            inputs.particles,
+            inputs.particle_count,
+        )?;
+        if let Some(stats) = &self.stats {
+            encoder.clear_buffer(stats, 0, None);
+        }
+        self.record_compress(encoder, inputs.timer, inputs.frame_bind_group);
+        if let (Some(encoder), Some(stats)) = (own, &self.stats) {
+            gpu.queue.submit([encoder.finish()]);
+            let bytes = read_buffer(gpu, stats, 0, u64::from(self.spec.stats_words) * 4)
+                .map_err(|err| ShadowError::Gpu(err.to_string()))?;
+            self.last_stats = bytes
+                .chunks_exact(4)
+                .map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]))
+                .collect();
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,97 @@
+//! `dsm`: the deep shadow map (Lokovic & Veach 2000; thesis 3.3.3.1) under a channel budget.
+//!
+//! The deep capture (`deep_capture.rs`) gives every texel its exact piecewise-linear optical
+//! depth Ω(z) as sorted nodes; the compression (shaders/shadow/dsm_build.wgsl) refits it with
+//! Lokovic & Veach's error-bounded greedy fit to at most N = floor(B / 2) nodes (depth, Ω) of
+//! 32-bit floats, choosing per texel by bisection the smallest tolerance ε that fits in N. The
+//! fit stays within ±ε of Ω at every depth, and since dT/dΩ = −T, within ε of T too. With enough
+//! nodes for a texel's whole list it is copied as is (ε = 0): the uncompressed deep shadow map.
+//!
+//! The lookup (shaders/shadow/dsm.wgsl) evaluates Ω in each of the four texels around a point,
+//! blends them bilinearly and returns exp(−Ω).
+//!
+//! The tolerances are reported honestly: the compression accumulates them and the build reads
+//! them back ([`super::ShadowTechnique::counters`]): `max_tolerance_e6` and
+//! `mean_tolerance_e6` (over the texels with smoke) in millionths of optical depth, `fitted_texels`
+//! and `lossy_texels` (those with ε > 0). The CPU mirror of the fit is `deep_compress.rs`.
+//!
+//! Memory: the nodes (texels × N × 8 bytes) and a 16-byte uniform; the capture's lists and the
+//! statistics are transient (allocated, counted, and reported apart).
+
+use super::deep_nodes::{DeepNodes, DeepNodesSpec, nodes_per_texel};
+use super::{Role, TechniqueEntry};
+
+/// Bisection steps of the per-texel tolerance: ε is found to Ω_max / 2^20.
+pub const BISECTION_STEPS: u32 = 20;
+
+pub const SPEC: DeepNodesSpec = DeepNodesSpec {
+    name: "dsm",
+    build_shader: "shadow/dsm_build.wgsl",
+    bisection_steps: BISECTION_STEPS,
+    stats_words: 5,
+    stats_counters: tolerance_counters,
+};
+
+/// The counters from the compression's statistics words (see `STAT_*` in dsm_build.wgsl): the
+/// largest ε as its bits, Σ ε in millionths (low, high word), the texels with smoke, the lossy
+/// ones.
+fn tolerance_counters(words: &[u32]) -> Vec<(&'static str, u64)> {
+    let [max_bits, sum_lo, sum_hi, texels, lossy] = words[..] else {
+        return Vec::new();
+    };
+    let max_e6 = (f64::from(f32::from_bits(max_bits)) * 1e6).round() as u64;
+    let sum_e6 = (u64::from(sum_hi) << 32) | u64::from(sum_lo);
+    vec![
+        ("max_tolerance_e6", max_e6),
+        (
+            "mean_tolerance_e6",
+            sum_e6.checked_div(u64::from(texels)).unwrap_or(0),
+        ),
+        ("fitted_texels", u64::from(texels)),
+        ("lossy_texels", u64::from(lossy)),
+    ]
+}
+
+pub const ENTRY: TechniqueEntry = TechniqueEntry {
+    name: SPEC.name,
+    description: "deep shadow map: each texel's exact optical depth refitted to B/2 nodes within \
+                  the smallest tolerance (Lokovic & Veach)",
+    role: Role::Contender,
+    budget_caption: |b| format!("{} nodes per texel", nodes_per_texel(b)),
+    min_channels: 4,
+    in_default_sweep: false,
+    in_default_compare: false,
+    build_reads_back: true,
+    params: &[],
+    order_independent: true,
+    converges_with_budget: true,
+    compresses_captured_lists: true,
+    memory: |c| SPEC.memory(c),
+    lookup_shader: "shadow/dsm.wgsl",
+    extra_shaders: || SPEC.build_shaders(),
+    create: |ctx, params| Ok(Box::new(DeepNodes::new(ctx, &SPEC, params)?)),
+    uses_splat: false,
+    uses_budget: true,
+};
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tolerance_counters_read_the_statistics_words() {
+        let words = [0.25f32.to_bits(), u32::MAX, 1, 4, 3];
+        let counters = tolerance_counters(&words);
+        // Σ = 2^32 + 2^32 - 1 millionths over 4 texels.
+        assert_eq!(
+            counters,
+            vec![
+                ("max_tolerance_e6", 250_000),
+                ("mean_tolerance_e6", ((1u64 << 33) - 1) / 4),
+                ("fitted_texels", 4),
+                ("lossy_texels", 3),
+            ]
+        );
+        assert_eq!(tolerance_counters(&[0; 5])[1], ("mean_tolerance_e6", 0));
+    }
+}
