@@ -320,20 +320,22 @@ impl DeepCapture {
             particles,
             particle_count,
         );
-        {
+        // Each scan step in a pass of its own, so that each sees the previous one's writes
+        // whatever the backend's barriers between dispatches of one pass.
+        let row_groups = self.resolution.div_ceil(64);
+        for (pipeline, groups) in [
+            (&self.scan_rows, row_groups),
+            (&self.scan_total, 1),
+            (&self.scan_write, row_groups),
+        ] {
             let mut pass = count_encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some(&format!("{}.capture.scan", self.name)),
                 timestamp_writes: timer.compute_pass("shadow"),
             });
             pass.set_bind_group(0, frame_bind_group, &[]);
             pass.set_bind_group(1, &self.lists.bind_group, &[]);
-            let row_groups = self.resolution.div_ceil(64);
-            pass.set_pipeline(&self.scan_rows);
-            pass.dispatch_workgroups(row_groups, 1, 1);
-            pass.set_pipeline(&self.scan_total);
-            pass.dispatch_workgroups(1, 1, 1);
-            pass.set_pipeline(&self.scan_write);
-            pass.dispatch_workgroups(row_groups, 1, 1);
+            pass.set_pipeline(pipeline);
+            pass.dispatch_workgroups(groups, 1, 1);
         }
         gpu.queue.submit([count_encoder.finish()]);
         let texels = u64::from(self.resolution) * u64::from(self.resolution);
