@@ -9,6 +9,7 @@ pub mod diff;
 pub mod frame;
 pub mod gpu;
 pub mod output;
+pub mod progress;
 pub mod render;
 pub mod report;
 pub mod scene;

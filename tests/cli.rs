@@ -39,7 +39,7 @@ fn bad_inputs_get_one_clear_line_and_leave_no_file() {
         ),
         (
             vec!["render", bad_scene.to_str().unwrap(), "-o", out],
-            vec!["emitter.count = 0", "1..=1000000"],
+            vec!["emitter.count = 0", "1..=4000000"],
         ),
         (
             vec!["render", syntax.to_str().unwrap(), "-o", out],
@@ -96,6 +96,26 @@ fn bad_inputs_get_one_clear_line_and_leave_no_file() {
         (
             vec!["render", "--param", "dom_thickness_m=-1", "-o", out],
             vec!["dom_thickness_m"],
+        ),
+        (
+            vec!["render", "plume_scaled", "--particles", "0", "-o", out],
+            vec!["--particles", "0 particles is out of range", "1..=4000000"],
+        ),
+        (
+            vec!["render", "--particles", "lots", "-o", out],
+            vec!["--particles", "\"lots\" is not a particle count"],
+        ),
+        (
+            vec!["render", "--particles", "4000001", "-o", out],
+            vec!["--particles", "1..=4000000"],
+        ),
+        (
+            vec!["sweep", "--particles", "-3", "-o", out],
+            vec!["--particles", "\"-3\" is not a particle count"],
+        ),
+        (
+            vec!["baseline", "--check", "--particles", "5000"],
+            vec!["--particles 5000 does not apply to baseline"],
         ),
         (vec!["probe", "--at", "1,2"], vec!["--at", "X,Y,Z"]),
         (
@@ -377,7 +397,52 @@ fn every_command_takes_an_embedded_scenes_name() {
         &missing,
         &[
             "thesis_breeze",
-            "embedded scenes: thesis_plume, thesis_wind",
+            "embedded scenes: thesis_plume, thesis_wind, plume_scaled, plume_65k",
         ],
+    );
+}
+
+#[test]
+fn particles_rescales_the_scene_a_command_loads() {
+    let out = smokeshadow(&[
+        "probe",
+        "plume_scaled",
+        "--particles",
+        "3000",
+        "--at",
+        "0,2,0",
+        "--json",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let dir = scratch("cli-particles");
+    let png = dir.join("scaled.png");
+    let out = smokeshadow(&[
+        "render",
+        "plume_scaled",
+        "--particles",
+        "3000",
+        "-t",
+        "none",
+        "--size",
+        "64x48",
+        "-o",
+        png.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("3000 particles simulated"), "{stdout}");
+    // stderr is not a terminal here: no progress bar, nothing at all.
+    assert!(
+        out.stderr.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
     );
 }
