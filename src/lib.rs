@@ -3,6 +3,7 @@
 //! Volume Densities with Shadows*). See ARCHITECTURE.md for the data flow and the file map.
 
 pub mod baseline;
+pub mod bench;
 pub mod commands;
 pub mod compare;
 pub mod diff;

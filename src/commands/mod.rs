@@ -1,6 +1,7 @@
 //! The CLI's commands. `main.rs` parses and dispatches; each command lives in its own file.
 
 pub mod baseline;
+pub mod bench;
 pub mod compare;
 pub mod diff;
 pub mod info;

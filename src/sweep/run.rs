@@ -192,7 +192,7 @@ fn settings_key(scene: &Scene, options: &SweepOptions, plan: &Plan) -> String {
 }
 
 /// Median, minimum and maximum of samples.
-fn timing(samples: &[f64]) -> Timing {
+pub(super) fn timing(samples: &[f64]) -> Timing {
     let mut v = samples.to_vec();
     v.sort_by(f64::total_cmp);
     let n = v.len();
