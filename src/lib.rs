@@ -3,12 +3,14 @@
 //! Volume Densities with Shadows*). See ARCHITECTURE.md for the data flow and the file map.
 
 pub mod baseline;
+pub mod bench;
 pub mod commands;
 pub mod compare;
 pub mod diff;
 pub mod frame;
 pub mod gpu;
 pub mod output;
+pub mod progress;
 pub mod render;
 pub mod report;
 pub mod scene;

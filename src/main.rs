@@ -45,6 +45,10 @@ enum Command {
     /// The thesis' accuracy comparison for a scene: images, differences, metrics.csv and an
     /// HTML page.
     Compare(commands::compare::CompareArgs),
+    /// Cost against particle count (default: plume_scaled at 2,500 to 1,000,000 particles):
+    /// simulation, sort, every GPU pass, each technique's frame and bytes, as a table, CSV,
+    /// JSON and log-log SVG charts.
+    Bench(commands::bench::BenchArgs),
 }
 
 fn main() -> ExitCode {
@@ -102,6 +106,9 @@ fn main() -> ExitCode {
         }
         Command::Compare(args) => {
             commands::compare::run(args, &cli.adapter).map(|()| ExitCode::SUCCESS)
+        }
+        Command::Bench(args) => {
+            commands::bench::run(args, &cli.adapter).map(|()| ExitCode::SUCCESS)
         }
     };
     match result {

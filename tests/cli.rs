@@ -39,7 +39,7 @@ fn bad_inputs_get_one_clear_line_and_leave_no_file() {
         ),
         (
             vec!["render", bad_scene.to_str().unwrap(), "-o", out],
-            vec!["emitter.count = 0", "1..=1000000"],
+            vec!["emitter.count = 0", "1..=4000000"],
         ),
         (
             vec!["render", syntax.to_str().unwrap(), "-o", out],
@@ -96,6 +96,46 @@ fn bad_inputs_get_one_clear_line_and_leave_no_file() {
         (
             vec!["render", "--param", "dom_thickness_m=-1", "-o", out],
             vec!["dom_thickness_m"],
+        ),
+        (
+            vec!["render", "plume_scaled", "--particles", "0", "-o", out],
+            vec!["--particles", "0 particles is out of range", "1..=4000000"],
+        ),
+        (
+            vec!["render", "--particles", "lots", "-o", out],
+            vec!["--particles", "\"lots\" is not a particle count"],
+        ),
+        (
+            vec!["render", "--particles", "4000001", "-o", out],
+            vec!["--particles", "1..=4000000"],
+        ),
+        (
+            vec!["sweep", "--particles", "-3", "-o", out],
+            vec!["--particles", "\"-3\" is not a particle count"],
+        ),
+        (
+            vec!["baseline", "--check", "--particles", "5000"],
+            vec!["--particles 5000 does not apply to baseline"],
+        ),
+        (
+            vec!["bench", "--particles-list", "500,0", "-o", out],
+            vec!["--particles-list", "0 particles is out of range"],
+        ),
+        (
+            vec![
+                "bench",
+                "--particles",
+                "500",
+                "--particles-list",
+                "600",
+                "-o",
+                out,
+            ],
+            vec!["--particles"],
+        ),
+        (
+            vec!["bench", "-t", "magic", "--particles-list", "500", "-o", out],
+            vec!["\"magic\"", "osm"],
         ),
         (vec!["probe", "--at", "1,2"], vec!["--at", "X,Y,Z"]),
         (
@@ -377,7 +417,151 @@ fn every_command_takes_an_embedded_scenes_name() {
         &missing,
         &[
             "thesis_breeze",
-            "embedded scenes: thesis_plume, thesis_wind",
+            "embedded scenes: thesis_plume, thesis_wind, plume_scaled, plume_65k",
         ],
     );
+}
+
+#[test]
+fn particles_rescales_the_scene_a_command_loads() {
+    let out = smokeshadow(&[
+        "probe",
+        "plume_scaled",
+        "--particles",
+        "3000",
+        "--at",
+        "0,2,0",
+        "--json",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let dir = scratch("cli-particles");
+    let png = dir.join("scaled.png");
+    let out = smokeshadow(&[
+        "render",
+        "plume_scaled",
+        "--particles",
+        "3000",
+        "-t",
+        "none",
+        "--size",
+        "64x48",
+        "-o",
+        png.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("3000 particles simulated"), "{stdout}");
+    // stderr is not a terminal here: no progress bar, nothing at all.
+    assert!(
+        out.stderr.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+#[test]
+fn bench_writes_a_table_csv_json_and_charts() {
+    let dir = scratch("cli-bench-scaling");
+    let out = smokeshadow(&[
+        "bench",
+        "--particles-list",
+        "500,2000",
+        "--frames",
+        "2",
+        "--warmup",
+        "1",
+        "-t",
+        "osm",
+        "-t",
+        "none",
+        "-t",
+        "dom",
+        "-c",
+        "1",
+        "--size",
+        "96x72",
+        "-o",
+        dir.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("plume_scaled at 96x72"), "{stdout}");
+    // dom needs 2 channels: refused with the reason, in its row, and the bench goes on.
+    assert!(stdout.contains("refused"), "{stdout}");
+
+    let mut csv = csv::Reader::from_path(dir.join("bench.csv")).unwrap();
+    let header: Vec<String> = csv.headers().unwrap().iter().map(str::to_owned).collect();
+    let col = |name: &str| {
+        header
+            .iter()
+            .position(|h| h == name)
+            .unwrap_or_else(|| panic!("no column {name} in {header:?}"))
+    };
+    let rows: Vec<csv::StringRecord> = csv.records().map(Result::unwrap).collect();
+    let cells: Vec<(String, String)> = rows
+        .iter()
+        .map(|r| {
+            (
+                r[col("particles")].to_owned(),
+                r[col("technique")].to_owned(),
+            )
+        })
+        .collect();
+    let expected: Vec<(String, String)> = ["500", "2000"]
+        .iter()
+        .flat_map(|n| ["osm", "none", "dom"].map(|t| (n.to_string(), t.to_owned())))
+        .collect();
+    assert_eq!(cells, expected);
+    let number = |r: &csv::StringRecord, name: &str| -> f64 {
+        r[col(name)]
+            .parse()
+            .unwrap_or_else(|_| panic!("{name} = {:?} in {r:?}", &r[col(name)]))
+    };
+    for r in &rows {
+        assert!(number(r, "sim_ms") > 0.0, "{r:?}");
+        if &r[col("technique")] == "dom" {
+            assert!(r[col("refused")].contains("dom"), "{r:?}");
+            assert!(r[col("frame_ms_median")].is_empty(), "{r:?}");
+            continue;
+        }
+        assert!(r[col("refused")].is_empty(), "{r:?}");
+        // Every pass the renderer records was timed, and took time.
+        for pass in ["opaque", "particles", "tonemap"] {
+            assert!(
+                number(r, &format!("gpu_{pass}_ms_median")) > 0.0,
+                "{pass}: {r:?}"
+            );
+        }
+        assert!(number(r, "frame_ms_median") > 0.0, "{r:?}");
+        assert!(number(r, "sort_ms_median") >= 0.0, "{r:?}");
+    }
+    let osm = rows.iter().find(|r| &r[col("technique")] == "osm").unwrap();
+    assert!(number(osm, "gpu_shadow_ms_median") > 0.0, "{osm:?}");
+    assert!(number(osm, "bytes") > 0.0, "{osm:?}");
+
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("bench.json")).unwrap()).unwrap();
+    let counts = json["counts"].as_array().unwrap();
+    assert_eq!(counts.len(), 2);
+    assert_eq!(counts[1]["particles"], 2000);
+    assert_eq!(counts[1]["cells"].as_array().unwrap().len(), 3);
+    for chart in smokeshadow::bench::CHART_FILES {
+        let svg = std::fs::read_to_string(dir.join(chart)).unwrap();
+        assert!(
+            svg.starts_with("<svg") && svg.contains("particles (log scale)"),
+            "{chart}"
+        );
+    }
 }

@@ -65,11 +65,11 @@ fn bad_scenes_are_rejected_with_a_clear_message() {
     let cases: Vec<(String, Vec<&str>)> = vec![
         (
             edited("count = 2500", "count = 0"),
-            vec!["emitter.count = 0", "1..=1000000"],
+            vec!["emitter.count = 0", "1..=4000000"],
         ),
         (
-            edited("count = 2500", "count = 1000001"),
-            vec!["emitter.count = 1000001", "1..=1000000"],
+            edited("count = 2500", "count = 4000001"),
+            vec!["emitter.count = 4000001", "1..=4000000"],
         ),
         (
             edited("width_px = 1024", "width_px = 0"),
@@ -129,4 +129,57 @@ fn a_missing_file_names_its_path() {
     let err = Scene::load(std::path::Path::new("/no/such/scene.toml")).unwrap_err();
     assert!(matches!(err, SceneError::Read { .. }));
     assert!(err.to_string().contains("/no/such/scene.toml"));
+}
+
+#[test]
+fn the_scaling_family_is_the_thesis_plume_at_other_counts() {
+    let thesis = Scene::thesis_plume();
+    let base = Scene::embedded("plume_scaled").unwrap();
+    assert_eq!(base.name, "plume_scaled");
+    assert_eq!(
+        Scene {
+            name: thesis.name.clone(),
+            ..base.clone()
+        },
+        thesis,
+        "plume_scaled is thesis_plume under another name"
+    );
+    // plume_65k is the rule applied at 65,536, to the bit (the file's decimals round-trip).
+    let k65 = Scene::embedded("plume_65k").unwrap();
+    let scaled = base.clone().with_particles(65_536).unwrap();
+    assert_eq!(k65.emitter, scaled.emitter);
+    assert_eq!(
+        Scene {
+            name: base.name.clone(),
+            ..k65.clone()
+        },
+        scaled
+    );
+    // The rule: radii times (N0/N)^(1/3), τ kept; the same count changes nothing.
+    let e = &scaled.emitter;
+    let k = (2500.0f64 / 65536.0).cbrt();
+    assert!(
+        (f64::from(e.radius_birth_m) / f64::from(base.emitter.radius_birth_m) - k).abs() < 1e-6
+    );
+    assert!(
+        (f64::from(e.growth_m_per_s) / f64::from(base.emitter.growth_m_per_s) - k).abs() < 1e-6
+    );
+    assert_eq!(e.density_per_m, base.emitter.density_per_m);
+    assert_eq!(base.clone().with_particles(2500).unwrap(), base);
+    // Embedded ones are listed; only the thesis scenes have baselines.
+    for name in ["plume_scaled", "plume_65k"] {
+        assert!(smokeshadow::scene::embedded_names().contains(name));
+        assert!(!smokeshadow::scene::BASELINE_SCENES.contains(&name));
+    }
+}
+
+#[test]
+fn a_count_beyond_the_limit_is_refused_with_the_field_and_range() {
+    let err = Scene::thesis_plume()
+        .with_particles(4_000_001)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("emitter.count = 4000001"), "{err}");
+    assert!(err.contains("1..=4000000"), "{err}");
+    assert!(!err.contains('\n'), "{err}");
 }

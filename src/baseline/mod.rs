@@ -71,14 +71,10 @@ pub fn select(
     techniques: &[String],
 ) -> anyhow::Result<Vec<Baseline>> {
     for s in scenes {
-        if Scene::embedded(s).is_none() {
+        if !scene::BASELINE_SCENES.contains(&s.as_str()) {
             anyhow::bail!(
                 "unknown scene \"{s}\"; baselines exist for: {}",
-                scene::EMBEDDED
-                    .iter()
-                    .map(|(n, _)| *n)
-                    .collect::<Vec<_>>()
-                    .join(", ")
+                scene::BASELINE_SCENES.join(", ")
             );
         }
     }
@@ -86,7 +82,7 @@ pub fn select(
         shadow::find(t)?;
     }
     let mut out = Vec::new();
-    for (scene_name, _) in scene::EMBEDDED {
+    for scene_name in scene::BASELINE_SCENES {
         if !scenes.is_empty() && !scenes.iter().any(|s| s == scene_name) {
             continue;
         }
@@ -119,7 +115,7 @@ struct Rendered {
 /// Renders a baseline's configuration: the tone-mapped frame and the HDR frame's block means.
 fn render(gpu: &Gpu, baseline: &Baseline) -> anyhow::Result<Rendered> {
     let scene = Scene::embedded(&baseline.scene).expect("selected scenes are embedded");
-    let particles = crate::sim::simulate(&scene);
+    let particles = crate::progress::simulate(&scene);
     let config = config(&baseline.technique, &scene);
     let frame = render_offscreen(gpu, &scene, &particles, &config, &RenderOptions::default())?;
     Ok(Rendered {

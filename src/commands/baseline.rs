@@ -29,9 +29,20 @@ pub struct BaselineArgs {
     /// Where `--check` writes the actual image and difference maps of a failing baseline.
     #[arg(long, default_value = "test-output/baselines")]
     pub out: PathBuf,
+    /// Refused: baselines are the committed scenes at their own particle counts.
+    #[command(flatten)]
+    pub particles: super::ParticlesArg,
 }
 
 pub fn run(args: &BaselineArgs, adapter: &AdapterPreference) -> anyhow::Result<ExitCode> {
+    if let Some(n) = args.particles.particles {
+        // A rescaled scene is not the scene a baseline was rendered from: --check would only
+        // report it stale, --bless would overwrite the thesis' images with another plume.
+        anyhow::bail!(
+            "--particles {n} does not apply to baseline: the baselines are the committed scenes ({}) at their own particle counts",
+            crate::scene::BASELINE_SCENES.join(", ")
+        );
+    }
     let baselines = baseline::select(&args.dir, &args.scenes, &args.techniques)?;
     // Baselines are lavapipe's: `auto` means the CPU adapter here, and a hardware adapter named
     // explicitly is refused with the reason (`baseline::require_software_adapter`).

@@ -5,14 +5,15 @@ use std::path::PathBuf;
 
 use crate::compare::{self, CompareOptions};
 use crate::gpu::{AdapterPreference, Gpu};
-use crate::scene::Scene;
 use crate::shadow::SplatMode;
 
 #[derive(Clone, Debug, clap::Args)]
 pub struct CompareArgs {
-    /// Scene file (TOML), or the name of an embedded scene (thesis_plume, thesis_wind); the
+    /// Scene file (TOML), or the name of an embedded scene (`smokeshadow info` lists them); the
     /// embedded thesis scene when omitted.
-    pub scene: Option<String>,
+    pub scene: Option<PathBuf>,
+    #[command(flatten)]
+    pub particles: super::ParticlesArg,
     /// Output folder (created if missing).
     #[arg(long, short = 'o')]
     pub output: PathBuf,
@@ -34,13 +35,8 @@ pub struct CompareArgs {
     pub size: Option<super::Size>,
 }
 
-/// A scene argument: an embedded scene's name, or a path.
-pub fn load_scene(arg: Option<&str>) -> anyhow::Result<Scene> {
-    Ok(Scene::load_or_default(arg.map(std::path::Path::new))?)
-}
-
 pub fn run(args: &CompareArgs, adapter: &AdapterPreference) -> anyhow::Result<()> {
-    let mut scene = load_scene(args.scene.as_deref())?;
+    let mut scene = super::load_scene(args.scene.as_deref(), args.particles)?;
     if let Some(size) = args.size {
         scene.output.width_px = size.width;
         scene.output.height_px = size.height;

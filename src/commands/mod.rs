@@ -1,6 +1,7 @@
 //! The CLI's commands. `main.rs` parses and dispatches; each command lives in its own file.
 
 pub mod baseline;
+pub mod bench;
 pub mod compare;
 pub mod diff;
 pub mod info;
@@ -9,7 +10,44 @@ pub mod render;
 pub mod sweep;
 pub mod view;
 
+use std::path::Path;
+
+use crate::scene::Scene;
 use crate::shadow::{SplatMode, TechniqueParams};
+
+/// `--particles N`, flattened into every command that loads a scene.
+#[derive(Clone, Copy, Debug, Default, clap::Args)]
+pub struct ParticlesArg {
+    /// Run the scene with N particles (1..=4000000): the emitter is rescaled so that the plume
+    /// keeps its silhouette and optical depth (every radius times (N0/N)^(1/3), τ kept; see
+    /// `plume_scaled` in scenes/README.md).
+    #[arg(long, value_name = "N", value_parser = parse_particles, allow_negative_numbers = true)]
+    pub particles: Option<u32>,
+}
+
+/// Parses a `--particles` count: an integer in 1..=[`crate::scene::LIMITS`]`.max_particles`.
+pub fn parse_particles(s: &str) -> Result<u32, String> {
+    let max = crate::scene::LIMITS.max_particles;
+    let n: u64 = s
+        .trim()
+        .replace('_', "")
+        .parse()
+        .map_err(|_| format!("\"{s}\" is not a particle count (a whole number, 1..={max})"))?;
+    match u32::try_from(n) {
+        Ok(n) if (1..=max).contains(&n) => Ok(n),
+        _ => Err(format!("{n} particles is out of range: allowed 1..={max}")),
+    }
+}
+
+/// The scene-loading path every command shares: an embedded scene's name or a file path (the
+/// embedded thesis scene when `None`), rescaled to `--particles` when given.
+pub fn load_scene(arg: Option<&Path>, particles: ParticlesArg) -> anyhow::Result<Scene> {
+    let scene = Scene::load_or_default(arg)?;
+    Ok(match particles.particles {
+        Some(n) => scene.with_particles(n)?,
+        None => scene,
+    })
+}
 
 /// Options shared by every command that renders a scene with a technique.
 #[derive(Clone, Debug, clap::Args)]
@@ -93,7 +131,34 @@ impl std::str::FromStr for Size {
 
 #[cfg(test)]
 mod tests {
-    use super::Size;
+    use super::{Size, parse_particles};
+
+    #[test]
+    fn particle_counts_parse_and_reject_out_of_range() {
+        assert_eq!(parse_particles("65536"), Ok(65536));
+        assert_eq!(parse_particles("1_000_000"), Ok(1_000_000));
+        assert!(parse_particles("0").unwrap_err().contains("1..=4000000"));
+        assert!(
+            parse_particles("4000001")
+                .unwrap_err()
+                .contains("out of range")
+        );
+        assert!(
+            parse_particles("99999999999")
+                .unwrap_err()
+                .contains("out of range")
+        );
+        assert!(
+            parse_particles("many")
+                .unwrap_err()
+                .contains("not a particle count")
+        );
+        assert!(
+            parse_particles("-5")
+                .unwrap_err()
+                .contains("not a particle count")
+        );
+    }
 
     #[test]
     fn sizes_parse_and_reject_out_of_range() {

@@ -7,10 +7,9 @@ use std::path::PathBuf;
 use glam::Vec3;
 use serde::Serialize;
 
-use super::TechniqueArgs;
+use super::{ParticlesArg, TechniqueArgs};
 use crate::gpu::{AdapterPreference, Gpu};
 use crate::render::{OUTPUT_FORMAT, Renderer, TechniqueConfig};
-use crate::scene::Scene;
 use crate::shadow::LightSpace;
 
 #[derive(Clone, Debug, clap::Args)]
@@ -18,6 +17,8 @@ pub struct ProbeArgs {
     /// Scene file (TOML), or the name of an embedded scene (`smokeshadow info` lists them); the
     /// embedded thesis scene when omitted.
     pub scene: Option<PathBuf>,
+    #[command(flatten)]
+    pub particles: ParticlesArg,
     #[command(flatten)]
     pub technique: TechniqueArgs,
     /// World point X,Y,Z in metres.
@@ -77,14 +78,14 @@ struct Report<'a> {
 }
 
 pub fn run(args: &ProbeArgs, adapter: &AdapterPreference) -> anyhow::Result<()> {
-    let scene = Scene::load_or_default(args.scene.as_deref())?;
+    let scene = super::load_scene(args.scene.as_deref(), args.particles)?;
     let technique = args.technique.config(&scene)?;
     let exact = TechniqueConfig {
         name: "exact".to_owned(),
         params: technique.params.clone(),
     };
     let gpu = Gpu::new(adapter)?;
-    let particles = crate::sim::simulate(&scene);
+    let particles = crate::progress::simulate(&scene);
     let light = LightSpace::fit(&scene.light, &particles);
 
     let mut points = vec![args.at];

@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use anyhow::Context;
 
-use super::{Size, TechniqueArgs};
+use super::{ParticlesArg, Size, TechniqueArgs};
 use crate::gpu::{AdapterPreference, Gpu};
 use crate::render::{OUTPUT_FORMAT, OffscreenTarget, RenderOptions, Renderer};
 use crate::scene::Scene;
@@ -16,6 +16,8 @@ pub struct RenderArgs {
     /// Scene file (TOML), or the name of an embedded scene (`smokeshadow info` lists them); the
     /// embedded thesis scene when omitted.
     pub scene: Option<PathBuf>,
+    #[command(flatten)]
+    pub particles: ParticlesArg,
     #[command(flatten)]
     pub technique: TechniqueArgs,
     /// Output size as WIDTHxHEIGHT (default: the scene's output size).
@@ -36,7 +38,7 @@ pub struct RenderArgs {
 }
 
 pub fn run(args: &RenderArgs, adapter: &AdapterPreference) -> anyhow::Result<()> {
-    let mut scene = Scene::load_or_default(args.scene.as_deref())?;
+    let mut scene = super::load_scene(args.scene.as_deref(), args.particles)?;
     if let Some(size) = args.size {
         scene.output.width_px = size.width;
         scene.output.height_px = size.height;
@@ -52,7 +54,7 @@ pub fn run(args: &RenderArgs, adapter: &AdapterPreference) -> anyhow::Result<()>
     log::info!("adapter: {}", gpu.describe());
 
     let sim_start = Instant::now();
-    let particles = crate::sim::simulate(&scene);
+    let particles = crate::progress::simulate(&scene);
     let sim_ms = sim_start.elapsed().as_secs_f64() * 1e3;
 
     let options = RenderOptions {

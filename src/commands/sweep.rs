@@ -10,9 +10,11 @@ use crate::sweep::{self, SweepOptions};
 
 #[derive(Clone, Debug, clap::Args)]
 pub struct SweepArgs {
-    /// Scene file (TOML), or the name of an embedded scene (thesis_plume, thesis_wind); the
+    /// Scene file (TOML), or the name of an embedded scene (`smokeshadow info` lists them); the
     /// embedded thesis scene when omitted.
-    pub scene: Option<String>,
+    pub scene: Option<PathBuf>,
+    #[command(flatten)]
+    pub particles: super::ParticlesArg,
     /// Techniques, comma-separated (`none` and `exact` are always measured, as the frame-time
     /// baseline and the reference).
     #[arg(long, value_delimiter = ',', default_values_t = crate::shadow::default_sweep())]
@@ -45,7 +47,7 @@ pub struct SweepArgs {
 }
 
 pub fn run(args: &SweepArgs, adapter: &AdapterPreference) -> anyhow::Result<()> {
-    let mut scene = super::compare::load_scene(args.scene.as_deref())?;
+    let mut scene = super::load_scene(args.scene.as_deref(), args.particles)?;
     if let Some(size) = args.size {
         scene.output.width_px = size.width;
         scene.output.height_px = size.height;

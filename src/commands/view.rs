@@ -9,8 +9,16 @@ pub struct ViewArgs {
     /// Scene file (TOML), or the name of an embedded scene (`smokeshadow info` lists them); the
     /// embedded thesis scene when omitted.
     pub scene: Option<PathBuf>,
+    /// Opens the scene at this many particles (the file field then still names the file,
+    /// which loads at its own count).
+    #[command(flatten)]
+    pub particles: super::ParticlesArg,
 }
 
 pub fn run(args: &ViewArgs, adapter: &AdapterPreference) -> anyhow::Result<()> {
-    crate::viewer::run(args.scene.clone(), adapter.clone())
+    crate::viewer::run(
+        args.scene.clone(),
+        args.particles.particles,
+        adapter.clone(),
+    )
 }

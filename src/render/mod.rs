@@ -14,6 +14,7 @@
 //! the technique or size changes; a frame only uploads uniforms and particles and records passes.
 
 pub mod shaded;
+pub mod sort;
 
 // The frame's building blocks live in `crate::frame` (the techniques share them); re-exported
 // here, where callers of the renderer look for them.
@@ -25,6 +26,7 @@ pub use crate::frame::{
 use std::time::Instant;
 
 use glam::Vec3;
+use rayon::prelude::*;
 
 use crate::gpu::{Gpu, GpuError, GpuTimer, PassTimes};
 use crate::scene::Scene;
@@ -524,20 +526,16 @@ impl Renderer {
             bytemuck::bytes_of(&frame_uniforms(scene, &camera, &light, width, height)),
         );
 
-        // Back-to-front by view depth; ties keep pool order so the result is deterministic.
+        // Back-to-front by view depth; ties keep pool order so the result is deterministic. The
+        // time covers the keys and the sort (`sort::back_to_front`), not the gather below.
         let sort_start = Instant::now();
-        let mut order: Vec<(f32, u32)> = particles
-            .iter()
-            .enumerate()
-            .map(|(i, p)| ((p.position - camera.position).dot(camera.forward), i as u32))
-            .collect();
-        order.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+        let order = sort::back_to_front(particles, camera.position, camera.forward);
         let sort_ms = sort_start.elapsed().as_secs_f64() * 1e3;
         self.instances.clear();
-        self.instances.extend(
+        self.instances.par_extend(
             order
-                .iter()
-                .map(|&(_, i)| ParticleInstance::from_particle(&particles[i as usize])),
+                .par_iter()
+                .map(|&i| ParticleInstance::from_particle(&particles[i as usize])),
         );
         self.upload_particles(gpu);
         let particle_count = particles.len() as u32;
@@ -548,8 +546,11 @@ impl Renderer {
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                 label: Some("frame.encoder"),
             });
-        let build_key = build_key(particles, &scene.light, &light, &self.technique_config);
-        if !(reuse_shadow_maps && self.built_from == Some(build_key)) {
+        // Hashing every particle costs milliseconds at a million: only frames that may reuse
+        // the maps pay for it (a frame that does not leaves `built_from` unset).
+        let build_key = reuse_shadow_maps
+            .then(|| build_key(particles, &scene.light, &light, &self.technique_config));
+        if build_key.is_none() || self.built_from != build_key {
             self.built_from = None;
             self.technique.build(
                 gpu,
@@ -563,7 +564,7 @@ impl Renderer {
                     light: &light,
                 },
             )?;
-            self.built_from = Some(build_key);
+            self.built_from = build_key;
         }
         let stats = FrameStats {
             sort_ms,

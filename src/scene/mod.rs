@@ -26,12 +26,23 @@ pub use validate::LIMITS;
 pub const THESIS_PLUME_TOML: &str = include_str!("../../scenes/thesis_plume.toml");
 /// The same plume after a wind gust.
 pub const THESIS_WIND_TOML: &str = include_str!("../../scenes/thesis_wind.toml");
+/// The scaling family's base: the thesis plume, meant to be run at other particle counts with
+/// `--particles N` ([`Scene::with_particles`]).
+pub const PLUME_SCALED_TOML: &str = include_str!("../../scenes/plume_scaled.toml");
+/// `plume_scaled` at 65,536 particles, the scaling rule applied.
+pub const PLUME_65K_TOML: &str = include_str!("../../scenes/plume_65k.toml");
 
-/// The scenes embedded in the binary, by name: the baselines and reports use these.
+/// The scenes embedded in the binary, by name.
 pub const EMBEDDED: &[(&str, &str)] = &[
     ("thesis_plume", THESIS_PLUME_TOML),
     ("thesis_wind", THESIS_WIND_TOML),
+    ("plume_scaled", PLUME_SCALED_TOML),
+    ("plume_65k", PLUME_65K_TOML),
 ];
+
+/// The embedded scenes with committed baselines (`baselines/<scene>/`): the thesis experiment.
+/// The scaling family is for timing; its smoke is the thesis plume's at other counts.
+pub const BASELINE_SCENES: &[&str] = &["thesis_plume", "thesis_wind"];
 
 /// The embedded scenes' names, comma-separated.
 pub fn embedded_names() -> String {
@@ -154,7 +165,7 @@ pub struct BoxShape {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct Emitter {
-    /// Number of particles in the pool, 1..=1_000_000. The thesis uses 2500.
+    /// Number of particles in the pool, 1..=4_000_000. The thesis uses 2500.
     pub count: u32,
     /// Seed of the emitter's PRNG (PCG-32); same seed, same smoke.
     pub seed: u64,
@@ -347,6 +358,30 @@ impl Default for Emitter {
     }
 }
 
+impl Emitter {
+    /// The same smoke with `count` particles: the rule of the scaling family (`plume_scaled`,
+    /// `plume_65k`, `--particles`). With N0 = `self.count`, the birth radius and the growth rate
+    /// (so every radius at every age) are multiplied by (N0/N)^(1/3) and τ is kept. Each sphere's
+    /// optical depth integrated over its projected area is ∝ τ r³ (for the extinction
+    /// τ(1 − d/r) of [`crate::shadow::closed_form`]), so the plume's total N·τ·r³, hence its mean
+    /// optical depth along light rays, stays that of N0 particles, as does the total sphere
+    /// volume N·r³ that fills its silhouette. The birth schedule (count / lifetime per second)
+    /// and the flow are unchanged, so the particles sample the same plume, more finely; its
+    /// outline's soft fringe, as wide as the radii, gets thinner (`tests/scaling.rs` measures
+    /// both).
+    pub fn scaled_to(&self, count: u32) -> Self {
+        // In f64 so that a scale of 1 and exact cubes round-trip the f32 radii exactly.
+        let k = (f64::from(self.count) / f64::from(count.max(1))).cbrt();
+        let scale = |v: f32| (f64::from(v) * k) as f32;
+        Self {
+            count,
+            radius_birth_m: scale(self.radius_birth_m),
+            growth_m_per_s: scale(self.growth_m_per_s),
+            ..self.clone()
+        }
+    }
+}
+
 impl Default for Wind {
     fn default() -> Self {
         Self {
@@ -453,6 +488,17 @@ impl Scene {
             Some(scene) => Ok(scene),
             None => Self::load(name_or_path),
         }
+    }
+
+    /// The scene with its emitter scaled to `count` particles ([`Emitter::scaled_to`]),
+    /// validated (the count against [`LIMITS`]).
+    pub fn with_particles(mut self, count: u32) -> Result<Self, SceneError> {
+        self.emitter = self.emitter.scaled_to(count);
+        self.validate().map_err(|message| SceneError::Invalid {
+            origin: format!("{} at {count} particles", self.name),
+            message,
+        })?;
+        Ok(self)
     }
 
     /// [`Scene::open`] of `arg`, or the embedded thesis scene when `arg` is `None`.

@@ -11,7 +11,7 @@ pub struct Limits {
 }
 
 pub const LIMITS: Limits = Limits {
-    max_particles: 1_000_000,
+    max_particles: 4_000_000,
     max_size_px: 8192,
 };
 

@@ -5,9 +5,14 @@
 //! lifetime the plume is in a steady state with every particle alive. The state advances in fixed
 //! steps of `sim.step_s` from t = 0 to `sim.duration_s` with semi-implicit Euler.
 //!
-//! Determinism by construction: one named PRNG ([`rand_pcg::Pcg32`]) seeded from the scene,
-//! consumed in particle-index order on one thread; a turbulence field built from that seed; no
-//! wall clock. Same scene => bit-identical particles.
+//! Determinism by construction, at any thread count: each pool slot owns a named PRNG
+//! ([`rand_pcg::Pcg32`] on its own stream, seeded from the scene seed and the slot index, see
+//! [`slot_rng`]) that only that slot's births, re-births and random walk draw from, in step
+//! order; the turbulence field is built from a generator seeded with the scene seed alone; a
+//! step updates every particle from the previous step's state and read-only shared data (no
+//! reduction, no order-dependent float sums); no wall clock. So the slots can be stepped in
+//! parallel (rayon) in any order and on any number of threads: same scene => bit-identical
+//! particles, whether the rayon pool has 1 thread or 16.
 //!
 //! Forces: buoyancy that decays with age, a divergence-free turbulent field (a sum of transverse
 //! travelling plane waves), a small per-particle random walk, and drag towards the air velocity,
@@ -16,6 +21,7 @@
 use glam::Vec3;
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg32;
+use rayon::prelude::*;
 
 use crate::scene::{Emitter, Scene, Wind};
 
@@ -110,11 +116,33 @@ pub fn wind_velocity(wind: &Wind, t_s: f32) -> Vec3 {
 }
 
 /// Pool slot state: not yet born, or alive.
-#[derive(Clone, Copy)]
+#[derive(Clone)]
 struct Slot {
     particle: Particle,
     alive: bool,
     brightness: f32,
+    /// This slot's own random stream ([`slot_rng`]).
+    rng: Pcg32,
+}
+
+/// Slots stepped per rayon task: a step costs ~0.1 µs per particle, so this keeps the task
+/// overhead small without starving threads at the thesis' 2,500 particles.
+const SLOTS_PER_TASK: usize = 512;
+
+/// The random stream of pool slot `slot` for emitter seed `seed`: PCG-32 on stream `slot` (its
+/// own LCG increment), started from a state that mixes seed and slot through SplitMix64 so that
+/// neighbouring slots (or seeds) do not start from neighbouring states.
+pub fn slot_rng(seed: u64, slot: u32) -> Pcg32 {
+    let slot = u64::from(slot);
+    Pcg32::new(splitmix64(seed ^ splitmix64(slot)), slot)
+}
+
+/// SplitMix64's finaliser (Steele, Lea & Flood 2014): a bijective 64-bit mix.
+fn splitmix64(x: u64) -> u64 {
+    let mut z = x.wrapping_add(0x9e37_79b9_7f4a_7c15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^ (z >> 31)
 }
 
 /// Runs the emitter from t = 0 to `scene.sim.duration_s` and returns the live particles in pool
@@ -130,6 +158,12 @@ pub fn simulate_until(scene: &Scene, time_s: f32) -> Vec<Particle> {
     sim.particles()
 }
 
+/// The fixed step nearest `time_s` for steps of `step_s`: where [`Simulation::advance_to`] stops,
+/// and how many steps [`simulate`] takes.
+pub fn step_index(step_s: f32, time_s: f32) -> u64 {
+    (time_s.max(0.0) / step_s).round() as u64
+}
+
 /// The emitter's state between fixed steps, for callers that move through time (the viewer's
 /// play and scrub): stepping forward continues; going back replays from t = 0, so the state at
 /// a time is always the one [`simulate_until`] gives.
@@ -137,7 +171,6 @@ pub struct Simulation {
     emitter: Emitter,
     wind: Wind,
     step_s: f32,
-    rng: Pcg32,
     turbulence: Turbulence,
     slots: Vec<Slot>,
     /// The first slot not yet born (particles are born in index order).
@@ -153,26 +186,29 @@ impl Simulation {
     }
 
     fn start(e: Emitter, wind: Wind, step_s: f32) -> Self {
-        let mut rng = Pcg32::seed_from_u64(e.seed);
-        let turbulence = Turbulence::new(&mut rng, &e);
-        let empty = Slot {
-            particle: Particle {
-                position: e.position,
-                velocity: Vec3::ZERO,
-                age_s: 0.0,
-                radius_m: e.radius_birth_m,
-                density_per_m: 0.0,
-                albedo: e.albedo,
-            },
-            alive: false,
-            brightness: 1.0,
+        let turbulence = Turbulence::new(&mut Pcg32::seed_from_u64(e.seed), &e);
+        let empty = Particle {
+            position: e.position,
+            velocity: Vec3::ZERO,
+            age_s: 0.0,
+            radius_m: e.radius_birth_m,
+            density_per_m: 0.0,
+            albedo: e.albedo,
         };
+        let slots = (0..e.count)
+            .into_par_iter()
+            .map(|i| Slot {
+                particle: empty,
+                alive: false,
+                brightness: 1.0,
+                rng: slot_rng(e.seed, i),
+            })
+            .collect();
         Self {
-            slots: vec![empty; e.count as usize],
+            slots,
             emitter: e,
             wind,
             step_s,
-            rng,
             turbulence,
             next_birth: 0,
             steps: 0,
@@ -186,16 +222,26 @@ impl Simulation {
 
     /// Steps forward (or replays from the start) to the step nearest `time_s`.
     pub fn advance_to(&mut self, time_s: f32) {
-        let target = (time_s.max(0.0) / self.step_s).round() as u64;
+        self.advance_to_reporting(time_s, &mut |_, _| {});
+    }
+
+    /// [`Simulation::advance_to`], calling `progress(done, total)` after each step with the
+    /// steps taken and the steps this call takes in all (for a progress bar).
+    pub fn advance_to_reporting(&mut self, time_s: f32, progress: &mut dyn FnMut(u64, u64)) {
+        let target = step_index(self.step_s, time_s);
         if target < self.steps {
             *self = Self::start(self.emitter.clone(), self.wind.clone(), self.step_s);
         }
+        let first = self.steps;
         while self.steps < target {
             self.step();
+            progress(self.steps - first, target - first);
         }
     }
 
-    /// One fixed step.
+    /// One fixed step: the births due in it (in slot order, each from its own stream), then
+    /// every live slot advanced in parallel. A slot's update reads only its own state and the
+    /// shared, read-only emitter, turbulence and air velocity, so the schedule cannot change it.
     fn step(&mut self) {
         let e = &self.emitter;
         let count = e.count as usize;
@@ -205,24 +251,18 @@ impl Simulation {
         let t_end = t + dt;
         let air = wind_velocity(&self.wind, t);
         while self.next_birth < count && (self.next_birth as f32) * birth_interval < t_end {
-            spawn(&mut self.slots[self.next_birth], e, &mut self.rng);
+            spawn(&mut self.slots[self.next_birth], e);
             self.next_birth += 1;
         }
-        for slot in self.slots.iter_mut().filter(|s| s.alive) {
-            let p = &mut slot.particle;
-            let buoyancy = Vec3::Y * e.buoyancy_m_per_s2 * (-p.age_s / e.buoyancy_decay_s).exp();
-            let jitter = random_unit(&mut self.rng) * (e.turbulence_m_per_s2 * 0.5);
-            let accel = buoyancy
-                + self.turbulence.accel(p.position, t)
-                + jitter
-                + (air - p.velocity) * e.drag_per_s;
-            p.velocity += accel * dt;
-            p.position += p.velocity * dt;
-            p.age_s += dt;
-            if p.age_s >= e.lifetime_s {
-                spawn(slot, e, &mut self.rng);
-            }
-        }
+        let turbulence = &self.turbulence;
+        // Slots past `next_birth` are not born yet: no need to visit them.
+        self.slots[..self.next_birth]
+            .par_chunks_mut(SLOTS_PER_TASK)
+            .for_each(|chunk| {
+                for slot in chunk.iter_mut().filter(|s| s.alive) {
+                    advance(slot, e, turbulence, air, t, dt);
+                }
+            });
         self.steps += 1;
     }
 
@@ -230,7 +270,7 @@ impl Simulation {
     pub fn particles(&self) -> Vec<Particle> {
         let e = &self.emitter;
         self.slots
-            .iter()
+            .par_iter()
             .filter(|s| s.alive)
             .map(|s| {
                 let mut p = s.particle;
@@ -243,7 +283,25 @@ impl Simulation {
     }
 }
 
-fn spawn(slot: &mut Slot, e: &Emitter, rng: &mut Pcg32) {
+/// One slot's semi-implicit Euler step at time `t` (air velocity `air`), re-born at the source
+/// when it reaches the end of its life.
+fn advance(slot: &mut Slot, e: &Emitter, turbulence: &Turbulence, air: Vec3, t: f32, dt: f32) {
+    let p = &mut slot.particle;
+    let buoyancy = Vec3::Y * e.buoyancy_m_per_s2 * (-p.age_s / e.buoyancy_decay_s).exp();
+    let jitter = random_unit(&mut slot.rng) * (e.turbulence_m_per_s2 * 0.5);
+    let accel =
+        buoyancy + turbulence.accel(p.position, t) + jitter + (air - p.velocity) * e.drag_per_s;
+    p.velocity += accel * dt;
+    p.position += p.velocity * dt;
+    p.age_s += dt;
+    if p.age_s >= e.lifetime_s {
+        spawn(slot, e);
+    }
+}
+
+/// (Re)births `slot` at the source, drawing from the slot's own stream.
+fn spawn(slot: &mut Slot, e: &Emitter) {
+    let rng = &mut slot.rng;
     // Uniform point on the source disc (horizontal).
     let angle = rng.random::<f32>() * std::f32::consts::TAU;
     let r = e.source_radius_m * rng.random::<f32>().sqrt();
@@ -327,6 +385,44 @@ mod tests {
         let b = simulate(&small_scene(7));
         assert!(!a.is_empty());
         assert_eq!(bits(&a), bits(&b));
+    }
+
+    /// Runs `f` on a fresh rayon pool of `threads` threads.
+    fn on_threads<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .expect("a rayon pool")
+            .install(f)
+    }
+
+    #[test]
+    fn thread_count_does_not_change_a_bit() {
+        // Enough slots for many rayon tasks (SLOTS_PER_TASK each), a wind gust and re-births.
+        let mut scene = small_scene(11);
+        scene.emitter.count = 6 * SLOTS_PER_TASK as u32 + 37;
+        scene.emitter.lifetime_s = 1.5;
+        scene.wind.strength_m_per_s = 2.0;
+        scene.wind.start_s = 1.0;
+        let one = on_threads(1, || simulate(&scene));
+        assert_eq!(one.len(), scene.emitter.count as usize);
+        for threads in [2, 3, 8] {
+            let many = on_threads(threads, || simulate(&scene));
+            assert_eq!(bits(&one), bits(&many), "{threads} threads");
+            assert_eq!(one, many, "{threads} threads");
+        }
+    }
+
+    #[test]
+    fn slots_draw_from_distinct_streams() {
+        let draws = |seed, slot| -> Vec<u32> {
+            let mut rng = slot_rng(seed, slot);
+            (0..8).map(|_| rng.random::<u32>()).collect()
+        };
+        let first = draws(2013, 0);
+        assert_ne!(first, draws(2013, 1));
+        assert_ne!(first, draws(2014, 0));
+        assert_eq!(first, draws(2013, 0));
     }
 
     #[test]

@@ -101,6 +101,9 @@ enum XScale {
     LogResolution,
     /// Channel budget on a linear axis.
     Channels,
+    /// A count (particles) on a base-10 log axis against a log y axis: cost curves whose
+    /// slopes read as powers ([`log_log_svg`], the bench's charts).
+    LogLog,
 }
 
 /// Point shapes, cycled so that series of one colour still differ.
@@ -426,6 +429,44 @@ fn zero_bytes_note(count: usize) -> String {
 // ---------------------------------------------------------------------------------------------
 // Drawing.
 
+/// One line of a [`log_log_svg`] chart: a legend label and its (x, y) points.
+pub struct LogLogSeries {
+    pub label: String,
+    pub points: Vec<(f64, f64)>,
+}
+
+/// A line chart on log-log axes as an SVG document, drawn like the sweep's charts: series `i`
+/// gets colour `i` of the palette and marker `i` of the markers (so colours that repeat differ
+/// in shape). Points that are not positive and finite are left out.
+pub fn log_log_svg(
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+    series: &[LogLogSeries],
+) -> anyhow::Result<String> {
+    let plot = Plot {
+        file_name: "",
+        title: title.to_owned(),
+        caption: String::new(),
+        x_scale: XScale::LogLog,
+        x_label: x_label.to_owned(),
+        y_label: y_label.to_owned(),
+        series: series
+            .iter()
+            .enumerate()
+            .map(|(i, s)| Series {
+                label: s.label.clone(),
+                color: PALETTE[i % PALETTE.len()],
+                marker: MARKERS[i % MARKERS.len()],
+                points: s.points.clone(),
+            })
+            .collect(),
+        reference: None,
+        legend_at: SeriesLabelPosition::UpperLeft,
+    };
+    render_svg(&plot)
+}
+
 /// Draws `plot` as an SVG document.
 fn render_svg(plot: &Plot) -> anyhow::Result<String> {
     let series: Vec<Series> = plot
@@ -437,7 +478,10 @@ fn render_svg(plot: &Plot) -> anyhow::Result<String> {
                 .iter()
                 .copied()
                 .filter(|&(x, y)| {
-                    x.is_finite() && y.is_finite() && (plot.x_scale == XScale::Channels || x > 0.0)
+                    x.is_finite()
+                        && y.is_finite()
+                        && (plot.x_scale == XScale::Channels || x > 0.0)
+                        && (plot.x_scale != XScale::LogLog || y > 0.0)
                 })
                 .collect();
             points.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
@@ -459,6 +503,15 @@ fn render_svg(plot: &Plot) -> anyhow::Result<String> {
         .flat_map(|s| s.points.iter().map(|p| p.1))
         .collect();
     ys.extend(plot.reference.as_ref().map(|r| r.y));
+    if plot.x_scale == XScale::LogLog {
+        return draw(
+            plot,
+            &series,
+            log_range(&xs, 1.5, 1000.0..1e6).log_scale(),
+            log_range(&ys, 1.5, 0.01..1000.0).log_scale(),
+            &|x| number_label(*x),
+        );
+    }
     let y_range = linear_range(&ys, true);
     match plot.x_scale {
         XScale::LogBytes => draw(
@@ -486,20 +539,24 @@ fn render_svg(plot: &Plot) -> anyhow::Result<String> {
             y_range,
             &|x| number_label(*x),
         ),
+        XScale::LogLog => unreachable!("drawn above"),
     }
 }
 
-/// Draws `series` (finite points only, each non-empty) on an x axis given by `x_spec`.
-fn draw<X>(
+/// Draws `series` (finite points only, each non-empty) on the axes given by `x_spec` and
+/// `y_spec`.
+fn draw<X, Y>(
     plot: &Plot,
     series: &[Series],
     x_spec: X,
-    y_range: Range<f64>,
+    y_spec: Y,
     x_label_text: &dyn Fn(&f64) -> String,
 ) -> anyhow::Result<String>
 where
     X: AsRangedCoord<Value = f64>,
     X::CoordDescType: Ranged<ValueType = f64> + ValueFormatter<f64>,
+    Y: AsRangedCoord<Value = f64>,
+    Y::CoordDescType: Ranged<ValueType = f64> + ValueFormatter<f64>,
 {
     let mut svg = String::new();
     {
@@ -510,7 +567,7 @@ where
             .margin(16)
             .x_label_area_size(48)
             .y_label_area_size(72)
-            .build_cartesian_2d(x_spec, y_range.clone())?;
+            .build_cartesian_2d(x_spec, y_spec)?;
         chart
             .configure_mesh()
             .x_labels(X_LABELS)

@@ -28,6 +28,13 @@ pub struct Timing {
     pub max: f64,
 }
 
+impl Timing {
+    /// Median, minimum and maximum of `samples` (all zero when there are none).
+    pub fn of(samples: &[f64]) -> Self {
+        run::timing(samples)
+    }
+}
+
 /// Image error of a cell against a reference image.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ImageError {

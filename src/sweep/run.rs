@@ -2,7 +2,6 @@
 //! (pipelines are rebuilt only when the technique changes; the particles are simulated once),
 //! compares it with its own 24-channel image and with `exact`, and persists it.
 
-use std::io::IsTerminal;
 use std::path::Path;
 use std::time::Instant;
 
@@ -11,6 +10,7 @@ use anyhow::Context;
 use super::{CellResult, ImageError, SkippedCell, SweepMetadata, SweepResults, Timing};
 use crate::diff;
 use crate::gpu::Gpu;
+use crate::progress::Progress;
 use crate::render::shaded::{rms_difference, shaded_points};
 use crate::render::{OUTPUT_FORMAT, OffscreenTarget, RenderOptions, Renderer, TechniqueConfig};
 use crate::scene::Scene;
@@ -196,7 +196,7 @@ fn counter(counters: &[(&'static str, u64)], name: &str) -> u64 {
 }
 
 /// Median, minimum and maximum of samples.
-fn timing(samples: &[f64]) -> Timing {
+pub(super) fn timing(samples: &[f64]) -> Timing {
     let mut v = samples.to_vec();
     v.sort_by(f64::total_cmp);
     let n = v.len();
@@ -393,57 +393,6 @@ impl Sweeper<'_> {
     }
 }
 
-/// A line of progress: a bar with an ETA on a terminal, plain lines otherwise (CI logs).
-struct Progress {
-    bar: Option<indicatif::ProgressBar>,
-    total: usize,
-    done: usize,
-}
-
-impl Progress {
-    fn new(total: usize) -> Self {
-        let bar = std::io::stderr().is_terminal().then(|| {
-            let bar = indicatif::ProgressBar::new(total as u64);
-            bar.set_style(
-                indicatif::ProgressStyle::with_template(
-                    "{spinner} [{elapsed_precise}] {bar:30} {pos}/{len} cells, ETA {eta} {msg}",
-                )
-                .expect("a valid progress template")
-                .progress_chars("=> "),
-            );
-            bar
-        });
-        Self {
-            bar,
-            total,
-            done: 0,
-        }
-    }
-
-    fn start(&self, what: &str) {
-        if let Some(bar) = &self.bar {
-            bar.set_message(what.to_owned());
-        }
-    }
-
-    fn finish(&mut self, line: String) {
-        self.done += 1;
-        match &self.bar {
-            Some(bar) => {
-                bar.println(line);
-                bar.inc(1);
-            }
-            None => eprintln!("[{}/{}] {line}", self.done, self.total),
-        }
-    }
-
-    fn end(&self) {
-        if let Some(bar) = &self.bar {
-            bar.finish_and_clear();
-        }
-    }
-}
-
 /// Runs the sweep into `dir` and writes every output; returns the results.
 pub fn run(
     gpu: &Gpu,
@@ -474,11 +423,11 @@ pub fn run(
         }
     }
 
-    let particles = crate::sim::simulate(scene);
+    let particles = crate::progress::simulate(scene);
     let (w, h) = (scene.output.width_px, scene.output.height_px);
     let mut exact_config = plans[0].config.clone();
     exact_config.name = shadow::reference().name.to_owned();
-    let mut progress = Progress::new(plans.len() + 1);
+    let mut progress = Progress::new(plans.len() + 1, "cells");
     progress.start("exact reference");
     let mut renderer = Renderer::new(gpu, w, h, OUTPUT_FORMAT, &exact_config)?;
     let target = OffscreenTarget::new(gpu, w, h);

@@ -77,13 +77,18 @@ pub fn native_options(preference: AdapterPreference) -> eframe::NativeOptions {
     options
 }
 
-/// Opens the viewer on `scene` (the embedded thesis scene when `None`) and returns when the
-/// window closes. Problems found before the window exists (a bad scene file, no adapter) are
-/// returned as one-line errors.
-pub fn run(scene_path: Option<PathBuf>, preference: AdapterPreference) -> anyhow::Result<()> {
-    let scene = match &scene_path {
-        Some(path) => Scene::open(path)?,
-        None => Scene::thesis_plume(),
+/// Opens the viewer on `scene` (the embedded thesis scene when `None`), rescaled to `particles`
+/// when given ([`Scene::with_particles`]), and returns when the window closes. Problems found
+/// before the window exists (a bad scene file, no adapter) are returned as one-line errors.
+pub fn run(
+    scene_path: Option<PathBuf>,
+    particles: Option<u32>,
+    preference: AdapterPreference,
+) -> anyhow::Result<()> {
+    let scene = Scene::load_or_default(scene_path.as_deref())?;
+    let scene = match particles {
+        Some(n) => scene.with_particles(n)?,
+        None => scene,
     };
     let adapters = pollster::block_on(gpu::ranked_adapters(&gpu::instance()));
     if !adapters

@@ -1,0 +1,159 @@
+//! `smokeshadow bench`: the cost of each term of a frame (simulation, sort, every GPU pass, each
+//! technique's frame, its bytes and counters) against the particle count, on the scaling family
+//! ([`crate::bench`]); a table, and CSV, JSON and log-log SVG charts in a folder.
+
+use std::path::{Path, PathBuf};
+
+use super::{ParticlesArg, Size};
+use crate::bench::{self, BenchOptions, BenchResults};
+use crate::gpu::{AdapterPreference, Gpu};
+
+#[derive(Clone, Debug, clap::Args)]
+pub struct BenchArgs {
+    /// Scene file (TOML), or the name of an embedded scene; `plume_scaled` when omitted. Each
+    /// count rescales its emitter (see `--particles`).
+    pub scene: Option<PathBuf>,
+    /// Particle counts, comma-separated [default: 2500,16384,65536,262144,1000000].
+    #[arg(long, value_delimiter = ',', value_name = "N,N,...", value_parser = super::parse_particles,
+          conflicts_with = "particles")]
+    pub particles_list: Vec<u32>,
+    /// One particle count (the same as a one-count `--particles-list`).
+    #[command(flatten)]
+    pub particles: ParticlesArg,
+    /// Technique (repeatable; default: every registered technique).
+    #[arg(long = "technique", short = 't')]
+    pub techniques: Vec<String>,
+    /// Channel budget every technique gets, 1..=32 (a technique whose minimum is above it is
+    /// recorded as refused).
+    #[arg(long, short = 'c', default_value_t = 24)]
+    pub channels: u32,
+    /// Timed frames per technique and count (medians over these).
+    #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u32).range(1..=100_000))]
+    pub frames: u32,
+    /// Untimed warm-up frames before them (the first frames compile shaders and grow buffers).
+    #[arg(long, default_value_t = 3)]
+    pub warmup: u32,
+    /// Frame size as WIDTHxHEIGHT [default: 512x384, small enough for lavapipe at a million
+    /// particles].
+    #[arg(long)]
+    pub size: Option<Size>,
+    /// Output folder (created if missing).
+    #[arg(long, short = 'o', default_value = "bench")]
+    pub output: PathBuf,
+}
+
+/// The embedded scene a bench runs when none is given.
+pub const DEFAULT_SCENE: &str = "plume_scaled";
+
+pub fn run(args: &BenchArgs, adapter: &AdapterPreference) -> anyhow::Result<()> {
+    let scene_arg = args.scene.as_deref().unwrap_or(Path::new(DEFAULT_SCENE));
+    let mut scene = super::load_scene(Some(scene_arg), ParticlesArg::default())?;
+    let (w, h) = args
+        .size
+        .map_or(bench::DEFAULT_SIZE_PX, |s| (s.width, s.height));
+    scene.output.width_px = w;
+    scene.output.height_px = h;
+    let counts = match (args.particles.particles, args.particles_list.is_empty()) {
+        (Some(n), _) => vec![n],
+        (None, true) => bench::DEFAULT_COUNTS.to_vec(),
+        (None, false) => args.particles_list.clone(),
+    };
+    let techniques = if args.techniques.is_empty() {
+        crate::shadow::REGISTRY
+            .iter()
+            .map(|e| e.name.to_owned())
+            .collect()
+    } else {
+        args.techniques.clone()
+    };
+    let options = BenchOptions {
+        counts,
+        techniques,
+        channels: args.channels,
+        frames: args.frames,
+        warmup: args.warmup,
+    };
+    let gpu = Gpu::new(adapter)?;
+    let results = bench::run(&gpu, &scene, &options)?;
+    let written = bench::write(&results, &args.output)?;
+    print_table(&results);
+    println!(
+        "wrote {} files to {} ({}, {})",
+        written.len(),
+        args.output.display(),
+        bench::CSV_FILE,
+        bench::JSON_FILE
+    );
+    Ok(())
+}
+
+/// The results as a table: one row per count and technique.
+fn print_table(results: &BenchResults) {
+    println!(
+        "bench: {} at {}x{}, {} channels, shadow map {}², {} frames after {} warm-up, {} CPU threads, {}",
+        results.scene,
+        results.width_px,
+        results.height_px,
+        results.channels,
+        results.shadow_res,
+        results.frames,
+        results.warmup,
+        results.cpu_threads,
+        results.adapter
+    );
+    if !results.gpu_timestamps {
+        println!("  GPU pass times: not available (the adapter has no timestamp queries)");
+    }
+    println!("  medians in ms; frame = GPU passes + CPU sort");
+    let passes = results.pass_names();
+    let mut header = format!(
+        "{:>9} {:<10} {:>10} {:>8}",
+        "particles", "technique", "sim", "sort"
+    );
+    for p in &passes {
+        header.push_str(&format!(" {:>10}", truncate(p, 10)));
+    }
+    header.push_str(&format!(
+        " {:>10} {:>10} {:>10} {:>12}  counters",
+        "gpu total", "frame", "wall", "bytes"
+    ));
+    println!("{header}");
+    for count in &results.counts {
+        for cell in &count.cells {
+            let mut row = format!(
+                "{:>9} {:<10} {:>10.1}",
+                count.particles, cell.technique, count.sim_ms
+            );
+            match &cell.measured {
+                Some(m) => {
+                    row.push_str(&format!(" {:>8.3}", m.sort_ms.median));
+                    for p in &passes {
+                        row.push_str(&match cell.pass_ms(p) {
+                            Some(t) => format!(" {:>10.3}", t.median),
+                            None => format!(" {:>10}", "-"),
+                        });
+                    }
+                    let counters: Vec<String> =
+                        m.counters.iter().map(|(n, v)| format!("{n}={v}")).collect();
+                    row.push_str(&format!(
+                        " {:>10.3} {:>10.3} {:>10.3} {:>12}  {}",
+                        m.gpu_total_ms.median,
+                        m.frame_ms.median,
+                        m.wall_ms.median,
+                        m.bytes,
+                        counters.join(" ")
+                    ));
+                }
+                None => row.push_str(&format!(
+                    "  refused: {}",
+                    cell.refused.as_deref().unwrap_or("?")
+                )),
+            }
+            println!("{row}");
+        }
+    }
+}
+
+fn truncate(s: &str, chars: usize) -> String {
+    s.chars().take(chars).collect()
+}
