@@ -80,11 +80,74 @@ impl Turbulence {
         Self { waves }
     }
 
-    fn accel(&self, p: Vec3, t: f32) -> Vec3 {
-        self.waves.iter().fold(Vec3::ZERO, |acc, w| {
-            acc + w.amplitude * (w.wave_vector.dot(p) + w.phase + w.angular_speed * t).sin()
-        })
+    /// The field at time `t_s`, as every particle of a step evaluates it.
+    fn at(&self, t_s: f32) -> FieldAt {
+        let w = &self.waves;
+        FieldAt {
+            kx: w.each_ref().map(|w| w.wave_vector.x),
+            ky: w.each_ref().map(|w| w.wave_vector.y),
+            kz: w.each_ref().map(|w| w.wave_vector.z),
+            offset: w.each_ref().map(|w| w.phase + w.angular_speed * t_s),
+            ax: w.each_ref().map(|w| w.amplitude.x),
+            ay: w.each_ref().map(|w| w.amplitude.y),
+            az: w.each_ref().map(|w| w.amplitude.z),
+        }
     }
+}
+
+/// The turbulence frozen at one step's time, one array per component, so that the waves go
+/// through loops the compiler vectorises (the simulation's hot path: every particle, every
+/// step).
+struct FieldAt {
+    kx: [f32; TURBULENCE_WAVES],
+    ky: [f32; TURBULENCE_WAVES],
+    kz: [f32; TURBULENCE_WAVES],
+    /// phase + angular speed x t.
+    offset: [f32; TURBULENCE_WAVES],
+    ax: [f32; TURBULENCE_WAVES],
+    ay: [f32; TURBULENCE_WAVES],
+    az: [f32; TURBULENCE_WAVES],
+}
+
+impl FieldAt {
+    /// Σ amplitude · sin(k · p + offset).
+    fn accel(&self, p: Vec3) -> Vec3 {
+        let mut s = [0.0; TURBULENCE_WAVES];
+        #[allow(clippy::needless_range_loop)] // one index into seven arrays
+        for i in 0..TURBULENCE_WAVES {
+            s[i] = sin_f32(self.kx[i] * p.x + self.ky[i] * p.y + self.kz[i] * p.z + self.offset[i]);
+        }
+        let dot = |a: &[f32; TURBULENCE_WAVES]| a.iter().zip(&s).map(|(a, s)| a * s).sum::<f32>();
+        Vec3::new(dot(&self.ax), dot(&self.ay), dot(&self.az))
+    }
+}
+
+/// sin(x) from IEEE f32 additions, multiplications, min and sign operations only: no libm call,
+/// so a loop of them vectorises (the turbulence's 12 waves: 2.2x less CPU per step than libm's
+/// `sinf` on the development machine). x is reduced to [-π, π] by the nearest multiple of 2π
+/// (2π split in two parts, Cody and Waite, so the reduction's own error stays below 1e-7 for the
+/// |x| < 10^3 the turbulence produces), folded into [0, π/2] by sin(π − a) = sin(a), and the
+/// Taylor polynomial to a¹¹ evaluated (truncation error below 6e-8 at π/2). Absolute error
+/// against the exact sine of the f32 argument: below 1e-6 (tested).
+fn sin_f32(x: f32) -> f32 {
+    use std::f32::consts::{FRAC_1_PI, PI};
+    /// 1.5 · 2^23: adding and subtracting it rounds an f32 below 2^22 to the nearest integer.
+    const ROUND: f32 = 12_582_912.0;
+    /// 2π = TAU_HI + TAU_LO, TAU_HI with 7 significant bits so that k · TAU_HI is exact.
+    const TAU_HI: f32 = 6.281_25;
+    const TAU_LO: f32 = 0.001_935_307_2;
+    let k = (x * (0.5 * FRAC_1_PI) + ROUND) - ROUND;
+    let r = (x - k * TAU_HI) - k * TAU_LO;
+    // sin(r) = ±sin(|r|) = ±sin(min(|r|, π − |r|)); rounding can leave |r| a hair above π, where
+    // π − |r| is a tiny negative angle, which the odd polynomial takes as it is.
+    let a = r.abs();
+    let a = a.min(PI - a);
+    let a2 = a * a;
+    let poly = 1.0
+        + a2 * (-1.0 / 6.0
+            + a2 * (1.0 / 120.0
+                + a2 * (-1.0 / 5040.0 + a2 * (1.0 / 362_880.0 + a2 * (-1.0 / 39_916_800.0)))));
+    a * poly * 1f32.copysign(r)
 }
 
 fn random_unit(rng: &mut Pcg32) -> Vec3 {
@@ -254,13 +317,14 @@ impl Simulation {
             spawn(&mut self.slots[self.next_birth], e);
             self.next_birth += 1;
         }
-        let turbulence = &self.turbulence;
+        let turbulence = self.turbulence.at(t);
+        let turbulence = &turbulence;
         // Slots past `next_birth` are not born yet: no need to visit them.
         self.slots[..self.next_birth]
             .par_chunks_mut(SLOTS_PER_TASK)
             .for_each(|chunk| {
                 for slot in chunk.iter_mut().filter(|s| s.alive) {
-                    advance(slot, e, turbulence, air, t, dt);
+                    advance(slot, e, turbulence, air, dt);
                 }
             });
         self.steps += 1;
@@ -283,14 +347,14 @@ impl Simulation {
     }
 }
 
-/// One slot's semi-implicit Euler step at time `t` (air velocity `air`), re-born at the source
-/// when it reaches the end of its life.
-fn advance(slot: &mut Slot, e: &Emitter, turbulence: &Turbulence, air: Vec3, t: f32, dt: f32) {
+/// One slot's semi-implicit Euler step in the step's turbulence and air velocity, re-born at the
+/// source when it reaches the end of its life.
+fn advance(slot: &mut Slot, e: &Emitter, turbulence: &FieldAt, air: Vec3, dt: f32) {
     let p = &mut slot.particle;
     let buoyancy = Vec3::Y * e.buoyancy_m_per_s2 * (-p.age_s / e.buoyancy_decay_s).exp();
     let jitter = random_unit(&mut slot.rng) * (e.turbulence_m_per_s2 * 0.5);
     let accel =
-        buoyancy + turbulence.accel(p.position, t) + jitter + (air - p.velocity) * e.drag_per_s;
+        buoyancy + turbulence.accel(p.position) + jitter + (air - p.velocity) * e.drag_per_s;
     p.velocity += accel * dt;
     p.position += p.velocity * dt;
     p.age_s += dt;
@@ -411,6 +475,29 @@ mod tests {
             assert_eq!(bits(&one), bits(&many), "{threads} threads");
             assert_eq!(one, many, "{threads} threads");
         }
+    }
+
+    #[test]
+    fn sin_f32_is_within_1e_6_of_the_exact_sine() {
+        let (mut worst, mut worst_x) = (0.0f64, 0.0f32);
+        // Every argument the turbulence sees and more: |k·p| up to ~10^3 rad, 600 s of phase.
+        for i in -2_000_000..=2_000_000 {
+            let x = i as f32 * 7.3e-4;
+            let e = (f64::from(sin_f32(x)) - f64::from(x).sin()).abs();
+            if e > worst {
+                worst = e;
+                worst_x = x;
+            }
+        }
+        for x in [0.0, -0.0, 1e-30, std::f32::consts::PI, 1e4, -1e4] {
+            let e = (f64::from(sin_f32(x)) - f64::from(x).sin()).abs();
+            if e > worst {
+                worst = e;
+                worst_x = x;
+            }
+        }
+        assert!(worst < 1e-6, "worst error {worst} at {worst_x}");
+        assert_eq!(sin_f32(0.0), 0.0);
     }
 
     #[test]
