@@ -42,10 +42,7 @@ pub fn simulate(scene: &Scene) -> Vec<Particle> {
     };
     match &shown {
         Some(bar) => {
-            bar.set_message(format!(
-                "simulating {} particles to t = {} s",
-                scene.emitter.count, scene.sim.duration_s
-            ));
+            bar.set_message(format!("simulating {} particles", scene.emitter.count));
             sim.advance_to_reporting(scene.sim.duration_s, &mut |done, _| bar.set_position(done));
             bar.finish_and_clear();
         }

@@ -29,7 +29,7 @@ pub struct BaselineArgs {
     /// Where `--check` writes the actual image and difference maps of a failing baseline.
     #[arg(long, default_value = "test-output/baselines")]
     pub out: PathBuf,
-    /// Refused: baselines are the committed scenes at their own particle counts.
+    // `--particles N` is refused: baselines are the committed scenes at their own counts.
     #[command(flatten)]
     pub particles: super::ParticlesArg,
 }

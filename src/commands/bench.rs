@@ -17,7 +17,7 @@ pub struct BenchArgs {
     #[arg(long, value_delimiter = ',', value_name = "N,N,...", value_parser = super::parse_particles,
           conflicts_with = "particles")]
     pub particles_list: Vec<u32>,
-    /// One particle count (the same as a one-count `--particles-list`).
+    // `--particles N`: the same as a one-count `--particles-list`.
     #[command(flatten)]
     pub particles: ParticlesArg,
     /// Technique (repeatable; default: every registered technique).

@@ -18,9 +18,9 @@ use crate::shadow::{SplatMode, TechniqueParams};
 /// `--particles N`, flattened into every command that loads a scene.
 #[derive(Clone, Copy, Debug, Default, clap::Args)]
 pub struct ParticlesArg {
-    /// Run the scene with N particles (1..=4000000): the emitter is rescaled so that the plume
-    /// keeps its silhouette and optical depth (every radius times (N0/N)^(1/3), τ kept; see
-    /// `plume_scaled` in scenes/README.md).
+    /// Run the scene with N particles (1..=4000000): every radius times (N0/N)^(1/3), τ kept, so
+    /// the plume keeps its optical depth and, up to a thinner fringe, its silhouette (see
+    /// "Scaling the particle count" in scenes/README.md).
     #[arg(long, value_name = "N", value_parser = parse_particles, allow_negative_numbers = true)]
     pub particles: Option<u32>,
 }

@@ -9,8 +9,8 @@ pub struct ViewArgs {
     /// Scene file (TOML), or the name of an embedded scene (`smokeshadow info` lists them); the
     /// embedded thesis scene when omitted.
     pub scene: Option<PathBuf>,
-    /// Opens the scene at this many particles (the file field then still names the file,
-    /// which loads at its own count).
+    // `--particles N`: the scene opens at N particles (the file field still names the file,
+    // which loads at its own count).
     #[command(flatten)]
     pub particles: super::ParticlesArg,
 }
