@@ -78,16 +78,7 @@ pub struct ParticleLayouts {
 
 impl ParticleLayouts {
     pub fn new(device: &wgpu::Device) -> Self {
-        let storage = |binding, visibility, read_only| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility,
-            ty: wgpu::BindingType::Buffer {
-                ty: wgpu::BufferBindingType::Storage { read_only },
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        };
+        let storage = crate::gpu::storage_entry;
         let read = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("particles.light_layout"),
             entries: &[storage(0, wgpu::ShaderStages::VERTEX, true)],

@@ -21,7 +21,10 @@ use bytemuck::{Pod, Zeroable};
 
 use super::ShadowError;
 use super::layered::{billboard_pipeline, cleared_attachment, draw_particles, uniform_entry};
-use crate::gpu::{AllocationError, Gpu, GpuTimer, MemoryLedger, read_buffer};
+use crate::gpu::{
+    AllocationError, Gpu, GpuTimer, MemoryLedger, bind_entry, read_buffer, storage_descriptor,
+    storage_entry,
+};
 use crate::shaders;
 
 /// Keep in sync with `CaptureParams` in shaders/shadow/deep_capture_lists.wgsl.
@@ -62,45 +65,6 @@ pub fn bytes(resolution_px: u32, segment_capacity: u64) -> u64 {
         + (u64::from(resolution_px) + 1) * 4
         + texels
         + segment_capacity * (SEGMENT_BYTES + NODE_BYTES_PER_SEGMENT)
-}
-
-/// A storage buffer binding.
-pub(crate) fn storage_entry(
-    binding: u32,
-    visibility: wgpu::ShaderStages,
-    read_only: bool,
-) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility,
-        ty: wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Storage { read_only },
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
-        count: None,
-    }
-}
-
-/// The descriptor of a storage buffer of `size` bytes (at least 16) that can be cleared and
-/// read back.
-pub(crate) fn storage_descriptor(label: &str, size: u64) -> wgpu::BufferDescriptor<'_> {
-    wgpu::BufferDescriptor {
-        label: Some(label),
-        size: size.max(16),
-        usage: wgpu::BufferUsages::STORAGE
-            | wgpu::BufferUsages::COPY_DST
-            | wgpu::BufferUsages::COPY_SRC,
-        mapped_at_creation: false,
-    }
-}
-
-/// A bind-group entry for all of `buffer`.
-pub(crate) fn bind_entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
-    wgpu::BindGroupEntry {
-        binding,
-        resource: buffer.as_entire_binding(),
-    }
 }
 
 /// Buffers sized by the segment capacity, and the bind group over all the capture's buffers.

@@ -15,13 +15,14 @@
 
 use bytemuck::{Pod, Zeroable};
 
-use super::deep_capture::{DeepCapture, bind_entry, storage_descriptor, storage_entry};
+use super::deep_capture::DeepCapture;
 use super::layered::uniform_entry;
 use super::{
     BuildInputs, LOOKUP_STAGES, MemoryCase, MemoryUse, ShadowError, ShadowTechnique,
     TechniqueContext, TechniqueParams,
 };
 use crate::gpu::{Gpu, MemoryLedger, read_buffer};
+use crate::gpu::{bind_entry, storage_descriptor, storage_entry};
 use crate::shaders;
 
 /// Keep in sync with `DeepParams` in shaders/shadow/deep_params.wgsl.

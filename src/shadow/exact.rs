@@ -32,7 +32,9 @@ use super::{
     BuildInputs, LOOKUP_STAGES, MemoryUse, Role, ShadowError, ShadowTechnique, TechniqueContext,
     TechniqueEntry, TechniqueParams,
 };
-use crate::gpu::{AllocationError, Gpu, MemoryLedger, read_buffer};
+use crate::gpu::{
+    AllocationError, Gpu, MemoryLedger, bind_entry, read_buffer, storage_descriptor, storage_entry,
+};
 use crate::shaders;
 
 pub const ENTRY: TechniqueEntry = TechniqueEntry {
@@ -168,23 +170,6 @@ pub struct Exact {
     last_entries: u32,
 }
 
-fn storage_entry(
-    binding: u32,
-    visibility: wgpu::ShaderStages,
-    read_only: bool,
-) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility,
-        ty: wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Storage { read_only },
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
-        count: None,
-    }
-}
-
 fn storage_buffer(
     memory: &mut MemoryLedger,
     device: &wgpu::Device,
@@ -192,24 +177,7 @@ fn storage_buffer(
     size: u64,
 ) -> Result<wgpu::Buffer, AllocationError> {
     memory.forget(label);
-    memory.buffer(
-        device,
-        &wgpu::BufferDescriptor {
-            label: Some(label),
-            size: size.max(16),
-            usage: wgpu::BufferUsages::STORAGE
-                | wgpu::BufferUsages::COPY_DST
-                | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        },
-    )
-}
-
-fn entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
-    wgpu::BindGroupEntry {
-        binding,
-        resource: buffer.as_entire_binding(),
-    }
+    memory.buffer(device, &storage_descriptor(label, size))
 }
 
 impl Grid {
@@ -352,13 +320,13 @@ impl Exact {
             label: Some("exact.build.bind_group"),
             layout: &self.build_layout,
             entries: &[
-                entry(0, &self.params_buffer),
-                entry(1, &self.grid.counts),
-                entry(2, &self.grid.offsets),
-                entry(3, &self.entries),
-                entry(4, &self.spheres),
-                entry(5, &self.order),
-                entry(6, &self.grid.row_sums),
+                bind_entry(0, &self.params_buffer),
+                bind_entry(1, &self.grid.counts),
+                bind_entry(2, &self.grid.offsets),
+                bind_entry(3, &self.entries),
+                bind_entry(4, &self.spheres),
+                bind_entry(5, &self.order),
+                bind_entry(6, &self.grid.row_sums),
             ],
         })
     }
@@ -477,10 +445,10 @@ fn lookup_bind_group(
         label: Some("exact.lookup.bind_group"),
         layout,
         entries: &[
-            entry(0, params),
-            entry(1, offsets),
-            entry(2, entries),
-            entry(3, spheres),
+            bind_entry(0, params),
+            bind_entry(1, offsets),
+            bind_entry(2, entries),
+            bind_entry(3, spheres),
         ],
     })
 }
