@@ -96,6 +96,11 @@ pub fn run(args: &RenderArgs, adapter: &AdapterPreference) -> anyhow::Result<()>
             "flat"
         },
     );
+    let counters = t.counters();
+    if !counters.is_empty() {
+        let list: Vec<String> = counters.iter().map(|(k, v)| format!("{k} {v}")).collect();
+        println!("{} counters: {}", t.name(), list.join(", "));
+    }
     Ok(())
 }
 
