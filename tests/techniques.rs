@@ -788,3 +788,39 @@ fn dsm_stays_within_the_tolerance_it_reports() {
         "the mean tolerance must fall as the budget grows: {means:?}"
     );
 }
+
+#[test]
+fn deep_maps_captured_in_bands_equal_the_map_captured_whole() {
+    // On an adapter that binds only a third of the capture's nodes per buffer, the capture
+    // splits the map into bands of rows. Each texel's list, its sort and its compression are
+    // the same as when the map is captured whole, so T is identical.
+    let scene = reduced_plume();
+    let particles = simulate(&scene);
+    let points = shaded_points(&scene, &particles, W, H, 8);
+    let res = 64;
+    let whole_gpu = gpu();
+    for name in ["dsm", "avsm"] {
+        let config = technique(name, 4, res, SplatMode::Segment);
+        let (whole, counters) =
+            probe_with_counters(&whole_gpu, &scene, &particles, &config, &points);
+        assert_eq!(counter(&counters, "capture_bands"), 1, "{counters:?}");
+        let segments = counter(&counters, "segments");
+        assert!(segments > 10_000, "{counters:?}");
+        let mut banded_gpu = gpu();
+        // 16 bytes of nodes per segment (deep_capture::NODE_BYTES_PER_SEGMENT).
+        banded_gpu.limits.max_storage_buffer_binding_size = (segments / 3) * 16;
+        let (banded, counters) =
+            probe_with_counters(&banded_gpu, &scene, &particles, &config, &points);
+        println!("{name} in bands: {counters:?}");
+        let bands = counter(&counters, "capture_bands");
+        assert!((3..=6).contains(&bands), "{name}: {counters:?}");
+        assert_eq!(counter(&counters, "segments"), segments);
+        assert!(counter(&counters, "segment_capacity") <= segments / 3);
+        assert!(
+            whole.iter().any(|t| *t < 0.5),
+            "the points are in the smoke's shadow"
+        );
+        let off = max_difference(&whole, &banded);
+        assert_eq!(off, 0.0, "{name}: T in bands differs from T whole by {off}");
+    }
+}

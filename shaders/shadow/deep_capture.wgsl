@@ -6,9 +6,9 @@
 //    itself in its texel (atomic add).
 // 2. scan_rows, scan_total, scan_write: exclusive prefix sum of the counts -> list offsets
 //    (offsets[res²] = total).
-// 3. fs_fill: every fragment writes its segment (z0, z1, optical depth) into its texel's list
-//    (counts, cleared, serve as cursors).
-// 4. resolve: per texel, sort the segments by (z0, z1, optical depth), sort their ends by
+// 3. fs_fill: every fragment of the current band of rows writes its segment (z0, z1, optical
+//    depth) into its texel's list (counts, cleared, serve as cursors).
+// 4. resolve: per texel of the band, sort the segments by (z0, z1, optical depth), sort their ends by
 //    (depth, slope), and merge both into the nodes (z, Ω(z)) of the piecewise-linear optical
 //    depth: between events Ω grows by the sum of the slopes (optical depth per metre) of the
 //    segments open there. The keys are total, so the lists, and everything computed from them,
@@ -61,8 +61,13 @@ fn fs_fill(in: BuildVertexOut) -> @location(0) vec4<f32> {
     if segment.optical_depth < 0.0 {
         discard;
     }
+    // The pass's scissor keeps to the band's rows; this makes sure of it.
+    let row = u32(in.clip.y);
+    if row < capture.row_begin || row >= capture.row_end {
+        discard;
+    }
     let index = texel_index(in.clip);
-    let slot = offsets[index] + atomicAdd(&counts[index], 1u);
+    let slot = offsets[index] - capture.band_base + atomicAdd(&counts[index], 1u);
     if slot < capture.capacity {
         segments[slot] = segment;
     }
@@ -206,10 +211,11 @@ fn sift_end(base: u32, root_in: u32, n: u32) {
 
 @compute @workgroup_size(8, 8)
 fn resolve(@builtin(global_invocation_id) id: vec3<u32>) {
-    if id.x >= capture.resolution || id.y >= capture.resolution {
+    let index = band_texel(id);
+    if index == NO_TEXEL {
         return;
     }
-    let list = texel_list(id.y * capture.resolution + id.x);
+    let list = texel_list(index);
     let first = list.first;
     let n = list.count;
     if n == 0u {

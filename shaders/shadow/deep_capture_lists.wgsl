@@ -2,8 +2,10 @@
 // and the compression passes that read them declare them in group 1. Texel i's segments are
 // segments[offsets[i] .. offsets[i + 1]) and, once resolved, its nodes (z, Ω(z)) of the
 // piecewise-linear optical depth are nodes[2·offsets[i] .. 2·offsets[i + 1]); after the resolve
-// pass the segments are sorted by (z0, z1, optical depth). Every binding is read_write because
-// the capture's bind group layout is shared by all of its passes.
+// pass the segments are sorted by (z0, z1, optical depth). The lists hold one band of rows at a
+// time (rows [row_begin, row_end), whose first segment is offsets' band_base), so every index
+// into them is relative to band_base, and the per-texel passes cover the band's rows only. Every
+// binding is read_write because the capture's bind group layout is shared by all of its passes.
 // Keep `CaptureParams` in sync with src/shadow/deep_capture.rs.
 
 struct CaptureParams {
@@ -11,8 +13,13 @@ struct CaptureParams {
     resolution: u32,
     // Segments the list buffers can hold.
     capacity: u32,
+    // The band of rows the lists hold now, and the offset of its first segment.
+    row_begin: u32,
+    row_end: u32,
+    band_base: u32,
     _pad0: u32,
     _pad1: u32,
+    _pad2: u32,
 };
 
 struct Segment {
@@ -34,14 +41,26 @@ struct TexelList {
     count: u32,
 };
 
-// Texel `index`'s list; empty when the lists did not hold it (never, once the capture has grown
-// them to this frame's count).
+// Texel `index`'s list (a texel of the current band); empty when the lists did not hold it
+// (never, once the capture has grown them to the band's count).
 fn texel_list(index: u32) -> TexelList {
     var out: TexelList;
-    out.first = offsets[index];
-    out.count = offsets[index + 1u] - out.first;
+    out.first = offsets[index] - capture.band_base;
+    out.count = offsets[index + 1u] - offsets[index];
     if out.first + out.count > capture.capacity {
         out.count = 0u;
     }
     return out;
+}
+
+const NO_TEXEL: u32 = 0xffffffffu;
+
+// The texel a per-texel pass's invocation `id` handles, (x, row_begin + y), as an index into
+// the map; NO_TEXEL outside the current band.
+fn band_texel(id: vec3<u32>) -> u32 {
+    let row = capture.row_begin + id.y;
+    if id.x >= capture.resolution || row >= capture.row_end {
+        return NO_TEXEL;
+    }
+    return row * capture.resolution + id.x;
 }

@@ -111,10 +111,10 @@ fn greedy_fit(base: u32, n: u32, eps: f32, limit: u32, write: bool, out: u32) ->
 
 @compute @workgroup_size(8, 8)
 fn compress(@builtin(global_invocation_id) id: vec3<u32>) {
-    if id.x >= deep.resolution || id.y >= deep.resolution {
+    let index = band_texel(id);
+    if index == NO_TEXEL {
         return;
     }
-    let index = id.y * deep.resolution + id.x;
     let list = texel_list(index);
     let limit = deep.nodes_per_texel;
     let out = index * limit;

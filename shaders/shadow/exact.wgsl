@@ -5,10 +5,12 @@
 //
 // The particles that can cross the segment are those whose light-space footprint covers p's
 // point of the light's image plane: the build bins them into light-space tiles (seeds/001, "light
-// occlusion": particles appended to the tiles they cover, lists walked per query with early
-// exit). Each tile's list is sorted by the distance from the light to the sphere's near side, so
-// the walk stops at the first sphere that begins beyond p. Keep `ExactParams` in sync with
-// src/shadow/exact.rs and exact_build.wgsl, and the arithmetic with src/shadow/closed_form.rs.
+// occlusion": particles appended to the tiles they cover, lists walked per query). The walk
+// covers the whole list (a sphere beyond p adds nothing) and sums in fixed point, 2^-26 of
+// optical depth per unit: integer addition is associative, so the sum does not depend on the
+// order the build's atomics filled the list in. Each term rounds by at most 2^-27 = 7.5e-9; a
+// sum beyond 64 (T < 1.7e-28) saturates. Keep `ExactParams` in sync with src/shadow/exact.rs
+// and exact_build.wgsl, and the arithmetic with src/shadow/closed_form.rs.
 #import common/lighting.wgsl
 
 struct ExactParams {
@@ -32,9 +34,13 @@ struct Sphere {
 
 @group(1) @binding(0) var<uniform> exact: ExactParams;
 @group(1) @binding(1) var<storage, read> exact_offsets: array<u32>;
-// (near distance bits, particle index), sorted per tile.
-@group(1) @binding(2) var<storage, read> exact_entries: array<vec2<u32>>;
+// Particle indices, per tile.
+@group(1) @binding(2) var<storage, read> exact_entries: array<u32>;
 @group(1) @binding(3) var<storage, read> exact_spheres: array<Sphere>;
+
+// Fixed-point units per unit of optical depth, and the largest optical depth a sum holds.
+const EXACT_UNITS: f32 = 67108864.0;
+const EXACT_MAX_OPTICAL_DEPTH: f32 = 63.0;
 
 // The tile a light-view point falls in, or -1 outside the light's image plane.
 fn exact_tile(view: vec3<f32>) -> i32 {
@@ -65,15 +71,10 @@ fn exact_optical_depth(p: vec3<f32>) -> f32 {
         return 0.0;
     }
     let dir = to_p / length_m;
-    var omega = 0.0;
+    var sum = 0u;
     let end = exact_offsets[tile + 1];
     for (var i = exact_offsets[tile]; i < end; i++) {
-        let entry = exact_entries[i];
-        // Sorted by near distance: every later sphere starts beyond p.
-        if bitcast<f32>(entry.x) >= length_m {
-            break;
-        }
-        let sphere = exact_spheres[entry.y];
+        let sphere = exact_spheres[exact_entries[i]];
         let r = sphere.center_radius.w;
         let oc = sphere.center_radius.xyz - origin;
         let t_mid = dot(oc, dir);
@@ -84,9 +85,11 @@ fn exact_optical_depth(p: vec3<f32>) -> f32 {
         }
         let half = sqrt(r * r - d2);
         let inside = max(min(t_mid + half, length_m) - max(t_mid - half, 0.0), 0.0);
-        omega += sphere.albedo_density.w * (1.0 - sqrt(d2) / r) * inside;
+        let term = sphere.albedo_density.w * (1.0 - sqrt(d2) / r) * inside;
+        let units = u32(round(min(term, EXACT_MAX_OPTICAL_DEPTH) * EXACT_UNITS));
+        sum = select(sum + units, 0xffffffffu, sum > 0xffffffffu - units);
     }
-    return omega;
+    return f32(sum) / EXACT_UNITS;
 }
 
 fn shadow_transmittance(p: vec3<f32>) -> f32 {

@@ -1,12 +1,10 @@
-// `exact` build: the particles binned into light-space tiles, each tile's list sorted.
+// `exact` build: the particles binned into light-space tiles.
 // 1. count: each particle adds 1 to every tile its light-space footprint covers (atomics).
-// 2. scan_rows, scan_total, scan_write: exclusive prefix sum of the counts -> list offsets (offsets[tiles²] = total).
-// 3. fill: each particle writes (near distance, index) into the lists of its tiles (the counts,
-//    cleared, serve as cursors). Invocation i takes the i-th particle nearest the light (`order`,
-//    sorted on the CPU), so each list fills almost in order.
-// 4. sort: each tile's list by near distance, then index, by insertion sort (linear in the few
-//    places where concurrent invocations swapped neighbours): the order, and so every sum over
-//    a list, does not depend on the order the atomics ran in.
+// 2. scan_rows, scan_total, scan_write: exclusive prefix sum of the counts -> list offsets
+//    (offsets[tiles²] = total).
+// 3. fill: each particle writes its index into the lists of its tiles (the counts, cleared,
+//    serve as cursors). The order within a list is the order the atomics ran in: the lookup's
+//    fixed-point sum does not depend on it.
 // Keep `ExactParams` in sync with src/shadow/exact.rs and exact.wgsl.
 
 struct ExactParams {
@@ -25,9 +23,8 @@ struct Sphere {
 @group(1) @binding(0) var<uniform> exact: ExactParams;
 @group(1) @binding(1) var<storage, read_write> counts: array<atomic<u32>>;
 @group(1) @binding(2) var<storage, read_write> offsets: array<u32>;
-@group(1) @binding(3) var<storage, read_write> entries: array<vec2<u32>>;
+@group(1) @binding(3) var<storage, read_write> entries: array<u32>;
 @group(1) @binding(4) var<storage, read> spheres: array<Sphere>;
-@group(1) @binding(5) var<storage, read> order: array<u32>;
 @group(1) @binding(6) var<storage, read_write> row_sums: array<u32>;
 
 const HALF_PI: f32 = 1.5707963;
@@ -72,8 +69,6 @@ fn axis_tiles(a: f32, z: f32, r: f32, flip: bool) -> vec2<i32> {
 struct Footprint {
     x: vec2<i32>,
     y: vec2<i32>,
-    // Radial distance from the light to the sphere's near side (m), never below 0.
-    near_m: f32,
 };
 
 fn footprint(index: u32) -> Footprint {
@@ -86,7 +81,6 @@ fn footprint(index: u32) -> Footprint {
     if sphere.albedo_density.w <= 0.0 || r <= 0.0 {
         out.x = vec2<i32>(1, 0);
     }
-    out.near_m = max(length(view) - r, 0.0);
     return out;
 }
 
@@ -150,44 +144,15 @@ fn fill(@builtin(global_invocation_id) id: vec3<u32>) {
     if id.x >= exact.particle_count {
         return;
     }
-    let index = order[id.x];
-    let f = footprint(index);
+    let f = footprint(id.x);
     let n = i32(exact.tiles);
-    let key = bitcast<u32>(f.near_m);
     for (var y = f.y.x; y <= f.y.y; y++) {
         for (var x = f.x.x; x <= f.x.y; x++) {
             let tile = y * n + x;
             let slot = offsets[tile] + atomicAdd(&counts[tile], 1u);
             if slot < exact.capacity {
-                entries[slot] = vec2<u32>(key, index);
+                entries[slot] = id.x;
             }
         }
-    }
-}
-
-// Lexicographic order of (key, index); keys are non-negative floats, whose bits order as u32s.
-fn entry_less(a: vec2<u32>, b: vec2<u32>) -> bool {
-    return a.x < b.x || (a.x == b.x && a.y < b.y);
-}
-
-// Insertion sort of one tile's list.
-@compute @workgroup_size(64)
-fn sort(@builtin(global_invocation_id) id: vec3<u32>) {
-    if id.x >= exact.tiles * exact.tiles {
-        return;
-    }
-    let base = offsets[id.x];
-    let n = offsets[id.x + 1u] - base;
-    if base + n > exact.capacity {
-        return;
-    }
-    for (var i = 1u; i < n; i++) {
-        let value = entries[base + i];
-        var j = i;
-        while j > 0u && entry_less(value, entries[base + j - 1u]) {
-            entries[base + j] = entries[base + j - 1u];
-            j--;
-        }
-        entries[base + j] = value;
     }
 }

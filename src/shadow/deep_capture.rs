@@ -12,6 +12,23 @@
 //! A compression pass then binds [`DeepCapture::layout`] as its group 1
 //! (shaders/shadow/deep_capture_lists.wgsl declares it) and reads the sorted segments or nodes.
 //!
+//! **Bands.** When the frame's segments would not fit one storage binding (the nodes take 16
+//! bytes a segment, so 8.4M segments under a 128 MiB limit: 65,536 particles at 512² need about
+//! 45M), the map is captured in bands of whole rows, each holding as many segments as fit: the
+//! fill (scissored to the band), the resolve and the owner's compression run once per band over
+//! the same lists, every band but the last in a submission of its own (each band's parameters
+//! are a queue write, which lands at the next submission). One band when everything fits; only
+//! a single row of more segments than a binding holds is refused.
+//!
+//! **The loop limit.** llvmpipe ends every shader loop after 65,535 iterations of an invocation
+//! group, all the shader's loops together, and the resolve and the compressions are one
+//! invocation per texel looping over its list: the resolve's two heapsorts take about
+//! 3n(log2 n + 2) iterations for n segments, `dsm`'s bisection of greedy fits about 60n,
+//! `avsm`'s insertions about 50n. On llvmpipe a frame whose longest list exceeds
+//! [`LLVMPIPE_MAX_TEXEL_LIST`] is refused ([`ShadowError::TexelListTooLong`]) instead of
+//! compressed short (its lists cut off, the texel reads as almost empty); the counter
+//! `max_texel_list` reports the longest list on every adapter.
+//!
 //! (It was `exact`'s build until `exact` became the closed form per point.)
 //! Every buffer here is **transient** for the technique that owns the capture: its lookup reads
 //! only the compressed nodes. They are allocated and counted all the same, in the technique's
@@ -33,7 +50,10 @@ use crate::shaders;
 struct CaptureParams {
     resolution: u32,
     capacity: u32,
-    _pad: [u32; 2],
+    row_begin: u32,
+    row_end: u32,
+    band_base: u32,
+    _pad: [u32; 3],
 }
 
 /// The WGSL structs mirrored here.
@@ -42,7 +62,7 @@ pub fn layouts() -> Vec<crate::gpu::MirrorLayout> {
         CaptureParams,
         "shadow/deep_capture_lists.wgsl",
         "CaptureParams",
-        [resolution, capacity]
+        [resolution, capacity, row_begin, row_end, band_base]
     )]
 }
 
@@ -50,21 +70,31 @@ pub fn layouts() -> Vec<crate::gpu::MirrorLayout> {
 /// nodes (2 per segment, (z, Ω) each).
 pub const SEGMENT_BYTES: u64 = 12;
 pub const NODE_BYTES_PER_SEGMENT: u64 = 16;
+/// The longest texel list a frame may have on llvmpipe (see the module doc: `dsm`'s 60n
+/// iterations reach the limit at about 1,090 segments).
+pub const LLVMPIPE_MAX_TEXEL_LIST: u32 = 1_000;
 /// Segments the lists hold before the first frame asks for more.
 const INITIAL_CAPACITY: u32 = 1 << 16;
 /// Format of the dummy colour target the list passes rasterise into (nothing is written).
 const DUMMY_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R8Unorm;
 
 /// The bytes a capture at `resolution_px` with lists for `segment_capacity` segments allocates:
-/// a 16-byte uniform, counts, offsets (+1 for the total), row sums (+1), an R8 raster target,
+/// a 32-byte uniform, counts, offsets (+1 for the total), row sums (+1), an R8 raster target,
 /// and 12 + 16 bytes of segment and node storage per segment.
 pub fn bytes(resolution_px: u32, segment_capacity: u64) -> u64 {
     let texels = u64::from(resolution_px) * u64::from(resolution_px);
-    16 + texels * 4
+    std::mem::size_of::<CaptureParams>() as u64
+        + texels * 4
         + (texels + 1) * 4
         + (u64::from(resolution_px) + 1) * 4
         + texels
         + segment_capacity * (SEGMENT_BYTES + NODE_BYTES_PER_SEGMENT)
+}
+
+/// The most segments one band may hold: its nodes (the larger list) fit one storage binding.
+fn max_band_segments(gpu: &Gpu) -> u32 {
+    let limit = gpu.limits.max_storage_buffer_binding_size / NODE_BYTES_PER_SEGMENT;
+    u32::try_from(limit).unwrap_or(u32::MAX)
 }
 
 /// Buffers sized by the segment capacity, and the bind group over all the capture's buffers.
@@ -94,8 +124,58 @@ pub struct DeepCapture {
     scan_write: wgpu::ComputePipeline,
     resolve: wgpu::ComputePipeline,
     lists: Lists,
-    /// Segments stored last frame.
-    last_segment_count: u32,
+    /// Segments stored last frame, in all bands.
+    last_segment_count: u64,
+    /// Bands last frame was captured in.
+    last_band_count: u32,
+    /// The longest texel list last frame.
+    last_max_list: u32,
+    /// Whether the adapter is llvmpipe, whose loop limit bounds the lists.
+    loop_limited: bool,
+}
+
+/// Rows [row_begin, row_end) of the map, whose segments start at `base` in the frame's offsets
+/// and number `segments`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Band {
+    pub row_begin: u32,
+    pub row_end: u32,
+    pub base: u32,
+    pub segments: u32,
+}
+
+impl Band {
+    pub fn rows(&self) -> u32 {
+        self.row_end - self.row_begin
+    }
+}
+
+/// Splits rows into bands of at most `max_segments` segments, given `row_offsets`, the exclusive
+/// prefix sums of the rows' segment counts followed by the total (rows + 1 entries). Err(row,
+/// its segments) names a row that alone exceeds `max_segments`.
+pub fn plan_bands(row_offsets: &[u32], max_segments: u32) -> Result<Vec<Band>, (u32, u32)> {
+    let rows = row_offsets.len().saturating_sub(1) as u32;
+    let mut bands = Vec::new();
+    let mut begin = 0;
+    while begin < rows {
+        let base = row_offsets[begin as usize];
+        let mut end = begin;
+        while end < rows && row_offsets[end as usize + 1] - base <= max_segments {
+            end += 1;
+        }
+        if end == begin {
+            let row = row_offsets[begin as usize + 1] - base;
+            return Err((begin, row));
+        }
+        bands.push(Band {
+            row_begin: begin,
+            row_end: end,
+            base,
+            segments: row_offsets[end as usize] - base,
+        });
+        begin = end;
+    }
+    Ok(bands)
 }
 
 impl DeepCapture {
@@ -199,7 +279,7 @@ impl DeepCapture {
             name,
             &layout,
             [&params_buffer, &counts, &offsets, &row_sums],
-            INITIAL_CAPACITY,
+            INITIAL_CAPACITY.min(max_band_segments(gpu)),
         )?;
         let capture = Self {
             name,
@@ -218,8 +298,10 @@ impl DeepCapture {
             fill_pipeline,
             lists,
             last_segment_count: 0,
+            last_band_count: 0,
+            last_max_list: 0,
+            loop_limited: gpu.info.name.contains("llvmpipe"),
         };
-        capture.write_params(&gpu.queue);
         Ok(capture)
     }
 
@@ -234,9 +316,19 @@ impl DeepCapture {
         &self.lists.bind_group
     }
 
-    /// Segments stored last frame.
-    pub fn segments(&self) -> u32 {
+    /// Segments stored last frame, in all bands.
+    pub fn segments(&self) -> u64 {
         self.last_segment_count
+    }
+
+    /// Bands last frame was captured in (1 when its segments fit one binding).
+    pub fn bands(&self) -> u32 {
+        self.last_band_count
+    }
+
+    /// The longest texel list last frame.
+    pub fn max_list(&self) -> u32 {
+        self.last_max_list
     }
 
     /// Segments the lists hold.
@@ -244,22 +336,38 @@ impl DeepCapture {
         self.lists.capacity
     }
 
-    fn write_params(&self, queue: &wgpu::Queue) {
+    /// Points the passes at `band` (landing at the next submission).
+    fn write_params(&self, queue: &wgpu::Queue, band: Band) {
         queue.write_buffer(
             &self.params_buffer,
             0,
             bytemuck::bytes_of(&CaptureParams {
                 resolution: self.resolution,
                 capacity: self.lists.capacity,
-                _pad: [0; 2],
+                row_begin: band.row_begin,
+                row_end: band.row_end,
+                band_base: band.base,
+                _pad: [0; 3],
             }),
         );
     }
 
-    /// Captures this frame: counts and scans in a submission of its own, reads the total back
-    /// and grows the lists (recorded in `memory`) when they cannot hold it, then records the
-    /// fill and the resolve into `encoder`. Afterwards [`DeepCapture::bind_group`] holds sorted
-    /// segments and their nodes for every texel.
+    /// The whole map as one band (for the count and scan, which cover every texel).
+    fn whole_map(&self) -> Band {
+        Band {
+            row_begin: 0,
+            row_end: self.resolution,
+            base: 0,
+            segments: 0,
+        }
+    }
+
+    /// Captures this frame: counts and scans in a submission of its own, reads the rows' offsets
+    /// back, plans the bands (see the module doc) and grows the lists (recorded in `memory`) when
+    /// they cannot hold the largest, then per band records the fill, the resolve and
+    /// `after_band` (the owner's pass over the band: it must cover the band's rows only, as
+    /// `band_texel` in shaders/shadow/deep_capture_lists.wgsl does, with the bind group it is
+    /// given as group 1). The last band goes into `encoder`, the others are submitted.
     #[allow(clippy::too_many_arguments)]
     pub fn record(
         &mut self,
@@ -270,8 +378,10 @@ impl DeepCapture {
         frame_bind_group: &wgpu::BindGroup,
         particles: &wgpu::Buffer,
         particle_count: u32,
+        mut after_band: impl FnMut(&mut wgpu::CommandEncoder, &mut GpuTimer, &wgpu::BindGroup, Band),
     ) -> Result<(), ShadowError> {
         let device = &gpu.device;
+        self.write_params(&gpu.queue, self.whole_map());
         let mut count_encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
             label: Some(&format!("{}.capture.count.encoder", self.name)),
         });
@@ -279,7 +389,7 @@ impl DeepCapture {
         self.raster(
             &mut count_encoder,
             timer,
-            false,
+            None,
             frame_bind_group,
             particles,
             particle_count,
@@ -302,21 +412,88 @@ impl DeepCapture {
             pass.dispatch_workgroups(groups, 1, 1);
         }
         gpu.queue.submit([count_encoder.finish()]);
-        let texels = u64::from(self.resolution) * u64::from(self.resolution);
-        let total = read_buffer(gpu, &self.offsets, texels * 4, 4)
-            .map(|bytes| u32::from_le_bytes([bytes[0], bytes[1], bytes[2], bytes[3]]))
-            .map_err(|err| ShadowError::Gpu(err.to_string()))?;
-        if total > self.lists.capacity {
-            self.grow(gpu, memory, total)?;
+        let rows = u64::from(self.resolution);
+        let row_offsets: Vec<u32> = read_buffer(gpu, &self.row_sums, 0, (rows + 1) * 4)
+            .map_err(|err| ShadowError::Gpu(err.to_string()))?
+            .chunks_exact(4)
+            .map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]))
+            .collect();
+        let texels = u64::from(self.resolution).pow(2);
+        self.last_max_list = read_buffer(gpu, &self.counts, 0, texels * 4)
+            .map_err(|err| ShadowError::Gpu(err.to_string()))?
+            .chunks_exact(4)
+            .map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]))
+            .max()
+            .unwrap_or(0);
+        if self.loop_limited && self.last_max_list > LLVMPIPE_MAX_TEXEL_LIST {
+            return Err(ShadowError::TexelListTooLong {
+                technique: self.name,
+                resolution_px: self.resolution,
+                longest: self.last_max_list,
+                limit: LLVMPIPE_MAX_TEXEL_LIST,
+            });
         }
-        self.last_segment_count = total;
+        let limit = gpu.limits.max_storage_buffer_binding_size;
+        let max_segments = max_band_segments(gpu);
+        let bands = plan_bands(&row_offsets, max_segments).map_err(|(row, segments)| {
+            ShadowError::CaptureTooLarge {
+                technique: self.name,
+                resolution_px: self.resolution,
+                row,
+                segments: u64::from(segments),
+                bytes: u64::from(segments) * (SEGMENT_BYTES + NODE_BYTES_PER_SEGMENT),
+                limit,
+            }
+        })?;
+        let largest = bands.iter().map(|b| b.segments).max().unwrap_or(0);
+        if largest > self.lists.capacity {
+            self.grow(gpu, memory, largest, max_segments)?;
+        }
+        self.last_segment_count = u64::from(row_offsets[self.resolution as usize]);
+        self.last_band_count = bands.len() as u32;
 
-        // Fill (counts, cleared, become the cursors), then sort and resolve.
+        // Per band: fill (counts, cleared, become the cursors), sort and resolve, then the
+        // owner's pass.
+        let last = bands.len().saturating_sub(1);
+        for (i, &band) in bands.iter().enumerate() {
+            self.write_params(&gpu.queue, band);
+            let mut own = (i < last).then(|| {
+                device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some(&format!("{}.capture.band.encoder", self.name)),
+                })
+            });
+            let band_encoder = own.as_mut().unwrap_or(&mut *encoder);
+            self.record_band(
+                band_encoder,
+                timer,
+                band,
+                frame_bind_group,
+                particles,
+                particle_count,
+            );
+            after_band(band_encoder, timer, &self.lists.bind_group, band);
+            if let Some(own) = own {
+                gpu.queue.submit([own.finish()]);
+            }
+        }
+        Ok(())
+    }
+
+    /// Records one band's fill and resolve.
+    fn record_band(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        timer: &mut GpuTimer,
+        band: Band,
+        frame_bind_group: &wgpu::BindGroup,
+        particles: &wgpu::Buffer,
+        particle_count: u32,
+    ) {
         encoder.clear_buffer(&self.counts, 0, None);
         self.raster(
             encoder,
             timer,
-            true,
+            Some(band),
             frame_bind_group,
             particles,
             particle_count,
@@ -328,34 +505,23 @@ impl DeepCapture {
         pass.set_pipeline(&self.resolve);
         pass.set_bind_group(0, frame_bind_group, &[]);
         pass.set_bind_group(1, &self.lists.bind_group, &[]);
-        let groups = self.resolution.div_ceil(8);
-        pass.dispatch_workgroups(groups, groups, 1);
-        Ok(())
+        pass.dispatch_workgroups(self.resolution.div_ceil(8), band.rows().div_ceil(8), 1);
     }
 
     /// Reallocates the lists for at least `total` segments, with headroom so that a slowly
     /// changing scene does not reallocate every frame.
+    /// (`total` is at most `max_segments`, the most one binding holds.)
     fn grow(
         &mut self,
         gpu: &Gpu,
         memory: &mut MemoryLedger,
         total: u32,
+        max_segments: u32,
     ) -> Result<(), ShadowError> {
-        let limit = gpu.limits.max_storage_buffer_binding_size;
-        let fits = |segments: u64| segments * NODE_BYTES_PER_SEGMENT <= limit;
-        if !fits(u64::from(total)) {
-            return Err(ShadowError::CaptureTooLarge {
-                technique: self.name,
-                resolution_px: self.resolution,
-                segments: u64::from(total),
-                bytes: u64::from(total) * (SEGMENT_BYTES + NODE_BYTES_PER_SEGMENT),
-                limit,
-            });
-        }
-        let mut capacity = total.saturating_add(total / 4).max(INITIAL_CAPACITY);
-        if !fits(u64::from(capacity)) {
-            capacity = total;
-        }
+        let capacity = total
+            .saturating_add(total / 4)
+            .max(INITIAL_CAPACITY)
+            .min(max_segments.max(total));
         // The ledger forgets the old lists before the new ones are checked against the budget.
         let fixed = [
             &self.params_buffer,
@@ -371,25 +537,23 @@ impl DeepCapture {
             fixed,
             capacity,
         )?;
-        self.write_params(&gpu.queue);
         Ok(())
     }
 
-    /// Records one raster pass of the light-space particles: the count pass, or with `fill` the
-    /// fill pass.
+    /// Records one raster pass of the light-space particles: the count pass over the whole map,
+    /// or the fill pass of one band (scissored to its rows).
     fn raster(
         &self,
         encoder: &mut wgpu::CommandEncoder,
         timer: &mut GpuTimer,
-        fill: bool,
+        fill: Option<Band>,
         frame_bind_group: &wgpu::BindGroup,
         particles: &wgpu::Buffer,
         particle_count: u32,
     ) {
-        let (what, pipeline) = if fill {
-            ("fill", &self.fill_pipeline)
-        } else {
-            ("count", &self.count_pipeline)
+        let (what, pipeline) = match fill {
+            Some(_) => ("fill", &self.fill_pipeline),
+            None => ("count", &self.count_pipeline),
         };
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some(&format!("{}.capture.{what}", self.name)),
@@ -402,6 +566,9 @@ impl DeepCapture {
             occlusion_query_set: None,
             multiview_mask: None,
         });
+        if let Some(band) = fill {
+            pass.set_scissor_rect(0, band.row_begin, self.resolution, band.rows());
+        }
         draw_particles(
             &mut pass,
             pipeline,
@@ -457,5 +624,58 @@ impl Lists {
             _nodes: nodes,
             bind_group,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Offsets from per-row counts (exclusive prefix sums, then the total).
+    fn offsets(counts: &[u32]) -> Vec<u32> {
+        let mut out = vec![0];
+        for c in counts {
+            out.push(out.last().unwrap() + c);
+        }
+        out
+    }
+
+    #[test]
+    fn bands_cover_every_row_once_and_each_fits() {
+        let counts = [3, 0, 5, 2, 2, 7, 0, 0, 1, 4];
+        let row_offsets = offsets(&counts);
+        for max in [7, 8, 10, 30, 100] {
+            let bands = plan_bands(&row_offsets, max).unwrap();
+            let mut next = 0;
+            for band in &bands {
+                assert_eq!(band.row_begin, next, "{max}: {bands:?}");
+                assert!(band.row_end > band.row_begin);
+                let sum: u32 = counts[band.row_begin as usize..band.row_end as usize]
+                    .iter()
+                    .sum();
+                assert_eq!(band.segments, sum);
+                assert_eq!(band.base, row_offsets[band.row_begin as usize]);
+                assert!(band.segments <= max, "{max}: {bands:?}");
+                next = band.row_end;
+            }
+            assert_eq!(next, counts.len() as u32);
+            // Greedy: no band could have taken the next row as well.
+            for pair in bands.windows(2) {
+                let next_row = counts[pair[0].row_end as usize];
+                assert!(pair[0].segments + next_row > max, "{max}: {bands:?}");
+            }
+        }
+        assert_eq!(plan_bands(&row_offsets, 100).unwrap().len(), 1);
+    }
+
+    #[test]
+    fn a_row_beyond_the_limit_is_named() {
+        let row_offsets = offsets(&[3, 9, 1]);
+        assert_eq!(plan_bands(&row_offsets, 8), Err((1, 9)));
+        // A map with no smoke is one band.
+        let empty = offsets(&[0, 0]);
+        let bands = plan_bands(&empty, 1).unwrap();
+        assert_eq!(bands.len(), 1);
+        assert_eq!(bands[0].segments, 0);
     }
 }

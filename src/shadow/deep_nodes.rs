@@ -15,7 +15,7 @@
 
 use bytemuck::{Pod, Zeroable};
 
-use super::deep_capture::DeepCapture;
+use super::deep_capture::{Band, DeepCapture};
 use super::layered::uniform_entry;
 use super::{
     BuildInputs, LOOKUP_STAGES, MemoryCase, MemoryUse, ShadowError, ShadowTechnique,
@@ -245,25 +245,6 @@ impl DeepNodes {
             last_stats: vec![0; spec.stats_words as usize],
         })
     }
-
-    /// Records the compression pass over the captured lists.
-    fn record_compress(
-        &self,
-        encoder: &mut wgpu::CommandEncoder,
-        timer: &mut crate::gpu::GpuTimer,
-        frame_bind_group: &wgpu::BindGroup,
-    ) {
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some(&format!("{}.compress", self.spec.name)),
-            timestamp_writes: timer.compute_pass("shadow"),
-        });
-        pass.set_pipeline(&self.compress_pipeline);
-        pass.set_bind_group(0, frame_bind_group, &[]);
-        pass.set_bind_group(1, self.capture.bind_group(), &[]);
-        pass.set_bind_group(2, &self.compress_bind_group, &[]);
-        let groups = self.resolution.div_ceil(8);
-        pass.dispatch_workgroups(groups, groups, 1);
-    }
 }
 
 impl ShadowTechnique for DeepNodes {
@@ -283,12 +264,15 @@ impl ShadowTechnique for DeepNodes {
         &self.lookup_bind_group
     }
 
-    /// `segments`: captured last frame; `segment_capacity`: what the capture's lists hold; then
-    /// the technique's own statistics.
+    /// `segments`: captured last frame; `segment_capacity`: what the capture's lists hold (one
+    /// band's worth); `capture_bands`: the bands the map was captured in; `max_texel_list`: the
+    /// longest texel list; then the technique's own statistics.
     fn counters(&self) -> Vec<(&'static str, u64)> {
         let mut out = vec![
-            ("segments", u64::from(self.capture.segments())),
+            ("segments", self.capture.segments()),
             ("segment_capacity", u64::from(self.capture.capacity())),
+            ("capture_bands", u64::from(self.capture.bands())),
+            ("max_texel_list", u64::from(self.capture.max_list())),
         ];
         out.extend((self.spec.stats_counters)(&self.last_stats));
         out
@@ -306,19 +290,44 @@ impl ShadowTechnique for DeepNodes {
             )),
             None => &mut *inputs.encoder,
         };
+        // Zeroed by a queue write, which lands before the capture's first submission (bands
+        // before the last are submitted before `encoder`).
+        if let Some(stats) = &self.stats {
+            gpu.queue
+                .write_buffer(stats, 0, &vec![0; self.spec.stats_bytes() as usize]);
+        }
+        let (name, pipeline, compress_bind_group, resolution) = (
+            self.spec.name,
+            &self.compress_pipeline,
+            &self.compress_bind_group,
+            self.resolution,
+        );
+        let frame_bind_group = inputs.frame_bind_group;
+        // The compression of each band, over the band's rows of the capture.
+        let compress = |encoder: &mut wgpu::CommandEncoder,
+                        timer: &mut crate::gpu::GpuTimer,
+                        capture: &wgpu::BindGroup,
+                        band: Band| {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some(&format!("{name}.compress")),
+                timestamp_writes: timer.compute_pass("shadow"),
+            });
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, frame_bind_group, &[]);
+            pass.set_bind_group(1, capture, &[]);
+            pass.set_bind_group(2, compress_bind_group, &[]);
+            pass.dispatch_workgroups(resolution.div_ceil(8), band.rows().div_ceil(8), 1);
+        };
         self.capture.record(
             gpu,
             &mut self.memory,
             encoder,
             inputs.timer,
-            inputs.frame_bind_group,
+            frame_bind_group,
             inputs.particles,
             inputs.particle_count,
+            compress,
         )?;
-        if let Some(stats) = &self.stats {
-            encoder.clear_buffer(stats, 0, None);
-        }
-        self.record_compress(encoder, inputs.timer, inputs.frame_bind_group);
         if let (Some(encoder), Some(stats)) = (own, &self.stats) {
             gpu.queue.submit([encoder.finish()]);
             let bytes = read_buffer(gpu, stats, 0, u64::from(self.spec.stats_words) * 4)

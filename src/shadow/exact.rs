@@ -11,11 +11,19 @@
 //! Finding the particles a segment can cross: a light-space tile grid (the light-occlusion tile
 //! lists of Yusov's slides, seeds/001). One compute pass counts, for every tile, the particles
 //! whose footprint in the light's image plane covers it; a scan turns the counts into offsets; a
-//! second pass appends (near distance, index) to each covered tile's list, taking the particles
-//! nearest the light first (an order sorted on the CPU, timed: `order_sort_us`); a third sorts
-//! each list by (near distance, index) — an insertion sort, linear on lists that arrive almost
-//! sorted — so a query walks its tile's list front to back and stops at the first sphere that
-//! begins beyond the point, and every sum is independent of the order the atomics ran in.
+//! second pass appends each particle's index to the lists of the tiles it covers. A query walks
+//! its whole tile list (a sphere beyond the point adds nothing) and sums the terms in 2^-26
+//! fixed point: integer addition is associative, so T does not depend on the order the atomics
+//! filled the list in, and no list needs sorting. (The lists were sorted once, for an early
+//! exit; on lavapipe that sort was cut short — llvmpipe ends every shader loop after 65,535
+//! iterations of an invocation group, all its loops together — and the unsorted tails made
+//! the early exit skip spheres in front of the point.)
+//!
+//! **The loop limit.** The same limit bounds the walk: the particle lighting pass does four
+//! lookups per invocation, so on llvmpipe the longest list must stay under
+//! [`LLVMPIPE_MAX_LIST`] entries. The build reads the per-tile counts back, and a frame whose
+//! longest list is beyond it is refused ([`ShadowError::TileListTooLong`]) rather than summed
+//! short. The counter `max_tile_list` reports it on every adapter.
 //!
 //! Memory grows with particles × tiles covered, not with a map resolution: the grid is sized so
 //! that a typical particle spans about four tiles across, and when the lists would exceed the
@@ -50,11 +58,11 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     order_independent: true,
     converges_with_budget: false,
     compresses_captured_lists: false,
-    // The uniform, the per-tile counts and offsets (+1 for the total), the row sums (+1), 8 bytes per list entry of
-    // capacity, and per particle of capacity its sphere (32 bytes: the lists index this copy,
-    // so a frame that reuses them after the renderer re-sorted its instances still reads the
-    // spheres they were built from) and its place in the fill order (4 bytes). Nothing is
-    // reported as transient: the counts and the fill order are scratch, but small.
+    // The uniform, the per-tile counts and offsets (+1 for the total), the row sums (+1), 4
+    // bytes per list entry of capacity, and per particle of capacity its sphere (32 bytes: the
+    // lists index this copy, so a frame that reuses them after the renderer re-sorted its
+    // instances still reads the spheres they were built from). Nothing is reported as
+    // transient: the counts are scratch, but small.
     memory: |c| {
         let side = c.counter("tiles_per_side");
         let tiles = side * side;
@@ -65,7 +73,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
                 + ((tiles + 1) * 4).max(16)
                 + ((side + 1) * 4).max(16)
                 + c.counter("entry_capacity") * ENTRY_BYTES
-                + c.counter("sphere_capacity") * (SPHERE_BYTES + 4),
+                + c.counter("sphere_capacity") * SPHERE_BYTES,
             transient_bytes: 0,
         }
     },
@@ -113,8 +121,12 @@ pub fn layouts() -> Vec<crate::gpu::MirrorLayout> {
         .collect()
 }
 
-/// Bytes per list entry: (near distance bits, particle index).
-const ENTRY_BYTES: u64 = 8;
+/// Bytes per list entry: the particle's index.
+const ENTRY_BYTES: u64 = 4;
+/// The longest tile list a frame may have on llvmpipe: its loop limit (65,535 iterations per
+/// invocation group, every loop of the shader together) over the four lookups of the particle
+/// lighting pass, with room for the loops around them.
+pub const LLVMPIPE_MAX_LIST: u32 = 15_000;
 /// Bytes per sphere (one `ParticleInstance`).
 const SPHERE_BYTES: u64 = std::mem::size_of::<crate::frame::gpu_data::ParticleInstance>() as u64;
 /// Bounds on the tiles per side (the scan of the row sums is one invocation over the rows).
@@ -149,20 +161,19 @@ pub struct Exact {
     grid: Grid,
     entries: wgpu::Buffer,
     capacity: u32,
-    /// The spheres the lists index (a copy of the instances), the fill order (instance
-    /// indices, nearest the light first), and the particles both hold.
+    /// The spheres the lists index (a copy of the instances), and the particles it holds.
     spheres: wgpu::Buffer,
-    order: wgpu::Buffer,
     sphere_capacity: u32,
-    /// CPU time of the last frame's order sort, microseconds.
-    order_sort_us: u64,
+    /// The longest tile list last frame.
+    max_list: u32,
+    /// Whether the adapter is llvmpipe, whose loop limit bounds the lists.
+    loop_limited: bool,
     build_layout: wgpu::BindGroupLayout,
     count: wgpu::ComputePipeline,
     scan_rows: wgpu::ComputePipeline,
     scan_total: wgpu::ComputePipeline,
     scan_write: wgpu::ComputePipeline,
     fill: wgpu::ComputePipeline,
-    sort: wgpu::ComputePipeline,
     lookup_layout: wgpu::BindGroupLayout,
     lookup_bind_group: wgpu::BindGroup,
     memory: MemoryLedger,
@@ -217,12 +228,6 @@ impl Exact {
             "exact.spheres",
             u64::from(sphere_capacity) * SPHERE_BYTES,
         )?;
-        let order = storage_buffer(
-            &mut memory,
-            device,
-            "exact.order",
-            u64::from(sphere_capacity) * 4,
-        )?;
         let capacity = 1u32 << 16;
         let entries = storage_buffer(
             &mut memory,
@@ -240,7 +245,6 @@ impl Exact {
                 storage_entry(2, compute, false),
                 storage_entry(3, compute, false),
                 storage_entry(4, compute, true),
-                storage_entry(5, compute, true),
                 storage_entry(6, compute, false),
             ],
         });
@@ -284,15 +288,14 @@ impl Exact {
             scan_total: pipeline("scan_total"),
             scan_write: pipeline("scan_write"),
             fill: pipeline("fill"),
-            sort: pipeline("sort"),
             params_buffer,
             grid,
             entries,
             capacity,
             spheres,
-            order,
             sphere_capacity,
-            order_sort_us: 0,
+            max_list: 0,
+            loop_limited: ctx.gpu.info.name.contains("llvmpipe"),
             build_layout,
             lookup_layout,
             lookup_bind_group,
@@ -325,7 +328,6 @@ impl Exact {
                 bind_entry(2, &self.grid.offsets),
                 bind_entry(3, &self.entries),
                 bind_entry(4, &self.spheres),
-                bind_entry(5, &self.order),
                 bind_entry(6, &self.grid.row_sums),
             ],
         })
@@ -370,13 +372,14 @@ impl Exact {
         }
     }
 
-    /// Counts this frame's entries at the current grid (a submission and a readback).
+    /// Counts this frame's entries at the current grid (a submission and a readback of the
+    /// per-tile counts): the total and the longest list.
     fn count_entries(
         &self,
         gpu: &Gpu,
         inputs: &mut BuildInputs<'_>,
         bind_group: &wgpu::BindGroup,
-    ) -> Result<u64, ShadowError> {
+    ) -> Result<(u64, u32), ShadowError> {
         let mut encoder = gpu
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
@@ -385,53 +388,37 @@ impl Exact {
         self.record_count(&mut encoder, inputs, bind_group);
         gpu.queue.submit([encoder.finish()]);
         let tiles = u64::from(self.grid.tiles).pow(2);
-        let bytes = read_buffer(gpu, &self.grid.offsets, tiles * 4, 4)
+        let counts = read_buffer(gpu, &self.grid.counts, 0, tiles * 4)
             .map_err(|err| ShadowError::Gpu(err.to_string()))?;
-        Ok(u64::from(u32::from_le_bytes([
-            bytes[0], bytes[1], bytes[2], bytes[3],
-        ])))
+        let (total, max) = counts
+            .chunks_exact(4)
+            .map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]))
+            .fold((0u64, 0u32), |(sum, max), c| {
+                (sum + u64::from(c), max.max(c))
+            });
+        Ok((total, max))
     }
 }
 
 impl Exact {
-    /// Uploads the spheres, and their order by the distance from the light to their near side
-    /// (sorted here, timed) that the fill pass takes them in.
+    /// Uploads the spheres the lists index.
     fn upload_spheres(
         &mut self,
         gpu: &Gpu,
-        light: &super::LightSpace,
         instances: &[crate::frame::gpu_data::ParticleInstance],
     ) -> Result<(), ShadowError> {
-        let start = std::time::Instant::now();
-        let mut keyed: Vec<(u32, u32)> = instances
-            .iter()
-            .enumerate()
-            .map(|(i, p)| {
-                let [x, y, z, r] = p.center_radius;
-                let near = (glam::Vec3::new(x, y, z).distance(light.position) - r).max(0.0);
-                (near.to_bits(), i as u32)
-            })
-            .collect();
-        keyed.sort_unstable();
-        let order: Vec<u32> = keyed.into_iter().map(|(_, i)| i).collect();
-        self.order_sort_us = start.elapsed().as_micros() as u64;
-        let needed = (order.len() as u32).max(1);
+        let needed = (instances.len() as u32).max(1);
         if needed > self.sphere_capacity {
             self.sphere_capacity = needed.next_power_of_two();
-            let capacity = u64::from(self.sphere_capacity);
             self.spheres = storage_buffer(
                 &mut self.memory,
                 &gpu.device,
                 "exact.spheres",
-                capacity * SPHERE_BYTES,
+                u64::from(self.sphere_capacity) * SPHERE_BYTES,
             )?;
-            self.order =
-                storage_buffer(&mut self.memory, &gpu.device, "exact.order", capacity * 4)?;
         }
         gpu.queue
             .write_buffer(&self.spheres, 0, bytemuck::cast_slice(instances));
-        gpu.queue
-            .write_buffer(&self.order, 0, bytemuck::cast_slice(&order));
         Ok(())
     }
 }
@@ -471,14 +458,15 @@ impl ShadowTechnique for Exact {
     }
 
     /// `tiles_per_side`: the light-space grid; `tile_entries`: (particle, tile) pairs stored
-    /// last frame; `entry_capacity`: what the list buffer holds.
+    /// last frame; `entry_capacity`: what the list buffer holds; `max_tile_list`: the longest
+    /// list last frame.
     fn counters(&self) -> Vec<(&'static str, u64)> {
         vec![
             ("tiles_per_side", u64::from(self.grid.tiles)),
             ("tile_entries", u64::from(self.last_entries)),
             ("entry_capacity", u64::from(self.capacity)),
             ("sphere_capacity", u64::from(self.sphere_capacity)),
-            ("order_sort_us", self.order_sort_us),
+            ("max_tile_list", u64::from(self.max_list)),
         ]
     }
 
@@ -486,7 +474,7 @@ impl ShadowTechnique for Exact {
         let device = &gpu.device;
         let limit = gpu.limits.max_storage_buffer_binding_size;
         let fits = |entries: u64| entries * ENTRY_BYTES <= limit;
-        self.upload_spheres(gpu, inputs.light, inputs.instances)?;
+        self.upload_spheres(gpu, inputs.instances)?;
 
         // Count at the grid this frame's particles ask for, halving it while the lists would not
         // fit one binding.
@@ -497,8 +485,9 @@ impl ShadowTechnique for Exact {
             }
             self.write_params(gpu, inputs.light, inputs.particle_count);
             let bind_group = self.build_bind_group(device);
-            let total = self.count_entries(gpu, &mut inputs, &bind_group)?;
+            let (total, max_list) = self.count_entries(gpu, &mut inputs, &bind_group)?;
             if fits(total) {
+                self.max_list = max_list;
                 break total;
             }
             if tiles == 1 {
@@ -510,6 +499,14 @@ impl ShadowTechnique for Exact {
             }
             tiles = (tiles / 2).max(1);
         };
+        if self.loop_limited && self.max_list > LLVMPIPE_MAX_LIST {
+            return Err(ShadowError::TileListTooLong {
+                particles: inputs.particle_count,
+                tiles: self.grid.tiles,
+                longest: self.max_list,
+                limit: LLVMPIPE_MAX_LIST,
+            });
+        }
         if total > u64::from(self.capacity) {
             // Headroom so that a slowly changing scene does not reallocate every frame.
             let mut capacity = (total + total / 4).max(1 << 16);
@@ -538,16 +535,13 @@ impl ShadowTechnique for Exact {
             ],
         );
 
-        // The counts, cleared, become the fill's cursors; then fill and sort.
+        // The counts, cleared, become the fill's cursors.
         let mut encoder = std::mem::replace(
             inputs.encoder,
             device.create_command_encoder(&wgpu::CommandEncoderDescriptor::default()),
         );
         encoder.clear_buffer(&self.grid.counts, 0, None);
-        let steps = [
-            (&self.fill, inputs.particle_count.div_ceil(64)),
-            (&self.sort, (self.grid.tiles * self.grid.tiles).div_ceil(64)),
-        ];
+        let steps = [(&self.fill, inputs.particle_count.div_ceil(64))];
         self.dispatch_each(&mut encoder, &mut inputs, &bind_group, &steps);
         *inputs.encoder = encoder;
         Ok(())

@@ -84,13 +84,37 @@ pub enum ShadowError {
         limit: u64,
     },
     #[error(
+        "exact: {particles} particles put {longest} spheres in one of its {tiles}x{tiles} light \
+         tiles, but llvmpipe ends shader loops after 65,535 iterations, which allows {limit} per \
+         list: use fewer particles, or a hardware adapter"
+    )]
+    TileListTooLong {
+        particles: u32,
+        tiles: u32,
+        longest: u32,
+        limit: u32,
+    },
+    #[error(
+        "{technique}: {longest} particle fragments fall in one texel of its \
+         {resolution_px}x{resolution_px} capture, but llvmpipe ends shader loops after 65,535 \
+         iterations, which allows {limit} per texel (the count along a light ray, whatever the \
+         resolution): use fewer particles, or a hardware adapter"
+    )]
+    TexelListTooLong {
+        technique: &'static str,
+        resolution_px: u32,
+        longest: u32,
+        limit: u32,
+    },
+    #[error(
         "{technique} at {resolution_px}x{resolution_px} captures {segments} segments ({bytes} \
-         bytes of lists) this frame, but the adapter binds at most {limit} bytes per buffer: use \
-         a lower --shadow-res"
+         bytes of lists) in row {row} of its map alone this frame, but the adapter binds at most \
+         {limit} bytes per buffer: use a lower --shadow-res"
     )]
     CaptureTooLarge {
         technique: &'static str,
         resolution_px: u32,
+        row: u32,
         segments: u64,
         bytes: u64,
         limit: u64,
