@@ -94,6 +94,15 @@ fn remove_least_area(c: ptr<function, Curve>) {
     (*c).count = n - 1u;
 }
 
+// Segments inserted per round (see src/shadow/deep_capture.rs): one insertion and the removals
+// after it loop about 160 times (curve_at twice, the ramp, two insert_node and two
+// remove_least_area, each over at most MAX_NODES nodes). Keep in sync with `avsm::rounds`.
+const ITERATIONS_PER_SEGMENT: u32 = 200u;
+
+fn segments_per_round() -> u32 {
+    return max(1u, capture.loop_budget / ITERATIONS_PER_SEGMENT);
+}
+
 @compute @workgroup_size(8, 8)
 fn compress(@builtin(global_invocation_id) id: vec3<u32>) {
     let index = band_texel(id);
@@ -103,13 +112,39 @@ fn compress(@builtin(global_invocation_id) id: vec3<u32>) {
     let list = texel_list(index);
     let limit = deep.nodes_per_texel;
     let out = index * limit;
+    // This round's segments [begin, end); between rounds the curve (at most `limit` nodes once
+    // a segment's removals are done) waits in the texel's capture nodes, which avsm does not
+    // otherwise read: its count at nodes[2·first].x, its nodes after it (a list that needs more
+    // than one round has 2n > limit + 1 slots).
+    let per_round = segments_per_round();
+    let begin = pass_round.index * per_round;
+    if begin >= max(list.count, 1u) {
+        return;
+    }
+    let end = min(list.count, begin + per_round);
+    let scratch = 2u * list.first;
     var curve: Curve;
     curve.count = 0u;
-    for (var i = 0u; i < list.count; i++) {
+    if begin > 0u {
+        curve.count = u32(nodes[scratch].x);
+        for (var k = 0u; k < curve.count; k++) {
+            let node = nodes[scratch + 1u + k];
+            curve.z[k] = node.x;
+            curve.t[k] = node.y;
+        }
+    }
+    for (var i = begin; i < end; i++) {
         insert_segment(&curve, segments[list.first + i]);
         while curve.count > limit {
             remove_least_area(&curve);
         }
+    }
+    if end < list.count {
+        nodes[scratch] = vec2<f32>(f32(curve.count), 0.0);
+        for (var k = 0u; k < curve.count; k++) {
+            nodes[scratch + 1u + k] = vec2<f32>(curve.z[k], curve.t[k]);
+        }
+        return;
     }
     if curve.count == 0u {
         // No smoke on this ray: T = 1 at every depth.

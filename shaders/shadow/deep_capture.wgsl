@@ -8,8 +8,8 @@
 //    (offsets[res²] = total).
 // 3. fs_fill: every fragment of the current band of rows writes its segment (z0, z1, optical
 //    depth) into its texel's list (counts, cleared, serve as cursors).
-// 4. resolve: per texel of the band, sort the segments by (z0, z1, optical depth), sort their ends by
-//    (depth, slope), and merge both into the nodes (z, Ω(z)) of the piecewise-linear optical
+// 4. resolve (sort_segments_*, copy_ends, sort_ends_*, merge_nodes): per texel of the band,
+//    sort the segments by (z0, z1, optical depth), sort their ends by (depth, slope), and merge both into the nodes (z, Ω(z)) of the piecewise-linear optical
 //    depth: between events Ω grows by the sum of the slopes (optical depth per metre) of the
 //    segments open there. The keys are total, so the lists, and everything computed from them,
 //    do not depend on the order the fragments arrived in.
@@ -142,20 +142,6 @@ fn segment_slope(s: Segment) -> f32 {
     return s.optical_depth / (s.z1 - s.z0);
 }
 
-// Heapsort of segments[base .. base + n) by `segment_before`.
-fn sort_segments(base: u32, n: u32) {
-    // Build a max-heap, then repeatedly move the largest to the end.
-    for (var start = n / 2u; start > 0u; start--) {
-        sift_segment(base, start - 1u, n);
-    }
-    for (var end = n; end > 1u; end--) {
-        let top = segments[base];
-        segments[base] = segments[base + end - 1u];
-        segments[base + end - 1u] = top;
-        sift_segment(base, 0u, end - 1u);
-    }
-}
-
 fn sift_segment(base: u32, root_in: u32, n: u32) {
     var root = root_in;
     let value = segments[base + root];
@@ -174,19 +160,6 @@ fn sift_segment(base: u32, root_in: u32, n: u32) {
         root = child;
     }
     segments[base + root] = value;
-}
-
-// Heapsort of nodes[base .. base + n) by `end_before`.
-fn sort_ends(base: u32, n: u32) {
-    for (var start = n / 2u; start > 0u; start--) {
-        sift_end(base, start - 1u, n);
-    }
-    for (var end = n; end > 1u; end--) {
-        let top = nodes[base];
-        nodes[base] = nodes[base + end - 1u];
-        nodes[base + end - 1u] = top;
-        sift_end(base, 0u, end - 1u);
-    }
 }
 
 fn sift_end(base: u32, root_in: u32, n: u32) {
@@ -209,30 +182,122 @@ fn sift_end(base: u32, root_in: u32, n: u32) {
     nodes[base + root] = value;
 }
 
-@compute @workgroup_size(8, 8)
-fn resolve(@builtin(global_invocation_id) id: vec3<u32>) {
+// The resolve, in phases (a dispatch each, or several: rounds), per texel of the band: heapsort
+// its segments by `segment_before` (build the heap, then move the largest to the end), copy their
+// ends with the slope each one closes into the upper half of its nodes and heapsort them by
+// `end_before`, then merge both into the nodes. O(n log n) whatever the order the fragments
+// arrived in. The heapsorts' sifts are split into rounds of `sifts_per_round()` each, so that no
+// dispatch loops past `capture.loop_budget` (src/shadow/deep_capture.rs mirrors the arithmetic);
+// a texel whose sort is done returns at once.
+
+// Sifts per round of a heapsort: each sift takes at most log2(n) + 1 iterations.
+fn sifts_per_round() -> u32 {
+    let depth = firstLeadingBit(max(capture.max_list, 1u)) + 3u;
+    return max(1u, capture.loop_budget / depth);
+}
+
+// This round's starts of a heap build over n elements: sift starts (hi, lo] in descending order
+// (hi = lo when there is none left).
+fn build_range(n: u32) -> vec2<u32> {
+    let c = sifts_per_round();
+    let done = pass_round.index * c;
+    let h = n / 2u;
+    if done >= h {
+        return vec2<u32>(0u, 0u);
+    }
+    let hi = h - done;
+    return vec2<u32>(hi, hi - min(c, hi));
+}
+
+// This round's ends of the extraction: ends (hi, lo] in descending order, lo >= 1.
+fn extract_range(n: u32) -> vec2<u32> {
+    let c = sifts_per_round();
+    let done = pass_round.index * c;
+    if n < 2u || done >= n - 1u {
+        return vec2<u32>(1u, 1u);
+    }
+    let hi = n - done;
+    return vec2<u32>(hi, max(1u, hi - min(c, hi)));
+}
+
+// The band texel's list for invocation `id`; empty outside the band.
+fn band_list(id: vec3<u32>) -> TexelList {
     let index = band_texel(id);
     if index == NO_TEXEL {
-        return;
+        var none: TexelList;
+        none.first = 0u;
+        none.count = 0u;
+        return none;
     }
-    let list = texel_list(index);
+    return texel_list(index);
+}
+
+@compute @workgroup_size(8, 8)
+fn sort_segments_build(@builtin(global_invocation_id) id: vec3<u32>) {
+    let list = band_list(id);
+    let r = build_range(list.count);
+    for (var start = r.x; start > r.y; start--) {
+        sift_segment(list.first, start - 1u, list.count);
+    }
+}
+
+@compute @workgroup_size(8, 8)
+fn sort_segments_extract(@builtin(global_invocation_id) id: vec3<u32>) {
+    let list = band_list(id);
+    let base = list.first;
+    let r = extract_range(list.count);
+    for (var end = r.x; end > r.y; end--) {
+        let top = segments[base];
+        segments[base] = segments[base + end - 1u];
+        segments[base + end - 1u] = top;
+        sift_segment(base, 0u, end - 1u);
+    }
+}
+
+// The ends go to the upper half of the texel's nodes.
+@compute @workgroup_size(8, 8)
+fn copy_ends(@builtin(global_invocation_id) id: vec3<u32>) {
+    let list = band_list(id);
+    let ends = 2u * list.first + list.count;
+    for (var i = 0u; i < list.count; i++) {
+        let s = segments[list.first + i];
+        nodes[ends + i] = vec2<f32>(s.z1, segment_slope(s));
+    }
+}
+
+@compute @workgroup_size(8, 8)
+fn sort_ends_build(@builtin(global_invocation_id) id: vec3<u32>) {
+    let list = band_list(id);
+    let r = build_range(list.count);
+    for (var start = r.x; start > r.y; start--) {
+        sift_end(2u * list.first + list.count, start - 1u, list.count);
+    }
+}
+
+@compute @workgroup_size(8, 8)
+fn sort_ends_extract(@builtin(global_invocation_id) id: vec3<u32>) {
+    let list = band_list(id);
+    let base = 2u * list.first + list.count;
+    let r = extract_range(list.count);
+    for (var end = r.x; end > r.y; end--) {
+        let top = nodes[base];
+        nodes[base] = nodes[base + end - 1u];
+        nodes[base + end - 1u] = top;
+        sift_end(base, 0u, end - 1u);
+    }
+}
+
+// Merges the sorted starts and ends into nodes [2·first, 2·first + 2n). Writing node k = i + j
+// never overtakes the unread ends (k <= n + j), so the merge works in place.
+@compute @workgroup_size(8, 8)
+fn merge_nodes(@builtin(global_invocation_id) id: vec3<u32>) {
+    let list = band_list(id);
     let first = list.first;
     let n = list.count;
     if n == 0u {
         return;
     }
-    // Segments by start, then their ends with the slope each one closes (in the upper half of
-    // the texel's nodes), each sorted by its total key with heapsort: O(n log n) whatever the
-    // order the fragments arrived in (the longest lists hold hundreds of segments).
-    sort_segments(first, n);
     let ends = 2u * first + n;
-    for (var i = 0u; i < n; i++) {
-        let s = segments[first + i];
-        nodes[ends + i] = vec2<f32>(s.z1, segment_slope(s));
-    }
-    sort_ends(ends, n);
-    // Merge starts and ends into nodes [2·first, 2·first + 2n). Writing node k = i + j never
-    // overtakes the unread ends (k <= n + j), so the merge works in place.
     var i = 0u;
     var j = 0u;
     var omega = 0.0;

@@ -17,9 +17,17 @@ struct CaptureParams {
     row_begin: u32,
     row_end: u32,
     band_base: u32,
+    // The longest texel list this frame, and the loop iterations one invocation group may run
+    // in one dispatch (llvmpipe's limit, with a margin; effectively unbounded elsewhere): the
+    // per-texel passes split their work into rounds that stay within it.
+    max_list: u32,
+    loop_budget: u32,
     _pad0: u32,
-    _pad1: u32,
-    _pad2: u32,
+};
+
+// Which round of a per-texel pass this dispatch is (group 3, bound at a dynamic offset).
+struct Round {
+    index: u32,
 };
 
 struct Segment {
@@ -34,6 +42,7 @@ struct Segment {
 @group(1) @binding(2) var<storage, read_write> offsets: array<u32>;
 @group(1) @binding(3) var<storage, read_write> segments: array<Segment>;
 @group(1) @binding(4) var<storage, read_write> nodes: array<vec2<f32>>;
+@group(3) @binding(0) var<uniform> pass_round: Round;
 
 // One texel's list: segments [first, first + count), nodes [2·first, 2·first + 2·count).
 struct TexelList {

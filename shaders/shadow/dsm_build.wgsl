@@ -109,6 +109,51 @@ fn greedy_fit(base: u32, n: u32, eps: f32, limit: u32, write: bool, out: u32) ->
     return count;
 }
 
+// The search for ε in steps of one greedy fit each, run in rounds (see src/shadow/deep_capture.rs):
+// step 0 fits at ε = 0 (and the texel is done when that fits); steps 1..=DOUBLINGS check ε =
+// hi and double it while the fit does not fit, a guard against rounding only, since a fit within
+// Ω_max is one flat segment; the next `deep.bisection_steps` steps bisect [lo, hi]; the last
+// writes the fit at ε = hi. Between rounds the search's state lives in the texel's first segment
+// (the compression reads only the nodes): (lo, hi, mode).
+const DOUBLINGS: u32 = 8u;
+const MODE_DOUBLING: f32 = 0.0;
+const MODE_BISECT: f32 = 1.0;
+const MODE_EXACT: f32 = 2.0;
+
+fn total_steps() -> u32 {
+    return 2u + DOUBLINGS + deep.bisection_steps;
+}
+
+// Greedy fits per round: each loops at most 2n times; the last step adds N-long loops. Keep in
+// sync with `dsm::rounds`.
+fn fits_per_round() -> u32 {
+    return max(1u, capture.loop_budget / (2u * capture.max_list + 20u));
+}
+
+// Writes the fit at `eps` (at most `limit` vertices, the last repeated into the free slots) and
+// adds the texel to the statistics.
+fn finish(base: u32, n: u32, eps: f32, limit: u32, out: u32) {
+    let written = min(greedy_fit(base, n, eps, limit, true, out), limit);
+    let tail = out_nodes[out + written - 1u];
+    for (var k = written; k < limit; k++) {
+        out_nodes[out + k] = tail;
+    }
+    record_tolerance(eps);
+}
+
+fn record_tolerance(eps: f32) {
+    atomicMax(&stats[STAT_MAX_TOLERANCE], bitcast<u32>(eps));
+    let millionths = u32(round(eps * 1e6));
+    let before = atomicAdd(&stats[STAT_SUM_LO], millionths);
+    if before > 0xffffffffu - millionths {
+        atomicAdd(&stats[STAT_SUM_HI], 1u);
+    }
+    atomicAdd(&stats[STAT_TEXELS], 1u);
+    if eps > 0.0 {
+        atomicAdd(&stats[STAT_LOSSY], 1u);
+    }
+}
+
 @compute @workgroup_size(8, 8)
 fn compress(@builtin(global_invocation_id) id: vec3<u32>) {
     let index = band_texel(id);
@@ -120,30 +165,62 @@ fn compress(@builtin(global_invocation_id) id: vec3<u32>) {
     let out = index * limit;
     let base = 2u * list.first;
     let n = 2u * list.count;
-    if n == 0u {
-        // No smoke on this ray: Ω = 0 at every depth.
-        for (var k = 0u; k < limit; k++) {
-            out_nodes[out + k] = vec2<f32>(0.0);
+    if n == 0u || n <= limit {
+        if pass_round.index > 0u {
+            return;
         }
+        if n == 0u {
+            // No smoke on this ray: Ω = 0 at every depth.
+            for (var k = 0u; k < limit; k++) {
+                out_nodes[out + k] = vec2<f32>(0.0);
+            }
+            return;
+        }
+        // The whole list fits: copied as it is, the last node repeated.
+        for (var k = 0u; k < limit; k++) {
+            out_nodes[out + k] = nodes[base + min(k, n - 1u)];
+        }
+        record_tolerance(0.0);
         return;
     }
-    var eps = 0.0;
-    var written = 0u;
-    if n <= limit {
-        for (var k = 0u; k < n; k++) {
-            out_nodes[out + k] = nodes[base + k];
+    let per_round = fits_per_round();
+    let first_step = pass_round.index * per_round;
+    let total = total_steps();
+    if first_step >= total {
+        return;
+    }
+    var lo = 0.0;
+    var hi = nodes[base + n - 1u].y;
+    var mode = MODE_DOUBLING;
+    if first_step > 0u {
+        let state = segments[list.first];
+        lo = state.z0;
+        hi = state.z1;
+        mode = state.optical_depth;
+    }
+    for (var k = 0u; k < per_round; k++) {
+        let step = first_step + k;
+        if step >= total {
+            break;
         }
-        written = n;
-    } else {
-        if greedy_fit(base, n, 0.0, limit, false, out) > limit {
-            // Ω is non-decreasing, so its last node holds the largest value; a fit within that
-            // is one flat segment. Doubling is a guard against rounding only.
-            var hi = nodes[base + n - 1u].y;
-            for (var k = 0u; k < 8u && greedy_fit(base, n, hi, limit, false, out) > limit; k++) {
-                hi = 2.0 * hi + 1e-6;
+        if step == 0u {
+            if greedy_fit(base, n, 0.0, limit, false, out) <= limit {
+                mode = MODE_EXACT;
+                hi = 0.0;
             }
-            var lo = 0.0;
-            for (var step = 0u; step < deep.bisection_steps; step++) {
+        } else if step <= DOUBLINGS {
+            if mode == MODE_DOUBLING {
+                if greedy_fit(base, n, hi, limit, false, out) > limit {
+                    hi = 2.0 * hi + 1e-6;
+                } else {
+                    mode = MODE_BISECT;
+                }
+                if step == DOUBLINGS {
+                    mode = MODE_BISECT;
+                }
+            }
+        } else if step + 1u < total {
+            if mode == MODE_BISECT {
                 let mid = 0.5 * (lo + hi);
                 if greedy_fit(base, n, mid, limit, false, out) <= limit {
                     hi = mid;
@@ -151,23 +228,13 @@ fn compress(@builtin(global_invocation_id) id: vec3<u32>) {
                     lo = mid;
                 }
             }
-            eps = hi;
+        } else {
+            finish(base, n, hi, limit, out);
         }
-        written = min(greedy_fit(base, n, eps, limit, true, out), limit);
     }
-    // Fewer nodes than slots: repeat the last (the lookup reads it as "constant from here").
-    let tail = out_nodes[out + written - 1u];
-    for (var k = written; k < limit; k++) {
-        out_nodes[out + k] = tail;
-    }
-    atomicMax(&stats[STAT_MAX_TOLERANCE], bitcast<u32>(eps));
-    let millionths = u32(round(eps * 1e6));
-    let before = atomicAdd(&stats[STAT_SUM_LO], millionths);
-    if before > 0xffffffffu - millionths {
-        atomicAdd(&stats[STAT_SUM_HI], 1u);
-    }
-    atomicAdd(&stats[STAT_TEXELS], 1u);
-    if eps > 0.0 {
-        atomicAdd(&stats[STAT_LOSSY], 1u);
-    }
+    var state: Segment;
+    state.z0 = lo;
+    state.z1 = hi;
+    state.optical_depth = mode;
+    segments[list.first] = state;
 }

@@ -29,7 +29,18 @@ pub const SPEC: DeepNodesSpec = DeepNodesSpec {
     bisection_steps: 0,
     stats_words: 0,
     stats_counters: |_| Vec::new(),
+    rounds,
 };
+
+/// Loop iterations one segment's insertion and removals take at most (`ITERATIONS_PER_SEGMENT`
+/// in shaders/shadow/avsm_build.wgsl).
+const ITERATIONS_PER_SEGMENT: u32 = 200;
+
+/// Rounds of the compression: `loop_budget / 200` segments each.
+fn rounds(max_list: u32, loop_budget: u32) -> u32 {
+    let per_round = (loop_budget / ITERATIONS_PER_SEGMENT).max(1);
+    max_list.div_ceil(per_round).max(1)
+}
 
 pub const ENTRY: TechniqueEntry = TechniqueEntry {
     name: SPEC.name,

@@ -21,18 +21,16 @@
 //! a single row of more segments than a binding holds is refused.
 //!
 //! **The loop limit.** llvmpipe ends every shader loop after 65,535 iterations of an invocation
-//! group, all the shader's loops together, and the resolve and the compressions are one
-//! invocation per texel looping over its list: the resolve's two heapsorts take about
-//! 3n(log2 n + 2) iterations for n segments, `dsm`'s bisection of greedy fits about 60n,
-//! `avsm`'s insertions about 50n. On llvmpipe a frame whose longest list exceeds
-//! [`LLVMPIPE_MAX_TEXEL_LIST`] is refused ([`ShadowError::TexelListTooLong`]) instead of
-//! compressed short (its lists cut off, the texel reads as almost empty); the counter
-//! `max_texel_list` reports the longest list on every adapter.
-//!
-//! (It was `exact`'s build until `exact` became the closed form per point.)
-//! Every buffer here is **transient** for the technique that owns the capture: its lookup reads
-//! only the compressed nodes. They are allocated and counted all the same, in the technique's
-//! ledger, through [`MemoryLedger::buffer_transient`].
+//! group (all the shader's loops together: a cut loop just exits, and the texel's list is left
+//! half sorted or half compressed). The resolve and the compressions are one invocation per
+//! texel looping over its list, so they run in **rounds**: dispatches of one pass, each bound
+//! to its round index ([`Rounds`], a uniform at a dynamic offset) and doing a slice of the work
+//! sized so that it loops at most `loop_budget` times ([`LLVMPIPE_LOOP_BUDGET`] on llvmpipe,
+//! unbounded elsewhere, where every pass is one round). The resolve's heapsorts run
+//! [`sifts_per_round`] sifts a round; a compression says how many rounds it needs
+//! ([`super::deep_nodes::DeepNodesSpec::rounds`]). The single-pass steps (copying the ends,
+//! the merge, a greedy fit) loop 2n times, so a list longer than half the budget is refused
+//! ([`ShadowError::TexelListTooLong`]); the counter `max_texel_list` reports the longest.
 
 use bytemuck::{Pod, Zeroable};
 
@@ -53,7 +51,9 @@ struct CaptureParams {
     row_begin: u32,
     row_end: u32,
     band_base: u32,
-    _pad: [u32; 3],
+    max_list: u32,
+    loop_budget: u32,
+    _pad: u32,
 }
 
 /// The WGSL structs mirrored here.
@@ -62,7 +62,15 @@ pub fn layouts() -> Vec<crate::gpu::MirrorLayout> {
         CaptureParams,
         "shadow/deep_capture_lists.wgsl",
         "CaptureParams",
-        [resolution, capacity, row_begin, row_end, band_base]
+        [
+            resolution,
+            capacity,
+            row_begin,
+            row_end,
+            band_base,
+            max_list,
+            loop_budget
+        ]
     )]
 }
 
@@ -70,20 +78,42 @@ pub fn layouts() -> Vec<crate::gpu::MirrorLayout> {
 /// nodes (2 per segment, (z, Ω) each).
 pub const SEGMENT_BYTES: u64 = 12;
 pub const NODE_BYTES_PER_SEGMENT: u64 = 16;
-/// The longest texel list a frame may have on llvmpipe (see the module doc: `dsm`'s 60n
-/// iterations reach the limit at about 1,090 segments).
-pub const LLVMPIPE_MAX_TEXEL_LIST: u32 = 1_000;
+/// Loop iterations one invocation group may run per dispatch on llvmpipe: its limit, 65,535,
+/// less a margin for the few short loops around the budgeted ones.
+pub const LLVMPIPE_LOOP_BUDGET: u32 = 60_000;
+/// Elsewhere: no limit worth splitting for.
+const UNBOUNDED_LOOP_BUDGET: u32 = 1 << 30;
+/// Most rounds one pass may take (the round uniform holds this many indices).
+const MAX_ROUNDS: u32 = 256;
+
+/// Sifts per round of the resolve's heapsorts (mirrors `sifts_per_round` in
+/// shaders/shadow/deep_capture.wgsl): a sift takes at most log2(n) + 1 iterations.
+pub fn sifts_per_round(max_list: u32, loop_budget: u32) -> u32 {
+    let depth = max_list.max(1).ilog2() + 3;
+    (loop_budget / depth).max(1)
+}
+
+/// Rounds of one heapsort phase over lists of at most `max_list`: the build sifts n/2 starts,
+/// the extraction n - 1 ends.
+fn heap_rounds(max_list: u32, loop_budget: u32) -> (u32, u32) {
+    let c = sifts_per_round(max_list, loop_budget);
+    (
+        (max_list / 2).div_ceil(c).max(1),
+        max_list.saturating_sub(1).div_ceil(c).max(1),
+    )
+}
 /// Segments the lists hold before the first frame asks for more.
 const INITIAL_CAPACITY: u32 = 1 << 16;
 /// Format of the dummy colour target the list passes rasterise into (nothing is written).
 const DUMMY_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R8Unorm;
 
 /// The bytes a capture at `resolution_px` with lists for `segment_capacity` segments allocates:
-/// a 32-byte uniform, counts, offsets (+1 for the total), row sums (+1), an R8 raster target,
+/// a 32-byte uniform, the 64 KiB round uniform, counts, offsets (+1 for the total), row sums (+1), an R8 raster target,
 /// and 12 + 16 bytes of segment and node storage per segment.
 pub fn bytes(resolution_px: u32, segment_capacity: u64) -> u64 {
     let texels = u64::from(resolution_px) * u64::from(resolution_px);
     std::mem::size_of::<CaptureParams>() as u64
+        + u64::from(MAX_ROUNDS * ROUND_STRIDE)
         + texels * 4
         + (texels + 1) * 4
         + (u64::from(resolution_px) + 1) * 4
@@ -122,7 +152,9 @@ pub struct DeepCapture {
     scan_rows: wgpu::ComputePipeline,
     scan_total: wgpu::ComputePipeline,
     scan_write: wgpu::ComputePipeline,
-    resolve: wgpu::ComputePipeline,
+    /// The resolve's phases, in order, with the rounds each takes.
+    resolve: Vec<(ResolvePhase, wgpu::ComputePipeline)>,
+    rounds: Rounds,
     lists: Lists,
     /// Segments stored last frame, in all bands.
     last_segment_count: u64,
@@ -130,8 +162,116 @@ pub struct DeepCapture {
     last_band_count: u32,
     /// The longest texel list last frame.
     last_max_list: u32,
-    /// Whether the adapter is llvmpipe, whose loop limit bounds the lists.
-    loop_limited: bool,
+    /// Loop iterations a dispatch may run per invocation group on this adapter.
+    loop_budget: u32,
+}
+
+/// One phase of the resolve (an entry point of shaders/shadow/deep_capture.wgsl).
+#[derive(Clone, Copy, Debug)]
+enum ResolvePhase {
+    /// A heap build (`true`) or extraction over the lists, in rounds.
+    Heap(bool),
+    /// A single pass looping up to 2n times.
+    Single,
+}
+
+const RESOLVE_PHASES: [(&str, ResolvePhase); 6] = [
+    ("sort_segments_build", ResolvePhase::Heap(true)),
+    ("sort_segments_extract", ResolvePhase::Heap(false)),
+    ("copy_ends", ResolvePhase::Single),
+    ("sort_ends_build", ResolvePhase::Heap(true)),
+    ("sort_ends_extract", ResolvePhase::Heap(false)),
+    ("merge_nodes", ResolvePhase::Single),
+];
+
+/// Bytes between round indices in the round uniform: WebGPU's largest uniform offset alignment,
+/// so every adapter accepts it.
+const ROUND_STRIDE: u32 = 256;
+
+/// The round indices 0..MAX_ROUNDS, one per [`ROUND_STRIDE`], which a per-texel pass binds as
+/// its group 3 at a dynamic offset (`Round` in shaders/shadow/deep_capture_lists.wgsl).
+pub struct Rounds {
+    layout: wgpu::BindGroupLayout,
+    /// Held with the bind group (the ledger records its size).
+    _buffer: wgpu::Buffer,
+    bind_group: wgpu::BindGroup,
+}
+
+impl Rounds {
+    fn new(gpu: &Gpu, memory: &mut MemoryLedger, name: &str) -> Result<Self, AllocationError> {
+        let device = &gpu.device;
+        let buffer = memory.buffer_transient(
+            device,
+            &wgpu::BufferDescriptor {
+                label: Some(&format!("{name}.capture.rounds")),
+                size: u64::from(MAX_ROUNDS * ROUND_STRIDE),
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            },
+        )?;
+        let mut indices = vec![0u32; (MAX_ROUNDS * ROUND_STRIDE / 4) as usize];
+        for r in 0..MAX_ROUNDS {
+            indices[(r * ROUND_STRIDE / 4) as usize] = r;
+        }
+        gpu.queue
+            .write_buffer(&buffer, 0, bytemuck::cast_slice(&indices));
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some(&format!("{name}.capture.rounds.layout")),
+            entries: &[wgpu::BindGroupLayoutEntry {
+                binding: 0,
+                visibility: wgpu::ShaderStages::COMPUTE,
+                ty: wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Uniform,
+                    has_dynamic_offset: true,
+                    min_binding_size: wgpu::BufferSize::new(4),
+                },
+                count: None,
+            }],
+        });
+        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some(&format!("{name}.capture.rounds.bind_group")),
+            layout: &layout,
+            entries: &[wgpu::BindGroupEntry {
+                binding: 0,
+                resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                    buffer: &buffer,
+                    offset: 0,
+                    size: wgpu::BufferSize::new(16),
+                }),
+            }],
+        });
+        Ok(Self {
+            layout,
+            _buffer: buffer,
+            bind_group,
+        })
+    }
+
+    /// Layout of the round group (group 3 of a per-texel pass).
+    pub fn layout(&self) -> &wgpu::BindGroupLayout {
+        &self.layout
+    }
+
+    /// Dispatches rounds 0..count of the pass's pipeline over `groups`, each bound to its index.
+    /// (No pass needs more than [`MAX_ROUNDS`]: lists are refused beyond half the loop budget,
+    /// where avsm, the pass with the most, takes 100.)
+    pub fn dispatch(&self, pass: &mut wgpu::ComputePass<'_>, count: u32, groups: (u32, u32)) {
+        debug_assert!(count <= MAX_ROUNDS, "{count} rounds");
+        for r in 0..count.min(MAX_ROUNDS) {
+            pass.set_bind_group(3, &self.bind_group, &[r * ROUND_STRIDE]);
+            pass.dispatch_workgroups(groups.0, groups.1, 1);
+        }
+    }
+}
+
+/// What the owner's pass over a band gets: the band, the capture's group (group 1), the round
+/// group (group 3), and the frame's longest list and loop budget, from which its rounds follow.
+pub struct BandPass<'a> {
+    pub band: Band,
+    pub capture: &'a wgpu::BindGroup,
+    pub rounds: &'a Rounds,
+    pub max_list: u32,
+    pub loop_budget: u32,
 }
 
 /// Rows [row_begin, row_end) of the map, whose segments start at `base` in the frame's offsets
@@ -263,16 +403,32 @@ impl DeepCapture {
             bind_group_layouts: &groups,
             immediate_size: 0,
         });
-        let compute = |entry: &str| {
+        let rounds = Rounds::new(gpu, memory, name)?;
+        let round_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some(&label("rounds.pipeline_layout")),
+            bind_group_layouts: &[
+                Some(frame_layout),
+                Some(&layout),
+                None,
+                Some(rounds.layout()),
+            ],
+            immediate_size: 0,
+        });
+        let pipeline = |entry: &str, layout: &wgpu::PipelineLayout| {
             device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                 label: Some(&label(entry)),
-                layout: Some(&compute_layout),
+                layout: Some(layout),
                 module: &module,
                 entry_point: Some(entry),
                 compilation_options: Default::default(),
                 cache: None,
             })
         };
+        let compute = |entry: &str| pipeline(entry, &compute_layout);
+        let resolve = RESOLVE_PHASES
+            .iter()
+            .map(|&(entry, phase)| (phase, pipeline(entry, &round_layout)))
+            .collect();
         let lists = Lists::new(
             device,
             memory,
@@ -287,7 +443,8 @@ impl DeepCapture {
             scan_rows: compute("scan_rows"),
             scan_total: compute("scan_total"),
             scan_write: compute("scan_write"),
-            resolve: compute("resolve"),
+            resolve,
+            rounds,
             params_buffer,
             counts,
             offsets,
@@ -300,7 +457,11 @@ impl DeepCapture {
             last_segment_count: 0,
             last_band_count: 0,
             last_max_list: 0,
-            loop_limited: gpu.info.name.contains("llvmpipe"),
+            loop_budget: if gpu.info.name.contains("llvmpipe") {
+                LLVMPIPE_LOOP_BUDGET
+            } else {
+                UNBOUNDED_LOOP_BUDGET
+            },
         };
         Ok(capture)
     }
@@ -308,6 +469,11 @@ impl DeepCapture {
     /// Layout of the capture's group (group 1 of its passes and of a compression pass).
     pub fn layout(&self) -> &wgpu::BindGroupLayout {
         &self.layout
+    }
+
+    /// Layout of the round group (group 3 of a compression pass).
+    pub fn rounds_layout(&self) -> &wgpu::BindGroupLayout {
+        self.rounds.layout()
     }
 
     /// This frame's group over the lists (replaced when they grow: take it after
@@ -347,7 +513,9 @@ impl DeepCapture {
                 row_begin: band.row_begin,
                 row_end: band.row_end,
                 band_base: band.base,
-                _pad: [0; 3],
+                max_list: self.last_max_list,
+                loop_budget: self.loop_budget,
+                _pad: 0,
             }),
         );
     }
@@ -378,7 +546,7 @@ impl DeepCapture {
         frame_bind_group: &wgpu::BindGroup,
         particles: &wgpu::Buffer,
         particle_count: u32,
-        mut after_band: impl FnMut(&mut wgpu::CommandEncoder, &mut GpuTimer, &wgpu::BindGroup, Band),
+        mut after_band: impl FnMut(&mut wgpu::CommandEncoder, &mut GpuTimer, &BandPass<'_>),
     ) -> Result<(), ShadowError> {
         let device = &gpu.device;
         self.write_params(&gpu.queue, self.whole_map());
@@ -425,12 +593,14 @@ impl DeepCapture {
             .map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]))
             .max()
             .unwrap_or(0);
-        if self.loop_limited && self.last_max_list > LLVMPIPE_MAX_TEXEL_LIST {
+        // The single-pass steps loop 2n times (and a round must make progress).
+        let longest_allowed = self.loop_budget / 2 - 2;
+        if self.last_max_list > longest_allowed {
             return Err(ShadowError::TexelListTooLong {
                 technique: self.name,
                 resolution_px: self.resolution,
                 longest: self.last_max_list,
-                limit: LLVMPIPE_MAX_TEXEL_LIST,
+                limit: longest_allowed,
             });
         }
         let limit = gpu.limits.max_storage_buffer_binding_size;
@@ -471,7 +641,14 @@ impl DeepCapture {
                 particles,
                 particle_count,
             );
-            after_band(band_encoder, timer, &self.lists.bind_group, band);
+            let band_pass = BandPass {
+                band,
+                capture: &self.lists.bind_group,
+                rounds: &self.rounds,
+                max_list: self.last_max_list,
+                loop_budget: self.loop_budget,
+            };
+            after_band(band_encoder, timer, &band_pass);
             if let Some(own) = own {
                 gpu.queue.submit([own.finish()]);
             }
@@ -498,14 +675,23 @@ impl DeepCapture {
             particles,
             particle_count,
         );
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some(&format!("{}.capture.resolve", self.name)),
-            timestamp_writes: timer.compute_pass("shadow"),
-        });
-        pass.set_pipeline(&self.resolve);
-        pass.set_bind_group(0, frame_bind_group, &[]);
-        pass.set_bind_group(1, &self.lists.bind_group, &[]);
-        pass.dispatch_workgroups(self.resolution.div_ceil(8), band.rows().div_ceil(8), 1);
+        let (build_rounds, extract_rounds) = heap_rounds(self.last_max_list, self.loop_budget);
+        let groups = (self.resolution.div_ceil(8), band.rows().div_ceil(8));
+        for (phase, pipeline) in &self.resolve {
+            let rounds = match phase {
+                ResolvePhase::Heap(true) => build_rounds,
+                ResolvePhase::Heap(false) => extract_rounds,
+                ResolvePhase::Single => 1,
+            };
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some(&format!("{}.capture.resolve", self.name)),
+                timestamp_writes: timer.compute_pass("shadow"),
+            });
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, frame_bind_group, &[]);
+            pass.set_bind_group(1, &self.lists.bind_group, &[]);
+            self.rounds.dispatch(&mut pass, rounds, groups);
+        }
     }
 
     /// Reallocates the lists for at least `total` segments, with headroom so that a slowly

@@ -8,14 +8,16 @@
 //!
 //! A technique of this kind is a [`DeepNodesSpec`]: its compression shader, and optionally a
 //! few words of statistics the compression accumulates (atomics) and the build reads back for
-//! [`ShadowTechnique::counters`] (`dsm`'s error tolerances). Adding one: a spec and an entry in
+//! [`ShadowTechnique::counters`] (`dsm`'s error tolerances), and the rounds its compression
+//! takes (`deep_capture`'s loop budget). Adding one: a spec and an entry in
 //! `src/shadow/<name>.rs`, a lookup shader that imports `shadow/deep_nodes.wgsl`, a build shader
-//! that imports `shadow/deep_capture_lists.wgsl` and `shadow/deep_params.wgsl` and declares
-//! group 2 as [`DeepNodes::new`] lays it out.
+//! that imports `shadow/deep_capture_lists.wgsl` and `shadow/deep_params.wgsl`, declares group 2
+//! as [`DeepNodes::new`] lays it out, covers the texels `band_texel` gives it, and does round
+//! `pass_round.index`'s share of its work (group 3).
 
 use bytemuck::{Pod, Zeroable};
 
-use super::deep_capture::{Band, DeepCapture};
+use super::deep_capture::{BandPass, DeepCapture};
 use super::layered::uniform_entry;
 use super::{
     BuildInputs, LOOKUP_STAGES, MemoryCase, MemoryUse, ShadowError, ShadowTechnique,
@@ -66,6 +68,10 @@ pub struct DeepNodesSpec {
     pub stats_words: u32,
     /// The counters reported from those words (called with all `stats_words` of them).
     pub stats_counters: fn(&[u32]) -> Vec<(&'static str, u64)>,
+    /// Rounds the compression takes over lists of at most `max_list` segments when a dispatch
+    /// may loop `loop_budget` times (see `deep_capture`'s module doc; the shader splits its work
+    /// by the same arithmetic).
+    pub rounds: fn(max_list: u32, loop_budget: u32) -> u32,
 }
 
 impl DeepNodesSpec {
@@ -205,6 +211,7 @@ impl DeepNodes {
                 Some(ctx.frame_layout),
                 Some(capture.layout()),
                 Some(&compress_layout),
+                Some(capture.rounds_layout()),
             ],
             immediate_size: 0,
         });
@@ -296,27 +303,28 @@ impl ShadowTechnique for DeepNodes {
             gpu.queue
                 .write_buffer(stats, 0, &vec![0; self.spec.stats_bytes() as usize]);
         }
-        let (name, pipeline, compress_bind_group, resolution) = (
-            self.spec.name,
+        let (spec, pipeline, compress_bind_group, resolution) = (
+            self.spec,
             &self.compress_pipeline,
             &self.compress_bind_group,
             self.resolution,
         );
         let frame_bind_group = inputs.frame_bind_group;
-        // The compression of each band, over the band's rows of the capture.
+        // The compression of each band, over the band's rows of the capture, in rounds.
         let compress = |encoder: &mut wgpu::CommandEncoder,
                         timer: &mut crate::gpu::GpuTimer,
-                        capture: &wgpu::BindGroup,
-                        band: Band| {
+                        band: &BandPass<'_>| {
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some(&format!("{name}.compress")),
+                label: Some(&format!("{}.compress", spec.name)),
                 timestamp_writes: timer.compute_pass("shadow"),
             });
             pass.set_pipeline(pipeline);
             pass.set_bind_group(0, frame_bind_group, &[]);
-            pass.set_bind_group(1, capture, &[]);
+            pass.set_bind_group(1, band.capture, &[]);
             pass.set_bind_group(2, compress_bind_group, &[]);
-            pass.dispatch_workgroups(resolution.div_ceil(8), band.rows().div_ceil(8), 1);
+            let groups = (resolution.div_ceil(8), band.band.rows().div_ceil(8));
+            let rounds = (spec.rounds)(band.max_list, band.loop_budget);
+            band.rounds.dispatch(&mut pass, rounds, groups);
         };
         self.capture.record(
             gpu,

@@ -30,7 +30,19 @@ pub const SPEC: DeepNodesSpec = DeepNodesSpec {
     bisection_steps: BISECTION_STEPS,
     stats_words: 5,
     stats_counters: tolerance_counters,
+    rounds,
 };
+
+/// Steps of the per-texel search, one greedy fit each (shaders/shadow/dsm_build.wgsl): the fit
+/// at ε = 0, 8 doublings, the bisection, the final fit.
+const SEARCH_STEPS: u32 = 2 + 8 + BISECTION_STEPS;
+
+/// Rounds of the compression: a greedy fit over 2n nodes loops at most 2n times, so a round
+/// takes `loop_budget / (2 max_list + 20)` steps (`fits_per_round` in the shader).
+fn rounds(max_list: u32, loop_budget: u32) -> u32 {
+    let per_round = (loop_budget / (2 * max_list + 20)).max(1);
+    SEARCH_STEPS.div_ceil(per_round)
+}
 
 /// The counters from the compression's statistics words (see `STAT_*` in dsm_build.wgsl): the
 /// largest ε as its bits, Σ ε in millionths (low, high word), the texels with smoke, the lossy
