@@ -884,3 +884,59 @@ fn deep_maps_compress_texel_lists_longer_than_one_dispatch_can_loop() {
         assert!(off < bound, "{name}: T behind the stack off exact by {off}");
     }
 }
+
+#[test]
+fn exact_bins_a_particle_that_covers_the_whole_light_image() {
+    // 2,000 small particles ask for the finest grid, and one thin giant around them (its near
+    // side a metre from the light) covers every tile of it. On llvmpipe the count and the fill
+    // loop over a footprint's tiles at most 65,535 times per invocation group, so the grid is
+    // halved until the giant's fits; either way every point sees it.
+    let scene = sphere::scene();
+    let mut particles: Vec<Particle> = (0..2_000)
+        .map(|i| Particle {
+            position: Vec3::new(
+                (i % 40) as f32 * 0.05 - 1.0,
+                (i / 1_000) as f32 * 0.05,
+                ((i / 40) % 25) as f32 * 0.05 - 0.6,
+            ),
+            radius_m: 0.01,
+            density_per_m: 15.0,
+            ..sphere::particle()
+        })
+        .collect();
+    particles.push(Particle {
+        radius_m: 9.0,
+        density_per_m: 0.03,
+        ..sphere::particle()
+    });
+    let light = Vec3::new(0.0, sphere::LIGHT_HEIGHT, 0.0);
+    let points: Vec<Vec3> = (0..50)
+        .map(|i| Vec3::new(i as f32 * 0.04 - 1.0, -0.5, (i % 7) as f32 * 0.1 - 0.3))
+        .collect();
+    let gpu = gpu();
+    let (t, counters) = probe_with_counters(
+        &gpu,
+        &scene,
+        &particles,
+        &technique("exact", 1, 512, SplatMode::Segment),
+        &points,
+    );
+    println!("exact with a giant: {counters:?}");
+    // The small ones ask for 507² tiles, whose walk over the giant's footprint would loop
+    // 507 x 508 times; on llvmpipe no grid above 240² fits 60,000.
+    if gpu.info.name.contains("llvmpipe") {
+        assert!(counter(&counters, "tiles_per_side") <= 240, "{counters:?}");
+    }
+    let small_ones = &particles[..particles.len() - 1];
+    let mut worst = 0.0f32;
+    for (p, t) in points.iter().zip(&t) {
+        let closed = smokeshadow::shadow::closed_form::transmittance(light, *p, &particles);
+        let without = smokeshadow::shadow::closed_form::transmittance(light, *p, small_ones);
+        assert!(
+            without - closed > 0.1,
+            "the giant shadows {p}: {without} -> {closed}"
+        );
+        worst = worst.max((t - closed).abs());
+    }
+    assert!(worst < 1e-4, "exact off the closed form by {worst}");
+}

@@ -1,5 +1,6 @@
 // `exact` build: the particles binned into light-space tiles.
-// 1. count: each particle adds 1 to every tile its light-space footprint covers (atomics).
+// 1. count: each particle adds 1 to every tile its light-space footprint covers (atomics), and
+//    the largest footprint's width and height in tiles go after the counts (atomic max).
 // 2. scan_rows, scan_total, scan_write: exclusive prefix sum of the counts -> list offsets
 //    (offsets[tiles²] = total).
 // 3. fill: each particle writes its index into the lists of its tiles (the counts, cleared,
@@ -91,6 +92,12 @@ fn count(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     let f = footprint(id.x);
     let n = i32(exact.tiles);
+    // The widest and tallest footprints, in tiles, after the counts (the build bounds the
+    // count's and fill's loops over them by llvmpipe's loop limit).
+    if f.x.x <= f.x.y && f.y.x <= f.y.y {
+        atomicMax(&counts[n * n], u32(f.x.y - f.x.x + 1));
+        atomicMax(&counts[n * n + 1], u32(f.y.y - f.y.x + 1));
+    }
     for (var y = f.y.x; y <= f.y.y; y++) {
         for (var x = f.x.x; x <= f.x.y; x++) {
             atomicAdd(&counts[y * n + x], 1u);

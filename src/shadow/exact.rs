@@ -23,7 +23,10 @@
 //! lookups per invocation, so on llvmpipe the longest list must stay under
 //! [`LLVMPIPE_MAX_LIST`] entries. The build reads the per-tile counts back, and a frame whose
 //! longest list is beyond it is refused ([`ShadowError::TileListTooLong`]) rather than summed
-//! short. The counter `max_tile_list` reports it on every adapter.
+//! short. The counter `max_tile_list` reports it on every adapter. The count and the fill loop
+//! over each particle's footprint, so on llvmpipe the grid is also halved while the largest
+//! footprint would take more than 60,000 iterations (a particle beside the light covers the
+//! whole image: 240² tiles at most).
 //!
 //! Memory grows with particles × tiles covered, not with a map resolution: the grid is sized so
 //! that a typical particle spans about four tiles across, and when the lists would exceed the
@@ -69,7 +72,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
         MemoryUse {
             channels: 0,
             bytes: std::mem::size_of::<ExactParams>() as u64
-                + (tiles * 4).max(16)
+                + (tiles + 2) * 4
                 + ((tiles + 1) * 4).max(16)
                 + ((side + 1) * 4).max(16)
                 + c.counter("entry_capacity") * ENTRY_BYTES
@@ -127,6 +130,10 @@ const ENTRY_BYTES: u64 = 4;
 /// invocation group, every loop of the shader together) over the four lookups of the particle
 /// lighting pass, with room for the loops around them.
 pub const LLVMPIPE_MAX_LIST: u32 = 15_000;
+/// The most loop iterations the count's and fill's walk over one footprint may take on llvmpipe
+/// (its tile rows × (tiles per row + 1)); a grid where some particle's footprint needs more is
+/// halved (8² tiles need at most 72).
+const LLVMPIPE_FOOTPRINT_LOOPS: u32 = 60_000;
 /// Bytes per sphere (one `ParticleInstance`).
 const SPHERE_BYTES: u64 = std::mem::size_of::<crate::frame::gpu_data::ParticleInstance>() as u64;
 /// Bounds on the tiles per side (the scan of the row sums is one invocation over the rows).
@@ -200,7 +207,8 @@ impl Grid {
         let n = u64::from(tiles) * u64::from(tiles);
         Ok(Self {
             tiles,
-            counts: storage_buffer(memory, device, "exact.tile_counts", n * 4)?,
+            // The counts, then the widest and tallest footprint.
+            counts: storage_buffer(memory, device, "exact.tile_counts", (n + 2) * 4)?,
             offsets: storage_buffer(memory, device, "exact.tile_offsets", (n + 1) * 4)?,
             row_sums: storage_buffer(memory, device, "exact.row_sums", (u64::from(tiles) + 1) * 4)?,
         })
@@ -373,13 +381,14 @@ impl Exact {
     }
 
     /// Counts this frame's entries at the current grid (a submission and a readback of the
-    /// per-tile counts): the total and the longest list.
+    /// per-tile counts): the total, the longest list, and the count's and fill's loop
+    /// iterations for the largest footprint, height × (width + 1).
     fn count_entries(
         &self,
         gpu: &Gpu,
         inputs: &mut BuildInputs<'_>,
         bind_group: &wgpu::BindGroup,
-    ) -> Result<(u64, u32), ShadowError> {
+    ) -> Result<(u64, u32, u64), ShadowError> {
         let mut encoder = gpu
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
@@ -388,15 +397,17 @@ impl Exact {
         self.record_count(&mut encoder, inputs, bind_group);
         gpu.queue.submit([encoder.finish()]);
         let tiles = u64::from(self.grid.tiles).pow(2);
-        let counts = read_buffer(gpu, &self.grid.counts, 0, tiles * 4)
-            .map_err(|err| ShadowError::Gpu(err.to_string()))?;
-        let (total, max) = counts
+        let words: Vec<u32> = read_buffer(gpu, &self.grid.counts, 0, (tiles + 2) * 4)
+            .map_err(|err| ShadowError::Gpu(err.to_string()))?
             .chunks_exact(4)
             .map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]))
-            .fold((0u64, 0u32), |(sum, max), c| {
-                (sum + u64::from(c), max.max(c))
-            });
-        Ok((total, max))
+            .collect();
+        let (counts, footprint) = words.split_at(tiles as usize);
+        let (total, max) = counts.iter().fold((0u64, 0u32), |(sum, max), &c| {
+            (sum + u64::from(c), max.max(c))
+        });
+        let footprint_loops = u64::from(footprint[1]) * (u64::from(footprint[0]) + 1);
+        Ok((total, max, footprint_loops))
     }
 }
 
@@ -477,7 +488,8 @@ impl ShadowTechnique for Exact {
         self.upload_spheres(gpu, inputs.instances)?;
 
         // Count at the grid this frame's particles ask for, halving it while the lists would not
-        // fit one binding.
+        // fit one binding or, on llvmpipe, while some particle's footprint covers more tiles
+        // than the count's and fill's loops may visit.
         let mut tiles = tiles_for(inputs.light);
         let total = loop {
             if self.grid.tiles != tiles {
@@ -485,19 +497,23 @@ impl ShadowTechnique for Exact {
             }
             self.write_params(gpu, inputs.light, inputs.particle_count);
             let bind_group = self.build_bind_group(device);
-            let (total, max_list) = self.count_entries(gpu, &mut inputs, &bind_group)?;
-            if fits(total) {
+            let (total, max_list, footprint_loops) =
+                self.count_entries(gpu, &mut inputs, &bind_group)?;
+            // On llvmpipe a footprint of more tiles than a loop may visit would be binned short.
+            let loops_fit =
+                !self.loop_limited || footprint_loops <= u64::from(LLVMPIPE_FOOTPRINT_LOOPS);
+            if fits(total) && (loops_fit || tiles == MIN_TILES) {
                 self.max_list = max_list;
                 break total;
             }
-            if tiles == 1 {
+            if tiles == MIN_TILES && !fits(total) {
                 return Err(ShadowError::TileListsTooLarge {
                     particles: inputs.particle_count,
                     bytes: total * ENTRY_BYTES,
                     limit,
                 });
             }
-            tiles = (tiles / 2).max(1);
+            tiles = (tiles / 2).max(MIN_TILES);
         };
         if self.loop_limited && self.max_list > LLVMPIPE_MAX_LIST {
             return Err(ShadowError::TileListTooLong {
