@@ -5,16 +5,16 @@
 //!
 //! Four passes, all in shaders/shadow/deep_capture.wgsl: a count raster pass over the
 //! light-space billboards (atomic count per texel), a prefix scan into list offsets, a fill pass
-//! writing each fragment's segment (z0, z1, optical depth) into its texel's list, and a resolve
-//! compute pass sorting each list by (z0, z1, optical depth) — a total key, so the lists do not
-//! depend on the order the fragments arrived in — and merging it into nodes. The count is read
+//! writing each fragment's segment (z0, z1, optical depth) into its texel's list, and the resolve's
+//! compute passes sorting each list by (z0, z1, optical depth) — a total key, so the lists do not
+//! depend on the order the fragments arrived in — and merging it into nodes. The counts are read
 //! back before the fill so the lists can grow to hold the frame (a CPU–GPU sync per build).
 //! A compression pass then binds [`DeepCapture::layout`] as its group 1
 //! (shaders/shadow/deep_capture_lists.wgsl declares it) and reads the sorted segments or nodes.
 //!
 //! **Bands.** When the frame's segments would not fit one storage binding (the nodes take 16
-//! bytes a segment, so 8.4M segments under a 128 MiB limit: 65,536 particles at 512² need about
-//! 45M), the map is captured in bands of whole rows, each holding as many segments as fit: the
+//! bytes a segment, so 8.4M segments under a 128 MiB limit: 1,000,000 particles at 512² capture
+//! 12.7M), the map is captured in bands of whole rows, each holding as many segments as fit: the
 //! fill (scissored to the band), the resolve and the owner's compression run once per band over
 //! the same lists, every band but the last in a submission of its own (each band's parameters
 //! are a queue write, which lands at the next submission). One band when everything fits; only
@@ -152,7 +152,7 @@ pub struct DeepCapture {
     scan_rows: wgpu::ComputePipeline,
     scan_total: wgpu::ComputePipeline,
     scan_write: wgpu::ComputePipeline,
-    /// The resolve's phases, in order, with the rounds each takes.
+    /// The resolve's phases, in order, each with its kind (which sets its rounds).
     resolve: Vec<(ResolvePhase, wgpu::ComputePipeline)>,
     rounds: Rounds,
     lists: Lists,
