@@ -1,20 +1,21 @@
 // Deep capture (src/shadow/deep_capture.rs): every light-space particle fragment's chord
 // segment stored per texel and merged into the texel's piecewise-linear optical depth, the
-// uncompressed deep shadow map of Lokovic & Veach (2000) that `dsm` and `avsm` compress. A copy
-// of `exact`'s build (shaders/shadow/exact_build.wgsl), with a total sort key.
+// uncompressed deep shadow map of Lokovic & Veach (2000) that `dsm` and `avsm` compress.
 // 1. fs_count: every light-space particle fragment (one light ray through one particle) counts
 //    itself in its texel (atomic add).
-// 2. scan_rows, scan_total, scan_write: exclusive prefix sum of the counts -> list offsets
-//    (offsets[res²] = total).
+// 2. scan_rows, scan_total, scan_write (shaders/shadow/grid_scan.wgsl, shared with `exact`):
+//    exclusive prefix sum of the counts -> list offsets (offsets[res²] = total).
 // 3. fs_fill: every fragment of the current band of rows writes its segment (z0, z1, optical
 //    depth) into its texel's list (counts, cleared, serve as cursors).
-// 4. resolve (sort_segments_*, copy_ends, sort_ends_*, merge_nodes): per texel of the band,
-//    sort the segments by (z0, z1, optical depth), sort their ends by (depth, slope), and merge both into the nodes (z, Ω(z)) of the piecewise-linear optical
-//    depth: between events Ω grows by the sum of the slopes (optical depth per metre) of the
-//    segments open there. The keys are total, so the lists, and everything computed from them,
-//    do not depend on the order the fragments arrived in.
+// 4. resolve (heap_build, heap_extract, copy_ends, the two heap passes again, merge_nodes): per
+//    texel of the band, sort the segments by (z0, z1, optical depth), sort their ends by (depth,
+//    slope), and merge both into the nodes (z, Ω(z)) of the piecewise-linear optical depth:
+//    between events Ω grows by the sum of the slopes (optical depth per metre) of the segments
+//    open there. The keys are total, so the lists, and everything computed from them, do not
+//    depend on the order the fragments arrived in.
 #import shadow/layered_build.wgsl
 #import shadow/deep_capture_lists.wgsl
+#import shadow/grid_scan.wgsl
 
 @group(1) @binding(1) var<storage, read_write> counts: array<atomic<u32>>;
 @group(1) @binding(5) var<storage, read_write> row_sums: array<u32>;
@@ -74,118 +75,81 @@ fn fs_fill(in: BuildVertexOut) -> @location(0) vec4<f32> {
     return vec4<f32>(0.0);
 }
 
-const SCAN_GROUP: u32 = 64u;
-
-// Sum of each row's counts.
-@compute @workgroup_size(64)
-fn scan_rows(@builtin(global_invocation_id) id: vec3<u32>) {
-    let row = id.x;
-    if row >= capture.resolution {
-        return;
-    }
-    var sum = 0u;
-    for (var x = 0u; x < capture.resolution; x++) {
-        sum += atomicLoad(&counts[row * capture.resolution + x]);
-    }
-    row_sums[row] = sum;
-}
-
-// Exclusive scan of the row sums (one invocation: there are only `resolution` of them).
-@compute @workgroup_size(1)
-fn scan_total() {
-    var running = 0u;
-    for (var row = 0u; row < capture.resolution; row++) {
-        let sum = row_sums[row];
-        row_sums[row] = running;
-        running += sum;
-    }
-    row_sums[capture.resolution] = running;
-    offsets[capture.resolution * capture.resolution] = running;
-}
-
-// Each row's exclusive offsets.
-@compute @workgroup_size(64)
-fn scan_write(@builtin(global_invocation_id) id: vec3<u32>) {
-    let row = id.x;
-    if row >= capture.resolution {
-        return;
-    }
-    var running = row_sums[row];
-    for (var x = 0u; x < capture.resolution; x++) {
-        let index = row * capture.resolution + x;
-        offsets[index] = running;
-        running += atomicLoad(&counts[index]);
-    }
-}
-
-// The total order of segments: by start, then end, then optical depth (segments equal in all
-// three are interchangeable).
-fn segment_before(a: Segment, b: Segment) -> bool {
-    if a.z0 != b.z0 {
-        return a.z0 < b.z0;
-    }
-    if a.z1 != b.z1 {
-        return a.z1 < b.z1;
-    }
-    return a.optical_depth < b.optical_depth;
-}
-
-// The total order of (end depth, slope) pairs.
-fn end_before(a: vec2<f32>, b: vec2<f32>) -> bool {
-    if a.x != b.x {
-        return a.x < b.x;
-    }
-    return a.y < b.y;
+// The scan's grid is the map (shaders/shadow/grid_scan.wgsl).
+fn scan_side() -> u32 {
+    return capture.resolution;
 }
 
 fn segment_slope(s: Segment) -> f32 {
     return s.optical_depth / (s.z1 - s.z0);
 }
 
-fn sift_segment(base: u32, root_in: u32, n: u32) {
-    var root = root_in;
-    let value = segments[base + root];
-    loop {
-        var child = 2u * root + 1u;
-        if child >= n {
-            break;
-        }
-        if child + 1u < n && segment_before(segments[base + child], segments[base + child + 1u]) {
-            child += 1u;
-        }
-        if !segment_before(value, segments[base + child]) {
-            break;
-        }
-        segments[base + root] = segments[base + child];
-        root = child;
+// Which list a heapsort pipeline sorts: the texel's segments (false), or their ends in the upper
+// half of its nodes (true). Set per pipeline (src/shadow/deep_capture.rs, RESOLVE_PHASES).
+override SORT_ENDS: bool = false;
+
+// The sort keys, in lexicographic order: a segment's (z0, z1, optical depth), an end's (depth,
+// slope, 0). Both orders are total, so the sorted lists do not depend on the order the fragments
+// arrived in (segments equal in all three are interchangeable).
+fn key_before(a: vec3<f32>, b: vec3<f32>) -> bool {
+    if a.x != b.x {
+        return a.x < b.x;
     }
-    segments[base + root] = value;
+    if a.y != b.y {
+        return a.y < b.y;
+    }
+    return a.z < b.z;
 }
 
-fn sift_end(base: u32, root_in: u32, n: u32) {
+fn heap_key(i: u32) -> vec3<f32> {
+    if SORT_ENDS {
+        return vec3<f32>(nodes[i], 0.0);
+    }
+    let s = segments[i];
+    return vec3<f32>(s.z0, s.z1, s.optical_depth);
+}
+
+fn set_heap_key(i: u32, key: vec3<f32>) {
+    if SORT_ENDS {
+        nodes[i] = key.xy;
+    } else {
+        segments[i] = Segment(key.x, key.y, key.z);
+    }
+}
+
+// Where the sorted list starts: the segments at `first`, the ends after the texel's n nodes.
+fn heap_base(list: TexelList) -> u32 {
+    if SORT_ENDS {
+        return 2u * list.first + list.count;
+    }
+    return list.first;
+}
+
+// Sifts element `root_in` down the max-heap [base, base + n).
+fn sift(base: u32, root_in: u32, n: u32) {
     var root = root_in;
-    let value = nodes[base + root];
+    let value = heap_key(base + root);
     loop {
         var child = 2u * root + 1u;
         if child >= n {
             break;
         }
-        if child + 1u < n && end_before(nodes[base + child], nodes[base + child + 1u]) {
+        if child + 1u < n && key_before(heap_key(base + child), heap_key(base + child + 1u)) {
             child += 1u;
         }
-        if !end_before(value, nodes[base + child]) {
+        if !key_before(value, heap_key(base + child)) {
             break;
         }
-        nodes[base + root] = nodes[base + child];
+        set_heap_key(base + root, heap_key(base + child));
         root = child;
     }
-    nodes[base + root] = value;
+    set_heap_key(base + root, value);
 }
 
 // The resolve, in phases (a dispatch each, or several: rounds), per texel of the band: heapsort
-// its segments by `segment_before` (build the heap, then move the largest to the end), copy their
-// ends with the slope each one closes into the upper half of its nodes and heapsort them by
-// `end_before`, then merge both into the nodes. O(n log n) whatever the order the fragments
+// its segments (build the heap, then move the largest to the end), copy their ends with the
+// slope each one closes into the upper half of its nodes and heapsort them (the same two entry
+// points, with SORT_ENDS set), then merge both into the nodes. O(n log n) whatever the order the fragments
 // arrived in. The heapsorts' sifts are split into rounds of `sifts_per_round()` each, so that no
 // dispatch loops past `capture.loop_budget` (src/shadow/deep_capture.rs mirrors the arithmetic);
 // a texel whose sort is done returns at once.
@@ -232,25 +196,28 @@ fn band_list(id: vec3<u32>) -> TexelList {
     return texel_list(index);
 }
 
+// The heap build: this round's starts, each sifted down.
 @compute @workgroup_size(8, 8)
-fn sort_segments_build(@builtin(global_invocation_id) id: vec3<u32>) {
+fn heap_build(@builtin(global_invocation_id) id: vec3<u32>) {
     let list = band_list(id);
+    let base = heap_base(list);
     let r = build_range(list.count);
     for (var start = r.x; start > r.y; start--) {
-        sift_segment(list.first, start - 1u, list.count);
+        sift(base, start - 1u, list.count);
     }
 }
 
+// The extraction: this round's ends, each taking the heap's largest before the heap shrinks.
 @compute @workgroup_size(8, 8)
-fn sort_segments_extract(@builtin(global_invocation_id) id: vec3<u32>) {
+fn heap_extract(@builtin(global_invocation_id) id: vec3<u32>) {
     let list = band_list(id);
-    let base = list.first;
+    let base = heap_base(list);
     let r = extract_range(list.count);
     for (var end = r.x; end > r.y; end--) {
-        let top = segments[base];
-        segments[base] = segments[base + end - 1u];
-        segments[base + end - 1u] = top;
-        sift_segment(base, 0u, end - 1u);
+        let top = heap_key(base);
+        set_heap_key(base, heap_key(base + end - 1u));
+        set_heap_key(base + end - 1u, top);
+        sift(base, 0u, end - 1u);
     }
 }
 
@@ -262,28 +229,6 @@ fn copy_ends(@builtin(global_invocation_id) id: vec3<u32>) {
     for (var i = 0u; i < list.count; i++) {
         let s = segments[list.first + i];
         nodes[ends + i] = vec2<f32>(s.z1, segment_slope(s));
-    }
-}
-
-@compute @workgroup_size(8, 8)
-fn sort_ends_build(@builtin(global_invocation_id) id: vec3<u32>) {
-    let list = band_list(id);
-    let r = build_range(list.count);
-    for (var start = r.x; start > r.y; start--) {
-        sift_end(2u * list.first + list.count, start - 1u, list.count);
-    }
-}
-
-@compute @workgroup_size(8, 8)
-fn sort_ends_extract(@builtin(global_invocation_id) id: vec3<u32>) {
-    let list = band_list(id);
-    let base = 2u * list.first + list.count;
-    let r = extract_range(list.count);
-    for (var end = r.x; end > r.y; end--) {
-        let top = nodes[base];
-        nodes[base] = nodes[base + end - 1u];
-        nodes[base + end - 1u] = top;
-        sift_end(base, 0u, end - 1u);
     }
 }
 

@@ -1,12 +1,13 @@
 // `exact` build: the particles binned into light-space tiles.
 // 1. count: each particle adds 1 to every tile its light-space footprint covers (atomics), and
 //    the largest footprint's width and height in tiles go after the counts (atomic max).
-// 2. scan_rows, scan_total, scan_write: exclusive prefix sum of the counts -> list offsets
-//    (offsets[tiles²] = total).
+// 2. scan_rows, scan_total, scan_write (shaders/shadow/grid_scan.wgsl): exclusive prefix sum of
+//    the counts -> list offsets (offsets[tiles²] = total).
 // 3. fill: each particle writes its index into the lists of its tiles (the counts, cleared,
 //    serve as cursors). The order within a list is the order the atomics ran in: the lookup's
 //    fixed-point sum does not depend on it.
 // Keep `ExactParams` in sync with src/shadow/exact.rs and exact.wgsl.
+#import shadow/grid_scan.wgsl
 
 struct ExactParams {
     view_from_world: mat4x4<f32>,
@@ -105,45 +106,9 @@ fn count(@builtin(global_invocation_id) id: vec3<u32>) {
     }
 }
 
-// The exclusive scan in three steps: each row's sum, the scan of the row sums (one invocation:
-// there are at most 512 rows), each row's offsets.
-@compute @workgroup_size(64)
-fn scan_rows(@builtin(global_invocation_id) id: vec3<u32>) {
-    let row = id.x;
-    if row >= exact.tiles {
-        return;
-    }
-    var sum = 0u;
-    for (var x = 0u; x < exact.tiles; x++) {
-        sum += atomicLoad(&counts[row * exact.tiles + x]);
-    }
-    row_sums[row] = sum;
-}
-
-@compute @workgroup_size(1)
-fn scan_total() {
-    var running = 0u;
-    for (var row = 0u; row < exact.tiles; row++) {
-        let sum = row_sums[row];
-        row_sums[row] = running;
-        running += sum;
-    }
-    row_sums[exact.tiles] = running;
-    offsets[exact.tiles * exact.tiles] = running;
-}
-
-@compute @workgroup_size(64)
-fn scan_write(@builtin(global_invocation_id) id: vec3<u32>) {
-    let row = id.x;
-    if row >= exact.tiles {
-        return;
-    }
-    var running = row_sums[row];
-    for (var x = 0u; x < exact.tiles; x++) {
-        let index = row * exact.tiles + x;
-        offsets[index] = running;
-        running += atomicLoad(&counts[index]);
-    }
+// The scan's grid is the tiles (shaders/shadow/grid_scan.wgsl).
+fn scan_side() -> u32 {
+    return exact.tiles;
 }
 
 @compute @workgroup_size(64)

@@ -175,13 +175,15 @@ enum ResolvePhase {
     Single,
 }
 
-const RESOLVE_PHASES: [(&str, ResolvePhase); 6] = [
-    ("sort_segments_build", ResolvePhase::Heap(true)),
-    ("sort_segments_extract", ResolvePhase::Heap(false)),
-    ("copy_ends", ResolvePhase::Single),
-    ("sort_ends_build", ResolvePhase::Heap(true)),
-    ("sort_ends_extract", ResolvePhase::Heap(false)),
-    ("merge_nodes", ResolvePhase::Single),
+/// The resolve's phases in order: entry point, kind, and whether the heap passes sort the ends
+/// (the shader's `SORT_ENDS`) rather than the segments.
+const RESOLVE_PHASES: [(&str, ResolvePhase, bool); 6] = [
+    ("heap_build", ResolvePhase::Heap(true), false),
+    ("heap_extract", ResolvePhase::Heap(false), false),
+    ("copy_ends", ResolvePhase::Single, false),
+    ("heap_build", ResolvePhase::Heap(true), true),
+    ("heap_extract", ResolvePhase::Heap(false), true),
+    ("merge_nodes", ResolvePhase::Single, false),
 ];
 
 /// Bytes between round indices in the round uniform: WebGPU's largest uniform offset alignment,
@@ -414,20 +416,30 @@ impl DeepCapture {
             ],
             immediate_size: 0,
         });
-        let pipeline = |entry: &str, layout: &wgpu::PipelineLayout| {
+        let pipeline = |entry: &str, layout: &wgpu::PipelineLayout, constants: &[(&str, f64)]| {
             device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                 label: Some(&label(entry)),
                 layout: Some(layout),
                 module: &module,
                 entry_point: Some(entry),
-                compilation_options: Default::default(),
+                compilation_options: wgpu::PipelineCompilationOptions {
+                    constants,
+                    ..Default::default()
+                },
                 cache: None,
             })
         };
-        let compute = |entry: &str| pipeline(entry, &compute_layout);
+        let compute = |entry: &str| pipeline(entry, &compute_layout, &[]);
         let resolve = RESOLVE_PHASES
             .iter()
-            .map(|&(entry, phase)| (phase, pipeline(entry, &round_layout)))
+            .map(|&(entry, phase, sort_ends)| {
+                let constants: &[(&str, f64)] = if sort_ends {
+                    &[("SORT_ENDS", 1.0)]
+                } else {
+                    &[]
+                };
+                (phase, pipeline(entry, &round_layout, constants))
+            })
             .collect();
         let lists = Lists::new(
             device,
