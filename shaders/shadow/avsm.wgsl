@@ -9,10 +9,5 @@ fn shadow_transmittance(p: vec3<f32>) -> f32 {
     if !l.inside {
         return 1.0;
     }
-    var taps = bilinear_taps(l.uv, vec2<i32>(i32(deep.resolution)));
-    var t = 0.0;
-    for (var i = 0; i < 4; i++) {
-        t += taps.weights[i] * deep_texel_value(taps.texels[i], l.dist_m, 1.0);
-    }
-    return clamp(t, 0.0, 1.0);
+    return clamp(deep_blended_value(l, 1.0), 0.0, 1.0);
 }

@@ -1,6 +1,7 @@
 // Lookup side of a compressed deep shadow map (`dsm`, `avsm`): group 1 holds the parameters and
 // the nodes; `deep_texel_value` evaluates one texel's piecewise-linear function at a light
-// depth. Each technique's lookup blends four texels' values bilinearly (`bilinear_taps`).
+// depth; `deep_blended_value` blends the four texels around a point bilinearly (`bilinear_taps`),
+// each evaluated on its own, which is what each technique's lookup returns T from.
 #import common/lighting.wgsl
 #import shadow/deep_params.wgsl
 
@@ -33,4 +34,15 @@ fn deep_texel_value(texel: vec2<i32>, z: f32, before: f32) -> f32 {
     let a = deep_nodes[first + lo];
     let b = deep_nodes[first + hi];
     return mix(a.y, b.y, clamp((z - a.x) / max(b.x - a.x, 1e-12), 0.0, 1.0));
+}
+
+// The four texels around `l` (a point inside the map), each evaluated at l's depth, blended
+// bilinearly.
+fn deep_blended_value(l: LightCoords, before: f32) -> f32 {
+    var taps = bilinear_taps(l.uv, vec2<i32>(i32(deep.resolution)));
+    var value = 0.0;
+    for (var i = 0; i < 4; i++) {
+        value += taps.weights[i] * deep_texel_value(taps.texels[i], l.dist_m, before);
+    }
+    return value;
 }

@@ -10,10 +10,5 @@ fn shadow_transmittance(p: vec3<f32>) -> f32 {
     if !l.inside {
         return 1.0;
     }
-    var taps = bilinear_taps(l.uv, vec2<i32>(i32(deep.resolution)));
-    var omega = 0.0;
-    for (var i = 0; i < 4; i++) {
-        omega += taps.weights[i] * deep_texel_value(taps.texels[i], l.dist_m, 0.0);
-    }
-    return exp(-omega);
+    return exp(-deep_blended_value(l, 0.0));
 }
