@@ -126,6 +126,10 @@ pub const OPTIONAL_FEATURES: wgpu::Features = wgpu::Features::TIMESTAMP_QUERY
     .union(wgpu::Features::FLOAT32_BLENDABLE)
     .union(wgpu::Features::FLOAT32_FILTERABLE);
 
+/// llvmpipe's loop limit, 65,535, less a margin for the short loops around the ones a shader
+/// budgets ([`Gpu::loop_budget`]).
+pub const LLVMPIPE_LOOP_BUDGET: u32 = 60_000;
+
 /// Minimum colour attachments: 8 RGBA targets carry a 32-channel budget.
 pub const REQUIRED_COLOR_ATTACHMENTS: u32 = 8;
 /// Minimum bytes per sample: 8 RGBA16F targets.
@@ -188,6 +192,17 @@ impl Gpu {
             queue,
             info,
         }
+    }
+
+    /// The loop iterations one shader invocation group may run per dispatch or draw, where the
+    /// adapter bounds them: llvmpipe ends every loop after 65,535 iterations, all of a shader's
+    /// loops together, silently (the loop just exits). [`LLVMPIPE_LOOP_BUDGET`] there; `None`
+    /// elsewhere.
+    pub fn loop_budget(&self) -> Option<u32> {
+        self.info
+            .name
+            .contains("llvmpipe")
+            .then_some(LLVMPIPE_LOOP_BUDGET)
     }
 
     /// Whether GPU pass times can be measured on this adapter.

@@ -25,7 +25,7 @@
 //! half sorted or half compressed). The resolve and the compressions are one invocation per
 //! texel looping over its list, so they run in **rounds**: dispatches of one pass, each bound
 //! to its round index ([`Rounds`], a uniform at a dynamic offset) and doing a slice of the work
-//! sized so that it loops at most `loop_budget` times ([`LLVMPIPE_LOOP_BUDGET`] on llvmpipe,
+//! sized so that it loops at most `loop_budget` times ([`Gpu::loop_budget`]: 60,000 on llvmpipe,
 //! unbounded elsewhere, where every pass is one round). The resolve's heapsorts run
 //! [`sifts_per_round`] sifts a round; a compression says how many rounds it needs
 //! ([`super::deep_nodes::DeepNodesSpec::rounds`]). The single-pass steps (copying the ends,
@@ -78,10 +78,8 @@ pub fn layouts() -> Vec<crate::gpu::MirrorLayout> {
 /// nodes (2 per segment, (z, Ω) each).
 pub const SEGMENT_BYTES: u64 = 12;
 pub const NODE_BYTES_PER_SEGMENT: u64 = 16;
-/// Loop iterations one invocation group may run per dispatch on llvmpipe: its limit, 65,535,
-/// less a margin for the few short loops around the budgeted ones.
-pub const LLVMPIPE_LOOP_BUDGET: u32 = 60_000;
-/// Elsewhere: no limit worth splitting for.
+/// The loop budget where the adapter sets none ([`Gpu::loop_budget`]): no limit worth splitting
+/// for.
 const UNBOUNDED_LOOP_BUDGET: u32 = 1 << 30;
 /// Most rounds one pass may take (the round uniform holds this many indices).
 const MAX_ROUNDS: u32 = 256;
@@ -292,6 +290,19 @@ impl Band {
     }
 }
 
+/// The exclusive prefix sums of the rows' totals of a `side`² grid of counts, then the total
+/// (side + 1 entries): what the scan leaves in the row sums.
+fn row_offsets(counts: &[u32], side: usize) -> Vec<u32> {
+    let mut out = Vec::with_capacity(side + 1);
+    let mut running = 0u32;
+    out.push(running);
+    for row in counts.chunks_exact(side.max(1)).take(side) {
+        running = row.iter().fold(running, |sum, &c| sum.wrapping_add(c));
+        out.push(running);
+    }
+    out
+}
+
 /// Splits rows into bands of at most `max_segments` segments, given `row_offsets`, the exclusive
 /// prefix sums of the rows' segment counts followed by the total (rows + 1 entries). Err(row,
 /// its segments) names a row that alone exceeds `max_segments`.
@@ -469,11 +480,7 @@ impl DeepCapture {
             last_segment_count: 0,
             last_band_count: 0,
             last_max_list: 0,
-            loop_budget: if gpu.info.name.contains("llvmpipe") {
-                LLVMPIPE_LOOP_BUDGET
-            } else {
-                UNBOUNDED_LOOP_BUDGET
-            },
+            loop_budget: gpu.loop_budget().unwrap_or(UNBOUNDED_LOOP_BUDGET),
         };
         Ok(capture)
     }
@@ -592,19 +599,16 @@ impl DeepCapture {
             pass.dispatch_workgroups(groups, 1, 1);
         }
         gpu.queue.submit([count_encoder.finish()]);
-        let rows = u64::from(self.resolution);
-        let row_offsets: Vec<u32> = read_buffer(gpu, &self.row_sums, 0, (rows + 1) * 4)
+        // One readback: the counts give the longest list and, summed per row, the rows'
+        // offsets (the same u32 sums the scan wrote on the GPU).
+        let texels = u64::from(self.resolution).pow(2);
+        let counts: Vec<u32> = read_buffer(gpu, &self.counts, 0, texels * 4)
             .map_err(|err| ShadowError::Gpu(err.to_string()))?
             .chunks_exact(4)
             .map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]))
             .collect();
-        let texels = u64::from(self.resolution).pow(2);
-        self.last_max_list = read_buffer(gpu, &self.counts, 0, texels * 4)
-            .map_err(|err| ShadowError::Gpu(err.to_string()))?
-            .chunks_exact(4)
-            .map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]))
-            .max()
-            .unwrap_or(0);
+        self.last_max_list = counts.iter().copied().max().unwrap_or(0);
+        let row_offsets = row_offsets(&counts, self.resolution as usize);
         // The single-pass steps loop 2n times (and a round must make progress).
         let longest_allowed = self.loop_budget / 2 - 2;
         if self.last_max_list > longest_allowed {
@@ -864,6 +868,12 @@ mod tests {
             }
         }
         assert_eq!(plan_bands(&row_offsets, 100).unwrap().len(), 1);
+    }
+
+    #[test]
+    fn row_offsets_sum_each_row_of_the_grid() {
+        let grid = [1, 2, 0, 0, 0, 0, 5, 0, 3];
+        assert_eq!(row_offsets(&grid, 3), vec![0, 3, 3, 11]);
     }
 
     #[test]

@@ -20,9 +20,9 @@
 //! the early exit skip spheres in front of the point.)
 //!
 //! **The loop limit.** The same limit bounds the walk: the particle lighting pass does four
-//! lookups per invocation, so on llvmpipe the longest list must stay under
-//! [`LLVMPIPE_MAX_LIST`] entries. The build reads the per-tile counts back, and a frame whose
-//! longest list is beyond it is refused ([`ShadowError::TileListTooLong`]) rather than summed
+//! lookups per invocation, so on llvmpipe the longest list must stay under a quarter of its
+//! loop budget ([`Gpu::loop_budget`]), 15,000 entries. The build reads the per-tile counts back,
+//! and a frame whose longest list is beyond it is refused ([`ShadowError::TileListTooLong`]) rather than summed
 //! short. The counter `max_tile_list` reports it on every adapter. The count and the fill loop
 //! over each particle's footprint, so on llvmpipe the grid is also halved while the largest
 //! footprint would take more than 60,000 iterations (a particle beside the light covers the
@@ -126,14 +126,9 @@ pub fn layouts() -> Vec<crate::gpu::MirrorLayout> {
 
 /// Bytes per list entry: the particle's index.
 const ENTRY_BYTES: u64 = 4;
-/// The longest tile list a frame may have on llvmpipe: its loop limit (65,535 iterations per
-/// invocation group, every loop of the shader together) over the four lookups of the particle
-/// lighting pass, with room for the loops around them.
-pub const LLVMPIPE_MAX_LIST: u32 = 15_000;
-/// The most loop iterations the count's and fill's walk over one footprint may take on llvmpipe
-/// (its tile rows × (tiles per row + 1)); a grid where some particle's footprint needs more is
-/// halved (8² tiles need at most 72).
-const LLVMPIPE_FOOTPRINT_LOOPS: u32 = 60_000;
+/// Lookups one particle-lighting invocation makes: on an adapter with a loop budget
+/// ([`Gpu::loop_budget`]) the longest tile list may be a quarter of it (15,000 on llvmpipe).
+const LOOKUPS_PER_INVOCATION: u32 = 4;
 /// Bytes per sphere (one `ParticleInstance`).
 const SPHERE_BYTES: u64 = std::mem::size_of::<crate::frame::gpu_data::ParticleInstance>() as u64;
 /// Bounds on the tiles per side (the scan of the row sums is one invocation over the rows).
@@ -173,8 +168,8 @@ pub struct Exact {
     sphere_capacity: u32,
     /// The longest tile list last frame.
     max_list: u32,
-    /// Whether the adapter is llvmpipe, whose loop limit bounds the lists.
-    loop_limited: bool,
+    /// The adapter's loop budget, which bounds the lists and the footprints.
+    loop_budget: Option<u32>,
     build_layout: wgpu::BindGroupLayout,
     count: wgpu::ComputePipeline,
     scan_rows: wgpu::ComputePipeline,
@@ -303,7 +298,7 @@ impl Exact {
             spheres,
             sphere_capacity,
             max_list: 0,
-            loop_limited: ctx.gpu.info.name.contains("llvmpipe"),
+            loop_budget: ctx.gpu.loop_budget(),
             build_layout,
             lookup_layout,
             lookup_bind_group,
@@ -500,8 +495,11 @@ impl ShadowTechnique for Exact {
             let (total, max_list, footprint_loops) =
                 self.count_entries(gpu, &mut inputs, &bind_group)?;
             // On llvmpipe a footprint of more tiles than a loop may visit would be binned short.
-            let loops_fit =
-                !self.loop_limited || footprint_loops <= u64::from(LLVMPIPE_FOOTPRINT_LOOPS);
+            // The walk over one footprint loops its tile rows × (tiles per row + 1) times; a
+            // grid too fine for the budget is halved (8² tiles need at most 72).
+            let loops_fit = self
+                .loop_budget
+                .is_none_or(|budget| footprint_loops <= u64::from(budget));
             if fits(total) && (loops_fit || tiles == MIN_TILES) {
                 self.max_list = max_list;
                 break total;
@@ -515,13 +513,16 @@ impl ShadowTechnique for Exact {
             }
             tiles = (tiles / 2).max(MIN_TILES);
         };
-        if self.loop_limited && self.max_list > LLVMPIPE_MAX_LIST {
-            return Err(ShadowError::TileListTooLong {
-                particles: inputs.particle_count,
-                tiles: self.grid.tiles,
-                longest: self.max_list,
-                limit: LLVMPIPE_MAX_LIST,
-            });
+        if let Some(budget) = self.loop_budget {
+            let limit = budget / LOOKUPS_PER_INVOCATION;
+            if self.max_list > limit {
+                return Err(ShadowError::TileListTooLong {
+                    particles: inputs.particle_count,
+                    tiles: self.grid.tiles,
+                    longest: self.max_list,
+                    limit,
+                });
+            }
         }
         if total > u64::from(self.capacity) {
             // Headroom so that a slowly changing scene does not reallocate every frame.
