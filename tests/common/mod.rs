@@ -4,9 +4,14 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
+pub mod sphere;
+
+use glam::Vec3;
 use smokeshadow::gpu::{AdapterPreference, Gpu};
-use smokeshadow::render::TechniqueConfig;
+use smokeshadow::render::{OUTPUT_FORMAT, Renderer, TechniqueConfig};
+use smokeshadow::scene::Scene;
 use smokeshadow::shadow::{SplatMode, TechniqueParams};
+use smokeshadow::sim::Particle;
 
 /// The CPU adapter (lavapipe), so results do not depend on which GPU is present. Fails loudly
 /// when there is none: GPU tests never skip.
@@ -19,6 +24,31 @@ pub fn gpu() -> Gpu {
             "GPU tests need an adapter ({preference}); install lavapipe (mesa-vulkan-drivers): {e}"
         )
     })
+}
+
+/// T at `points` for each configuration, in order (one renderer, switching techniques).
+pub fn probe_all(
+    gpu: &Gpu,
+    scene: &Scene,
+    particles: &[Particle],
+    configs: &[TechniqueConfig],
+    points: &[Vec3],
+) -> Vec<Vec<f32>> {
+    let mut renderer = Renderer::new(
+        gpu,
+        scene.output.width_px,
+        scene.output.height_px,
+        OUTPUT_FORMAT,
+        &configs[0],
+    )
+    .unwrap();
+    configs
+        .iter()
+        .map(|c| {
+            renderer.set_technique(gpu, c).unwrap();
+            renderer.probe(gpu, scene, particles, points).unwrap()
+        })
+        .collect()
 }
 
 pub fn technique(
