@@ -25,15 +25,7 @@ fn shadow_transmittance(p: vec3<f32>) -> f32 {
     if !l.inside {
         return 1.0;
     }
-    var c: array<f32, 32>;
-    let targets = (layered.packed + 3u) / 4u;
-    for (var t = 0u; t < targets; t++) {
-        let v = layered_target(t, l.uv);
-        c[4u * t] = v.x;
-        c[4u * t + 1u] = v.y;
-        c[4u * t + 2u] = v.z;
-        c[4u * t + 3u] = v.w;
-    }
+    var c = layered_channels(l.uv);
     let d = clamp(l.depth01, 0.0, 1.0);
     let n = layered.count;
     var omega = 0.5 * c[0] * d;

@@ -4,6 +4,7 @@
 // 2n + 1 in the last target get 0.
 #import shadow/layered_build.wgsl
 #import shadow/fom.wgsl
+#import shadow/channels_build.wgsl
 
 // Every coefficient this fragment adds, in packed-channel order (a0, a1..an, b1..bn), with the
 // sines and cosines of the harmonics by rotation (`rotate` in fom.wgsl).
@@ -38,12 +39,6 @@ fn prepare_values(splat: Splat, pixel: vec2<f32>) -> array<f32, 32> {
         cs1 = rotate(cs1, turn1);
     }
     return c;
-}
-
-fn target_values(prepared: array<f32, 32>, index: u32) -> vec4<f32> {
-    var c = prepared;
-    let i = index * 4u;
-    return vec4<f32>(c[i], c[i + 1u], c[i + 2u], c[i + 3u]);
 }
 
 //{{BUILD_OUTPUTS}}

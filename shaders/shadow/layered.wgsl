@@ -21,6 +21,13 @@ struct LayeredParams {
     // Full 4-channel targets in `layered_full`; target `full_targets` is `layered_rest`.
     full_targets: u32,
     _pad0: u32,
+    // msm, tmsm: β, the pull of the moments towards the uniform distribution's.
+    moment_bias: f32,
+    // msm, tmsm: η, the share of the weight at the receiver's depth counted in front of it.
+    moment_overestimation: f32,
+    // tmsm: θ, the wrapping zone between the far and the near end of the depth range, radians.
+    wrapping_zone_rad: f32,
+    _pad1: u32,
 };
 
 @group(1) @binding(0) var<uniform> layered: LayeredParams;
@@ -42,6 +49,20 @@ fn layered_target(index: u32, uv: vec2<f32>) -> vec4<f32> {
         return textureSampleLevel(layered_full, layered_sampler, uv, index, 0.0);
     }
     return textureSampleLevel(layered_rest, layered_sampler, uv, 0.0);
+}
+
+// Every packed channel, bilinearly filtered (channels beyond `packed` in the last target are 0).
+fn layered_channels(uv: vec2<f32>) -> array<f32, 32> {
+    var c: array<f32, 32>;
+    let targets = (layered.packed + 3u) / 4u;
+    for (var t = 0u; t < targets; t++) {
+        let v = layered_target(t, uv);
+        c[4u * t] = v.x;
+        c[4u * t + 1u] = v.y;
+        c[4u * t + 2u] = v.z;
+        c[4u * t + 3u] = v.w;
+    }
+    return c;
 }
 
 // Bilinearly filtered packed channel `channel`.

@@ -10,7 +10,7 @@
 //! The start depth is each ray's entry into the first particle sphere, in both splat modes.
 //! Shaders: `shaders/shadow/dom.wgsl` and `dom_build.wgsl`.
 
-use super::layered::{ChannelPlan, Layered, LayeredSpec, Precision};
+use super::layered::{ChannelPlan, Layered, LayeredSpec, PARAMS_BYTES, Precision};
 use super::{MapKind, MemoryUse, ParamSpec, Role, TechniqueEntry, packed_bytes_per_texel};
 
 /// `dom_thickness_m`: the depth range the layers cover.
@@ -48,6 +48,7 @@ pub const SPEC: LayeredSpec = LayeredSpec {
     layer_thickness: Some(&THICKNESS),
     layer_ratio: Some(&LAYER_RATIO),
     sigma: false,
+    moments: None,
     precision: Precision::Half,
     channel_name: |c, plan| {
         format!(
@@ -72,10 +73,11 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     order_independent: true,
     converges_with_budget: true,
     compresses_captured_lists: false,
-    // One R16F start-depth channel, B - 1 half-float layers and a 32-byte uniform.
+    // One R16F start-depth channel, B - 1 half-float layers and the parameter uniform.
     memory: |c| MemoryUse {
         channels: c.channels.into(),
-        bytes: c.texels() * (packed_bytes_per_texel(u64::from(c.channels) - 1, 2) + 2) + 32,
+        bytes: c.texels() * (packed_bytes_per_texel(u64::from(c.channels) - 1, 2) + 2)
+            + PARAMS_BYTES,
         transient_bytes: 0,
     },
     lookup_shader: "shadow/dom.wgsl",

@@ -10,15 +10,15 @@
 //! terms of both signs that largely cancel, and in half floats the rounding of the partial sums
 //! made T depend on the order the particles were drawn in by up to 0.2. Shaders: `shaders/shadow/fom.wgsl`, `fom_build.wgsl`.
 
-use super::layered::{ChannelPlan, Layered, LayeredSpec, Precision};
+use super::layered::{ChannelPlan, Layered, LayeredSpec, PARAMS_BYTES, Precision};
 use super::{MapKind, MemoryCase, MemoryUse, Role, TechniqueEntry, packed_bytes_per_texel};
 
-/// 2n + 1 coefficients in 32-bit floats and a 32-byte uniform.
+/// 2n + 1 coefficients in 32-bit floats and the parameter uniform.
 fn coefficient_memory(c: &MemoryCase<'_>) -> MemoryUse {
     let used = u64::from(plan(c.channels).used);
     MemoryUse {
         channels: used,
-        bytes: c.texels() * packed_bytes_per_texel(used, 4) + 32,
+        bytes: c.texels() * packed_bytes_per_texel(used, 4) + PARAMS_BYTES,
         transient_bytes: 0,
     }
 }
@@ -47,6 +47,7 @@ pub const FOM: LayeredSpec = LayeredSpec {
     layer_thickness: None,
     layer_ratio: None,
     sigma: false,
+    moments: None,
     precision: Precision::Float,
     channel_name: |c, plan| match c {
         0 => "a0 (twice the total optical depth)".to_owned(),

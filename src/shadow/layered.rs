@@ -56,12 +56,25 @@ pub struct LayeredSpec {
     pub layer_ratio: Option<&'static ParamSpec>,
     /// Whether the lookup damps harmonics with Lanczos σ-factors (`fom_sigma`).
     pub sigma: bool,
+    /// The parameters of a moment reconstruction (`msm`, `tmsm`), if the maps hold moments.
+    pub moments: Option<MomentParams>,
     /// Storage precision of the packed channels.
     pub precision: Precision,
     /// What packed channel `c` holds under `plan`, for inspection.
     pub channel_name: fn(u32, &ChannelPlan) -> String,
     /// How the packed channels' values read.
     pub map_kind: MapKind,
+}
+
+/// The parameters a moment-based lookup reads (see [`super::moment_math`]).
+#[derive(Clone, Copy, Debug)]
+pub struct MomentParams {
+    /// β, the pull towards the uniform distribution's moments.
+    pub bias: &'static ParamSpec,
+    /// η, the share of the weight at the receiver's depth counted in front of it.
+    pub overestimation: &'static ParamSpec,
+    /// θ, the wrapping zone of trigonometric moments.
+    pub wrapping_zone: Option<&'static ParamSpec>,
 }
 
 impl LayeredSpec {
@@ -78,6 +91,9 @@ impl LayeredSpec {
     }
 }
 
+/// Bytes of the parameter uniform every layered technique allocates (its memory formulas add it).
+pub const PARAMS_BYTES: u64 = std::mem::size_of::<LayeredParams>() as u64;
+
 /// Keep in sync with `LayeredParams` in shaders/shadow/layered.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
@@ -90,6 +106,10 @@ struct LayeredParams {
     dom_ratio: f32,
     full_targets: u32,
     _pad: u32,
+    moment_bias: f32,
+    moment_overestimation: f32,
+    wrapping_zone_rad: f32,
+    _pad1: u32,
 }
 
 /// The WGSL structs mirrored here.
@@ -105,7 +125,10 @@ pub fn layouts() -> Vec<crate::gpu::MirrorLayout> {
             sigma,
             dom_thickness_m,
             dom_ratio,
-            full_targets
+            full_targets,
+            moment_bias,
+            moment_overestimation,
+            wrapping_zone_rad
         ]
     )]
 }
@@ -582,7 +605,7 @@ impl Layered {
             device,
             &wgpu::BufferDescriptor {
                 label: Some(&format!("{name}.params")),
-                size: std::mem::size_of::<LayeredParams>() as u64,
+                size: PARAMS_BYTES,
                 usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             },
@@ -751,7 +774,21 @@ impl Layered {
                 .unwrap_or(1.0),
             full_targets: self.full_targets,
             _pad: 0,
+            moment_bias: self.moment_param(|m| Some(m.bias)),
+            moment_overestimation: self.moment_param(|m| Some(m.overestimation)),
+            wrapping_zone_rad: self.moment_param(|m| m.wrapping_zone),
+            _pad1: 0,
         }
+    }
+
+    /// The value of one of the spec's moment parameters (0 where it has none).
+    fn moment_param(&self, which: impl Fn(&MomentParams) -> Option<&'static ParamSpec>) -> f32 {
+        self.spec
+            .moments
+            .as_ref()
+            .and_then(which)
+            .and_then(|p| self.params.get(p))
+            .unwrap_or(0.0)
     }
 }
 

@@ -30,6 +30,8 @@ pub mod half_angle;
 pub mod layered;
 pub mod light_maps;
 pub mod light_space;
+pub mod moment_math;
+pub mod msm;
 pub mod none;
 pub mod osm;
 pub mod probe;
@@ -407,6 +409,8 @@ pub static REGISTRY: &[TechniqueEntry] = &[
     half_angle::ENTRY,
     esm::ENTRY,
     bsm::ENTRY,
+    msm::ENTRY,
+    msm::TRIG_ENTRY,
     dsm::ENTRY,
     avsm::ENTRY,
     exact::ENTRY,

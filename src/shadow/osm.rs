@@ -7,7 +7,7 @@
 //! boundaries around the point and returns T = exp(-Ω). Shaders: `shaders/shadow/osm.wgsl`
 //! (lookup) and `osm_build.wgsl`; the packing and passes are shared in [`super::layered`].
 
-use super::layered::{ChannelPlan, Layered, LayeredSpec, Precision};
+use super::layered::{ChannelPlan, Layered, LayeredSpec, PARAMS_BYTES, Precision};
 use super::{MapKind, MemoryUse, Role, TechniqueEntry, packed_bytes_per_texel};
 
 pub const SPEC: LayeredSpec = LayeredSpec {
@@ -22,6 +22,7 @@ pub const SPEC: LayeredSpec = LayeredSpec {
     layer_thickness: None,
     layer_ratio: None,
     sigma: false,
+    moments: None,
     precision: Precision::Half,
     channel_name: |c, plan| {
         format!(
@@ -46,10 +47,10 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     order_independent: true,
     converges_with_budget: true,
     compresses_captured_lists: false,
-    // B half-float slices and a 32-byte uniform.
+    // B half-float slices and the parameter uniform.
     memory: |c| MemoryUse {
         channels: c.channels.into(),
-        bytes: c.texels() * packed_bytes_per_texel(c.channels.into(), 2) + 32,
+        bytes: c.texels() * packed_bytes_per_texel(c.channels.into(), 2) + PARAMS_BYTES,
         transient_bytes: 0,
     },
     lookup_shader: "shadow/osm.wgsl",

@@ -1,0 +1,23 @@
+// `tmsm` lookup: b0 and M trigonometric moments b0·E[e^{ikφ}] of the depth's angle
+// φ = d(2π − θ) (channels 0, then the real and imaginary part of each); the optical depth in
+// front of the point is bounded by the Toeplitz moment problem (moments.wgsl),
+// T = clamp(exp(−b0·A), 0, 1).
+#import shadow/layered.wgsl
+#import shadow/moments.wgsl
+
+fn tmsm_setting() -> MomentSetting {
+    return MomentSetting(layered.count, true, layered.moment_bias, layered.moment_overestimation, layered.wrapping_zone_rad);
+}
+
+fn shadow_transmittance(p: vec3<f32>) -> f32 {
+    let l = light_coords(p);
+    if !l.inside {
+        return 1.0;
+    }
+    var c = layered_channels(l.uv);
+    var weighted: array<vec2<f32>, 9>;
+    for (var k = 1u; k <= layered.count; k++) {
+        weighted[k] = vec2<f32>(c[2u * k - 1u], c[2u * k]);
+    }
+    return moment_transmittance(tmsm_setting(), c[0], weighted, l.depth01);
+}
