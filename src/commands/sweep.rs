@@ -35,6 +35,10 @@ pub struct SweepArgs {
     /// Untimed warm-up frames before them (the first frames compile shaders).
     #[arg(long, default_value_t = 3)]
     pub warmup: u32,
+    /// Stop timing a cell after this many seconds of timed frames (but after at least 3), so
+    /// slow techniques do not hold the sweep; `frames_timed` says how many it took.
+    #[arg(long, default_value_t = 2.0, value_parser = positive_seconds)]
+    pub cell_seconds: f64,
     /// Output size as WIDTHxHEIGHT (default: the scene's).
     #[arg(long)]
     pub size: Option<super::Size>,
@@ -59,6 +63,7 @@ pub fn run(args: &SweepArgs, adapter: &AdapterPreference) -> anyhow::Result<()> 
         splats: args.splat.clone(),
         frames: args.frames,
         warmup: args.warmup,
+        cell_seconds: args.cell_seconds,
         resume: args.resume,
     };
     let gpu = Gpu::new(adapter)?;
@@ -109,4 +114,12 @@ pub fn run(args: &SweepArgs, adapter: &AdapterPreference) -> anyhow::Result<()> 
         );
     }
     Ok(())
+}
+
+/// Parses `--cell-seconds`: a positive, finite number of seconds.
+fn positive_seconds(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        _ => Err(format!("\"{s}\" is not a positive number of seconds")),
+    }
 }

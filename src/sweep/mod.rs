@@ -74,8 +74,15 @@ pub struct CellResult {
     pub frame_ms: Timing,
     /// Per frame: wall-clock time of the render call until its GPU work finished.
     pub wall_ms: Timing,
+    /// Frames the medians are over (fewer than asked when the cell ran out of its seconds).
+    #[serde(default)]
+    pub frames_timed: u32,
     /// `frame_ms.median` / the `none` cell's `frame_ms.median` from the same run.
     pub overhead_ratio: Option<f64>,
+    /// `gpu_shadow_ms.median` / the `none` cell's `frame_ms.median` from the same run: the
+    /// build's share of an unshadowed frame.
+    #[serde(default)]
+    pub shadow_ratio: Option<f64>,
     /// Against the same technique at 24 channels (same resolution and splat); `None` for `none`.
     pub vs_own_24: Option<ImageError>,
     /// Against the `exact` reference image; `None` for `none`.

@@ -27,6 +27,10 @@ pub struct SweepOptions {
     /// Timed frames per cell (medians over these) and untimed warm-up frames before them.
     pub frames: u32,
     pub warmup: u32,
+    /// Seconds of timed frames after which a cell stops early (after at least
+    /// [`MIN_TIMED_FRAMES`]), so a slow technique does not hold the sweep: its medians are over
+    /// fewer frames, and the cell says how many (`frames_timed`).
+    pub cell_seconds: f64,
     /// Reuse cells already finished with identical settings.
     pub resume: bool,
 }
@@ -40,10 +44,15 @@ impl Default for SweepOptions {
             splats: vec![SplatMode::Point],
             frames: 20,
             warmup: 3,
+            cell_seconds: 2.0,
             resume: false,
         }
     }
 }
+
+/// Timed frames a cell takes at least, whatever `cell_seconds` says (fewer only when
+/// `frames` asks for fewer).
+pub const MIN_TIMED_FRAMES: u32 = 3;
 
 /// The budget every cell's "own baseline" uses (the thesis' baselines).
 const BASELINE_CHANNELS: u32 = 24;
@@ -175,13 +184,14 @@ fn first_budget(entry: &shadow::TechniqueEntry, budgets: &[u32]) -> Option<u32> 
 /// What a cell's measurement depends on, as a string (`--resume` reuses a cell only when equal).
 fn settings_key(scene: &Scene, options: &SweepOptions, plan: &Plan) -> String {
     format!(
-        "tool={} scene={} size={}x{} frames={} warmup={} exact=closed-form technique={} params={}",
+        "tool={} scene={} size={}x{} frames={} warmup={} cell_seconds={} exact=closed-form technique={} params={}",
         env!("CARGO_PKG_VERSION"),
         scene.content_hash(),
         scene.output.width_px,
         scene.output.height_px,
         options.frames,
         options.warmup,
+        options.cell_seconds,
         plan.config.name,
         serde_json::to_string(&plan.config.params).expect("params serialise"),
     )
@@ -307,7 +317,13 @@ impl Sweeper<'_> {
         }
         let (mut shadow_ms, mut render_ms, mut sort_ms, mut frame_ms, mut wall_ms) =
             (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
-        for _ in 0..self.options.frames {
+        let cell_start = Instant::now();
+        for i in 0..self.options.frames {
+            if i >= MIN_TIMED_FRAMES
+                && cell_start.elapsed().as_secs_f64() >= self.options.cell_seconds
+            {
+                break;
+            }
             let start = Instant::now();
             let stats = self.renderer.render(
                 self.gpu,
@@ -348,7 +364,9 @@ impl Sweeper<'_> {
             cpu_sort_ms: timing(&sort_ms),
             frame_ms: timing(&frame_ms),
             wall_ms: timing(&wall_ms),
+            frames_timed: frame_ms.len() as u32,
             overhead_ratio: None,
+            shadow_ratio: None,
             vs_own_24: None,
             vs_exact: None,
             rms_transmittance_error: None,
@@ -549,7 +567,9 @@ fn results(
         .iter()
         .cloned()
         .map(|mut c| {
-            c.overhead_ratio = baseline.filter(|b| *b > 0.0).map(|b| c.frame_ms.median / b);
+            let baseline = baseline.filter(|b| *b > 0.0);
+            c.overhead_ratio = baseline.map(|b| c.frame_ms.median / b);
+            c.shadow_ratio = baseline.map(|b| c.gpu_shadow_ms.median / b);
             c
         })
         .collect();
@@ -600,7 +620,9 @@ pub const CSV_COLUMNS: &[&str] = &[
     "frame_ms_min",
     "frame_ms_max",
     "wall_ms_median",
+    "frames_timed",
     "overhead_ratio",
+    "shadow_ratio",
     "flip_vs_own_24",
     "rmse_vs_own_24",
     "flip_vs_exact",
@@ -634,7 +656,9 @@ pub fn write_results(results: &SweepResults, dir: &Path) -> anyhow::Result<()> {
             format!("{:.3}", c.frame_ms.min),
             format!("{:.3}", c.frame_ms.max),
             format!("{:.3}", c.wall_ms.median),
+            c.frames_timed.to_string(),
             opt(c.overhead_ratio, 3),
+            opt(c.shadow_ratio, 3),
             opt(c.vs_own_24.map(|e| e.flip_mean), 6),
             opt(c.vs_own_24.map(|e| e.rmse), 6),
             opt(c.vs_exact.map(|e| e.flip_mean), 6),
