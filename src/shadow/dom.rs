@@ -8,9 +8,11 @@
 //! lies beyond the last one; with a fixed `dom_thickness_m`, points beyond the last layer map to
 //! the last layer, as the paper recommends (the smoke farther along the ray is then lost).
 //! The start depth is each ray's entry into the first particle sphere, in both splat modes.
+//! Between boundaries the lookup interpolates linearly, or with `dom_interp = cubic` the
+//! monotone cubic on the layers' own spacing ([`super::slice_interp`]).
 //! Shaders: `shaders/shadow/dom.wgsl` and `dom_build.wgsl`.
 
-use super::layered::{ChannelPlan, Layered, LayeredSpec, Precision};
+use super::layered::{ChannelPlan, Layered, LayeredSpec, PARAMS_BYTES, Precision, interp_param};
 use super::{MapKind, MemoryUse, ParamSpec, Role, TechniqueEntry, packed_bytes_per_texel};
 
 /// `dom_thickness_m`: the depth range the layers cover.
@@ -22,6 +24,7 @@ pub const THICKNESS: ParamSpec = ParamSpec {
     min: 1e-3,
     max: 1e3,
     default: None,
+    choices: &[],
 };
 
 /// `dom_layer_ratio`: geometric layer spacing.
@@ -33,7 +36,11 @@ pub const LAYER_RATIO: ParamSpec = ParamSpec {
     min: 1.0,
     max: 4.0,
     default: Some(1.0),
+    choices: &[],
 };
+
+/// `dom_interp`: linear or monotone cubic between layer boundaries.
+pub const INTERP: ParamSpec = interp_param("dom_interp");
 
 pub const SPEC: LayeredSpec = LayeredSpec {
     name: "dom",
@@ -47,6 +54,7 @@ pub const SPEC: LayeredSpec = LayeredSpec {
     depth_channel: true,
     layer_thickness: Some(&THICKNESS),
     layer_ratio: Some(&LAYER_RATIO),
+    interp: Some(&INTERP),
     sigma: false,
     precision: Precision::Half,
     channel_name: |c, plan| {
@@ -68,14 +76,15 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     in_default_sweep: true,
     in_default_compare: true,
     build_reads_back: false,
-    params: &[THICKNESS, LAYER_RATIO],
+    params: &[THICKNESS, LAYER_RATIO, INTERP],
     order_independent: true,
     converges_with_budget: true,
     compresses_captured_lists: false,
-    // One R16F start-depth channel, B - 1 half-float layers and a 32-byte uniform.
+    // One R16F start-depth channel, B - 1 half-float layers and the uniform parameters.
     memory: |c| MemoryUse {
         channels: c.channels.into(),
-        bytes: c.texels() * (packed_bytes_per_texel(u64::from(c.channels) - 1, 2) + 2) + 32,
+        bytes: c.texels() * (packed_bytes_per_texel(u64::from(c.channels) - 1, 2) + 2)
+            + PARAMS_BYTES,
         transient_bytes: 0,
     },
     lookup_shader: "shadow/dom.wgsl",

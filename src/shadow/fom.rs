@@ -13,12 +13,12 @@
 use super::layered::{ChannelPlan, Layered, LayeredSpec, Precision};
 use super::{MapKind, MemoryCase, MemoryUse, Role, TechniqueEntry, packed_bytes_per_texel};
 
-/// 2n + 1 coefficients in 32-bit floats and a 32-byte uniform.
+/// 2n + 1 coefficients in 32-bit floats and the uniform parameters.
 fn coefficient_memory(c: &MemoryCase<'_>) -> MemoryUse {
     let used = u64::from(plan(c.channels).used);
     MemoryUse {
         channels: used,
-        bytes: c.texels() * packed_bytes_per_texel(used, 4) + 32,
+        bytes: c.texels() * packed_bytes_per_texel(used, 4) + super::layered::PARAMS_BYTES,
         transient_bytes: 0,
     }
 }
@@ -46,6 +46,7 @@ pub const FOM: LayeredSpec = LayeredSpec {
     depth_channel: false,
     layer_thickness: None,
     layer_ratio: None,
+    interp: None,
     sigma: false,
     precision: Precision::Float,
     channel_name: |c, plan| match c {

@@ -54,6 +54,9 @@ pub struct LayeredSpec {
     /// from each texel's start to the far bound) and their spacing ratio (1 when absent).
     pub layer_thickness: Option<&'static ParamSpec>,
     pub layer_ratio: Option<&'static ParamSpec>,
+    /// The parameter, if any, choosing how Ω is interpolated between boundaries
+    /// ([`interp_param`]: linear, or the monotone cubic); linear when absent.
+    pub interp: Option<&'static ParamSpec>,
     /// Whether the lookup damps harmonics with Lanczos σ-factors (`fom_sigma`).
     pub sigma: bool,
     /// Storage precision of the packed channels.
@@ -78,6 +81,29 @@ impl LayeredSpec {
     }
 }
 
+/// The choices of an `<technique>_interp` parameter, by index.
+pub const INTERP_CHOICES: &[&str] = &["linear", "cubic"];
+/// Index of the monotone cubic in [`INTERP_CHOICES`].
+pub const INTERP_CUBIC: usize = 1;
+
+/// The `<technique>_interp` parameter of a slice- or layer-based technique (`osm`, `dom`): how
+/// the lookup interpolates the optical depth between boundaries.
+pub const fn interp_param(key: &'static str) -> ParamSpec {
+    ParamSpec {
+        key,
+        unit: "-",
+        doc: "how optical depth is interpolated between boundaries: linear (the thesis), or \
+              cubic: the monotone cubic through the boundaries' optical depths (Fritsch-Butland \
+              tangents, so T still never rises with depth), the thesis' future work against \
+              slice artefacts; against exact it about halves the error with segment splats at \
+              16-24 channels and adds 15-35% with point splats",
+        min: 0.0,
+        max: (INTERP_CHOICES.len() - 1) as f32,
+        default: Some(0.0),
+        choices: INTERP_CHOICES,
+    }
+}
+
 /// Keep in sync with `LayeredParams` in shaders/shadow/layered.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
@@ -89,8 +115,13 @@ struct LayeredParams {
     dom_thickness_m: f32,
     dom_ratio: f32,
     full_targets: u32,
-    _pad: u32,
+    _pad0: u32,
+    cubic: u32,
+    _pad1: [u32; 3],
 }
+
+/// Bytes of a layered technique's uniform parameters (its memory formula counts them).
+pub const PARAMS_BYTES: u64 = std::mem::size_of::<LayeredParams>() as u64;
 
 /// The WGSL structs mirrored here.
 pub fn layouts() -> Vec<crate::gpu::MirrorLayout> {
@@ -105,7 +136,8 @@ pub fn layouts() -> Vec<crate::gpu::MirrorLayout> {
             sigma,
             dom_thickness_m,
             dom_ratio,
-            full_targets
+            full_targets,
+            cubic
         ]
     )]
 }
@@ -750,7 +782,13 @@ impl Layered {
                 .and_then(|p| self.params.get(p))
                 .unwrap_or(1.0),
             full_targets: self.full_targets,
-            _pad: 0,
+            _pad0: 0,
+            cubic: u32::from(
+                self.spec
+                    .interp
+                    .is_some_and(|p| self.params.choice_index(p) == INTERP_CUBIC),
+            ),
+            _pad1: [0; 3],
         }
     }
 }
