@@ -24,9 +24,11 @@ struct LayeredParams {
     // osm, dom: 1 to interpolate between boundaries with the monotone cubic
     // (`layered_monotone_cubic`), 0 linearly.
     cubic: u32,
+    // dom: factor on each particle's radius in the start-depth pass (1: the particles' own
+    // spheres; more: a smoother proxy that starts in front of them).
+    dom_start_dilation: f32,
     _pad1: u32,
     _pad2: u32,
-    _pad3: u32,
 };
 
 @group(1) @binding(0) var<uniform> layered: LayeredParams;

@@ -47,6 +47,7 @@ pub const FOM: LayeredSpec = LayeredSpec {
     layer_thickness: None,
     layer_ratio: None,
     interp: None,
+    start_dilation: None,
     sigma: false,
     precision: Precision::Float,
     channel_name: |c, plan| match c {

@@ -57,6 +57,9 @@ pub struct LayeredSpec {
     /// The parameter, if any, choosing how Ω is interpolated between boundaries
     /// ([`interp_param`]: linear, or the monotone cubic); linear when absent.
     pub interp: Option<&'static ParamSpec>,
+    /// The parameter, if any, enlarging each particle's sphere in the depth pass (1 when
+    /// absent: the spheres themselves).
+    pub start_dilation: Option<&'static ParamSpec>,
     /// Whether the lookup damps harmonics with Lanczos σ-factors (`fom_sigma`).
     pub sigma: bool,
     /// Storage precision of the packed channels.
@@ -117,7 +120,8 @@ struct LayeredParams {
     full_targets: u32,
     _pad0: u32,
     cubic: u32,
-    _pad1: [u32; 3],
+    dom_start_dilation: f32,
+    _pad1: [u32; 2],
 }
 
 /// Bytes of a layered technique's uniform parameters (its memory formula counts them).
@@ -137,7 +141,8 @@ pub fn layouts() -> Vec<crate::gpu::MirrorLayout> {
             dom_thickness_m,
             dom_ratio,
             full_targets,
-            cubic
+            cubic,
+            dom_start_dilation
         ]
     )]
 }
@@ -481,6 +486,26 @@ pub(crate) fn billboard_pipeline_blends(
     layouts: &[Option<&wgpu::BindGroupLayout>],
     targets: &[(wgpu::TextureFormat, wgpu::BlendComponent)],
 ) -> wgpu::RenderPipeline {
+    billboard_pipeline_entries(
+        device,
+        label,
+        module,
+        ("vs_build", fragment_entry),
+        layouts,
+        targets,
+    )
+}
+
+/// [`billboard_pipeline_blends`] with its own vertex entry point (one that draws the billboards
+/// of other spheres than the particles', e.g. `dom`'s enlarged ones).
+fn billboard_pipeline_entries(
+    device: &wgpu::Device,
+    label: &str,
+    module: &wgpu::ShaderModule,
+    (vertex_entry, fragment_entry): (&str, &str),
+    layouts: &[Option<&wgpu::BindGroupLayout>],
+    targets: &[(wgpu::TextureFormat, wgpu::BlendComponent)],
+) -> wgpu::RenderPipeline {
     let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
         label: Some(label),
         bind_group_layouts: layouts,
@@ -504,7 +529,7 @@ pub(crate) fn billboard_pipeline_blends(
         layout: Some(&layout),
         vertex: wgpu::VertexState {
             module,
-            entry_point: Some("vs_build"),
+            entry_point: Some(vertex_entry),
             compilation_options: Default::default(),
             buffers: &[Some(ParticleInstance::LAYOUT)],
         },
@@ -671,14 +696,13 @@ impl Layered {
                         },
                     ],
                 });
-                let depth_pipeline = billboard_pipeline(
+                let depth_pipeline = billboard_pipeline_entries(
                     device,
                     &format!("{name}.build.depth"),
                     &module,
-                    "fs_depth",
+                    ("vs_depth", "fs_depth"),
                     &[Some(ctx.frame_layout), Some(&params_layout)],
-                    &[DEPTH_FORMAT],
-                    MIN_BLEND,
+                    &[(DEPTH_FORMAT, MIN_BLEND)],
                 );
                 (
                     billboard_pipeline(
@@ -788,7 +812,12 @@ impl Layered {
                     .interp
                     .is_some_and(|p| self.params.choice_index(p) == INTERP_CUBIC),
             ),
-            _pad1: [0; 3],
+            dom_start_dilation: self
+                .spec
+                .start_dilation
+                .and_then(|p| self.params.get(p))
+                .unwrap_or(1.0),
+            _pad1: [0; 2],
         }
     }
 }

@@ -27,6 +27,7 @@ pub const SPEC: LayeredSpec = LayeredSpec {
     layer_thickness: None,
     layer_ratio: None,
     interp: Some(&INTERP),
+    start_dilation: None,
     sigma: false,
     precision: Precision::Half,
     channel_name: |c, plan| {
