@@ -56,15 +56,6 @@ impl From<f32> for ParamValue {
     }
 }
 
-impl fmt::Display for ParamValue {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            Self::Number(v) => write!(f, "{v}"),
-            Self::Choice(name) => write!(f, "\"{name}\""),
-        }
-    }
-}
-
 // By hand rather than `untagged`, so that a value of another type (a boolean, a table) is
 // refused with what is expected instead of "did not match any variant".
 impl<'de> Deserialize<'de> for ParamValue {

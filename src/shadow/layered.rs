@@ -99,7 +99,7 @@ pub const fn interp_param(key: &'static str) -> ParamSpec {
               cubic: the monotone cubic through the boundaries' optical depths (Fritsch-Butland \
               tangents, so T still never rises with depth), the thesis' future work against \
               slice artefacts; against exact it about halves the error with segment splats at \
-              16-24 channels and adds 15-35% with point splats",
+              16-24 channels and adds 18-35% with point splats",
         min: 0.0,
         max: (INTERP_CHOICES.len() - 1) as f32,
         default: Some(0.0),
