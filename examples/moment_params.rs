@@ -32,7 +32,7 @@ fn main() -> anyhow::Result<()> {
             ..TechniqueParams::new(channels, res)
         };
         for (key, value) in values {
-            set_param(&mut params, key, *value)?;
+            set_param(&mut params, key, &(*value).into())?;
         }
         Ok(TechniqueConfig {
             name: name.to_owned(),

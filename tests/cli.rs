@@ -30,6 +30,8 @@ fn bad_inputs_get_one_clear_line_and_leave_no_file() {
     std::fs::write(&bad_scene, "[emitter]\ncount = 0\n").unwrap();
     let syntax = dir.join("syntax.toml");
     std::fs::write(&syntax, "[camera]\nfov_y_deg = = 3\n").unwrap();
+    let bad_choice = dir.join("choice.toml");
+    std::fs::write(&bad_choice, "[shadow.params]\ndom_interp = \"spline\"\n").unwrap();
     let unknown = dir.join("unknown.toml");
     std::fs::write(&unknown, "[light]\ncolour = [1.0, 1.0, 1.0]\n").unwrap();
     let cases: Vec<(Vec<&str>, Vec<&str>)> = vec![
@@ -96,6 +98,20 @@ fn bad_inputs_get_one_clear_line_and_leave_no_file() {
         (
             vec!["render", "--param", "dom_thickness_m=-1", "-o", out],
             vec!["dom_thickness_m"],
+        ),
+        (
+            vec!["render", "--param", "osm_interp=quadratic", "-o", out],
+            vec![
+                "osm_interp = \"quadratic\"",
+                "not one of its choices: linear, cubic",
+            ],
+        ),
+        (
+            vec!["render", bad_choice.to_str().unwrap(), "-o", out],
+            vec![
+                "dom_interp = \"spline\"",
+                "not one of its choices: linear, cubic",
+            ],
         ),
         (
             vec!["render", "plume_scaled", "--particles", "0", "-o", out],

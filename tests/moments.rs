@@ -24,7 +24,8 @@ const ROOT_BUDGETS: [u32; 3] = [5, 7, 9];
 fn config(name: &str, channels: u32, res: u32, values: &[(&str, f32)]) -> TechniqueConfig {
     let mut c = technique(name, channels, res, SplatMode::Segment);
     for (key, value) in values {
-        smokeshadow::shadow::set_param(&mut c.params, &format!("{name}_{key}"), *value).unwrap();
+        smokeshadow::shadow::set_param(&mut c.params, &format!("{name}_{key}"), &(*value).into())
+            .unwrap();
     }
     c
 }

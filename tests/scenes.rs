@@ -183,3 +183,48 @@ fn a_count_beyond_the_limit_is_refused_with_the_field_and_range() {
     assert!(err.contains("1..=4000000"), "{err}");
     assert!(!err.contains('\n'), "{err}");
 }
+
+#[test]
+fn technique_parameters_take_numbers_and_the_names_of_choices() {
+    use smokeshadow::scene::ParamValue;
+    use smokeshadow::shadow::{check_params, find_param};
+    let text = format!(
+        "{THESIS_PLUME_TOML}\n[shadow.params]\nosm_interp = \"cubic\"\ndom_interp = 1\n\
+         dom_layer_ratio = 2\n"
+    );
+    let scene = Scene::from_toml_str(&text, "choices.toml").unwrap();
+    let params = scene.shadow.params(8);
+    check_params(&params).unwrap();
+    let value = |key| params.get(find_param(key).unwrap());
+    assert_eq!(value("osm_interp"), Some(1.0));
+    assert_eq!(value("dom_interp"), Some(1.0));
+    assert_eq!(value("dom_layer_ratio"), Some(2.0));
+    assert_eq!(
+        scene.shadow.params["osm_interp"],
+        ParamValue::Choice("cubic".to_owned())
+    );
+    // A name is written back as a name.
+    let toml = scene.to_toml();
+    assert!(toml.contains("osm_interp = \"cubic\""), "{toml}");
+    assert_eq!(Scene::from_toml_str(&toml, "again").unwrap(), scene);
+
+    // The scene names what it does not know the registry's way: a wrong name is refused when a
+    // technique is made from it, naming the choices; a value of another type at load.
+    let bad = format!("{THESIS_PLUME_TOML}\n[shadow.params]\nosm_interp = \"spline\"\n");
+    let scene = Scene::from_toml_str(&bad, "bad.toml").unwrap();
+    let err = check_params(&scene.shadow.params(8))
+        .unwrap_err()
+        .to_string();
+    assert_eq!(
+        err,
+        "parameter osm_interp = \"spline\" is not one of its choices: linear, cubic"
+    );
+    let bad = format!("{THESIS_PLUME_TOML}\n[shadow.params]\nosm_interp = true\n");
+    let err = Scene::from_toml_str(&bad, "bad.toml")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("a number, or the name of one of the parameter's choices"),
+        "{err}"
+    );
+}

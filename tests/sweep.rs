@@ -97,20 +97,21 @@ fn a_tiny_sweep_writes_consistent_tables_charts_and_a_report() {
     );
 
     let texels = 128u64 * 128;
+    let params = smokeshadow::shadow::layered::PARAMS_BYTES;
     for row in &rows {
         let bytes: u64 = get(row, "bytes").parse().unwrap();
         let channels: u64 = get(row, "channels").parse().unwrap();
         // Each technique's formula: osm packs B half floats per texel, fom 2n + 1 floats
         // (4 bytes) with n = floor((B - 1) / 2), both in full RGBA targets plus a remainder of
-        // 1, 2 or 4 components; 32 bytes of parameters.
+        // 1, 2 or 4 components; and the uniform parameters.
         let packed_bytes = |packed: u64, per: u64| {
             let rest = [0, 1, 2, 4][(packed % 4) as usize];
             (packed / 4 * 4 + rest) * per
         };
         let expected = match get(row, "technique") {
             "none" => 0,
-            "osm" => texels * packed_bytes(channels, 2) + 32,
-            "fom" => texels * packed_bytes(2 * ((channels - 1) / 2) + 1, 4) + 32,
+            "osm" => texels * packed_bytes(channels, 2) + params,
+            "fom" => texels * packed_bytes(2 * ((channels - 1) / 2) + 1, 4) + params,
             other => panic!("unexpected technique {other}"),
         };
         assert_eq!(bytes, expected, "{row:?}");

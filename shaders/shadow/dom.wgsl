@@ -4,8 +4,10 @@
 // z0 + offset(k), with offsets uniform or growing geometrically over the layers' thickness:
 // by default from z0 to the smoke's far bound (so every texel spends all its layers on the
 // smoke behind its own start), or a fixed thickness, beyond which points map to the last layer
-// (the paper's recommendation). Points in front of z0 see no smoke. The four surrounding texels
-// are evaluated separately (each has its own z0) and blended bilinearly.
+// (the paper's recommendation). Points in front of z0 see no smoke. Between boundaries Ω is
+// linear in the layer coordinate, or (`dom_interp = cubic`) the monotone cubic in depth through
+// the boundaries k - 1 ..= k + 2 around the point, on their own (geometric) spacing. The four
+// surrounding texels are evaluated separately (each has its own z0) and blended bilinearly.
 #import shadow/layered.wgsl
 
 @group(1) @binding(4) var dom_depth: texture_2d<f32>;
@@ -56,6 +58,14 @@ fn dom_texel_omega(texel: vec2<i32>, z: f32) -> f32 {
     let s = clamp(dom_layer_coord(z - z0, dom_thickness(z0)), 0.0, f32(layers));
     let k0 = min(u32(floor(s)), layers);
     let k1 = min(k0 + 1u, layers);
+    if layered.cubic != 0u && k1 > k0 {
+        let thickness = dom_thickness(z0);
+        let km = max(k0, 1u) - 1u;
+        let k2 = min(k1 + 1u, layers);
+        let x = vec4<f32>(dom_offset(f32(km), thickness), dom_offset(f32(k0), thickness), dom_offset(f32(k1), thickness), dom_offset(f32(k2), thickness));
+        let y = vec4<f32>(dom_boundary(km, texel), dom_boundary(k0, texel), dom_boundary(k1, texel), dom_boundary(k2, texel));
+        return layered_monotone_cubic(x, y, k0 == 0u, k1 == layers, z - z0);
+    }
     return mix(dom_boundary(k0, texel), dom_boundary(k1, texel), s - f32(k0));
 }
 

@@ -1,10 +1,19 @@
 // `dom` build: two passes. `fs_depth` writes each fragment's chord entry into the depth channel
 // with MIN blending, so each texel ends up with the depth where its smoke starts: the front
-// surface of the first particle sphere along its ray, whatever the splat mode (a point splat
-// still places the optical depth at the centres, behind that). The layer pass then adds each fragment's
+// surface of the first particle sphere along its ray (of the first enlarged sphere, with
+// `dom_start_dilation` > 1), whatever the splat mode (a point splat still places the optical
+// depth at the centres, behind that). The layer pass then adds each fragment's
 // optical depth to every boundary z0 + offset(k) at or beyond it, reading z0 at its own texel.
 #import shadow/layered_build.wgsl
 #import shadow/dom.wgsl
+
+// The start-depth pass draws each particle's sphere enlarged by `dom_start_dilation` (1: the
+// sphere itself): the MIN of the enlarged spheres' entries is a smoother proxy of the smoke's
+// front that starts at or before it wherever there is smoke.
+@vertex
+fn vs_depth(@builtin(vertex_index) vi: u32, particle: ParticleIn) -> BuildVertexOut {
+    return build_vertex(vi, particle, particle.center_radius.w * layered.dom_start_dilation);
+}
 
 @fragment
 fn fs_depth(in: BuildVertexOut) -> @location(0) vec4<f32> {

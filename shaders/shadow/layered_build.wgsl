@@ -19,19 +19,23 @@ struct BuildVertexOut {
     @location(3) @interpolate(flat) center_depth: f32,
 };
 
-@vertex
-fn vs_build(@builtin(vertex_index) vi: u32, particle: ParticleIn) -> BuildVertexOut {
+// Corner `vi` of the light-facing billboard of a sphere of `radius` around the particle's centre.
+fn build_vertex(vi: u32, particle: ParticleIn, radius: f32) -> BuildVertexOut {
     var out: BuildVertexOut;
     let center = particle.center_radius.xyz;
-    let radius = particle.center_radius.w;
     let bb = billboard_frame(center, radius, frame.light_pos.xyz);
     let world = billboard_corner(center, radius, bb, quad_corner(vi));
     out.clip = frame.light_clip_from_world * vec4<f32>(world, 1.0);
     out.world = world;
-    out.center_radius = particle.center_radius;
+    out.center_radius = vec4<f32>(center, radius);
     out.density = particle.albedo_density.a;
     out.center_depth = (distance(center, frame.light_pos.xyz) - frame.light_depth.x) * frame.light_depth.z;
     return out;
+}
+
+@vertex
+fn vs_build(@builtin(vertex_index) vi: u32, particle: ParticleIn) -> BuildVertexOut {
+    return build_vertex(vi, particle, particle.center_radius.w);
 }
 
 // A fragment's contribution: optical depth spread uniformly over normalised depths [z0, z1]

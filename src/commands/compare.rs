@@ -30,6 +30,8 @@ pub struct CompareArgs {
     /// How the layered techniques place optical depth (default: the scene's).
     #[arg(long, value_enum)]
     pub splat: Option<SplatMode>,
+    #[command(flatten)]
+    pub params: super::ParamArgs,
     /// Output size as WIDTHxHEIGHT (default: the scene's).
     #[arg(long)]
     pub size: Option<super::Size>,
@@ -37,6 +39,7 @@ pub struct CompareArgs {
 
 pub fn run(args: &CompareArgs, adapter: &AdapterPreference) -> anyhow::Result<()> {
     let mut scene = super::load_scene(args.scene.as_deref(), args.particles)?;
+    args.params.apply(&mut scene);
     if let Some(size) = args.size {
         scene.output.width_px = size.width;
         scene.output.height_px = size.height;

@@ -65,15 +65,12 @@ pub fn run(preference: &AdapterPreference) -> anyhow::Result<()> {
     }
     println!("technique parameters ([shadow.params] in a scene file, --param KEY=VALUE):");
     for (e, p) in shadow::all_params() {
-        let default = p
-            .default
-            .map_or_else(|| "derived per frame".to_owned(), |d| d.to_string());
         println!(
-            "  {:<18} {:<4} {}..={}, default {default} ({}): {}",
+            "  {:<18} {:<4} {}, default {} ({}): {}",
             p.key,
             p.unit,
-            p.min,
-            p.max,
+            p.accepted(),
+            p.default_text(),
             e.name,
             p.doc.split_whitespace().collect::<Vec<_>>().join(" ")
         );

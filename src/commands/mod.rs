@@ -13,7 +13,7 @@ pub mod view;
 use std::path::Path;
 
 use crate::scene::Scene;
-use crate::shadow::{SplatMode, TechniqueParams};
+use crate::shadow::{ParamValue, SplatMode, TechniqueParams};
 
 /// `--particles N`, flattened into every command that loads a scene.
 #[derive(Clone, Copy, Debug, Default, clap::Args)]
@@ -49,6 +49,27 @@ pub fn load_scene(arg: Option<&Path>, particles: ParticlesArg) -> anyhow::Result
     })
 }
 
+/// `--param KEY=VALUE`, flattened into every command that renders with technique parameters.
+#[derive(Clone, Debug, Default, clap::Args)]
+pub struct ParamArgs {
+    /// A technique parameter, KEY=VALUE (repeatable; over the scene's `[shadow.params]`), e.g.
+    /// `--param dom_layer_ratio=2` or `--param osm_interp=cubic`. `smokeshadow info` lists
+    /// every key with its range or choices.
+    #[arg(long = "param", value_name = "KEY=VALUE", value_parser = crate::shadow::parse_param,
+          allow_negative_numbers = true)]
+    pub params: Vec<(String, ParamValue)>,
+}
+
+impl ParamArgs {
+    /// Sets the parameters in `scene`'s `[shadow.params]` (already checked by `parse_param`),
+    /// for commands that build every technique they run from the scene's settings.
+    pub fn apply(&self, scene: &mut Scene) {
+        for (key, value) in &self.params {
+            scene.shadow.params.insert(key.clone(), value.clone());
+        }
+    }
+}
+
 /// Options shared by every command that renders a scene with a technique.
 #[derive(Clone, Debug, clap::Args)]
 pub struct TechniqueArgs {
@@ -65,11 +86,8 @@ pub struct TechniqueArgs {
     /// the scene's `shadow.splat`, point unless set).
     #[arg(long, value_enum)]
     pub splat: Option<SplatMode>,
-    /// A technique parameter, KEY=VALUE (repeatable; over the scene's `[shadow.params]`), e.g.
-    /// `--param dom_layer_ratio=2`. `smokeshadow info` lists every key with its range.
-    #[arg(long = "param", value_name = "KEY=VALUE", value_parser = crate::shadow::parse_param,
-          allow_negative_numbers = true)]
-    pub params: Vec<(String, f32)>,
+    #[command(flatten)]
+    pub params: ParamArgs,
 }
 
 impl TechniqueArgs {
@@ -85,8 +103,8 @@ impl TechniqueArgs {
             splat: self.splat.unwrap_or(scene.shadow.splat),
             ..scene.shadow.params(self.channels)
         };
-        for (key, value) in &self.params {
-            crate::shadow::set_param(&mut params, key, *value)?;
+        for (key, value) in &self.params.params {
+            crate::shadow::set_param(&mut params, key, value)?;
         }
         Ok(crate::render::TechniqueConfig {
             name: entry.name.to_owned(),

@@ -29,6 +29,8 @@ pub struct SweepArgs {
     /// Splat modes, comma-separated (techniques that ignore it run once).
     #[arg(long, value_delimiter = ',', value_enum, default_value = "point")]
     pub splat: Vec<SplatMode>,
+    #[command(flatten)]
+    pub params: super::ParamArgs,
     /// Timed frames per cell (medians over these).
     #[arg(long, default_value_t = 20, value_parser = clap::value_parser!(u32).range(1..=100_000))]
     pub frames: u32,
@@ -52,6 +54,7 @@ pub struct SweepArgs {
 
 pub fn run(args: &SweepArgs, adapter: &AdapterPreference) -> anyhow::Result<()> {
     let mut scene = super::load_scene(args.scene.as_deref(), args.particles)?;
+    args.params.apply(&mut scene);
     if let Some(size) = args.size {
         scene.output.width_px = size.width;
         scene.output.height_px = size.height;

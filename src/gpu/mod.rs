@@ -12,7 +12,9 @@ mod timing;
 
 pub use layout::MirrorLayout;
 pub use memory::{AllocationError, LedgerEntry, MemoryBudget, MemoryLedger};
-pub use readback::{Rgba16fImage, read_buffer, read_texture_rgba8, read_texture_rgba16f};
+pub use readback::{
+    Rgba16fImage, read_buffer, read_texture_r16f, read_texture_rgba8, read_texture_rgba16f,
+};
 pub use timing::{GpuTimer, PassTimes};
 
 use std::fmt;

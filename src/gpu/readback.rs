@@ -135,6 +135,15 @@ pub fn read_texture_rgba16f(gpu: &Gpu, texture: &wgpu::Texture) -> Result<Rgba16
     })
 }
 
+/// Reads a single-channel R16F texture (a start-depth map, say) as f32, row by row.
+pub fn read_texture_r16f(gpu: &Gpu, texture: &wgpu::Texture) -> Result<Vec<f32>, GpuError> {
+    let bytes = read_texture(gpu, texture, 2)?;
+    Ok(bytes
+        .chunks_exact(2)
+        .map(|t| half_to_f32(u16::from_le_bytes([t[0], t[1]])))
+        .collect())
+}
+
 /// IEEE 754 binary16 to f32.
 fn half_to_f32(h: u16) -> f32 {
     let sign = if h & 0x8000 != 0 { -1.0 } else { 1.0 };

@@ -19,7 +19,7 @@ use std::path::{Path, PathBuf};
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
-pub use technique::{SplatMode, TechniqueParams};
+pub use technique::{ParamValue, SplatMode, TechniqueParams};
 pub use validate::LIMITS;
 
 /// The thesis experiment (chapter 4), embedded so the binary runs without any file.
@@ -237,11 +237,11 @@ pub struct ShadowSettings {
     /// Where the layered techniques put a particle's optical depth along the light ray:
     /// `point` (the thesis, default) or `segment`.
     pub splat: SplatMode,
-    /// Technique-specific parameters (`[shadow.params]`, e.g. `dom_layer_ratio = 2`): each key
-    /// is declared, documented and range-checked by its technique's registry entry
-    /// (`smokeshadow info` lists them); absent keys take the entry's defaults.
+    /// Technique-specific parameters (`[shadow.params]`, e.g. `dom_layer_ratio = 2` or
+    /// `osm_interp = "cubic"`): each key is declared, documented and checked by its technique's
+    /// registry entry (`smokeshadow info` lists them); absent keys take the entry's defaults.
     #[serde(skip_serializing_if = "BTreeMap::is_empty")]
-    pub params: BTreeMap<String, f32>,
+    pub params: BTreeMap<String, ParamValue>,
 }
 
 impl ShadowSettings {

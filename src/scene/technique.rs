@@ -2,12 +2,18 @@
 //! technique receives, and the declaration of a technique-specific parameter. They live with
 //! the scene, which owns its settings; the techniques' registry (`crate::shadow`) declares
 //! which parameters exist and checks values against them.
+//!
+//! A parameter is a number in a range (`dom_layer_ratio = 2`) or one of a few named choices
+//! (`osm_interp = "cubic"`): a [`ParamSpec`] with `choices` takes the choice's name or its
+//! index, and the technique reads the index.
 
 use std::collections::BTreeMap;
+use std::fmt;
 
 use serde::{Deserialize, Serialize};
 
-/// A parameter value outside its declared range.
+/// A parameter value its declaration refuses. Each renders as one line naming the parameter,
+/// the value and what it accepts.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum ParamError {
     #[error("parameter {key} = {value} is out of range: allowed {min}..={max}")]
@@ -17,6 +23,64 @@ pub enum ParamError {
         min: f32,
         max: f32,
     },
+    #[error("parameter {key} = {value} is not one of its choices: {valid}")]
+    NotAChoice {
+        key: &'static str,
+        /// As written: a quoted name or a number.
+        value: String,
+        /// The choices, comma-separated.
+        valid: String,
+    },
+    #[error("parameter {key} = \"{value}\" is not a number: allowed {min}..={max}")]
+    NotANumber {
+        key: &'static str,
+        value: String,
+        min: f32,
+        max: f32,
+    },
+}
+
+/// A technique parameter's value as a scene file or the CLI spells it: a number, or the name of
+/// one of the parameter's choices. [`ParamSpec::resolve`] turns either into the number the
+/// technique reads (a choice's index).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+#[serde(untagged)]
+pub enum ParamValue {
+    Number(f32),
+    Choice(String),
+}
+
+impl From<f32> for ParamValue {
+    fn from(value: f32) -> Self {
+        Self::Number(value)
+    }
+}
+
+// By hand rather than `untagged`, so that a value of another type (a boolean, a table) is
+// refused with what is expected instead of "did not match any variant".
+impl<'de> Deserialize<'de> for ParamValue {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        struct Visitor;
+        impl serde::de::Visitor<'_> for Visitor {
+            type Value = ParamValue;
+            fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+                f.write_str("a number, or the name of one of the parameter's choices")
+            }
+            fn visit_f64<E: serde::de::Error>(self, v: f64) -> Result<ParamValue, E> {
+                Ok(ParamValue::Number(v as f32))
+            }
+            fn visit_i64<E: serde::de::Error>(self, v: i64) -> Result<ParamValue, E> {
+                Ok(ParamValue::Number(v as f32))
+            }
+            fn visit_u64<E: serde::de::Error>(self, v: u64) -> Result<ParamValue, E> {
+                Ok(ParamValue::Number(v as f32))
+            }
+            fn visit_str<E: serde::de::Error>(self, v: &str) -> Result<ParamValue, E> {
+                Ok(ParamValue::Choice(v.to_owned()))
+            }
+        }
+        deserializer.deserialize_any(Visitor)
+    }
 }
 
 /// How a particle's optical depth is placed along the light ray when building layered maps.
@@ -57,7 +121,7 @@ pub struct TechniqueParams {
     /// the registry); an absent key takes its spec's default. Ordered, so equal settings
     /// serialize equally.
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
-    pub values: BTreeMap<String, f32>,
+    pub values: BTreeMap<String, ParamValue>,
 }
 
 impl TechniqueParams {
@@ -71,15 +135,28 @@ impl TechniqueParams {
         }
     }
 
-    /// The value of `spec`: the one set, else its default (`None`: derived per frame).
+    /// The value of `spec`: the one set, else its default (`None`: derived per frame). A
+    /// choice reads as its index. A value the spec refuses (`shadow::check_params` refuses it
+    /// before any technique is built from these parameters) reads as the default.
     pub fn get(&self, spec: &ParamSpec) -> Option<f32> {
-        self.values.get(spec.key).copied().or(spec.default)
+        self.values
+            .get(spec.key)
+            .and_then(|v| spec.resolve(v).ok())
+            .or(spec.default)
+    }
+
+    /// The index of the choice set for `spec`, a parameter with choices (its default, else 0,
+    /// when unset).
+    pub fn choice_index(&self, spec: &ParamSpec) -> usize {
+        debug_assert!(!spec.choices.is_empty(), "{} has no choices", spec.key);
+        self.get(spec).map_or(0, |v| v as usize)
     }
 }
 
 /// A technique-specific parameter, declared once in its technique's registry entry: the scene
 /// file spells it `[shadow.params] KEY = VALUE`, the CLI `--param KEY=VALUE`, the viewer draws a
-/// slider for it, and `info` lists it with this documentation.
+/// slider for it (a choice of buttons for one with `choices`), and `info` lists it with this
+/// documentation.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ParamSpec {
     /// Unique across the registry, snake_case, prefixed with the technique's name.
@@ -93,11 +170,18 @@ pub struct ParamSpec {
     pub max: f32,
     /// The value when unset; `None` means the technique derives it each frame (the doc says how).
     pub default: Option<f32>,
+    /// Named values, for a parameter that picks one of a few: value i is `choices[i]`, and both
+    /// the name and the index are accepted (`min` 0, `max` the last index). Empty for a numeric
+    /// parameter.
+    pub choices: &'static [&'static str],
 }
 
 impl ParamSpec {
-    /// Checks `value` against the range.
+    /// Checks `value` against the range (for a parameter with choices: a choice's index).
     pub fn check(&self, value: f32) -> Result<(), ParamError> {
+        if !self.choices.is_empty() {
+            return self.choice_at(value).map(|_| ());
+        }
         if value.is_finite() && (self.min..=self.max).contains(&value) {
             Ok(())
         } else {
@@ -107,6 +191,71 @@ impl ParamSpec {
                 min: self.min,
                 max: self.max,
             })
+        }
+    }
+
+    /// The choice whose index is `value`.
+    pub fn choice_at(&self, value: f32) -> Result<&'static str, ParamError> {
+        let index = value as usize;
+        if value.fract() == 0.0 && value >= 0.0 && index < self.choices.len() {
+            Ok(self.choices[index])
+        } else {
+            Err(self.not_a_choice(value.to_string()))
+        }
+    }
+
+    /// The number `value` stands for: a number in the range, or a choice's index.
+    pub fn resolve(&self, value: &ParamValue) -> Result<f32, ParamError> {
+        match value {
+            ParamValue::Number(v) => self.check(*v).map(|()| *v),
+            ParamValue::Choice(name) if self.choices.is_empty() => Err(ParamError::NotANumber {
+                key: self.key,
+                value: name.clone(),
+                min: self.min,
+                max: self.max,
+            }),
+            ParamValue::Choice(name) => self
+                .choices
+                .iter()
+                .position(|c| c == name)
+                .map(|i| i as f32)
+                .ok_or_else(|| self.not_a_choice(format!("\"{name}\""))),
+        }
+    }
+
+    /// `value`, checked, in the form settings keep: a choice by its name, a number as itself.
+    pub fn canonical(&self, value: &ParamValue) -> Result<ParamValue, ParamError> {
+        let number = self.resolve(value)?;
+        Ok(if self.choices.is_empty() {
+            ParamValue::Number(number)
+        } else {
+            ParamValue::Choice(self.choice_at(number)?.to_owned())
+        })
+    }
+
+    /// What it accepts, for listings: "linear | cubic" or "1..=4".
+    pub fn accepted(&self) -> String {
+        if self.choices.is_empty() {
+            format!("{}..={}", self.min, self.max)
+        } else {
+            self.choices.join(" | ")
+        }
+    }
+
+    /// Its default as a listing shows it: the choice's name, the number, or "derived per frame".
+    pub fn default_text(&self) -> String {
+        match self.default {
+            None => "derived per frame".to_owned(),
+            Some(d) if !self.choices.is_empty() => self.choice_at(d).unwrap_or("?").to_owned(),
+            Some(d) => d.to_string(),
+        }
+    }
+
+    fn not_a_choice(&self, value: String) -> ParamError {
+        ParamError::NotAChoice {
+            key: self.key,
+            value,
+            valid: self.choices.join(", "),
         }
     }
 }

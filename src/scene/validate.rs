@@ -2,7 +2,7 @@
 
 use glam::Vec3;
 
-use super::Scene;
+use super::{ParamValue, Scene};
 
 /// Hard limits shared by the scene checks and the CLI.
 pub struct Limits {
@@ -204,10 +204,13 @@ pub(super) fn validate(scene: &Scene) -> Result<(), String> {
         1,
         max_px,
     );
-    for (key, &value) in &scene.shadow.params {
-        // Which keys exist and their ranges are the techniques' registry's to say; it checks
-        // them when a technique is created from these settings (`shadow::check_params`).
-        if !value.is_finite() {
+    for (key, value) in &scene.shadow.params {
+        // Which keys exist, their ranges and their choices are the techniques' registry's to
+        // say; it checks them when a technique is created from these settings
+        // (`shadow::check_params`).
+        if let ParamValue::Number(value) = value
+            && !value.is_finite()
+        {
             c.errors.push(format!(
                 "shadow.params.{key} = {value} is not a finite number"
             ));

@@ -7,10 +7,15 @@
 //! start to the far bound of the smoke, so no layer is wasted in front of the smoke and no point
 //! lies beyond the last one; with a fixed `dom_thickness_m`, points beyond the last layer map to
 //! the last layer, as the paper recommends (the smoke farther along the ray is then lost).
-//! The start depth is each ray's entry into the first particle sphere, in both splat modes.
+//! The start depth is each ray's entry into the first particle sphere, in both splat modes, or,
+//! with `dom_start_dilation` > 1, into the first of the spheres enlarged by that factor: a
+//! smoother proxy of the smoke's front (the thesis' future work, chapter 5: "a mesh or some
+//! other approximation of clouds ... to render the front-most depths from the light").
+//! Between boundaries the lookup interpolates linearly, or with `dom_interp = cubic` the
+//! monotone cubic on the layers' own spacing ([`super::slice_interp`]).
 //! Shaders: `shaders/shadow/dom.wgsl` and `dom_build.wgsl`.
 
-use super::layered::{ChannelPlan, Layered, LayeredSpec, PARAMS_BYTES, Precision};
+use super::layered::{ChannelPlan, Layered, LayeredSpec, PARAMS_BYTES, Precision, interp_param};
 use super::{MapKind, MemoryUse, ParamSpec, Role, TechniqueEntry, packed_bytes_per_texel};
 
 /// `dom_thickness_m`: the depth range the layers cover.
@@ -22,6 +27,7 @@ pub const THICKNESS: ParamSpec = ParamSpec {
     min: 1e-3,
     max: 1e3,
     default: None,
+    choices: &[],
 };
 
 /// `dom_layer_ratio`: geometric layer spacing.
@@ -33,6 +39,24 @@ pub const LAYER_RATIO: ParamSpec = ParamSpec {
     min: 1.0,
     max: 4.0,
     default: Some(1.0),
+    choices: &[],
+};
+
+/// `dom_interp`: linear or monotone cubic between layer boundaries.
+pub const INTERP: ParamSpec = interp_param("dom_interp");
+
+/// `dom_start_dilation`: the start depth from enlarged spheres.
+pub const START_DILATION: ParamSpec = ParamSpec {
+    key: "dom_start_dilation",
+    unit: "-",
+    doc: "factor on every particle's radius when finding where the smoke starts along each \
+          texel's ray: 1 takes the particles' own spheres (the paper); more takes the entry \
+          into the first enlarged sphere, a smoother proxy of the smoke's front that starts at \
+          or before it",
+    min: 1.0,
+    max: 4.0,
+    default: Some(1.0),
+    choices: &[],
 };
 
 pub const SPEC: LayeredSpec = LayeredSpec {
@@ -47,6 +71,8 @@ pub const SPEC: LayeredSpec = LayeredSpec {
     depth_channel: true,
     layer_thickness: Some(&THICKNESS),
     layer_ratio: Some(&LAYER_RATIO),
+    interp: Some(&INTERP),
+    start_dilation: Some(&START_DILATION),
     sigma: false,
     moments: None,
     precision: Precision::Half,
@@ -69,11 +95,11 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     in_default_sweep: true,
     in_default_compare: true,
     build_reads_back: false,
-    params: &[THICKNESS, LAYER_RATIO],
+    params: &[THICKNESS, LAYER_RATIO, INTERP, START_DILATION],
     order_independent: true,
     converges_with_budget: true,
     compresses_captured_lists: false,
-    // One R16F start-depth channel, B - 1 half-float layers and the parameter uniform.
+    // One R16F start-depth channel, B - 1 half-float layers and the uniform parameters.
     memory: |c| MemoryUse {
         channels: c.channels.into(),
         bytes: c.texels() * (packed_bytes_per_texel(u64::from(c.channels) - 1, 2) + 2)

@@ -21,6 +21,7 @@ pub const EXPONENT: ParamSpec = ParamSpec {
     min: 0.01,
     max: 1000.0,
     default: Some(ESM_DEFAULT_EXPONENT),
+    choices: &[],
 };
 
 /// Chosen by measurement against `exact`: the RMS transmittance error over the shaded points of

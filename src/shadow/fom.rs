@@ -46,6 +46,8 @@ pub const FOM: LayeredSpec = LayeredSpec {
     depth_channel: false,
     layer_thickness: None,
     layer_ratio: None,
+    interp: None,
+    start_dilation: None,
     sigma: false,
     moments: None,
     precision: Precision::Float,

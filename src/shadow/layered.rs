@@ -54,6 +54,12 @@ pub struct LayeredSpec {
     /// from each texel's start to the far bound) and their spacing ratio (1 when absent).
     pub layer_thickness: Option<&'static ParamSpec>,
     pub layer_ratio: Option<&'static ParamSpec>,
+    /// The parameter, if any, choosing how Ω is interpolated between boundaries
+    /// ([`interp_param`]: linear, or the monotone cubic); linear when absent.
+    pub interp: Option<&'static ParamSpec>,
+    /// The parameter, if any, enlarging each particle's sphere in the depth pass (1 when
+    /// absent: the spheres themselves).
+    pub start_dilation: Option<&'static ParamSpec>,
     /// Whether the lookup damps harmonics with Lanczos σ-factors (`fom_sigma`).
     pub sigma: bool,
     /// The parameters of a moment reconstruction (`msm`, `tmsm`), if the maps hold moments.
@@ -91,8 +97,28 @@ impl LayeredSpec {
     }
 }
 
-/// Bytes of the parameter uniform every layered technique allocates (its memory formulas add it).
-pub const PARAMS_BYTES: u64 = std::mem::size_of::<LayeredParams>() as u64;
+/// The choices of an `<technique>_interp` parameter, by index.
+pub const INTERP_CHOICES: &[&str] = &["linear", "cubic"];
+/// Index of the monotone cubic in [`INTERP_CHOICES`].
+pub const INTERP_CUBIC: usize = 1;
+
+/// The `<technique>_interp` parameter of a slice- or layer-based technique (`osm`, `dom`): how
+/// the lookup interpolates the optical depth between boundaries.
+pub const fn interp_param(key: &'static str) -> ParamSpec {
+    ParamSpec {
+        key,
+        unit: "-",
+        doc: "how optical depth is interpolated between boundaries: linear (the thesis), or \
+              cubic: the monotone cubic through the boundaries' optical depths (Fritsch-Butland \
+              tangents, so T still never rises with depth), the thesis' future work against \
+              slice artefacts; against exact it about halves the error with segment splats at \
+              16-24 channels and adds 18-35% with point splats",
+        min: 0.0,
+        max: (INTERP_CHOICES.len() - 1) as f32,
+        default: Some(0.0),
+        choices: INTERP_CHOICES,
+    }
+}
 
 /// Keep in sync with `LayeredParams` in shaders/shadow/layered.wgsl.
 #[repr(C)]
@@ -105,12 +131,17 @@ struct LayeredParams {
     dom_thickness_m: f32,
     dom_ratio: f32,
     full_targets: u32,
-    _pad: u32,
+    _pad0: u32,
+    cubic: u32,
+    dom_start_dilation: f32,
     moment_bias: f32,
     moment_overestimation: f32,
     wrapping_zone_rad: f32,
-    _pad1: u32,
+    _pad1: [u32; 2],
 }
+
+/// Bytes of a layered technique's uniform parameters (its memory formula counts them).
+pub const PARAMS_BYTES: u64 = std::mem::size_of::<LayeredParams>() as u64;
 
 /// The WGSL structs mirrored here.
 pub fn layouts() -> Vec<crate::gpu::MirrorLayout> {
@@ -126,6 +157,8 @@ pub fn layouts() -> Vec<crate::gpu::MirrorLayout> {
             dom_thickness_m,
             dom_ratio,
             full_targets,
+            cubic,
+            dom_start_dilation,
             moment_bias,
             moment_overestimation,
             wrapping_zone_rad
@@ -472,6 +505,26 @@ pub(crate) fn billboard_pipeline_blends(
     layouts: &[Option<&wgpu::BindGroupLayout>],
     targets: &[(wgpu::TextureFormat, wgpu::BlendComponent)],
 ) -> wgpu::RenderPipeline {
+    billboard_pipeline_entries(
+        device,
+        label,
+        module,
+        ("vs_build", fragment_entry),
+        layouts,
+        targets,
+    )
+}
+
+/// [`billboard_pipeline_blends`] with its own vertex entry point (one that draws the billboards
+/// of other spheres than the particles', e.g. `dom`'s enlarged ones).
+fn billboard_pipeline_entries(
+    device: &wgpu::Device,
+    label: &str,
+    module: &wgpu::ShaderModule,
+    (vertex_entry, fragment_entry): (&str, &str),
+    layouts: &[Option<&wgpu::BindGroupLayout>],
+    targets: &[(wgpu::TextureFormat, wgpu::BlendComponent)],
+) -> wgpu::RenderPipeline {
     let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
         label: Some(label),
         bind_group_layouts: layouts,
@@ -495,7 +548,7 @@ pub(crate) fn billboard_pipeline_blends(
         layout: Some(&layout),
         vertex: wgpu::VertexState {
             module,
-            entry_point: Some("vs_build"),
+            entry_point: Some(vertex_entry),
             compilation_options: Default::default(),
             buffers: &[Some(ParticleInstance::LAYOUT)],
         },
@@ -662,14 +715,13 @@ impl Layered {
                         },
                     ],
                 });
-                let depth_pipeline = billboard_pipeline(
+                let depth_pipeline = billboard_pipeline_entries(
                     device,
                     &format!("{name}.build.depth"),
                     &module,
-                    "fs_depth",
+                    ("vs_depth", "fs_depth"),
                     &[Some(ctx.frame_layout), Some(&params_layout)],
-                    &[DEPTH_FORMAT],
-                    MIN_BLEND,
+                    &[(DEPTH_FORMAT, MIN_BLEND)],
                 );
                 (
                     billboard_pipeline(
@@ -773,11 +825,21 @@ impl Layered {
                 .and_then(|p| self.params.get(p))
                 .unwrap_or(1.0),
             full_targets: self.full_targets,
-            _pad: 0,
+            _pad0: 0,
+            cubic: u32::from(
+                self.spec
+                    .interp
+                    .is_some_and(|p| self.params.choice_index(p) == INTERP_CUBIC),
+            ),
+            dom_start_dilation: self
+                .spec
+                .start_dilation
+                .and_then(|p| self.params.get(p))
+                .unwrap_or(1.0),
             moment_bias: self.moment_param(|m| Some(m.bias)),
             moment_overestimation: self.moment_param(|m| Some(m.overestimation)),
             wrapping_zone_rad: self.moment_param(|m| m.wrapping_zone),
-            _pad1: 0,
+            _pad1: [0; 2],
         }
     }
 

@@ -35,6 +35,7 @@ pub mod msm;
 pub mod none;
 pub mod osm;
 pub mod probe;
+pub mod slice_interp;
 
 pub use light_space::LightSpace;
 
@@ -139,12 +140,17 @@ pub enum ShadowError {
     Gpu(String),
 }
 
-pub use crate::scene::technique::{ParamError, ParamSpec, SplatMode, TechniqueParams};
+pub use crate::scene::technique::{ParamError, ParamSpec, ParamValue, SplatMode, TechniqueParams};
 
-/// Sets `key` to `value` in `params` after checking both against the registry.
-pub fn set_param(params: &mut TechniqueParams, key: &str, value: f32) -> Result<(), ShadowError> {
+/// Sets `key` to `value` in `params` after checking both against the registry (a choice is
+/// kept by its name, whether given by name or by index).
+pub fn set_param(
+    params: &mut TechniqueParams,
+    key: &str,
+    value: &ParamValue,
+) -> Result<(), ShadowError> {
     let spec = find_param(key)?;
-    spec.check(value)?;
+    let value = spec.canonical(value)?;
     params.values.insert(spec.key.to_owned(), value);
     Ok(())
 }
@@ -152,8 +158,8 @@ pub fn set_param(params: &mut TechniqueParams, key: &str, value: f32) -> Result<
 /// Checks every parameter value set in `params` against the registry: a scene's
 /// `[shadow.params]` reaches a technique only through here.
 pub fn check_params(params: &TechniqueParams) -> Result<(), ShadowError> {
-    for (key, &value) in &params.values {
-        find_param(key)?.check(value)?;
+    for (key, value) in &params.values {
+        find_param(key)?.resolve(value)?;
     }
     Ok(())
 }
@@ -478,17 +484,22 @@ pub fn find_param(key: &str) -> Result<&'static ParamSpec, ShadowError> {
         })
 }
 
-/// Parses `KEY=VALUE` for `--param`, checked against the registry.
-pub fn parse_param(s: &str) -> Result<(String, f32), String> {
+/// Parses `KEY=VALUE` for `--param`, checked against the registry: VALUE is a number, or for a
+/// parameter with choices a choice's name (or index); a choice comes back by its name.
+pub fn parse_param(s: &str) -> Result<(String, ParamValue), String> {
     let (key, value) = s
         .split_once('=')
         .ok_or_else(|| format!("\"{s}\" is not KEY=VALUE (e.g. dom_layer_ratio=2)"))?;
     let spec = find_param(key.trim()).map_err(|e| e.to_string())?;
-    let value: f32 = value
-        .trim()
-        .parse()
-        .map_err(|_| format!("\"{}\" in \"{s}\" is not a number", value.trim()))?;
-    spec.check(value).map_err(|e| e.to_string())?;
+    let value = value.trim();
+    let value = match value.parse::<f32>() {
+        Ok(number) => ParamValue::Number(number),
+        Err(_) if spec.choices.is_empty() => {
+            return Err(format!("\"{value}\" in \"{s}\" is not a number"));
+        }
+        Err(_) => ParamValue::Choice(value.to_owned()),
+    };
+    let value = spec.canonical(&value).map_err(|e| e.to_string())?;
     Ok((spec.key.to_owned(), value))
 }
 
@@ -626,6 +637,15 @@ mod tests {
                     p.key
                 );
                 assert!(p.min <= p.max && !p.doc.is_empty(), "{}", p.key);
+                // A choice's value is its index: the range is exactly the indices.
+                if !p.choices.is_empty() {
+                    assert_eq!(
+                        (p.min, p.max, p.unit),
+                        (0.0, (p.choices.len() - 1) as f32, "-"),
+                        "{}",
+                        p.key
+                    );
+                }
                 if let Some(d) = p.default {
                     assert!(
                         p.check(d).is_ok(),
@@ -645,7 +665,10 @@ mod tests {
     #[test]
     fn parameters_parse_and_bad_ones_say_why() {
         let (key, value) = parse_param("dom_layer_ratio=2").unwrap();
-        assert_eq!((key.as_str(), value), ("dom_layer_ratio", 2.0));
+        assert_eq!(
+            (key.as_str(), value),
+            ("dom_layer_ratio", ParamValue::Number(2.0))
+        );
         let err = parse_param("dom_layer_ratio=9").unwrap_err();
         assert!(err.contains("1..=4"), "{err}");
         let err = parse_param("fancy=1").unwrap_err();
@@ -666,9 +689,67 @@ mod tests {
         let mut params = TechniqueParams::new(8, 256);
         let ratio = find_param("dom_layer_ratio").unwrap();
         assert_eq!(params.get(ratio), Some(1.0));
-        set_param(&mut params, "dom_layer_ratio", 3.0).unwrap();
+        set_param(&mut params, "dom_layer_ratio", &3.0.into()).unwrap();
         assert_eq!(params.get(ratio), Some(3.0));
-        assert!(set_param(&mut params, "dom_layer_ratio", 0.5).is_err());
+        assert!(set_param(&mut params, "dom_layer_ratio", &0.5.into()).is_err());
+        // A name where a number belongs says what the parameter takes.
+        let err = set_param(
+            &mut params,
+            "dom_layer_ratio",
+            &ParamValue::Choice("big".into()),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            err.contains("\"big\" is not a number") && err.contains("1..=4"),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn choices_parse_by_name_or_index_and_bad_ones_name_the_choices() {
+        let cubic = ParamValue::Choice("cubic".to_owned());
+        for key in ["osm_interp", "dom_interp"] {
+            let spec = find_param(key).unwrap();
+            assert_eq!(spec.choices, ["linear", "cubic"]);
+            // By name or by index; either way kept by name.
+            for text in ["cubic", " cubic", "1"] {
+                let (k, v) = parse_param(&format!("{key}={text}")).unwrap();
+                assert_eq!((k.as_str(), &v), (key, &cubic), "{text}");
+            }
+            let mut params = TechniqueParams::new(8, 256);
+            assert_eq!(params.choice_index(spec), 0, "linear by default");
+            set_param(&mut params, key, &1.0.into()).unwrap();
+            assert_eq!(params.values[key], cubic);
+            assert_eq!(
+                (params.get(spec), params.choice_index(spec)),
+                (Some(1.0), 1)
+            );
+            // A scene file may keep either form; both read as the index.
+            params
+                .values
+                .insert(key.to_owned(), ParamValue::Number(1.0));
+            assert!(check_params(&params).is_ok());
+            assert_eq!(params.choice_index(spec), 1);
+            // Anything else names the valid choices.
+            for bad in ["quadratic", "2", "0.5", "-1", "Cubic"] {
+                let err = parse_param(&format!("{key}={bad}")).unwrap_err();
+                assert!(
+                    err.contains(key)
+                        && err.contains(bad)
+                        && err.contains("not one of its choices: linear, cubic"),
+                    "{err}"
+                );
+            }
+            params
+                .values
+                .insert(key.to_owned(), ParamValue::Choice("spline".to_owned()));
+            let err = check_params(&params).unwrap_err().to_string();
+            assert_eq!(
+                err,
+                format!("parameter {key} = \"spline\" is not one of its choices: linear, cubic")
+            );
+        }
     }
 
     #[test]

@@ -39,6 +39,7 @@ pub const BIAS: ParamSpec = ParamSpec {
     // points, mean over 5/7/9 channels and both splat modes): 5e-4 with η = 0.4 gives 0.0364;
     // 5e-5 gives 0.0382, 5e-3 0.0366, 5e-6 0.0393 (each with η = 0.4).
     default: Some(5e-4),
+    choices: &[],
 };
 
 /// `msm_overestimation`: η for power moments.
@@ -52,6 +53,7 @@ pub const OVERESTIMATION: ParamSpec = ParamSpec {
     // Measured as for β: 0.4 gives 0.0364 (β = 5e-4); 0.25 gives 0.071, 0.5 0.0376, 0.6 0.039,
     // 1 0.057; 0, the lower bound, 0.30 (light leaks through every particle's own chord).
     default: Some(0.4),
+    choices: &[],
 };
 
 /// `tmsm_bias`: β for trigonometric moments.
@@ -83,6 +85,7 @@ pub const WRAPPING_ZONE: ParamSpec = ParamSpec {
     min: 0.01,
     max: 3.0,
     default: Some(0.1 * std::f32::consts::PI),
+    choices: &[],
 };
 
 /// Power moments: N = 4, 6 or 8, the largest that fits B − 1; b0, b1..bN.
@@ -128,6 +131,8 @@ pub const MSM: LayeredSpec = LayeredSpec {
     depth_channel: false,
     layer_thickness: None,
     layer_ratio: None,
+    interp: None,
+    start_dilation: None,
     sigma: false,
     moments: Some(MomentParams {
         bias: &BIAS,

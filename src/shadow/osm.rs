@@ -4,11 +4,16 @@
 //! fitted to the particles each frame. Slice k stores the optical depth Ω in front of boundary
 //! k/B; every light-space particle fragment adds its optical depth to each boundary at or beyond
 //! its depth (additive blending, no sort). Lookup interpolates linearly between the two
-//! boundaries around the point and returns T = exp(-Ω). Shaders: `shaders/shadow/osm.wgsl`
-//! (lookup) and `osm_build.wgsl`; the packing and passes are shared in [`super::layered`].
+//! boundaries around the point (or, with `osm_interp = cubic`, with the monotone cubic through
+//! the four around it, [`super::slice_interp`]) and returns T = exp(-Ω). Shaders:
+//! `shaders/shadow/osm.wgsl` (lookup) and `osm_build.wgsl`; the packing and passes are shared
+//! in [`super::layered`].
 
-use super::layered::{ChannelPlan, Layered, LayeredSpec, PARAMS_BYTES, Precision};
-use super::{MapKind, MemoryUse, Role, TechniqueEntry, packed_bytes_per_texel};
+use super::layered::{ChannelPlan, Layered, LayeredSpec, PARAMS_BYTES, Precision, interp_param};
+use super::{MapKind, MemoryUse, ParamSpec, Role, TechniqueEntry, packed_bytes_per_texel};
+
+/// `osm_interp`: linear or monotone cubic between slice boundaries.
+pub const INTERP: ParamSpec = interp_param("osm_interp");
 
 pub const SPEC: LayeredSpec = LayeredSpec {
     name: "osm",
@@ -21,6 +26,8 @@ pub const SPEC: LayeredSpec = LayeredSpec {
     depth_channel: false,
     layer_thickness: None,
     layer_ratio: None,
+    interp: Some(&INTERP),
+    start_dilation: None,
     sigma: false,
     moments: None,
     precision: Precision::Half,
@@ -43,11 +50,11 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     in_default_sweep: true,
     in_default_compare: true,
     build_reads_back: false,
-    params: &[],
+    params: &[INTERP],
     order_independent: true,
     converges_with_budget: true,
     compresses_captured_lists: false,
-    // B half-float slices and the parameter uniform.
+    // B half-float slices and the uniform parameters.
     memory: |c| MemoryUse {
         channels: c.channels.into(),
         bytes: c.texels() * packed_bytes_per_texel(c.channels.into(), 2) + PARAMS_BYTES,

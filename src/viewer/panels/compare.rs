@@ -1,10 +1,11 @@
 //! The comparison panel: the mode, configurations A and B (source, technique, budget), and the
 //! settings they share: shadow-map resolution and splatting, every technique parameter the
-//! registry declares (a slider over its range), billboards, render size and exposure.
+//! registry declares (a slider over its range, or buttons for its choices), billboards, render
+//! size and exposure.
 
 use eframe::egui::{self, Color32};
 
-use crate::shadow::{self, SplatMode};
+use crate::shadow::{self, ParamValue, SplatMode};
 use crate::viewer::controller::{
     CompareMode, Controller, Side, Source, budget_meaning, clamp_channels, comparable_techniques,
 };
@@ -53,24 +54,50 @@ pub fn show(controller: &mut Controller, ui: &mut egui::Ui) {
         ui.radio_value(&mut shadow.splat, SplatMode::Point, "point (thesis)");
         ui.radio_value(&mut shadow.splat, SplatMode::Segment, "segment");
     });
-    // Every technique parameter the registry declares: a slider over its range, and for one
-    // whose default is derived per frame, a checkbox that fixes it.
+    // Every technique parameter the registry declares: a choice of buttons for one with named
+    // choices, a slider over its range otherwise, and for one whose default is derived per
+    // frame, a checkbox that fixes it. Unset and default are the same setting: the scene keeps
+    // only what differs from the default, so it stays canonical.
     for (_, spec) in shadow::all_params() {
         let range = spec.min..=spec.max;
         let text = format!("{} ({})", spec.key, spec.unit);
         let logarithmic = spec.max / spec.min.max(1e-6) > 100.0;
+        let set = shadow
+            .params
+            .get(spec.key)
+            .and_then(|v| spec.resolve(v).ok());
         match spec.default {
+            Some(default) if !spec.choices.is_empty() => {
+                let mut index = set.unwrap_or(default) as usize;
+                ui.horizontal_wrapped(|ui| {
+                    ui.label(spec.key).on_hover_text(spec.doc);
+                    for (i, name) in spec.choices.iter().enumerate() {
+                        ui.radio_value(&mut index, i, *name).on_hover_text(spec.doc);
+                    }
+                });
+                if index as f32 == default {
+                    shadow.params.remove(spec.key);
+                } else {
+                    let name = spec.choices[index].to_owned();
+                    shadow
+                        .params
+                        .insert(spec.key.to_owned(), ParamValue::Choice(name));
+                }
+            }
             Some(default) => {
-                let value = shadow.params.entry(spec.key.to_owned()).or_insert(default);
+                let mut value = set.unwrap_or(default);
                 ui.add(
-                    egui::Slider::new(value, range)
+                    egui::Slider::new(&mut value, range)
                         .logarithmic(logarithmic)
                         .text(text),
                 )
                 .on_hover_text(spec.doc);
-                if *value == default {
-                    // Unset and default are the same setting: keep the scene canonical.
+                if value == default {
                     shadow.params.remove(spec.key);
+                } else {
+                    shadow
+                        .params
+                        .insert(spec.key.to_owned(), ParamValue::Number(value));
                 }
             }
             None => {
@@ -78,15 +105,15 @@ pub fn show(controller: &mut Controller, ui: &mut egui::Ui) {
                 ui.checkbox(&mut fixed, format!("fixed {}", spec.key))
                     .on_hover_text(spec.doc);
                 if fixed {
-                    let value = shadow
-                        .params
-                        .entry(spec.key.to_owned())
-                        .or_insert(spec.min.max(1.0).min(spec.max));
+                    let mut value = set.unwrap_or(spec.min.max(1.0).min(spec.max));
                     ui.add(
-                        egui::Slider::new(value, range)
+                        egui::Slider::new(&mut value, range)
                             .logarithmic(logarithmic)
                             .text(text),
                     );
+                    shadow
+                        .params
+                        .insert(spec.key.to_owned(), ParamValue::Number(value));
                 } else {
                     shadow.params.remove(spec.key);
                 }
