@@ -33,6 +33,7 @@ pub mod light_space;
 pub mod none;
 pub mod osm;
 pub mod probe;
+pub mod volume;
 
 pub use light_space::LightSpace;
 
@@ -117,6 +118,17 @@ pub enum ShadowError {
         row: u32,
         segments: u64,
         bytes: u64,
+        limit: u64,
+    },
+    #[error(
+        "volume: {particles} particles cover {rows} voxel rows of its {side}³ grid this frame, \
+         more than one scatter dispatch numbers ({limit}): use fewer particles or a smaller \
+         budget"
+    )]
+    VoxelRowsTooMany {
+        particles: u32,
+        side: u32,
+        rows: u64,
         limit: u64,
     },
     #[error(
@@ -409,6 +421,7 @@ pub static REGISTRY: &[TechniqueEntry] = &[
     bsm::ENTRY,
     dsm::ENTRY,
     avsm::ENTRY,
+    volume::ENTRY,
     exact::ENTRY,
 ];
 
