@@ -354,3 +354,74 @@ fn few_steps_miss_an_occluder_far_from_the_receiver_but_not_a_near_one() {
     // remains.
     assert!(far[2] < 0.01 && near[2] < 0.01, "{rms:?}");
 }
+
+/// On an adapter that binds a quarter of the scratch grid per buffer, the grid is built slab by
+/// slab of z-slices; each voxel's sum is the same integer either way, so T is identical, and the
+/// ledger still matches the memory formula.
+#[test]
+fn a_grid_built_in_slabs_equals_the_grid_built_whole() {
+    let light = Vec3::new(-6.0, 8.0, 3.0);
+    let scene = small_scene(light);
+    let (_, _, particles, points) = sphere_cases().remove(1);
+    let config = volume(8, 64, Field::Radial);
+    let side: u64 = 128; // round(cbrt(512² · 8))
+    let run = |gpu: &Gpu| {
+        let mut renderer = Renderer::new(gpu, 64, 48, OUTPUT_FORMAT, &config).unwrap();
+        let t = renderer.probe(gpu, &scene, &particles, &points).unwrap();
+        let technique = renderer.technique();
+        let counters = technique.counters();
+        let expected = (smokeshadow::shadow::find("volume").unwrap().memory)(
+            &smokeshadow::shadow::MemoryCase {
+                channels: 8,
+                resolution_px: 512,
+                particles: particles.len() as u64,
+                frame_pixels: 64 * 48,
+                counters: &counters,
+            },
+        );
+        assert_eq!(technique.memory().total_bytes(), expected.bytes);
+        assert_eq!(
+            technique.memory().transient_bytes(),
+            expected.transient_bytes
+        );
+        let depth = counters.iter().find(|(k, _)| *k == "slab_depth").unwrap().1;
+        (t, depth)
+    };
+    let whole_gpu = gpu();
+    let (whole, depth) = run(&whole_gpu);
+    assert_eq!(depth, side);
+    let mut slab_gpu = gpu();
+    // Scratch is 4 bytes a voxel, staging 256 bytes a row of 128 voxels: 16 slices fit.
+    slab_gpu.limits.max_storage_buffer_binding_size = side * side * 16 * 4;
+    let (slabs, depth) = run(&slab_gpu);
+    assert_eq!(depth, 16);
+    assert!(
+        whole.iter().any(|&t| t < 0.1),
+        "the points lie in the spheres' shadow"
+    );
+    let off = max_difference(&whole, &slabs);
+    assert_eq!(
+        off, 0.0,
+        "T built in slabs differs from T built whole by {off}"
+    );
+}
+
+/// Without smoke (no particles, or only ones without extinction) the grid is not read: T = 1.
+#[test]
+fn no_smoke_lets_all_light_through() {
+    let gpu = gpu();
+    let light = Vec3::new(0.0, 10.0, 0.0);
+    let scene = small_scene(light);
+    let points = along_rays(light, &[Vec3::ZERO], 1.0, 1.0);
+    let clear = [sphere(Vec3::ZERO, 1.0, 0.0)];
+    for particles in [&[][..], &clear[..]] {
+        let t = probe_all(
+            &gpu,
+            &scene,
+            particles,
+            &[volume(8, 64, Field::Radial)],
+            &points,
+        );
+        assert!(t[0].iter().all(|&v| v == 1.0), "{:?}", t[0]);
+    }
+}
