@@ -26,11 +26,6 @@ struct VolumeBuild {
     // The light (m), for the light-aligned field; fixed-point units per 1/m of extinction.
     light_pos: vec3<f32>,
     units_per_extinction: f32,
-    // 1: the model's extinction along this light's rays; 0: the light-independent field.
-    light_aligned: u32,
-    _pad0: u32,
-    _pad1: u32,
-    _pad2: u32,
 };
 
 struct VolumeJob {
@@ -50,24 +45,20 @@ const VOLUME_SUBSAMPLES: u32 = 2u;
 // The largest half float: a mean beyond it is clamped (T = 0 within a millimetre anyway).
 const VOLUME_HALF_MAX: f32 = 65504.0;
 
-// The particle model's extinction as a field in space, per unit τ, at (distance / radius)² = ρ²
-// < 1: f = 1 - (4 E(m) - 2 K(m)) / π with m = 1 - ρ², the inverse Abel transform of the model's
-// optical depth along a line at distance d, 2 (1 - d/r) sqrt(r² - d²), so that every line
-// through the sphere integrates it to exactly that (src/shadow/volume.rs, `radial_extinction`,
-// is the CPU mirror). K and E are Abramowitz & Stegun 17.3.34 and 17.3.36 (|error| <= 2e-8) in
-// m1 = 1 - m = ρ², which carry the logarithm of the centre explicitly; f → 0 at the surface.
+// The particle model's extinction as a field in space, per unit τ, at (distance / radius)² = ρ²:
+// f = 1 - (4 E(m) - 2 K(m)) / π with m = 1 - ρ² (0 from the surface out), the inverse Abel
+// transform of the model's optical depth along a line at distance d, 2 (1 - d/r) sqrt(r² - d²),
+// so that every line through the sphere integrates it to exactly that. K and E are Abramowitz &
+// Stegun 17.3.34 and 17.3.36 (|error| <= 2e-8) in m1 = 1 - m = ρ², which carry the centre's
+// logarithm explicitly; 4E - 2K is combined here into c(m1) - e(m1) ln m1. The CPU mirror is
+// `radial_extinction` in src/shadow/volume.rs.
 fn radial_extinction(rho2: f32) -> f32 {
-    let m1 = max(rho2, 1e-12);
-    let log_term = -log(m1);
-    let k = 1.38629436112 + m1 * (0.09666344259 + m1 * (0.03590092383 + m1 * (0.03742563713
-        + m1 * 0.01451196212)))
-        + log_term * (0.5 + m1 * (0.12498593597 + m1 * (0.06880248576 + m1 * (0.03328355346
-        + m1 * 0.00441787012))));
-    let e = 1.0 + m1 * (0.44325141463 + m1 * (0.06260601220 + m1 * (0.04757383546
-        + m1 * 0.01736506451)))
-        + log_term * m1 * (0.24998368310 + m1 * (0.09200180037 + m1 * (0.04069697526
-        + m1 * 0.00526449639)));
-    return max(1.0 - (4.0 * e - 2.0 * k) / 3.14159265358979, 0.0);
+    let m1 = clamp(rho2, 1e-12, 1.0);
+    let c = 1.22741127776 + m1 * (1.57967877334 + m1 * (0.17862220114 + m1 * (0.11544406758
+        + m1 * 0.0404363338)));
+    let e = -1.0 + m1 * (0.74996286046 + m1 * (0.23040222996 + m1 * (0.09622079412
+        + m1 * 0.01222224532)));
+    return max(1.0 - (c - e * log2(m1) * 0.69314718056) * 0.31830988618, 0.0);
 }
 
 // The particle model's extinction per unit τ at `at` along the light's ray through it:
@@ -107,13 +98,10 @@ fn job_of(row: u32) -> u32 {
     return lo;
 }
 
-@compute @workgroup_size(64)
-fn scatter(
-    @builtin(workgroup_id) group: vec3<u32>,
-    @builtin(num_workgroups) groups: vec3<u32>,
-    @builtin(local_invocation_index) lane: u32,
-) {
-    let row = (group.y * groups.x + group.x) * 64u + lane;
+// One (particle, voxel row) pair of the scatter, through the light-aligned field or the
+// light-independent one. Two entry points call it with a constant `aligned`, so each compiles
+// only its own field: llvmpipe runs both sides of a branch under a mask, even a uniform one.
+fn scatter_row(row: u32, aligned: bool) {
     if row >= build.total_rows {
         return;
     }
@@ -156,12 +144,10 @@ fn scatter(
             let at = corner + (vec3<f32>(cell) + 0.5) / n * h;
             let to_center = at - job.center;
             let rho2 = dot(to_center, to_center) * inv_r2;
-            if rho2 >= 1.0 {
-                continue;
-            }
-            if build.light_aligned == 1u {
-                sum += light_ray_extinction(at, job);
+            if aligned {
+                sum += select(0.0, light_ray_extinction(at, job), rho2 < 1.0);
             } else {
+                // 0 from the surface out.
                 sum += radial_extinction(rho2);
             }
         }
@@ -171,6 +157,24 @@ fn scatter(
             atomicAdd(&scratch[base + u32(x)], units);
         }
     }
+}
+
+@compute @workgroup_size(64)
+fn scatter_radial(
+    @builtin(workgroup_id) group: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+    @builtin(local_invocation_index) lane: u32,
+) {
+    scatter_row((group.y * groups.x + group.x) * 64u + lane, false);
+}
+
+@compute @workgroup_size(64)
+fn scatter_light_aligned(
+    @builtin(workgroup_id) group: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+    @builtin(local_invocation_index) lane: u32,
+) {
+    scatter_row((group.y * groups.x + group.x) * 64u + lane, true);
 }
 
 fn extinction(index: u32) -> f32 {

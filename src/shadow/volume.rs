@@ -45,6 +45,12 @@
 //!    is associative, so the grid does not depend on the order of the particles or of the
 //!    atomics (`order_independent`). An invocation loops over at most G ≤ 1023 voxels of
 //!    8 sub-samples each (8,184 iterations with the search), far inside llvmpipe's 65,535.
+//!    Each field has its own entry point: llvmpipe evaluates both sides of a branch under a
+//!    mask, even a uniform one, and evaluating both fields per sub-sample cost 1.6 times the
+//!    CPU time per frame. (Cutting the rows into bricks of up to 4,096 voxels, one workgroup
+//!    each with its lanes striding over the voxels, was 1.4 times slower than one row per
+//!    invocation; a 4,096-entry table of the radial field read from a storage buffer was twice
+//!    as slow as evaluating it.)
 //!    The fixed-point scale is 2^14 units per 1/m, lowered by powers of two when the particle
 //!    count times the largest τ (times the radial field's peak) could carry a voxel's sum past
 //!    2^32, so no sum can wrap.
@@ -130,43 +136,28 @@ const RADIAL_PEAK: f64 = 9.5;
 /// optical depth along a line at distance d from the centre, 2τ(1 − d/r)·sqrt(r² − d²), so every
 /// line through the sphere, from any light, integrates it to exactly that. K and E are
 /// Abramowitz & Stegun 17.3.34 and 17.3.36 (error ≤ 2e-8) in m1 = ρ², which carry the centre's
-/// logarithmic peak explicitly. The CPU mirror of `radial_extinction` in volume_build.wgsl.
+/// logarithmic peak explicitly. The CPU mirror of `radial_extinction` in volume_build.wgsl
+/// (the same coefficients, in f64).
 pub fn radial_extinction(rho2: f64) -> f64 {
-    if rho2 >= 1.0 {
-        return 0.0;
-    }
-    let m1 = rho2.max(1e-12);
-    let log_term = -m1.ln();
+    let m1 = rho2.clamp(1e-12, 1.0);
     let poly = |c: [f64; 5]| c.iter().rev().fold(0.0, |acc, &ci| acc * m1 + ci);
-    let k = poly([
-        1.386_294_361_12,
-        0.096_663_442_59,
-        0.035_900_923_83,
-        0.037_425_637_13,
-        0.014_511_962_12,
-    ]) + log_term
-        * poly([
-            0.5,
-            0.124_985_935_97,
-            0.068_802_485_76,
-            0.033_283_553_46,
-            0.004_417_870_12,
-        ]);
+    // 4E − 2K = c(m1) − e(m1) ln m1, from A&S 17.3.36 (E) and 17.3.34 (K), coefficient by
+    // coefficient: c_i = 4 a_i(E) − 2 a_i(K), e_i = 4 b_i(E) − 2 b_i(K).
+    let c = poly([
+        1.227_411_277_76,
+        1.579_678_773_34,
+        0.178_622_201_14,
+        0.115_444_067_58,
+        0.040_436_333_8,
+    ]);
     let e = poly([
-        1.0,
-        0.443_251_414_63,
-        0.062_606_012_20,
-        0.047_573_835_46,
-        0.017_365_064_51,
-    ]) + log_term
-        * poly([
-            0.0,
-            0.249_983_683_10,
-            0.092_001_800_37,
-            0.040_696_975_26,
-            0.005_264_496_39,
-        ]);
-    (1.0 - (4.0 * e - 2.0 * k) / std::f64::consts::PI).max(0.0)
+        -1.0,
+        0.749_962_860_46,
+        0.230_402_229_96,
+        0.096_220_794_12,
+        0.012_222_245_32,
+    ]);
+    (1.0 - (c - e * m1.ln()) / std::f64::consts::PI).max(0.0)
 }
 
 /// The smallest grid (one empty voxel each side of two).
@@ -205,7 +196,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     converges_with_budget: false,
     compresses_captured_lists: false,
     // The R16F grid (G³ · 2 bytes, G = round(cbrt(res² · B))) and the 32-byte lookup uniform;
-    // transient: per slab a 48-byte uniform, the u32 scratch and the padded f16 staging of one
+    // transient: per slab a 64-byte uniform, the u32 scratch and the padded f16 staging of one
     // slab, and 32 bytes per job of capacity.
     memory: |c| {
         let g = u64::from(grid_side(c.resolution_px, c.channels));
@@ -275,8 +266,6 @@ struct VolumeBuild {
     words_per_row: u32,
     light_pos: [f32; 3],
     units_per_extinction: f32,
-    light_aligned: u32,
-    _pad: [u32; 3],
 }
 
 /// One particle's share of the scatter. Keep in sync with `VolumeJob` in volume_build.wgsl.
@@ -317,8 +306,7 @@ pub fn layouts() -> Vec<crate::gpu::MirrorLayout> {
                 slab_depth,
                 words_per_row,
                 light_pos,
-                units_per_extinction,
-                light_aligned
+                units_per_extinction
             ]
         ),
         crate::mirror_layout!(
@@ -593,7 +581,12 @@ impl Volume {
             steps,
             light_aligned,
             slab_depth,
-            scatter: pipeline("scatter"),
+            // Each field has its own entry point (see scatter_row in volume_build.wgsl).
+            scatter: pipeline(if light_aligned {
+                "scatter_light_aligned"
+            } else {
+                "scatter_radial"
+            }),
             convert: pipeline("convert"),
             grid,
             lookup_params,
@@ -728,8 +721,6 @@ impl ShadowTechnique for Volume {
                     words_per_row: (pitch / 4) as u32,
                     light_pos: inputs.light.position.to_array(),
                     units_per_extinction: plan.units_per_extinction,
-                    light_aligned: u32::from(self.light_aligned),
-                    _pad: [0; 3],
                 }),
             );
             let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
