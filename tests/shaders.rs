@@ -68,7 +68,9 @@ fn every_shader_file_is_embedded_and_composes() {
 #[test]
 fn every_rust_mirror_matches_nagas_reflection_of_its_wgsl_struct() {
     use smokeshadow::shaders::{SHADOW_TECHNIQUE, compose, source};
-    use smokeshadow::shadow::{deep_capture, deep_nodes, exact, half_angle, layered, light_maps};
+    use smokeshadow::shadow::{
+        deep_capture, deep_nodes, exact, half_angle, layered, light_maps, volume,
+    };
     let mirrors = [
         smokeshadow::frame::gpu_data::layouts(),
         smokeshadow::frame::particles::layouts(),
@@ -78,6 +80,7 @@ fn every_rust_mirror_matches_nagas_reflection_of_its_wgsl_struct() {
         deep_nodes::layouts(),
         half_angle::layouts(),
         light_maps::layouts(),
+        volume::layouts(),
         smokeshadow::viewer::map_view::layouts(),
     ]
     .concat();

@@ -36,6 +36,7 @@ pub mod none;
 pub mod osm;
 pub mod probe;
 pub mod slice_interp;
+pub mod volume;
 
 pub use light_space::LightSpace;
 
@@ -120,6 +121,17 @@ pub enum ShadowError {
         row: u32,
         segments: u64,
         bytes: u64,
+        limit: u64,
+    },
+    #[error(
+        "volume: {particles} particles cover {rows} voxel rows of its {side}³ grid this frame, \
+         more than one scatter dispatch numbers ({limit}): use fewer particles or a smaller \
+         budget"
+    )]
+    VoxelRowsTooMany {
+        particles: u32,
+        side: u32,
+        rows: u64,
         limit: u64,
     },
     #[error(
@@ -419,6 +431,7 @@ pub static REGISTRY: &[TechniqueEntry] = &[
     msm::TRIG_ENTRY,
     dsm::ENTRY,
     avsm::ENTRY,
+    volume::ENTRY,
     exact::ENTRY,
 ];
 
