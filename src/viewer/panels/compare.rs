@@ -58,7 +58,9 @@ pub fn show(controller: &mut Controller, ui: &mut egui::Ui) {
     for (_, spec) in shadow::all_params() {
         let range = spec.min..=spec.max;
         let text = format!("{} ({})", spec.key, spec.unit);
-        let logarithmic = spec.max / spec.min.max(1e-6) > 100.0;
+        // Logarithmic over a wide range of positive values; a range from 0 (a switch such as
+        // volume_light_aligned) stays linear.
+        let logarithmic = spec.min > 0.0 && spec.max / spec.min > 100.0;
         match spec.default {
             Some(default) => {
                 let value = shadow.params.entry(spec.key.to_owned()).or_insert(default);
