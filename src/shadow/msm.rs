@@ -32,7 +32,8 @@ pub const BIAS: ParamSpec = ParamSpec {
     key: "msm_bias",
     unit: "-",
     doc: "how far the power moments are pulled towards those of a uniform distribution before \
-          the reconstruction: more keeps the 32-bit arithmetic stable, and leaks more light",
+          the reconstruction: more keeps the 32-bit arithmetic stable, and blurs the ray's \
+          smoke over its whole depth range (less accurate)",
     min: 0.0,
     max: 0.5,
     // Measured (examples/moment_params.rs, thesis_plume, RMS T against exact over the shaded
@@ -62,7 +63,7 @@ pub const TRIG_BIAS: ParamSpec = ParamSpec {
     key: "tmsm_bias",
     doc: "how far the trigonometric moments are pulled towards those of a uniform distribution \
           (scaled by 1 − β) before the reconstruction: more keeps the 32-bit arithmetic \
-          stable, and leaks more light",
+          stable, and blurs the ray's smoke over its whole depth range (less accurate)",
     // Measured as for `msm_bias`: 5e-4 with η = 0.4 gives 0.0353; 5e-5 0.0381. 5e-3 gives
     // 0.0336, but between two far-apart puffs on one ray T then rises by 0.19 behind the first
     // (tests/moments.rs, `degenerate_texels_give_finite_transmittance`), against 0.03 at 5e-4.

@@ -115,14 +115,14 @@ pub const STEPS: ParamSpec = ParamSpec {
 pub const LIGHT_ALIGNED: ParamSpec = ParamSpec {
     key: "volume_light_aligned",
     unit: "-",
-    doc: "0: a light-independent field whose every whole chord matches the particle model (one \
-          grid could serve several lights); 1: the model's extinction along this light's rays, \
-          τ(1 - d/r) with d from the light ray (exact inside particles too; the grid serves this \
-          light only); rounded",
+    doc: "no: a light-independent field whose every whole chord matches the particle model \
+          (one grid could serve several lights); yes: the model's extinction along this \
+          light's rays, τ(1 - d/r) with d from the light ray (exact inside particles too; the \
+          grid serves this light only)",
     min: 0.0,
     max: 1.0,
     default: Some(0.0),
-    choices: &[],
+    choices: &["no", "yes"],
 };
 
 /// The default K, chosen by measurement against `exact` (see the module's header).
