@@ -33,12 +33,7 @@ fn volume(channels: u32, steps: u32, field: Field) -> TechniqueConfig {
     } else {
         0.0
     };
-    set_param(
-        &mut config.params,
-        "volume_light_aligned",
-        &f32::from(aligned).into(),
-    )
-    .unwrap();
+    set_param(&mut config.params, "volume_light_aligned", &aligned.into()).unwrap();
     config
 }
 
