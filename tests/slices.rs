@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{gpu, technique};
+use common::{gpu, probe_all, technique};
 use glam::Vec3;
 use smokeshadow::gpu::Gpu;
 use smokeshadow::render::shaded::{rms_difference, shaded_points};
@@ -32,31 +32,6 @@ fn config(name: &str, channels: u32, splat: SplatMode, params: &[&str]) -> Techn
         set_param(&mut config.params, &key, &value).unwrap();
     }
     config
-}
-
-/// T at `points` for each configuration, in order (one renderer, switching techniques).
-fn probe_all(
-    gpu: &Gpu,
-    scene: &Scene,
-    particles: &[Particle],
-    configs: &[TechniqueConfig],
-    points: &[Vec3],
-) -> Vec<Vec<f32>> {
-    let mut renderer = Renderer::new(
-        gpu,
-        scene.output.width_px,
-        scene.output.height_px,
-        OUTPUT_FORMAT,
-        &configs[0],
-    )
-    .unwrap();
-    configs
-        .iter()
-        .map(|c| {
-            renderer.set_technique(gpu, c).unwrap();
-            renderer.probe(gpu, scene, particles, points).unwrap()
-        })
-        .collect()
 }
 
 /// Light rays through the plume (towards every 400th particle), each as the unit direction from

@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{gpu, technique};
+use common::{gpu, probe_all, technique};
 use glam::Vec3;
 use smokeshadow::gpu::Gpu;
 use smokeshadow::render::shaded::rms_difference;
@@ -43,32 +43,6 @@ fn outside_all(p: Vec3, particles: &[Particle]) -> bool {
     particles
         .iter()
         .all(|s| p.distance(s.position) >= s.radius_m)
-}
-
-/// T at `points` for each configuration, in order (one renderer, switching techniques), and
-/// each configuration's counters.
-fn probe_all(
-    gpu: &Gpu,
-    scene: &Scene,
-    particles: &[Particle],
-    configs: &[TechniqueConfig],
-    points: &[Vec3],
-) -> Vec<Vec<f32>> {
-    let mut renderer = Renderer::new(
-        gpu,
-        scene.output.width_px,
-        scene.output.height_px,
-        OUTPUT_FORMAT,
-        &configs[0],
-    )
-    .unwrap();
-    configs
-        .iter()
-        .map(|c| {
-            renderer.set_technique(gpu, c).unwrap();
-            renderer.probe(gpu, scene, particles, points).unwrap()
-        })
-        .collect()
 }
 
 fn small_scene(light: Vec3) -> Scene {
