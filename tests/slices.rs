@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{gpu, probe_all, technique};
+use common::{gpu, probe_all, sphere, technique};
 use glam::Vec3;
 use smokeshadow::gpu::Gpu;
 use smokeshadow::render::shaded::{rms_difference, shaded_points};
@@ -195,46 +195,16 @@ fn gpu_cubic_is_the_cpu_mirror_through_the_boundaries_the_linear_lookup_reads() 
     }
 }
 
-/// One homogeneous sphere of radius 1 m at the origin lit straight down from 10 m (as in
-/// tests/techniques.rs): along the axis its optical depth rises linearly through the chord.
-mod sphere {
-    use super::*;
-
-    pub const TAU: f32 = 1.5;
-    pub const LIGHT_HEIGHT: f32 = 10.0;
-
-    pub fn scene() -> Scene {
-        let mut scene = Scene::thesis_plume();
-        scene.output.width_px = 64;
-        scene.output.height_px = 48;
-        scene.light.position = Vec3::new(0.0, LIGHT_HEIGHT, 0.0);
-        scene.light.target = Vec3::ZERO;
-        scene.light.cone_angle_deg = 10.0;
-        scene.boxes.clear();
-        scene
-    }
-
-    pub fn particle() -> Particle {
-        Particle {
-            position: Vec3::ZERO,
-            velocity: Vec3::ZERO,
-            age_s: 1.0,
-            radius_m: 1.0,
-            density_per_m: TAU,
-            albedo: Vec3::ONE,
-        }
-    }
-
-    /// Points on the axis through the chord (y from 0.9 down to -0.9, off the ends where the
-    /// four rays around a point enter at slightly different depths), and the analytic T.
-    pub fn axis() -> (Vec<Vec3>, Vec<f32>) {
-        (0..=72)
-            .map(|i| {
-                let y = 0.9 - 1.8 * i as f32 / 72.0;
-                (Vec3::new(0.0, y, 0.0), (-TAU * (1.0 - y)).exp())
-            })
-            .unzip()
-    }
+/// Points on the axis through the analytic sphere's chord (tests/common/sphere.rs; y from 0.9
+/// down to -0.9, off the ends where the four rays around a point enter at slightly different
+/// depths), and the analytic T: along the axis its optical depth rises linearly.
+fn sphere_axis() -> (Vec<Vec3>, Vec<f32>) {
+    (0..=72)
+        .map(|i| {
+            let y = 0.9 - 1.8 * i as f32 / 72.0;
+            (Vec3::new(0.0, y, 0.0), (-sphere::TAU * (1.0 - y)).exp())
+        })
+        .unzip()
 }
 
 #[test]
@@ -252,7 +222,7 @@ fn cubic_is_linear_where_optical_depth_is_linear_in_depth() {
     let gpu = gpu();
     let scene = sphere::scene();
     let particles = [sphere::particle()];
-    let (points, analytic) = sphere::axis();
+    let (points, analytic) = sphere_axis();
     for (name, channels) in [("osm", 24), ("osm", 8), ("dom", 24), ("dom", 6)] {
         let with = |interp: &str| {
             config(
