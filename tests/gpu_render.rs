@@ -3,22 +3,12 @@
 
 mod common;
 
-use common::{gpu, luminance, technique};
+use common::{REDUCED_H as H, REDUCED_W as W, gpu, luminance, reduced_plume, technique};
 use glam::Vec3;
 use smokeshadow::render::{CameraMatrices, OffscreenFrame, RenderOptions, render_offscreen};
 use smokeshadow::scene::{BoxShape, Scene};
 use smokeshadow::shadow::SplatMode;
 use smokeshadow::sim::{Particle, simulate};
-
-const W: u32 = 256;
-const H: u32 = 192;
-
-fn reduced_plume() -> Scene {
-    let mut scene = Scene::thesis_plume();
-    scene.output.width_px = W;
-    scene.output.height_px = H;
-    scene
-}
 
 fn render(
     scene: &Scene,

@@ -6,7 +6,7 @@
 
 mod common;
 
-use common::{gpu, probe_all, sphere, technique};
+use common::{gpu, probe_all, reduced_plume, sphere, technique};
 use glam::Vec3;
 use smokeshadow::render::TechniqueConfig;
 use smokeshadow::render::shaded::{rms_difference, shaded_points};
@@ -226,9 +226,7 @@ fn the_bounds_bracket_the_closed_form_and_tighten_as_the_moments_grow() {
 #[test]
 fn error_against_exact_on_the_plume_falls_as_the_moments_grow() {
     let gpu = gpu();
-    let mut scene = Scene::thesis_plume();
-    scene.output.width_px = 256;
-    scene.output.height_px = 192;
+    let scene = reduced_plume();
     let particles = simulate(&scene);
     let points = shaded_points(&scene, &particles, 256, 192, 4);
     let res = scene.shadow.resolution_px;
@@ -411,9 +409,7 @@ fn power_moments_amplify_the_rounding_of_the_draw_order_only_at_a_few_texels() {
     // msm order independent for that). Reversing the order, as the shared test does: most
     // points keep T within the shared 5e-3, and the RMS change stays small.
     let gpu = gpu();
-    let mut scene = Scene::thesis_plume();
-    scene.output.width_px = 256;
-    scene.output.height_px = 192;
+    let scene = reduced_plume();
     let mut behind = scene.clone();
     behind.camera.position = scene.camera.target * 2.0 - scene.camera.position;
     let particles = simulate(&scene);

@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{gpu, probe_all, sphere, technique};
+use common::{REDUCED_H as H, REDUCED_W as W, gpu, probe_all, reduced_plume, sphere, technique};
 use glam::Vec3;
 use smokeshadow::gpu::Gpu;
 use smokeshadow::render::shaded::{rms_difference, shaded_points};
@@ -13,16 +13,6 @@ use smokeshadow::render::{OUTPUT_FORMAT, Renderer, TechniqueConfig};
 use smokeshadow::scene::Scene;
 use smokeshadow::shadow::{LightSpace, SplatMode, parse_param, set_param, slice_interp};
 use smokeshadow::sim::{Particle, simulate};
-
-const W: u32 = 256;
-const H: u32 = 192;
-
-fn reduced_plume() -> Scene {
-    let mut scene = Scene::thesis_plume();
-    scene.output.width_px = W;
-    scene.output.height_px = H;
-    scene
-}
 
 /// `name` at `channels` with `params` (`KEY=VALUE`, as the CLI spells them).
 fn config(name: &str, channels: u32, splat: SplatMode, params: &[&str]) -> TechniqueConfig {

@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{gpu, probe_all, sphere, technique};
+use common::{REDUCED_H as H, REDUCED_W as W, gpu, probe_all, reduced_plume, sphere, technique};
 use glam::Vec3;
 use smokeshadow::gpu::Gpu;
 use smokeshadow::render::shaded::{rms_difference, shaded_points};
@@ -14,16 +14,6 @@ use smokeshadow::render::{
 use smokeshadow::scene::Scene;
 use smokeshadow::shadow::{MemoryCase, SplatMode};
 use smokeshadow::sim::{Particle, simulate};
-
-const W: u32 = 256;
-const H: u32 = 192;
-
-fn reduced_plume() -> Scene {
-    let mut scene = Scene::thesis_plume();
-    scene.output.width_px = W;
-    scene.output.height_px = H;
-    scene
-}
 
 /// How far outside the analytic sphere's T (and its chord) the 512² map's bilinear blend of four
 /// rays may land: measured 9.3e-4 for dsm and avsm (exact's own error at 512²), doubled.

@@ -51,6 +51,18 @@ pub fn probe_all(
         .collect()
 }
 
+/// The size of the reduced thesis frame the technique tests render and probe.
+pub const REDUCED_W: u32 = 256;
+pub const REDUCED_H: u32 = 192;
+
+/// The thesis plume at the reduced frame size.
+pub fn reduced_plume() -> Scene {
+    let mut scene = Scene::thesis_plume();
+    scene.output.width_px = REDUCED_W;
+    scene.output.height_px = REDUCED_H;
+    scene
+}
+
 pub fn technique(
     name: &str,
     channels: u32,
