@@ -540,12 +540,12 @@ impl Renderer {
         self.upload_particles(gpu);
         let particle_count = particles.len() as u32;
 
-        self.timer.begin_frame();
         let mut encoder = gpu
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                 label: Some("frame.encoder"),
             });
+        self.timer.begin_frame(&mut encoder);
         // Hashing every particle costs milliseconds at a million: only frames that may reuse
         // the maps pay for it (a frame that does not leaves `built_from` unset).
         let build_key = reuse_shadow_maps
