@@ -32,14 +32,15 @@ pub struct SweepArgs {
     #[command(flatten)]
     pub params: super::ParamArgs,
     /// Timed frames per cell (medians over these).
-    #[arg(long, default_value_t = 20, value_parser = clap::value_parser!(u32).range(1..=100_000))]
+    #[arg(long, default_value_t = SweepOptions::default().frames, value_parser = clap::value_parser!(u32).range(1..=100_000))]
     pub frames: u32,
-    /// Untimed warm-up frames before them (the first frames compile shaders).
-    #[arg(long, default_value_t = 3)]
+    /// Untimed warm-up frames before them, after the cell's transmittance probe has built the
+    /// maps once (they reuse its maps; the first frame compiles the lighting's shaders).
+    #[arg(long, default_value_t = SweepOptions::default().warmup)]
     pub warmup: u32,
     /// Stop timing a cell after this many seconds of timed frames (but after at least 3), so
     /// slow techniques do not hold the sweep; `frames_timed` says how many it took.
-    #[arg(long, default_value_t = 2.0, value_parser = positive_seconds)]
+    #[arg(long, default_value_t = SweepOptions::default().cell_seconds, value_parser = positive_seconds)]
     pub cell_seconds: f64,
     /// Output size as WIDTHxHEIGHT (default: the scene's).
     #[arg(long)]

@@ -576,8 +576,9 @@ impl Renderer {
 
     /// Transmittance T(p) from the light to each of `points` (world metres) as the active
     /// technique sees it for this frame of `scene`: the technique builds its maps as for
-    /// [`Renderer::render`], then a compute shader evaluates the same `shadow_transmittance` the
-    /// lighting shaders call.
+    /// [`Renderer::render`] (unless they are already this frame's: see
+    /// [`RenderOptions::reuse_shadow_maps`]), then a compute shader evaluates the same
+    /// `shadow_transmittance` the lighting shaders call.
     pub fn probe(
         &mut self,
         gpu: &Gpu,
@@ -602,7 +603,9 @@ impl Renderer {
         particles: &[Particle],
         points: &[Vec3],
     ) -> anyhow::Result<Vec<f32>> {
-        let (mut encoder, stats, _) = self.begin_frame(gpu, scene, particles, false)?;
+        // Maps built for this very frame (a render with `reuse_shadow_maps`, or an earlier
+        // probe) are probed as they are; a probe leaves them reusable for the next such render.
+        let (mut encoder, stats, _) = self.begin_frame(gpu, scene, particles, true)?;
         self.timer.resolve(&mut encoder);
         let probe = self
             .probe

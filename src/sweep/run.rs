@@ -43,8 +43,8 @@ impl Default for SweepOptions {
             shadow_res: vec![512],
             splats: vec![SplatMode::Point],
             frames: 20,
-            warmup: 3,
-            cell_seconds: 2.0,
+            warmup: 1,
+            cell_seconds: 1.0,
             resume: false,
         }
     }
@@ -275,46 +275,39 @@ impl Sweeper<'_> {
         Ok(image)
     }
 
-    /// Writes the x4 difference and FLIP map of `test` against `reference` as `stem_x4.png` and
-    /// `stem_flip.png` under `diffs/`; returns the error and both paths.
-    fn compare(
-        &self,
-        reference: &image::RgbImage,
-        test: &image::RgbImage,
-        stem: &str,
-    ) -> anyhow::Result<(ImageError, String, String)> {
-        let comparison = diff::compare(reference, test)?;
-        let x4 = format!("diffs/{stem}_x4.png");
-        let flip = format!("diffs/{stem}_flip.png");
-        crate::output::write_png_rgb(
-            &self.dir.join(&x4),
-            &diff::enhanced_difference(reference, test, diff::DEFAULT_ENHANCE),
-        )?;
-        crate::output::write_png_rgb(&self.dir.join(&flip), &diff::flip_heatmap(&comparison))?;
-        Ok((
-            ImageError {
-                flip_mean: comparison.metrics.flip_mean,
-                rmse: comparison.metrics.rmse_srgb,
-            },
-            x4,
-            flip,
-        ))
-    }
-
     /// Times, images and compares one cell.
+    ///
+    /// The transmittance probe comes first: it builds the maps once (compiling the build's
+    /// shaders), and the warm-up frames reuse them, so that a technique whose build takes
+    /// seconds pays for it once before the timed frames rather than once per warm-up frame. The
+    /// timed frames build their maps every frame. The image comparisons run on every core after
+    /// the timing, when nothing else runs.
     fn measure(&mut self, plan: &Plan, key: String) -> anyhow::Result<CellResult> {
         self.renderer.set_technique(self.gpu, &plan.config)?;
-        let options = RenderOptions::default();
+        let is_frame_baseline = plan.config.name == shadow::frame_baseline().name;
+        let probed = if is_frame_baseline {
+            None
+        } else {
+            Some(
+                self.renderer
+                    .probe(self.gpu, self.scene, &self.particles, &self.points)?,
+            )
+        };
+        let warm = RenderOptions {
+            reuse_shadow_maps: true,
+            ..RenderOptions::default()
+        };
         for _ in 0..self.options.warmup {
             self.renderer.render(
                 self.gpu,
                 self.scene,
                 &self.particles,
-                &options,
+                &warm,
                 &self.target.view,
             )?;
             self.gpu.wait_idle()?;
         }
+        let options = RenderOptions::default();
         let (mut shadow_ms, mut render_ms, mut sort_ms, mut frame_ms, mut wall_ms) =
             (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
         let cell_start = Instant::now();
@@ -349,7 +342,6 @@ impl Sweeper<'_> {
         let rgba = crate::gpu::read_texture_rgba8(self.gpu, &self.target.texture)?;
         let image = image::DynamicImage::ImageRgba8(rgba).into_rgb8();
         let image_path = format!("images/{}.png", plan.name);
-        crate::output::write_png_rgb(&self.dir.join(&image_path), &image)?;
 
         let mut cell = CellResult {
             technique: plan.config.name.clone(),
@@ -369,46 +361,91 @@ impl Sweeper<'_> {
             shadow_ratio: None,
             vs_own_24: None,
             vs_exact: None,
-            rms_transmittance_error: None,
-            image: image_path,
+            rms_transmittance_error: probed.map(|t| rms_difference(&t, &self.exact_t)),
+            image: image_path.clone(),
             diff_own_24: None,
             flip_own_24: None,
             diff_exact: None,
             flip_exact: None,
             settings_key: key,
         };
-        if plan.config.name == shadow::frame_baseline().name {
+        if is_frame_baseline {
+            crate::output::write_png_rgb(&self.dir.join(&image_path), &image)?;
             return Ok(cell);
         }
-        let (vs_exact, x4, flip) = self.compare(
-            &self.exact_image.clone(),
-            &image,
-            &format!("{}_vs_exact", plan.name),
-        )?;
+        // The 24-channel cell is its own baseline: zero error by definition, no difference
+        // images to look at. The others need it, from disk or rendered now (the last GPU work).
+        let own = if plan.config.params.channels == BASELINE_CHANNELS {
+            None
+        } else {
+            Some(self.own_baseline(plan)?)
+        };
+        let dir = self.dir;
+        let ((written, vs_exact), vs_own) = rayon::join(
+            || {
+                rayon::join(
+                    || crate::output::write_png_rgb(&dir.join(&image_path), &image),
+                    || {
+                        compare(
+                            dir,
+                            &self.exact_image,
+                            &image,
+                            &format!("{}_vs_exact", plan.name),
+                        )
+                    },
+                )
+            },
+            || {
+                own.as_ref()
+                    .map(|own| compare(dir, own, &image, &format!("{}_vs_own_24", plan.name)))
+            },
+        );
+        written?;
+        let (vs_exact, x4, flip) = vs_exact?;
         cell.vs_exact = Some(vs_exact);
         cell.diff_exact = Some(x4);
         cell.flip_exact = Some(flip);
-        if plan.config.params.channels == BASELINE_CHANNELS {
-            // Its own baseline: zero error by definition, no difference images to look at.
-            cell.vs_own_24 = Some(ImageError {
-                flip_mean: 0.0,
-                rmse: 0.0,
-            });
-        } else {
-            let own = self.own_baseline(plan)?;
-            self.renderer.set_technique(self.gpu, &plan.config)?;
-            let (vs_own, x4, flip) =
-                self.compare(&own, &image, &format!("{}_vs_own_24", plan.name))?;
-            cell.vs_own_24 = Some(vs_own);
-            cell.diff_own_24 = Some(x4);
-            cell.flip_own_24 = Some(flip);
+        match vs_own.transpose()? {
+            None => {
+                cell.vs_own_24 = Some(ImageError {
+                    flip_mean: 0.0,
+                    rmse: 0.0,
+                })
+            }
+            Some((vs_own, x4, flip)) => {
+                cell.vs_own_24 = Some(vs_own);
+                cell.diff_own_24 = Some(x4);
+                cell.flip_own_24 = Some(flip);
+            }
         }
-        let t = self
-            .renderer
-            .probe(self.gpu, self.scene, &self.particles, &self.points)?;
-        cell.rms_transmittance_error = Some(rms_difference(&t, &self.exact_t));
         Ok(cell)
     }
+}
+
+/// Writes the x4 difference and FLIP map of `test` against `reference` as `stem_x4.png` and
+/// `stem_flip.png` under `dir/diffs/`; returns the error and both paths.
+fn compare(
+    dir: &Path,
+    reference: &image::RgbImage,
+    test: &image::RgbImage,
+    stem: &str,
+) -> anyhow::Result<(ImageError, String, String)> {
+    let comparison = diff::compare(reference, test)?;
+    let x4 = format!("diffs/{stem}_x4.png");
+    let flip = format!("diffs/{stem}_flip.png");
+    crate::output::write_png_rgb(
+        &dir.join(&x4),
+        &diff::enhanced_difference(reference, test, diff::DEFAULT_ENHANCE),
+    )?;
+    crate::output::write_png_rgb(&dir.join(&flip), &diff::flip_heatmap(&comparison))?;
+    Ok((
+        ImageError {
+            flip_mean: comparison.metrics.flip_mean,
+            rmse: comparison.metrics.rmse_srgb,
+        },
+        x4,
+        flip,
+    ))
 }
 
 /// Runs the sweep into `dir` and writes every output; returns the results.
