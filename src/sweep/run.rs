@@ -44,7 +44,7 @@ impl Default for SweepOptions {
             splats: vec![SplatMode::Point],
             frames: 20,
             warmup: 1,
-            cell_seconds: 1.0,
+            cell_seconds: 0.5,
             resume: false,
         }
     }
