@@ -92,7 +92,7 @@ pub const SIGMA_ENTRY: TechniqueEntry = TechniqueEntry {
     role: Role::Contender,
     budget_caption: harmonics_caption,
     min_channels: 3,
-    in_default_sweep: false,
+    in_default_sweep: true,
     in_default_compare: true,
     build_reads_back: false,
     params: &[],

@@ -195,8 +195,8 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
         )
     },
     min_channels: 1,
-    in_default_sweep: false,
-    in_default_compare: false,
+    in_default_sweep: true,
+    in_default_compare: true,
     build_reads_back: false,
     params: &[STEPS, LIGHT_ALIGNED],
     order_independent: true,
