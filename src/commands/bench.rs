@@ -20,7 +20,7 @@ pub struct BenchArgs {
     // `--particles N`: the same as a one-count `--particles-list`.
     #[command(flatten)]
     pub particles: ParticlesArg,
-    /// Technique (repeatable; default: every registered technique).
+    /// Technique (repeatable; `all`: every contender; default: every registered technique).
     #[arg(long = "technique", short = 't')]
     pub techniques: Vec<String>,
     /// Channel budget every technique gets, 1..=32 (a technique whose minimum is above it is
@@ -64,7 +64,7 @@ pub fn run(args: &BenchArgs, adapter: &AdapterPreference) -> anyhow::Result<()> 
             .map(|e| e.name.to_owned())
             .collect()
     } else {
-        args.techniques.clone()
+        crate::shadow::expand_all(&args.techniques)
     };
     let options = BenchOptions {
         counts,

@@ -17,7 +17,7 @@ pub struct CompareArgs {
     /// Output folder (created if missing).
     #[arg(long, short = 'o')]
     pub output: PathBuf,
-    /// Techniques, comma-separated, in display order.
+    /// Techniques, comma-separated, in display order (`all`: every contender).
     #[arg(
         long,
         value_delimiter = ',',
@@ -45,7 +45,7 @@ pub fn run(args: &CompareArgs, adapter: &AdapterPreference) -> anyhow::Result<()
         scene.output.height_px = size.height;
     }
     let options = CompareOptions {
-        techniques: args.techniques.clone(),
+        techniques: crate::shadow::expand_all(&args.techniques),
         budgets: args.channels.clone(),
         splat: args.splat.unwrap_or(scene.shadow.splat),
     };

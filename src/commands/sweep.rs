@@ -15,8 +15,8 @@ pub struct SweepArgs {
     pub scene: Option<PathBuf>,
     #[command(flatten)]
     pub particles: super::ParticlesArg,
-    /// Techniques, comma-separated (`none` and `exact` are always measured, as the frame-time
-    /// baseline and the reference).
+    /// Techniques, comma-separated, `all` for every contender (`none` and `exact` are always
+    /// measured, as the frame-time baseline and the reference).
     #[arg(long, value_delimiter = ',', default_values_t = crate::shadow::default_sweep())]
     pub techniques: Vec<String>,
     /// Channel budgets, comma-separated; a budget below a technique's minimum skips that cell
@@ -61,7 +61,7 @@ pub fn run(args: &SweepArgs, adapter: &AdapterPreference) -> anyhow::Result<()> 
         scene.output.height_px = size.height;
     }
     let options = SweepOptions {
-        techniques: args.techniques.clone(),
+        techniques: crate::shadow::expand_all(&args.techniques),
         channels: args.channels.clone(),
         shadow_res: args.shadow_res.clone(),
         splats: args.splat.clone(),

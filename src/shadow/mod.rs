@@ -458,6 +458,25 @@ pub fn contenders() -> impl Iterator<Item = &'static TechniqueEntry> {
     REGISTRY.iter().filter(|e| e.role == Role::Contender)
 }
 
+/// A technique list as the user wrote it, with `all` standing for every contender (in registry
+/// order, where it stands; a name given twice is kept once).
+pub fn expand_all(names: &[String]) -> Vec<String> {
+    let mut out: Vec<String> = Vec::new();
+    for name in names {
+        let expanded: Vec<String> = if name == "all" {
+            contenders().map(|e| e.name.to_owned()).collect()
+        } else {
+            vec![name.clone()]
+        };
+        for n in expanded {
+            if !out.contains(&n) {
+                out.push(n);
+            }
+        }
+    }
+    out
+}
+
 /// Names of the techniques the default sweep runs.
 pub fn default_sweep() -> Vec<String> {
     REGISTRY
@@ -627,6 +646,17 @@ mod tests {
         names.sort();
         names.dedup();
         assert_eq!(names.len(), REGISTRY.len());
+    }
+
+    #[test]
+    fn all_expands_to_every_contender_once() {
+        let names = |v: &[&str]| v.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+        let all = expand_all(&names(&["all"]));
+        assert_eq!(all.len(), contenders().count());
+        assert!(all.iter().all(|n| find(n).unwrap().role == Role::Contender));
+        assert_eq!(expand_all(&names(&["dsm", "all"]))[0], "dsm");
+        assert_eq!(expand_all(&names(&["dsm", "all"])).len(), all.len());
+        assert_eq!(expand_all(&names(&["osm", "dom"])), names(&["osm", "dom"]));
     }
 
     #[test]
