@@ -248,6 +248,7 @@ fn render_writes_a_png_of_the_requested_size() {
 fn bench_prints_per_pass_gpu_times() {
     let dir = scratch("cli-bench");
     let png = dir.join("b.png");
+    let trace = dir.join("trace.json");
     let out = smokeshadow(&[
         "render",
         "--size",
@@ -258,6 +259,8 @@ fn bench_prints_per_pass_gpu_times() {
         "3",
         "--warmup",
         "1",
+        "--trace",
+        trace.to_str().unwrap(),
         "-o",
         png.to_str().unwrap(),
     ]);
@@ -276,6 +279,44 @@ fn bench_prints_per_pass_gpu_times() {
         "wall frame",
     ] {
         assert!(stdout.contains(row), "`{row}` missing from:\n{stdout}");
+    }
+
+    // The trace: three frames in order, each tiled by its passes without gap or overlap.
+    let trace: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&trace).unwrap()).unwrap();
+    let events = trace["traceEvents"].as_array().unwrap();
+    let span = |e: &serde_json::Value| (e["ts"].as_f64().unwrap(), e["dur"].as_f64().unwrap());
+    let frames: Vec<(f64, f64)> = events
+        .iter()
+        .filter(|e| e["cat"] == "frame")
+        .map(span)
+        .collect();
+    assert_eq!(frames.len(), 3, "{trace}");
+    for (i, &(ts, dur)) in frames.iter().enumerate() {
+        assert!(dur > 0.0);
+        if i > 0 {
+            assert!(
+                ts >= frames[i - 1].0 + frames[i - 1].1 - 1e-3,
+                "frames overlap"
+            );
+        }
+        let passes: Vec<&serde_json::Value> = events
+            .iter()
+            .filter(|e| e["cat"] == "pass" && e["args"]["frame"] == i as u64)
+            .collect();
+        let mut end = ts;
+        for pass in &passes {
+            let (p_ts, p_dur) = span(pass);
+            assert!((p_ts - end).abs() < 1e-3 && p_dur >= 0.0, "{pass}");
+            end = p_ts + p_dur;
+        }
+        assert!((end - (ts + dur)).abs() < 1e-3 * dur.max(1.0));
+        for name in ["shadow", "opaque", "particles", "tonemap"] {
+            assert!(
+                passes.iter().any(|p| p["name"] == name),
+                "{name} in frame {i}"
+            );
+        }
     }
 }
 

@@ -35,6 +35,10 @@ pub struct RenderArgs {
     /// Warm-up frames before timing (the first frames compile shaders).
     #[arg(long, default_value_t = 5)]
     pub warmup: u32,
+    /// With `--bench`: write the timed frames' GPU passes as a Chrome trace event file (JSON)
+    /// that Perfetto (ui.perfetto.dev) or chrome://tracing opens.
+    #[arg(long, requires = "bench")]
+    pub trace: Option<PathBuf>,
 }
 
 pub fn run(args: &RenderArgs, adapter: &AdapterPreference) -> anyhow::Result<()> {
@@ -50,8 +54,22 @@ pub fn run(args: &RenderArgs, adapter: &AdapterPreference) -> anyhow::Result<()>
             args.output.display()
         );
     }
+    if let Some(trace) = &args.trace
+        && trace.is_dir()
+    {
+        anyhow::bail!(
+            "trace {} is a folder; give a .json file path",
+            trace.display()
+        );
+    }
     let gpu = Gpu::new(adapter)?;
     log::info!("adapter: {}", gpu.describe());
+    if args.trace.is_some() && !gpu.has_timestamps() {
+        anyhow::bail!(
+            "--trace needs GPU timestamp queries, which {} does not have",
+            gpu.info.name
+        );
+    }
 
     let sim_start = Instant::now();
     let particles = crate::progress::simulate(&scene);
@@ -66,7 +84,7 @@ pub fn run(args: &RenderArgs, adapter: &AdapterPreference) -> anyhow::Result<()>
     let target = OffscreenTarget::new(&gpu, w, h);
 
     if let Some(frames) = args.bench {
-        bench(
+        let timed = bench(
             &gpu,
             &mut renderer,
             &scene,
@@ -76,6 +94,23 @@ pub fn run(args: &RenderArgs, adapter: &AdapterPreference) -> anyhow::Result<()>
             args.warmup,
             frames,
         )?;
+        if let Some(path) = &args.trace {
+            let t = renderer.technique();
+            let title = format!(
+                "smokeshadow {} / {} channels, {} ({} particles, {w}x{h})",
+                t.name(),
+                t.channels_used(),
+                scene.name,
+                particles.len()
+            );
+            let trace = crate::gpu::trace::chrome_trace(&timed, &title);
+            crate::output::write_atomic(path, serde_json::to_string(&trace)?.as_bytes())?;
+            println!(
+                "wrote {} ({} frames' GPU passes, Chrome trace events)",
+                path.display(),
+                timed.len()
+            );
+        }
     }
     renderer.render(&gpu, &scene, &particles, &options, &target.view)?;
     let image = crate::gpu::read_texture_rgba8(&gpu, &target.texture)?;
@@ -122,7 +157,7 @@ fn bench(
     target: &OffscreenTarget,
     warmup: u32,
     frames: u32,
-) -> anyhow::Result<()> {
+) -> anyhow::Result<Vec<crate::gpu::PassTimes>> {
     for _ in 0..warmup {
         renderer.render(gpu, scene, particles, options, &target.view)?;
         gpu.wait_idle()?;
@@ -131,6 +166,7 @@ fn bench(
     let mut sort = Vec::new();
     let mut gpu_total = Vec::new();
     let mut wall = Vec::new();
+    let mut timed = Vec::new();
     for _ in 0..frames {
         let start = Instant::now();
         let stats = renderer.render(gpu, scene, particles, options, &target.view)?;
@@ -138,12 +174,13 @@ fn bench(
         wall.push(start.elapsed().as_secs_f64() * 1e3);
         sort.push(stats.sort_ms);
         gpu_total.push(times.total_ms());
-        for (name, ms) in times.passes {
+        for &(name, ms) in &times.passes {
             match pass_samples.iter_mut().find(|(n, _)| *n == name) {
                 Some((_, v)) => v.push(ms),
                 None => pass_samples.push((name, vec![ms])),
             }
         }
+        timed.push(times);
     }
     let t = renderer.technique();
     println!(
@@ -175,7 +212,7 @@ fn bench(
     }
     row("cpu sort", &mut sort);
     row("wall frame", &mut wall);
-    Ok(())
+    Ok(timed)
 }
 
 /// Median, min and max of a sample.

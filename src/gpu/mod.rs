@@ -9,13 +9,14 @@ mod layout;
 mod memory;
 mod readback;
 mod timing;
+pub mod trace;
 
 pub use layout::MirrorLayout;
 pub use memory::{AllocationError, LedgerEntry, MemoryBudget, MemoryLedger};
 pub use readback::{
     Rgba16fImage, read_buffer, read_texture_r16f, read_texture_rgba8, read_texture_rgba16f,
 };
-pub use timing::{GpuTimer, PassTimes};
+pub use timing::{GpuTimer, PassSpan, PassTimes};
 
 use std::fmt;
 

@@ -40,6 +40,19 @@ pub struct GpuTimer {
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct PassTimes {
     pub passes: Vec<(&'static str, f64)>,
+    /// Every pass as recorded (same-named passes apart), on the frame's own clock.
+    pub spans: Vec<PassSpan>,
+    /// The frame's start on the GPU's clock in milliseconds (comparable between the frames of
+    /// one device, to lay them out on one timeline), when the frame has a start mark.
+    pub start_ms: Option<f64>,
+}
+
+/// One recorded pass: its share of the frame's partition, from the frame's start.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PassSpan {
+    pub name: &'static str,
+    pub start_ms: f64,
+    pub ms: f64,
 }
 
 impl PassTimes {
@@ -338,7 +351,12 @@ fn partition(names: &[&'static str], ticks: &[u64], period_ns: f32) -> PassTimes
         Some(&FRAME_START) => (Some(ticks[1]), 1),
         _ => (None, 0),
     };
-    let mut times = PassTimes::default();
+    let to_ms = |t: u64| t as f64 * f64::from(period_ns) / 1e6;
+    let origin = start.or(ticks.first().copied()).unwrap_or(0);
+    let mut times = PassTimes {
+        start_ms: start.map(to_ms),
+        ..PassTimes::default()
+    };
     for k in first..names.len() {
         let begin = if k == first {
             start.unwrap_or(ticks[2 * k])
@@ -350,7 +368,12 @@ fn partition(names: &[&'static str], ticks: &[u64], period_ns: f32) -> PassTimes
         } else {
             ticks[2 * k + 1]
         };
-        let ms = end.saturating_sub(begin) as f64 * f64::from(period_ns) / 1e6;
+        let ms = to_ms(end.saturating_sub(begin));
+        times.spans.push(PassSpan {
+            name: names[k],
+            start_ms: to_ms(begin.saturating_sub(origin)),
+            ms,
+        });
         match times.passes.iter_mut().find(|(n, _)| *n == names[k]) {
             Some((_, total)) => *total += ms,
             None => times.passes.push((names[k], ms)),
@@ -377,6 +400,12 @@ mod tests {
         );
         assert_eq!(times.total_ms(), 950.0);
         assert_eq!(times.get(FRAME_START), None);
+        assert_eq!(times.start_ms, Some(100.0));
+        let spans: Vec<(f64, f64)> = times.spans.iter().map(|s| (s.start_ms, s.ms)).collect();
+        assert_eq!(
+            spans,
+            vec![(0.0, 606.0), (606.0, 194.0), (800.0, 100.0), (900.0, 50.0)]
+        );
     }
 
     #[test]
