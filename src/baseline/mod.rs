@@ -155,7 +155,7 @@ pub fn bless(gpu: &Gpu, baselines: &[Baseline]) -> anyhow::Result<Vec<PathBuf>> 
         if let Some(folder) = b.png.parent() {
             std::fs::create_dir_all(folder)?;
         }
-        crate::output::write_png_rgb(&b.png, &image)?;
+        crate::output::write_png_rgb_smallest(&b.png, &image)?;
         blocks.save(&b.blocks)?;
         let sidecar = Sidecar {
             tool_version: env!("CARGO_PKG_VERSION").to_owned(),
