@@ -230,6 +230,7 @@ fn render_writes_a_png_of_the_requested_size() {
         "6",
         "--size",
         "160x120",
+        "--exr",
         "-o",
         png.to_str().unwrap(),
     ]);
@@ -240,8 +241,31 @@ fn render_writes_a_png_of_the_requested_size() {
     );
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(stdout.contains("6 channels"), "{stdout}");
-    let image = image::open(&png).unwrap();
+    let image = image::open(&png).unwrap().into_rgb8();
     assert_eq!((image.width(), image.height()), (160, 120));
+
+    // The HDR frame beside it: the same picture before the tone map, so the brightest pixel of
+    // one is among the brightest of the other, and the smoke's opacity is in alpha.
+    let hdr = image::open(dir.join("smoke.exr")).unwrap().into_rgba32f();
+    assert_eq!(hdr.dimensions(), (160, 120));
+    let luma = |p: [f32; 3]| 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
+    let hdr_luma: Vec<f32> = hdr.pixels().map(|p| luma([p[0], p[1], p[2]])).collect();
+    let png_luma: Vec<f32> = image
+        .pixels()
+        .map(|p| luma([p[0], p[1], p[2]].map(f32::from)))
+        .collect();
+    let brightest = |v: &[f32]| (0..v.len()).max_by(|&a, &b| v[a].total_cmp(&v[b])).unwrap();
+    let mut sorted = png_luma.clone();
+    sorted.sort_by(f32::total_cmp);
+    let top_percentile = sorted[sorted.len() * 99 / 100];
+    assert!(png_luma[brightest(&hdr_luma)] >= top_percentile);
+    assert!(hdr.pixels().any(|p| p[3] > 0.2) && hdr.pixels().all(|p| p[3] <= 1.001));
+
+    // An EXR cannot replace the PNG it is written beside.
+    let clash = dir.join("smoke2.exr");
+    let out = smokeshadow(&["render", "--exr", "-o", clash.to_str().unwrap()]);
+    assert_one_line_error(&out, &["smoke2.exr", "--exr"]);
+    assert!(!clash.exists());
 }
 
 #[test]

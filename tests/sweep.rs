@@ -265,3 +265,51 @@ fn cell_seconds_stops_each_cell_after_three_timed_frames() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("positive number of seconds"), "{err}");
 }
+
+/// `--exr`: every cell's linear HDR frame beside its PNG, linked from the report. What the
+/// files hold is checked, not only that they exist: the smoke's opacity in alpha (the same for
+/// every technique, which changes only the light) and radiance that self-shadowing can only
+/// lower, pixel by pixel, from the unshadowed `none` frame.
+#[test]
+fn exr_writes_every_cells_hdr_frame_and_the_report_links_them() {
+    let dir = scratch("sweep-exr");
+    ok(&tiny_sweep(&dir, &["--exr"]));
+    let results: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("results.json")).unwrap()).unwrap();
+    let html = std::fs::read_to_string(dir.join("index.html")).unwrap();
+    let load = |rel: &str| {
+        assert!(
+            html.contains(&format!("href=\"{rel}\"")),
+            "{rel} not linked"
+        );
+        let image = image::open(dir.join(rel)).unwrap().into_rgba32f();
+        assert_eq!(image.dimensions(), (160, 120), "{rel}");
+        for p in image.pixels() {
+            assert!(p.0.iter().all(|v| v.is_finite()), "{rel}: {p:?}");
+            assert!((-1e-4..=1.0 + 1e-3).contains(&p.0[3]), "{rel}: alpha {p:?}");
+        }
+        image
+    };
+    let exact = load(results["exact_hdr_image"].as_str().unwrap());
+    let alphas: Vec<f32> = exact.pixels().map(|p| p.0[3]).collect();
+    assert!(alphas.iter().any(|&a| a > 0.2), "smoke somewhere");
+    assert!(alphas.iter().any(|&a| a < 1e-3), "clear pixels too");
+    let cells = results["cells"].as_array().unwrap();
+    let none = load(cells[0]["hdr_image"].as_str().unwrap());
+    for cell in &cells[1..] {
+        let shadowed = load(cell["hdr_image"].as_str().unwrap());
+        for (s, n) in shadowed.pixels().zip(none.pixels()) {
+            assert!(
+                (s.0[3] - n.0[3]).abs() < 2e-3,
+                "{cell}: alpha {s:?} vs {n:?}"
+            );
+            for c in 0..3 {
+                assert!(
+                    s.0[c] <= n.0[c] * 1.002 + 1e-4,
+                    "{}: {s:?} brighter than {n:?}",
+                    cell["technique"]
+                );
+            }
+        }
+    }
+}

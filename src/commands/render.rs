@@ -29,6 +29,10 @@ pub struct RenderArgs {
     /// Output PNG.
     #[arg(long, short = 'o', default_value = "smoke.png")]
     pub output: PathBuf,
+    /// Also write the linear HDR frame (premultiplied radiance, the smoke's opacity in alpha)
+    /// as OpenEXR beside the PNG (same name, `.exr`), for tev, Nuke or any HDR viewer.
+    #[arg(long)]
+    pub exr: bool,
     /// Render this many timed frames after the warm-up and print per-pass times.
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=100_000))]
     pub bench: Option<u32>,
@@ -51,6 +55,17 @@ pub fn run(args: &RenderArgs, adapter: &AdapterPreference) -> anyhow::Result<()>
     if args.output.is_dir() {
         anyhow::bail!(
             "output {} is a folder; give a .png file path",
+            args.output.display()
+        );
+    }
+    if args.exr
+        && args
+            .output
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("exr"))
+    {
+        anyhow::bail!(
+            "output {} would be overwritten by --exr (it writes the HDR frame beside the PNG, as .exr); give a .png path",
             args.output.display()
         );
     }
@@ -115,6 +130,15 @@ pub fn run(args: &RenderArgs, adapter: &AdapterPreference) -> anyhow::Result<()>
     renderer.render(&gpu, &scene, &particles, &options, &target.view)?;
     let image = crate::gpu::read_texture_rgba8(&gpu, &target.texture)?;
     crate::output::write_png(&args.output, &image)?;
+    if args.exr {
+        let path = crate::output::exr_beside(&args.output);
+        let hdr = crate::gpu::read_texture_rgba16f(&gpu, renderer.hdr_texture())?;
+        crate::output::write_exr(&path, &hdr)?;
+        println!(
+            "wrote {} (linear HDR, premultiplied, smoke opacity in alpha)",
+            path.display()
+        );
+    }
     let t = renderer.technique();
     println!(
         "wrote {} ({w}x{h}, {} particles simulated to t = {} s in {sim_ms:.0} ms, technique {} with {} channels, {} bytes of shadow memory{}, {} billboards)",

@@ -51,6 +51,10 @@ pub struct SweepArgs {
     /// Keep the cells an earlier (interrupted) run finished with the same settings.
     #[arg(long)]
     pub resume: bool,
+    /// Also write each cell's linear HDR frame (premultiplied radiance, the smoke's opacity in
+    /// alpha) as OpenEXR beside its PNG; the report links them.
+    #[arg(long)]
+    pub exr: bool,
 }
 
 pub fn run(args: &SweepArgs, adapter: &AdapterPreference) -> anyhow::Result<()> {
@@ -69,6 +73,7 @@ pub fn run(args: &SweepArgs, adapter: &AdapterPreference) -> anyhow::Result<()> 
         warmup: args.warmup,
         cell_seconds: args.cell_seconds,
         resume: args.resume,
+        exr: args.exr,
     };
     let gpu = Gpu::new(adapter)?;
     let results = sweep::run(&gpu, &scene, &options, &args.output)?;

@@ -879,6 +879,7 @@ mod tests {
             flip_own_24: None,
             diff_exact: None,
             flip_exact: None,
+            hdr_image: None,
             settings_key: "k".into(),
         }
     }
@@ -915,6 +916,7 @@ mod tests {
                 reason: "below minimum".into(),
             }],
             exact_image: "images/exact.png".into(),
+            exact_hdr_image: None,
         }
     }
 

@@ -96,6 +96,9 @@ pub struct CellResult {
     pub flip_own_24: Option<String>,
     pub diff_exact: Option<String>,
     pub flip_exact: Option<String>,
+    /// The linear HDR frame as OpenEXR (`--exr`).
+    #[serde(default)]
+    pub hdr_image: Option<String>,
     /// Identifies the settings this cell was measured with (scene, size, frames, warm-up, the
     /// technique's parameters, tool version): `--resume` reuses a cell only when it matches.
     pub settings_key: String,
@@ -145,4 +148,7 @@ pub struct SweepResults {
     pub skipped: Vec<SkippedCell>,
     /// Relative path of the `exact` reference image.
     pub exact_image: String,
+    /// And of its HDR frame as OpenEXR (`--exr`).
+    #[serde(default)]
+    pub exact_hdr_image: Option<String>,
 }

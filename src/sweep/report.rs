@@ -279,9 +279,10 @@ fn image_grid(body: &mut String, results: &SweepResults, variants: &Variants) {
     let _ = writeln!(
         body,
         "<figure><a href=\"{x}\"><img loading=\"lazy\" src=\"{x}\" alt=\"exact\"></a>\
-         <figcaption><b>exact</b> · closed form, {}² tiles · {} · the reference</figcaption></figure>",
+         <figcaption><b>exact</b> · closed form, {}² tiles · {} · the reference{}</figcaption></figure>",
         results.metadata.exact_tiles,
         report::bytes(results.metadata.exact_bytes),
+        exr_link(results.exact_hdr_image.as_deref()),
         x = e(&results.exact_image),
     );
     for c in results
@@ -292,8 +293,9 @@ fn image_grid(body: &mut String, results: &SweepResults, variants: &Variants) {
         let _ = writeln!(
             body,
             "<figure><a href=\"{x}\"><img loading=\"lazy\" src=\"{x}\" alt=\"none\"></a>\
-             <figcaption><b>none</b> · no self-shadowing · frame {} ms</figcaption></figure>",
+             <figcaption><b>none</b> · no self-shadowing · frame {} ms{}</figcaption></figure>",
             ms(c.frame_ms.median),
+            exr_link(c.hdr_image.as_deref()),
             x = e(&c.image),
         );
     }
@@ -348,6 +350,9 @@ fn image_grid(body: &mut String, results: &SweepResults, variants: &Variants) {
                     links.push(format!("<a href=\"{}\">{label}</a>", e(path)));
                 }
             }
+            if let Some(path) = &c.hdr_image {
+                links.push(format!("<a href=\"{}\">EXR</a>", e(path)));
+            }
             let used = if c.channels_used == c.channels {
                 String::new()
             } else {
@@ -368,6 +373,12 @@ fn image_grid(body: &mut String, results: &SweepResults, variants: &Variants) {
         body.push('\n');
     }
     body.push_str("</div>\n");
+}
+
+/// " · EXR" linking a cell's HDR frame, when the sweep wrote one.
+fn exr_link(path: Option<&str>) -> String {
+    path.map(|p| format!(" · <a href=\"{}\">EXR</a>", e(p)))
+        .unwrap_or_default()
 }
 
 /// Whether the sweep has several shadow resolutions or splat modes, so labels must name them.
@@ -514,6 +525,7 @@ mod tests {
             flip_own_24: with_error("flip_own").filter(|_| channels != 24),
             diff_exact: with_error("diff_exact"),
             flip_exact: with_error("flip_exact"),
+            hdr_image: None,
             settings_key: "k".into(),
         }
     }
@@ -553,6 +565,7 @@ mod tests {
                 reason: "dom needs at least 2 channels".into(),
             }],
             exact_image: "images/exact.png".into(),
+            exact_hdr_image: None,
         }
     }
 

@@ -33,6 +33,8 @@ pub struct SweepOptions {
     pub cell_seconds: f64,
     /// Reuse cells already finished with identical settings.
     pub resume: bool,
+    /// Also write every cell's linear HDR frame as OpenEXR beside its PNG.
+    pub exr: bool,
 }
 
 impl Default for SweepOptions {
@@ -46,6 +48,7 @@ impl Default for SweepOptions {
             warmup: 1,
             cell_seconds: 0.5,
             resume: false,
+            exr: false,
         }
     }
 }
@@ -342,6 +345,21 @@ impl Sweeper<'_> {
         let rgba = crate::gpu::read_texture_rgba8(self.gpu, &self.target.texture)?;
         let image = image::DynamicImage::ImageRgba8(rgba).into_rgb8();
         let image_path = format!("images/{}.png", plan.name);
+        let hdr = match self.options.exr {
+            true => Some((
+                format!("images/{}.exr", plan.name),
+                crate::gpu::read_texture_rgba16f(self.gpu, self.renderer.hdr_texture())?,
+            )),
+            false => None,
+        };
+        let dir = self.dir;
+        let write_images = || -> anyhow::Result<()> {
+            crate::output::write_png_rgb(&dir.join(&image_path), &image)?;
+            if let Some((path, hdr)) = &hdr {
+                crate::output::write_exr(&dir.join(path), hdr)?;
+            }
+            Ok(())
+        };
 
         let mut cell = CellResult {
             technique: plan.config.name.clone(),
@@ -367,10 +385,11 @@ impl Sweeper<'_> {
             flip_own_24: None,
             diff_exact: None,
             flip_exact: None,
+            hdr_image: hdr.as_ref().map(|(path, _)| path.clone()),
             settings_key: key,
         };
         if is_frame_baseline {
-            crate::output::write_png_rgb(&self.dir.join(&image_path), &image)?;
+            write_images()?;
             return Ok(cell);
         }
         // The 24-channel cell is its own baseline: zero error by definition, no difference
@@ -380,20 +399,16 @@ impl Sweeper<'_> {
         } else {
             Some(self.own_baseline(plan)?)
         };
-        let dir = self.dir;
         let ((written, vs_exact), vs_own) = rayon::join(
             || {
-                rayon::join(
-                    || crate::output::write_png_rgb(&dir.join(&image_path), &image),
-                    || {
-                        compare(
-                            dir,
-                            &self.exact_image,
-                            &image,
-                            &format!("{}_vs_exact", plan.name),
-                        )
-                    },
-                )
+                rayon::join(write_images, || {
+                    compare(
+                        dir,
+                        &self.exact_image,
+                        &image,
+                        &format!("{}_vs_exact", plan.name),
+                    )
+                })
             },
             || {
                 own.as_ref()
@@ -500,6 +515,15 @@ pub fn run(
             .into_rgb8();
     let exact_image_path = "images/exact.png".to_owned();
     crate::output::write_png_rgb(&dir.join(&exact_image_path), &exact_image)?;
+    let exact_hdr_path = match options.exr {
+        true => {
+            let path = "images/exact.exr".to_owned();
+            let hdr = crate::gpu::read_texture_rgba16f(gpu, renderer.hdr_texture())?;
+            crate::output::write_exr(&dir.join(&path), &hdr)?;
+            Some(path)
+        }
+        false => None,
+    };
     let points = shaded_points(scene, &particles, w, h, SHADED_STRIDE_PX);
     let exact_t = renderer.probe(gpu, scene, &particles, &points)?;
     progress.finish(format!(
@@ -550,7 +574,15 @@ pub fn run(
             .then(|| std::fs::read_to_string(&record).ok())
             .flatten()
             .and_then(|text| serde_json::from_str::<CellResult>(&text).ok())
-            .filter(|cell| cell.settings_key == key && dir.join(&cell.image).is_file());
+            .filter(|cell| cell.settings_key == key && dir.join(&cell.image).is_file())
+            .filter(|cell| {
+                // A cell measured without its EXR is measured again when one is asked for.
+                !options.exr
+                    || cell
+                        .hdr_image
+                        .as_ref()
+                        .is_some_and(|p| dir.join(p).is_file())
+            });
         let cell = match reused {
             Some(cell) => {
                 progress.finish(format!("{}: done earlier, reused", plan.name));
@@ -573,6 +605,7 @@ pub fn run(
             &cells,
             &skipped,
             &exact_image_path,
+            exact_hdr_path.as_deref(),
         );
         write_results(&partial, dir)?;
     }
@@ -582,6 +615,7 @@ pub fn run(
         &cells,
         &skipped,
         &exact_image_path,
+        exact_hdr_path.as_deref(),
     );
     write_results(&results, dir)?;
     let charts = super::charts::write_charts(&results, dir)?;
@@ -595,6 +629,7 @@ fn results(
     cells: &[CellResult],
     skipped: &[SkippedCell],
     exact_image: &str,
+    exact_hdr_image: Option<&str>,
 ) -> SweepResults {
     let baseline = cells
         .iter()
@@ -615,6 +650,7 @@ fn results(
         cells,
         skipped: skipped.to_vec(),
         exact_image: exact_image.to_owned(),
+        exact_hdr_image: exact_hdr_image.map(str::to_owned),
     }
 }
 
