@@ -55,7 +55,14 @@ pub fn show(
     } else {
         size
     };
-    let (rect, response) = ui.allocate_exact_size(total, egui::Sense::click_and_drag());
+    // Centred in the space the viewport is given: the image keeps its aspect, so it fills
+    // that space's width or its height, and the rest is shared evenly around it.
+    let space = Rect::from_min_size(ui.cursor().min, available);
+    let response = ui.allocate_rect(
+        Rect::from_center_size(space.center(), total),
+        egui::Sense::click_and_drag(),
+    );
+    let rect = response.rect;
     let image_rect = Rect::from_min_size(rect.min, size);
     let ppp = ui.ctx().pixels_per_point();
     let px = ((size.x * ppp) as u32, (size.y * ppp) as u32);
@@ -234,8 +241,15 @@ pub fn show(
 /// The caption in the top left corner: what each side shows, or what the analysis measured.
 fn caption(controller: &Controller) -> String {
     let state = &controller.state;
+    // With the size it renders at (not for a side the worker renders: its size is the frame's).
+    let label = |view: usize, side: &super::controller::Side| match &controller.views[view] {
+        Some(v) if !controller.side_on_worker(view) => {
+            format!("{} · {}x{} px", side.label(), v.size().0, v.size().1)
+        }
+        _ => side.label(),
+    };
     match state.mode {
-        CompareMode::Single | CompareMode::Flip => format!("A: {}", state.a.label()),
+        CompareMode::Single | CompareMode::Flip => format!("A: {}", label(0, &state.a)),
         CompareMode::Difference | CompareMode::FlipMap => {
             let what = if state.mode == CompareMode::Difference {
                 "|A - B| x 4"
@@ -258,7 +272,7 @@ fn caption(controller: &Controller) -> String {
                 None => format!("{what}: computing ..."),
             }
         }
-        _ => format!("A: {}    B: {}", state.a.label(), state.b.label()),
+        _ => format!("A: {}    B: {}", label(0, &state.a), label(1, &state.b)),
     }
 }
 
