@@ -28,8 +28,9 @@ pub struct SweepOptions {
     pub frames: u32,
     pub warmup: u32,
     /// Seconds of timed frames after which a cell stops early (after at least
-    /// [`MIN_TIMED_FRAMES`]), so a slow technique does not hold the sweep: its medians are over
-    /// fewer frames, and the cell says how many (`frames_timed`).
+    /// [`MIN_TIMED_FRAMES`], or [`MIN_SLOW_FRAMES`] of frames each longer than this), so a slow
+    /// technique does not hold the sweep: its medians are over fewer frames, and the cell says
+    /// how many (`frames_timed`).
     pub cell_seconds: f64,
     /// Reuse cells already finished with identical settings.
     pub resume: bool,
@@ -54,8 +55,27 @@ impl Default for SweepOptions {
 }
 
 /// Timed frames a cell takes at least, whatever `cell_seconds` says (fewer only when
-/// `frames` asks for fewer).
+/// `frames` asks for fewer, or [`MIN_SLOW_FRAMES`] when each frame outlasts `cell_seconds`).
 pub const MIN_TIMED_FRAMES: u32 = 3;
+/// Timed frames a cell takes at least when every frame took longer than `cell_seconds` on its
+/// own: a deep capture's frames of seconds on lavapipe vary by a few percent, and a third one
+/// would cost `dsm` 2.3 s a cell.
+pub const MIN_SLOW_FRAMES: u32 = 2;
+
+/// Whether a cell has timed enough frames (`frame_s`, wall seconds each) after `elapsed_s` of
+/// timing: `frames` of them, or `cell_seconds` of timing over at least [`MIN_TIMED_FRAMES`]
+/// frames, or over [`MIN_SLOW_FRAMES`] when each of them alone took longer than `cell_seconds`.
+pub fn timed_enough(frame_s: &[f64], elapsed_s: f64, frames: u32, cell_seconds: f64) -> bool {
+    let n = frame_s.len() as u32;
+    if n >= frames {
+        return true;
+    }
+    if elapsed_s < cell_seconds {
+        return false;
+    }
+    let slow = frame_s.iter().all(|&s| s > cell_seconds);
+    n >= MIN_TIMED_FRAMES || (slow && n >= MIN_SLOW_FRAMES)
+}
 
 /// The budget every cell's "own baseline" uses (the thesis' baselines).
 const BASELINE_CHANNELS: u32 = 24;
@@ -314,12 +334,12 @@ impl Sweeper<'_> {
         let (mut shadow_ms, mut render_ms, mut sort_ms, mut frame_ms, mut wall_ms) =
             (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
         let cell_start = Instant::now();
-        for i in 0..self.options.frames {
-            if i >= MIN_TIMED_FRAMES
-                && cell_start.elapsed().as_secs_f64() >= self.options.cell_seconds
-            {
-                break;
-            }
+        while !timed_enough(
+            &wall_ms.iter().map(|ms| ms / 1e3).collect::<Vec<f64>>(),
+            cell_start.elapsed().as_secs_f64(),
+            self.options.frames,
+            self.options.cell_seconds,
+        ) {
             let start = Instant::now();
             let stats = self.renderer.render(
                 self.gpu,
@@ -744,4 +764,25 @@ pub fn write_results(results: &SweepResults, dir: &Path) -> anyhow::Result<()> {
     crate::output::write_atomic(&dir.join("results.csv"), &csv)?;
     let json = serde_json::to_string_pretty(results)?;
     crate::output::write_atomic(&dir.join("results.json"), json.as_bytes())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cells_time_three_frames_or_two_slow_ones_once_their_seconds_are_spent() {
+        // Before the seconds are spent: keep timing, up to `frames`.
+        assert!(!timed_enough(&[0.1; 5], 0.45, 20, 0.5));
+        assert!(timed_enough(&[0.1; 20], 1.9, 20, 0.5));
+        // After: at least three frames ...
+        assert!(!timed_enough(&[0.3, 0.3], 0.6, 20, 0.5));
+        assert!(timed_enough(&[0.3, 0.3, 0.3], 0.9, 20, 0.5));
+        // ... or two when each of them took longer than the seconds on its own.
+        assert!(!timed_enough(&[2.3], 2.3, 20, 0.5));
+        assert!(timed_enough(&[2.3, 2.2], 4.5, 20, 0.5));
+        assert!(!timed_enough(&[2.3, 0.4], 2.7, 20, 0.5));
+        // `frames` below the minimum wins.
+        assert!(timed_enough(&[2.3], 2.3, 1, 0.5));
+    }
 }
