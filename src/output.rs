@@ -64,9 +64,20 @@ pub fn write_png_rgb_smallest(path: &Path, rgb: &image::RgbImage) -> anyhow::Res
 /// Writes a linear HDR frame (premultiplied radiance, alpha = the smoke's opacity, as OpenEXR
 /// expects) as an RGBA 32-bit float OpenEXR file, atomically.
 pub fn write_exr(path: &Path, hdr: &crate::gpu::Rgba16fImage) -> anyhow::Result<()> {
-    let flat: Vec<f32> = hdr.pixels.iter().flatten().copied().collect();
-    let image = image::Rgba32FImage::from_raw(hdr.width, hdr.height, flat)
-        .context("the HDR pixels do not fill the image")?;
+    write_exr_rgba(path, hdr.width, hdr.height, &hdr.pixels)
+}
+
+/// Writes `width` x `height` RGBA pixels (row by row) as an RGBA 32-bit float OpenEXR file,
+/// atomically.
+pub fn write_exr_rgba(
+    path: &Path,
+    width: u32,
+    height: u32,
+    pixels: &[[f32; 4]],
+) -> anyhow::Result<()> {
+    let flat: Vec<f32> = pixels.iter().flatten().copied().collect();
+    let image = image::Rgba32FImage::from_raw(width, height, flat)
+        .context("the pixels do not fill the image")?;
     let mut bytes = std::io::Cursor::new(Vec::new());
     image::DynamicImage::ImageRgba32F(image)
         .write_to(&mut bytes, image::ImageFormat::OpenExr)

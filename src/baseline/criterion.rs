@@ -105,14 +105,7 @@ impl HdrBlocks {
 
     /// Writes the blocks as an RGBA32F OpenEXR file, atomically.
     pub fn save(&self, path: &Path) -> anyhow::Result<()> {
-        let flat: Vec<f32> = self.means.iter().flatten().copied().collect();
-        let image = image::Rgba32FImage::from_raw(self.width, self.height, flat)
-            .context("block means do not fill the image")?;
-        let mut bytes = std::io::Cursor::new(Vec::new());
-        image::DynamicImage::ImageRgba32F(image)
-            .write_to(&mut bytes, image::ImageFormat::OpenExr)
-            .context("cannot encode OpenEXR")?;
-        crate::output::write_atomic(path, bytes.get_ref())
+        crate::output::write_exr_rgba(path, self.width, self.height, &self.means)
     }
 
     /// Reads blocks written by [`HdrBlocks::save`].

@@ -61,6 +61,29 @@ pub struct PairFiles {
     pub metrics: Metrics,
 }
 
+/// Compares `test` with `reference` and writes the x4 difference and the FLIP map as
+/// `diffs/{stem}_x4.png` and `diffs/{stem}_flip.png` under `dir` (the sweep's comparisons too).
+pub fn write_pair(
+    dir: &Path,
+    reference: &image::RgbImage,
+    test: &image::RgbImage,
+    stem: &str,
+) -> anyhow::Result<PairFiles> {
+    let comparison = diff::compare(reference, test)?;
+    let difference = format!("diffs/{stem}_x4.png");
+    let flip_map = format!("diffs/{stem}_flip.png");
+    crate::output::write_png_rgb(
+        &dir.join(&difference),
+        &diff::enhanced_difference(reference, test, diff::DEFAULT_ENHANCE),
+    )?;
+    crate::output::write_png_rgb(&dir.join(&flip_map), &diff::flip_heatmap(&comparison))?;
+    Ok(PairFiles {
+        difference,
+        flip_map,
+        metrics: comparison.metrics,
+    })
+}
+
 /// Everything `compare` produced.
 #[derive(Debug)]
 pub struct CompareReport {
@@ -136,23 +159,8 @@ pub fn run(
     let exact_image = "images/exact.png".to_owned();
     let (exact, _, exact_bytes) = render(&exact_config, &exact_image)?;
 
-    let pair = |reference: &image::RgbImage,
-                test: &image::RgbImage,
-                stem: &str|
-     -> anyhow::Result<PairFiles> {
-        let comparison = diff::compare(reference, test)?;
-        let difference = format!("diffs/{stem}_x4.png");
-        let flip_map = format!("diffs/{stem}_flip.png");
-        crate::output::write_png_rgb(
-            &out_dir.join(&difference),
-            &diff::enhanced_difference(reference, test, diff::DEFAULT_ENHANCE),
-        )?;
-        crate::output::write_png_rgb(&out_dir.join(&flip_map), &diff::flip_heatmap(&comparison))?;
-        Ok(PairFiles {
-            difference,
-            flip_map,
-            metrics: comparison.metrics,
-        })
+    let pair = |reference: &image::RgbImage, test: &image::RgbImage, stem: &str| {
+        write_pair(out_dir, reference, test, stem)
     };
 
     let baseline_budget = options.budgets[0];

@@ -457,29 +457,22 @@ impl Sweeper<'_> {
     }
 }
 
-/// Writes the x4 difference and FLIP map of `test` against `reference` as `stem_x4.png` and
-/// `stem_flip.png` under `dir/diffs/`; returns the error and both paths.
+/// Writes the x4 difference and FLIP map of `test` against `reference` under `dir/diffs/`
+/// ([`crate::compare::write_pair`]); returns the error and both paths.
 fn compare(
     dir: &Path,
     reference: &image::RgbImage,
     test: &image::RgbImage,
     stem: &str,
 ) -> anyhow::Result<(ImageError, String, String)> {
-    let comparison = diff::compare(reference, test)?;
-    let x4 = format!("diffs/{stem}_x4.png");
-    let flip = format!("diffs/{stem}_flip.png");
-    crate::output::write_png_rgb(
-        &dir.join(&x4),
-        &diff::enhanced_difference(reference, test, diff::DEFAULT_ENHANCE),
-    )?;
-    crate::output::write_png_rgb(&dir.join(&flip), &diff::flip_heatmap(&comparison))?;
+    let pair = crate::compare::write_pair(dir, reference, test, stem)?;
     Ok((
         ImageError {
-            flip_mean: comparison.metrics.flip_mean,
-            rmse: comparison.metrics.rmse_srgb,
+            flip_mean: pair.metrics.flip_mean,
+            rmse: pair.metrics.rmse_srgb,
         },
-        x4,
-        flip,
+        pair.difference,
+        pair.flip_map,
     ))
 }
 
