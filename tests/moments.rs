@@ -6,7 +6,7 @@
 
 mod common;
 
-use common::{gpu, probe_all, reduced_plume, sphere, technique};
+use common::{ReversedOrder, gpu, probe_all, reduced_plume, sphere, technique};
 use glam::Vec3;
 use smokeshadow::render::TechniqueConfig;
 use smokeshadow::render::shaded::{rms_difference, shaded_points};
@@ -409,15 +409,11 @@ fn power_moments_amplify_the_rounding_of_the_draw_order_only_at_a_few_texels() {
     // msm order independent for that). Reversing the order, as the shared test does: most
     // points keep T within the shared 5e-3, and the RMS change stays small.
     let gpu = gpu();
-    let scene = reduced_plume();
-    let mut behind = scene.clone();
-    behind.camera.position = scene.camera.target * 2.0 - scene.camera.position;
-    let particles = simulate(&scene);
-    let points = shaded_points(&scene, &particles, 256, 192, 8);
+    let orders = ReversedOrder::new();
+    let points = &orders.points;
     for splat in [SplatMode::Point, SplatMode::Segment] {
-        let config = [technique("msm", 16, scene.shadow.resolution_px, splat)];
-        let front = probe_all(&gpu, &scene, &particles, &config, &points).remove(0);
-        let back = probe_all(&gpu, &behind, &particles, &config, &points).remove(0);
+        let config = technique("msm", 16, orders.resolution_px(), splat);
+        let (front, back) = orders.probe(&gpu, &config);
         let moved = front
             .iter()
             .zip(&back)

@@ -4,7 +4,9 @@
 
 mod common;
 
-use common::{REDUCED_H as H, REDUCED_W as W, gpu, probe_all, reduced_plume, sphere, technique};
+use common::{
+    REDUCED_H as H, REDUCED_W as W, ReversedOrder, gpu, probe_all, reduced_plume, sphere, technique,
+};
 use glam::Vec3;
 use smokeshadow::gpu::Gpu;
 use smokeshadow::render::shaded::{rms_difference, shaded_points};
@@ -331,21 +333,15 @@ fn order_independent_maps_do_not_depend_on_the_particle_order() {
     // moving the camera to the other side of the plume reverses the order in which the light
     // passes see them. The light space does not depend on the camera: T must not change.
     let gpu = gpu();
-    let scene = reduced_plume();
-    let mut behind = scene.clone();
-    behind.camera.position = scene.camera.target * 2.0 - scene.camera.position;
-    let particles = simulate(&scene);
-    let points = shaded_points(&scene, &particles, W, H, 8);
-    let res = scene.shadow.resolution_px;
+    let orders = ReversedOrder::new();
     for entry in smokeshadow::shadow::REGISTRY
         .iter()
         .filter(|e| e.order_independent)
     {
         let name = entry.name;
         for splat in [SplatMode::Point, SplatMode::Segment] {
-            let config = [technique(name, 16, res, splat)];
-            let front = probe_all(&gpu, &scene, &particles, &config, &points).remove(0);
-            let back = probe_all(&gpu, &behind, &particles, &config, &points).remove(0);
+            let config = technique(name, 16, orders.resolution_px(), splat);
+            let (front, back) = orders.probe(&gpu, &config);
             let max_diff = front
                 .iter()
                 .zip(&back)

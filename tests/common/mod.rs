@@ -63,6 +63,47 @@ pub fn reduced_plume() -> Scene {
     scene
 }
 
+/// The reduced plume probed twice, with the camera in front of it and behind it: the renderer
+/// sorts the particles back to front for the camera before the build, so the light's passes see
+/// them in reversed order while the light space stays the same (order-independence tests).
+pub struct ReversedOrder {
+    scene: Scene,
+    behind: Scene,
+    particles: Vec<Particle>,
+    /// The shaded points T is probed at (every 8th pixel of the reduced view).
+    pub points: Vec<Vec3>,
+}
+
+impl ReversedOrder {
+    pub fn new() -> Self {
+        let scene = reduced_plume();
+        let mut behind = scene.clone();
+        behind.camera.position = scene.camera.target * 2.0 - scene.camera.position;
+        let particles = smokeshadow::sim::simulate(&scene);
+        let points =
+            smokeshadow::render::shaded::shaded_points(&scene, &particles, REDUCED_W, REDUCED_H, 8);
+        Self {
+            scene,
+            behind,
+            particles,
+            points,
+        }
+    }
+
+    /// The scene's shadow-map resolution.
+    pub fn resolution_px(&self) -> u32 {
+        self.scene.shadow.resolution_px
+    }
+
+    /// T at the points with the particles in one order, then in the reversed one.
+    pub fn probe(&self, gpu: &Gpu, config: &TechniqueConfig) -> (Vec<f32>, Vec<f32>) {
+        let config = std::slice::from_ref(config);
+        let mut front = probe_all(gpu, &self.scene, &self.particles, config, &self.points);
+        let mut back = probe_all(gpu, &self.behind, &self.particles, config, &self.points);
+        (front.remove(0), back.remove(0))
+    }
+}
+
 pub fn technique(
     name: &str,
     channels: u32,
