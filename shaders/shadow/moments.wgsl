@@ -315,3 +315,24 @@ fn moment_transmittance(s: MomentSetting, b0: f32, weighted: array<vec2<f32>, 9>
     share = select(0.0, clamp(share, 0.0, 1.0), share == share);
     return clamp(exp(-b0 * share), 0.0, 1.0);
 }
+
+// The lookup both map families share (shaders/shadow/msm.wgsl and tmsm.wgsl import
+// shadow/layered.wgsl first): the texel's channels at p's light coordinates, b0 first, then the
+// moments, a power moment one channel each, a trigonometric one its real and imaginary part;
+// T bounded by `setting`.
+fn moment_map_transmittance(p: vec3<f32>, setting: MomentSetting) -> f32 {
+    let l = light_coords(p);
+    if !l.inside {
+        return 1.0;
+    }
+    var c = layered_channels(l.uv);
+    var weighted: array<vec2<f32>, 9>;
+    for (var k = 1u; k <= layered.count; k++) {
+        if setting.trigonometric {
+            weighted[k] = vec2<f32>(c[2u * k - 1u], c[2u * k]);
+        } else {
+            weighted[k] = vec2<f32>(c[k], 0.0);
+        }
+    }
+    return moment_transmittance(setting, c[0], weighted, l.depth01);
+}

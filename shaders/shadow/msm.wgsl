@@ -9,14 +9,5 @@ fn msm_setting() -> MomentSetting {
 }
 
 fn shadow_transmittance(p: vec3<f32>) -> f32 {
-    let l = light_coords(p);
-    if !l.inside {
-        return 1.0;
-    }
-    var c = layered_channels(l.uv);
-    var weighted: array<vec2<f32>, 9>;
-    for (var k = 1u; k <= layered.count; k++) {
-        weighted[k] = vec2<f32>(c[k], 0.0);
-    }
-    return moment_transmittance(msm_setting(), c[0], weighted, l.depth01);
+    return moment_map_transmittance(p, msm_setting());
 }

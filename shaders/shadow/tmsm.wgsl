@@ -10,14 +10,5 @@ fn tmsm_setting() -> MomentSetting {
 }
 
 fn shadow_transmittance(p: vec3<f32>) -> f32 {
-    let l = light_coords(p);
-    if !l.inside {
-        return 1.0;
-    }
-    var c = layered_channels(l.uv);
-    var weighted: array<vec2<f32>, 9>;
-    for (var k = 1u; k <= layered.count; k++) {
-        weighted[k] = vec2<f32>(c[2u * k - 1u], c[2u * k]);
-    }
-    return moment_transmittance(tmsm_setting(), c[0], weighted, l.depth01);
+    return moment_map_transmittance(p, tmsm_setting());
 }
