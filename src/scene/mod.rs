@@ -40,6 +40,10 @@ pub const EMBEDDED: &[(&str, &str)] = &[
     ("plume_65k", PLUME_65K_TOML),
 ];
 
+/// The gallery: the embedded scenes that `sweep --scenes all` runs, each a different kind of
+/// smoke (`scenes/README.md` says what each one tests).
+pub const GALLERY: &[&str] = &["thesis_plume", "plume_65k"];
+
 /// The embedded scenes with committed baselines (`baselines/<scene>/`): the thesis experiment.
 /// The scaling family is for timing; its smoke is the thesis plume's at other counts.
 pub const BASELINE_SCENES: &[&str] = &["thesis_plume", "thesis_wind"];
@@ -80,6 +84,10 @@ pub enum SceneError {
 pub struct Scene {
     /// A short name used in file names and reports.
     pub name: String,
+    /// One sentence on what kind of smoke the scene is and what it tests, for reports and
+    /// `smokeshadow info` (empty by default).
+    #[serde(skip_serializing_if = "String::is_empty")]
+    pub description: String,
     pub output: Output,
     pub camera: Camera,
     pub light: Spotlight,
@@ -274,6 +282,7 @@ impl Default for Scene {
     fn default() -> Self {
         Self {
             name: "untitled".into(),
+            description: String::new(),
             output: Output::default(),
             camera: Camera::default(),
             light: Spotlight::default(),
