@@ -34,7 +34,7 @@ pub fn bar(len: u64, unit: &str) -> Option<indicatif::ProgressBar> {
 pub fn simulate(scene: &Scene) -> Vec<Particle> {
     let mut sim = Simulation::new(scene);
     let steps = crate::sim::step_index(scene.sim.step_s, scene.sim.duration_s);
-    let work = steps.saturating_mul(u64::from(scene.emitter.count));
+    let work = steps.saturating_mul(scene.particle_count());
     let shown = if work >= LONG_SIMULATION_PARTICLE_STEPS {
         bar(steps, "steps")
     } else {
@@ -42,7 +42,7 @@ pub fn simulate(scene: &Scene) -> Vec<Particle> {
     };
     match &shown {
         Some(bar) => {
-            bar.set_message(format!("simulating {} particles", scene.emitter.count));
+            bar.set_message(format!("simulating {} particles", scene.particle_count()));
             sim.advance_to_reporting(scene.sim.duration_s, &mut |done, _| bar.set_position(done));
             bar.finish_and_clear();
         }

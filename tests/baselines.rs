@@ -216,7 +216,7 @@ fn the_regressions_the_criterion_guards_against_fail() {
     assert!(smaller.failure().is_some());
     // Another emitter seed: everything moves.
     let mut reseeded = scene.clone();
-    reseeded.emitter.seed += 1;
+    reseeded.emitters[0].seed += 1;
     let seed = score(&reseeded, 24, 512);
     assert!(
         seed.share_beyond_one_step > criterion::MAX_SHARE_BEYOND_ONE_STEP

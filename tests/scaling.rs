@@ -83,9 +83,11 @@ fn eight_times_the_particles_at_half_the_radius_cast_the_thesis_shadow() {
     let thesis = Scene::thesis_plume();
     let scaled = Scene::embedded("plume_scaled")
         .unwrap()
-        .with_particles(8 * thesis.emitter.count)
+        .with_particles(8 * thesis.emitters[0].count)
         .unwrap();
-    assert!((scaled.emitter.radius_birth_m - 0.5 * thesis.emitter.radius_birth_m).abs() < 1e-7);
+    assert!(
+        (scaled.emitters[0].radius_birth_m - 0.5 * thesis.emitters[0].radius_birth_m).abs() < 1e-7
+    );
     let few = simulate(&thesis);
     let many = simulate(&scaled);
     assert_eq!(many.len(), 8 * few.len());

@@ -17,14 +17,14 @@ fn committed_scenes_load_and_match_the_thesis_setup() {
     assert!(count >= 2);
     // Thesis chapter 4: 2500 particles, 1024x768 screen, 512x512 shadow map.
     let plume = Scene::thesis_plume();
-    assert_eq!(plume.emitter.count, 2500);
+    assert_eq!(plume.emitters[0].count, 2500);
     assert_eq!((plume.output.width_px, plume.output.height_px), (1024, 768));
     assert_eq!(plume.shadow.resolution_px, 512);
     assert!(!plume.boxes.is_empty());
     // The wind scene is the same experiment with a gust.
     let wind = Scene::load(&dir.join("thesis_wind.toml")).unwrap();
     assert!(wind.wind.strength_m_per_s > 0.0 && wind.wind.start_s < wind.sim.duration_s);
-    assert_eq!(wind.emitter, plume.emitter);
+    assert_eq!(wind.emitters, plume.emitters);
     assert_eq!(wind.camera, plume.camera);
     assert_eq!(wind.light, plume.light);
 }
@@ -147,7 +147,7 @@ fn the_scaling_family_is_the_thesis_plume_at_other_counts() {
     // plume_65k is the rule applied at 65,536, to the bit (the file's decimals round-trip).
     let k65 = Scene::embedded("plume_65k").unwrap();
     let scaled = base.clone().with_particles(65_536).unwrap();
-    assert_eq!(k65.emitter, scaled.emitter);
+    assert_eq!(k65.emitters, scaled.emitters);
     assert_eq!(
         Scene {
             name: base.name.clone(),
@@ -156,15 +156,15 @@ fn the_scaling_family_is_the_thesis_plume_at_other_counts() {
         scaled
     );
     // The rule: radii times (N0/N)^(1/3), τ kept; the same count changes nothing.
-    let e = &scaled.emitter;
+    let e = &scaled.emitters[0];
     let k = (2500.0f64 / 65536.0).cbrt();
     assert!(
-        (f64::from(e.radius_birth_m) / f64::from(base.emitter.radius_birth_m) - k).abs() < 1e-6
+        (f64::from(e.radius_birth_m) / f64::from(base.emitters[0].radius_birth_m) - k).abs() < 1e-6
     );
     assert!(
-        (f64::from(e.growth_m_per_s) / f64::from(base.emitter.growth_m_per_s) - k).abs() < 1e-6
+        (f64::from(e.growth_m_per_s) / f64::from(base.emitters[0].growth_m_per_s) - k).abs() < 1e-6
     );
-    assert_eq!(e.density_per_m, base.emitter.density_per_m);
+    assert_eq!(e.density_per_m, base.emitters[0].density_per_m);
     assert_eq!(base.clone().with_particles(2500).unwrap(), base);
     // Embedded ones are listed; only the thesis scenes have baselines.
     for name in ["plume_scaled", "plume_65k"] {
@@ -227,4 +227,148 @@ fn technique_parameters_take_numbers_and_the_names_of_choices() {
         err.contains("a number, or the name of one of the parameter's choices"),
         "{err}"
     );
+}
+
+/// The thesis scene with its `[emitter]` table written as `[[emitters]]` tables: `extra` is
+/// appended after the first (more `[[emitters]]` entries).
+fn as_emitters_array(extra: &str) -> String {
+    let text = THESIS_PLUME_TOML.replace("[emitter]", "[[emitters]]");
+    let at = text
+        .find("[wind]")
+        .expect("the thesis scene has a [wind] table");
+    format!("{}{extra}\n{}", &text[..at], &text[at..])
+}
+
+fn bits(particles: &[smokeshadow::sim::Particle]) -> Vec<u32> {
+    particles
+        .iter()
+        .flat_map(|p| {
+            let (q, v, a) = (p.position, p.velocity, p.albedo);
+            [
+                q.x,
+                q.y,
+                q.z,
+                v.x,
+                v.y,
+                v.z,
+                p.age_s,
+                p.radius_m,
+                p.density_per_m,
+                a.x,
+                a.y,
+                a.z,
+            ]
+        })
+        .map(f32::to_bits)
+        .collect()
+}
+
+#[test]
+fn one_emitter_table_and_a_one_entry_emitters_array_are_the_same_scene() {
+    let table = Scene::thesis_plume();
+    let array = Scene::from_toml_str(&as_emitters_array(""), "array").unwrap();
+    assert_eq!(array, table);
+    // Written back, a one-emitter scene keeps the `[emitter]` form, so its canonical text (and
+    // the hash the baselines record) did not change with `[[emitters]]`.
+    assert!(table.to_toml().contains("\n[emitter]\n"));
+    assert!(!table.to_toml().contains("[[emitters]]"));
+    assert_eq!(array.content_hash(), table.content_hash());
+}
+
+#[test]
+fn each_emitter_makes_exactly_the_particles_it_would_make_alone() {
+    let second = "[[emitters]]\ncount = 400\nseed = 7\nposition = [2.5, 0.5, -1.0]\n\
+                  velocity_m_per_s = [0.0, 0.2, 0.0]\nlifetime_s = 3.0\nturbulence_m_per_s2 = 1.5\n";
+    let both = Scene::from_toml_str(&as_emitters_array(second), "two").unwrap();
+    assert_eq!(both.emitters.len(), 2);
+    assert_eq!(both.particle_count(), 2900);
+    let mut first_alone = both.clone();
+    first_alone.emitters.truncate(1);
+    let mut second_alone = both.clone();
+    second_alone.emitters.remove(0);
+
+    let all = smokeshadow::sim::simulate(&both);
+    let a = smokeshadow::sim::simulate(&first_alone);
+    let b = smokeshadow::sim::simulate(&second_alone);
+    assert_eq!(all.len(), 2900, "both pools are full after a lifetime");
+    assert_eq!(
+        bits(&all[..a.len()]),
+        bits(&a),
+        "the first emitter's particles"
+    );
+    assert_eq!(
+        bits(&all[a.len()..]),
+        bits(&b),
+        "the second emitter's particles"
+    );
+    // And the first is the thesis plume, bit for bit.
+    assert_eq!(
+        bits(&a),
+        bits(&smokeshadow::sim::simulate(&Scene::thesis_plume()))
+    );
+    // The second emitter's particles are its own: born at its source, within its lifetime.
+    assert!(b.iter().all(|p| p.age_s < 3.0));
+    let mean_x = b.iter().map(|p| p.position.x).sum::<f32>() / b.len() as f32;
+    assert!(
+        (mean_x - 2.5).abs() < 1.0,
+        "second plume centred at x = {mean_x}"
+    );
+
+    // Several emitters round-trip through TOML as `[[emitters]]`.
+    let text = both.to_toml();
+    assert!(text.contains("[[emitters]]") && !text.contains("\n[emitter]\n"));
+    assert_eq!(Scene::from_toml_str(&text, "written").unwrap(), both);
+}
+
+#[test]
+fn bad_emitters_are_named_by_their_index() {
+    let both = as_emitters_array("[[emitters]]\ncount = 0\nlifetime_s = -1.0\n");
+    let err = Scene::from_toml_str(&both, "s.toml")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("emitters[1].count = 0 is out of range"),
+        "{err}"
+    );
+    assert!(err.contains("emitters[1].lifetime_s = -1"), "{err}");
+    assert!(!err.contains('\n'), "one line: {err}");
+
+    let table_and_array = format!("{THESIS_PLUME_TOML}\n[[emitters]]\ncount = 10\n");
+    let err = Scene::from_toml_str(&table_and_array, "s.toml")
+        .unwrap_err()
+        .to_string();
+    assert!(err.starts_with("s.toml: "), "{err}");
+    assert!(err.contains("both [emitter] and [[emitters]]"), "{err}");
+    assert!(!err.contains('\n'), "one line: {err}");
+
+    let too_many = as_emitters_array("[[emitters]]\ncount = 3999000\n");
+    let err = Scene::from_toml_str(&too_many, "s.toml")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("4001500 particles in all is too many"),
+        "{err}"
+    );
+}
+
+#[test]
+fn scaling_several_emitters_keeps_their_shares_and_the_total() {
+    let second = "[[emitters]]\ncount = 500\nseed = 3\nposition = [3.0, 0.0, 0.0]\n";
+    let both = Scene::from_toml_str(&as_emitters_array(second), "two").unwrap();
+    let scaled = both.clone().with_particles(30_001).unwrap();
+    assert_eq!(scaled.particle_count(), 30_001);
+    assert_eq!(
+        scaled.emitters[0].count, 25_000,
+        "2500 of 3000 -> 25000 of 30001"
+    );
+    assert_eq!(scaled.emitters[1].count, 5_001);
+    for (s, e) in scaled.emitters.iter().zip(&both.emitters) {
+        let k = (f64::from(e.count) / f64::from(s.count)).cbrt();
+        let ratio = f64::from(s.radius_birth_m) / f64::from(e.radius_birth_m);
+        assert!(
+            (ratio - k).abs() < 1e-6,
+            "radius scaled by {ratio}, expected {k}"
+        );
+        assert_eq!(s.density_per_m, e.density_per_m);
+    }
 }

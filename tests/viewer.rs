@@ -277,13 +277,13 @@ fn the_controller_answers_the_controls_without_egui_or_a_gpu() {
     );
 
     // An edit that does not validate is reported and reverted; a valid one is kept.
-    c.edit_scene(|s| s.emitter.lifetime_s = -1.0);
+    c.edit_scene(|s| s.emitters[0].lifetime_s = -1.0);
     let err = c.scene_error.clone().expect("the edit is reported");
     assert!(err.contains("emitter.lifetime_s"), "{err}");
     assert_eq!(c.state.scene, scene);
-    c.edit_scene(|s| s.emitter.lifetime_s = 2.0);
+    c.edit_scene(|s| s.emitters[0].lifetime_s = 2.0);
     assert_eq!(
-        (c.scene_error.as_ref(), c.state.scene.emitter.lifetime_s),
+        (c.scene_error.as_ref(), c.state.scene.emitters[0].lifetime_s),
         (None, 2.0)
     );
 

@@ -79,14 +79,16 @@ pub enum SceneError {
 }
 
 /// One experiment: everything that reaches the pixels of a frame.
+///
+/// Read and written through [`SceneFile`], the TOML's shape: the emitters come from one
+/// `[emitter]` table or from an array of `[[emitters]]`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
+#[serde(try_from = "SceneFile", into = "SceneFile")]
 pub struct Scene {
     /// A short name used in file names and reports.
     pub name: String,
     /// One sentence on what kind of smoke the scene is and what it tests, for reports and
     /// `smokeshadow info` (empty by default).
-    #[serde(skip_serializing_if = "String::is_empty")]
     pub description: String,
     pub output: Output,
     pub camera: Camera,
@@ -94,11 +96,106 @@ pub struct Scene {
     pub ground: Ground,
     /// Axis-aligned boxes standing on (or above) the ground.
     pub boxes: Vec<BoxShape>,
-    pub emitter: Emitter,
+    /// The smoke's emitters, at least one; each is simulated on its own (its own seed, source,
+    /// forces and lifetime) in the one wind, and their particles are listed emitter by emitter.
+    pub emitters: Vec<Emitter>,
     pub wind: Wind,
     pub sim: SimClock,
     pub shadow: ShadowSettings,
     pub shading: Shading,
+}
+
+/// A scene as its TOML is written: [`Scene`] with either one `[emitter]` table (the original
+/// form, and what a one-emitter scene is written back as, so its canonical text and
+/// [`Scene::content_hash`] do not change) or an array of `[[emitters]]`.
+#[derive(Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+struct SceneFile {
+    name: String,
+    #[serde(skip_serializing_if = "String::is_empty")]
+    description: String,
+    output: Output,
+    camera: Camera,
+    light: Spotlight,
+    ground: Ground,
+    boxes: Vec<BoxShape>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    emitter: Option<Emitter>,
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    emitters: Vec<Emitter>,
+    wind: Wind,
+    sim: SimClock,
+    shadow: ShadowSettings,
+    shading: Shading,
+}
+
+// Not derivable, whatever clippy says: the fields' defaults are the scene's ("untitled", the
+// thesis-like camera ...), not their types'.
+#[allow(clippy::derivable_impls)]
+impl Default for SceneFile {
+    fn default() -> Self {
+        Self {
+            emitter: None,
+            ..Scene::default().into()
+        }
+    }
+}
+
+impl TryFrom<SceneFile> for Scene {
+    type Error = String;
+
+    fn try_from(f: SceneFile) -> Result<Self, String> {
+        let emitters = match (f.emitter, f.emitters.is_empty()) {
+            (Some(_), false) => {
+                return Err(
+                    "both [emitter] and [[emitters]] are given: use one [emitter] table or an \
+                     array of [[emitters]]"
+                        .to_owned(),
+                );
+            }
+            (Some(one), true) => vec![one],
+            (None, false) => f.emitters,
+            (None, true) => vec![Emitter::default()],
+        };
+        Ok(Self {
+            name: f.name,
+            description: f.description,
+            output: f.output,
+            camera: f.camera,
+            light: f.light,
+            ground: f.ground,
+            boxes: f.boxes,
+            emitters,
+            wind: f.wind,
+            sim: f.sim,
+            shadow: f.shadow,
+            shading: f.shading,
+        })
+    }
+}
+
+impl From<Scene> for SceneFile {
+    fn from(s: Scene) -> Self {
+        let (emitter, emitters) = match <[Emitter; 1]>::try_from(s.emitters) {
+            Ok([one]) => (Some(one), Vec::new()),
+            Err(several) => (None, several),
+        };
+        Self {
+            name: s.name,
+            description: s.description,
+            output: s.output,
+            camera: s.camera,
+            light: s.light,
+            ground: s.ground,
+            boxes: s.boxes,
+            emitter,
+            emitters,
+            wind: s.wind,
+            sim: s.sim,
+            shadow: s.shadow,
+            shading: s.shading,
+        }
+    }
 }
 
 /// Output image size.
@@ -288,7 +385,7 @@ impl Default for Scene {
             light: Spotlight::default(),
             ground: Ground::default(),
             boxes: Vec::new(),
-            emitter: Emitter::default(),
+            emitters: vec![Emitter::default()],
             wind: Wind::default(),
             sim: SimClock::default(),
             shadow: ShadowSettings::default(),
@@ -458,16 +555,24 @@ impl Scene {
 
     /// Parses and validates a scene from TOML text; `origin` names it in error messages.
     pub fn from_toml_str(text: &str, origin: &str) -> Result<Self, SceneError> {
-        let scene: Scene = toml::from_str(text).map_err(|err| {
-            let (line, column) = err
-                .span()
-                .map(|span| line_column(text, span.start))
-                .unwrap_or((1, 1));
-            SceneError::Parse {
-                origin: origin.to_owned(),
-                line,
-                column,
-                message: err.message().trim().to_owned(),
+        let scene: Scene = toml::from_str(text).map_err(|err: toml::de::Error| {
+            let message = err.message().trim().to_owned();
+            match err.span() {
+                // An error of the whole document (both `[emitter]` and `[[emitters]]`) has no
+                // line of its own.
+                None => SceneError::Invalid {
+                    origin: origin.to_owned(),
+                    message,
+                },
+                Some(span) => {
+                    let (line, column) = line_column(text, span.start);
+                    SceneError::Parse {
+                        origin: origin.to_owned(),
+                        line,
+                        column,
+                        message,
+                    }
+                }
             }
         })?;
         scene.validate().map_err(|message| SceneError::Invalid {
@@ -499,10 +604,27 @@ impl Scene {
         }
     }
 
-    /// The scene with its emitter scaled to `count` particles ([`Emitter::scaled_to`]),
-    /// validated (the count against [`LIMITS`]).
+    /// The particles every emitter of the scene holds together.
+    pub fn particle_count(&self) -> u64 {
+        self.emitters.iter().map(|e| u64::from(e.count)).sum()
+    }
+
+    /// The scene with `count` particles in all, validated (the counts against [`LIMITS`]):
+    /// each emitter keeps its share of the pool (at least one particle) and is scaled to its
+    /// new count by [`Emitter::scaled_to`], so every emitter's smoke keeps its optical depth.
     pub fn with_particles(mut self, count: u32) -> Result<Self, SceneError> {
-        self.emitter = self.emitter.scaled_to(count);
+        let total = self.particle_count().max(1);
+        let mut left = u64::from(count);
+        let last = self.emitters.len() - 1;
+        for (i, e) in self.emitters.iter_mut().enumerate() {
+            let share = if i == last {
+                left
+            } else {
+                (u64::from(count) * u64::from(e.count) / total).min(left)
+            };
+            left -= share;
+            *e = e.scaled_to(share.clamp(1, u64::from(u32::MAX)) as u32);
+        }
         self.validate().map_err(|message| SceneError::Invalid {
             origin: format!("{} at {count} particles", self.name),
             message,

@@ -148,34 +148,63 @@ pub(super) fn validate(scene: &Scene) -> Result<(), String> {
         c.each_in(&format!("boxes[{i}].albedo"), b.albedo, 0.0, 1.0);
     }
 
-    let e = &scene.emitter;
-    c.int_range(
-        "emitter.count",
-        e.count.into(),
-        1,
-        LIMITS.max_particles.into(),
-    );
-    c.finite("emitter.position", e.position);
-    c.at_least("emitter.source_radius_m", e.source_radius_m, 0.0);
-    c.finite("emitter.velocity_m_per_s", e.velocity_m_per_s);
-    c.at_least(
-        "emitter.velocity_spread_m_per_s",
-        e.velocity_spread_m_per_s,
-        0.0,
-    );
-    c.at_least("emitter.buoyancy_m_per_s2", e.buoyancy_m_per_s2, 0.0);
-    c.positive("emitter.buoyancy_decay_s", e.buoyancy_decay_s);
-    c.at_least("emitter.turbulence_m_per_s2", e.turbulence_m_per_s2, 0.0);
-    c.positive("emitter.turbulence_scale_m", e.turbulence_scale_m);
-    c.at_least("emitter.drag_per_s", e.drag_per_s, 0.0);
-    c.positive("emitter.lifetime_s", e.lifetime_s);
-    c.positive("emitter.radius_birth_m", e.radius_birth_m);
-    c.at_least("emitter.growth_m_per_s", e.growth_m_per_s, 0.0);
-    c.at_least("emitter.density_per_m", e.density_per_m, 0.0);
-    c.range("emitter.fade_in", e.fade_in, 0.0, 0.5, true);
-    c.range("emitter.fade_out", e.fade_out, 0.0, 0.5, true);
-    c.each_in("emitter.albedo", e.albedo, 0.0, 1.0);
-    c.range("emitter.albedo_jitter", e.albedo_jitter, 0.0, 0.999, true);
+    // One `[emitter]` is named `emitter`, an array's entries `emitters[i]`.
+    let single = scene.emitters.len() == 1;
+    for (i, e) in scene.emitters.iter().enumerate() {
+        let at = if single {
+            "emitter".to_owned()
+        } else {
+            format!("emitters[{i}]")
+        };
+        c.int_range(
+            &format!("{at}.count"),
+            e.count.into(),
+            1,
+            LIMITS.max_particles.into(),
+        );
+        c.finite(&format!("{at}.position"), e.position);
+        c.at_least(&format!("{at}.source_radius_m"), e.source_radius_m, 0.0);
+        c.finite(&format!("{at}.velocity_m_per_s"), e.velocity_m_per_s);
+        c.at_least(
+            &format!("{at}.velocity_spread_m_per_s"),
+            e.velocity_spread_m_per_s,
+            0.0,
+        );
+        c.at_least(&format!("{at}.buoyancy_m_per_s2"), e.buoyancy_m_per_s2, 0.0);
+        c.positive(&format!("{at}.buoyancy_decay_s"), e.buoyancy_decay_s);
+        c.at_least(
+            &format!("{at}.turbulence_m_per_s2"),
+            e.turbulence_m_per_s2,
+            0.0,
+        );
+        c.positive(&format!("{at}.turbulence_scale_m"), e.turbulence_scale_m);
+        c.at_least(&format!("{at}.drag_per_s"), e.drag_per_s, 0.0);
+        c.positive(&format!("{at}.lifetime_s"), e.lifetime_s);
+        c.positive(&format!("{at}.radius_birth_m"), e.radius_birth_m);
+        c.at_least(&format!("{at}.growth_m_per_s"), e.growth_m_per_s, 0.0);
+        c.at_least(&format!("{at}.density_per_m"), e.density_per_m, 0.0);
+        c.range(&format!("{at}.fade_in"), e.fade_in, 0.0, 0.5, true);
+        c.range(&format!("{at}.fade_out"), e.fade_out, 0.0, 0.5, true);
+        c.each_in(&format!("{at}.albedo"), e.albedo, 0.0, 1.0);
+        c.range(
+            &format!("{at}.albedo_jitter"),
+            e.albedo_jitter,
+            0.0,
+            0.999,
+            true,
+        );
+    }
+    if scene.emitters.is_empty() {
+        c.errors
+            .push("emitters: the scene has no emitter: give at least one".to_owned());
+    }
+    let total = scene.particle_count();
+    if !single && total > u64::from(LIMITS.max_particles) {
+        c.errors.push(format!(
+            "emitters: {total} particles in all is too many: at most {}",
+            LIMITS.max_particles
+        ));
+    }
 
     let w = &scene.wind;
     c.finite("wind.direction", w.direction);

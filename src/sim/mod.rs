@@ -17,6 +17,10 @@
 //! Forces: buoyancy that decays with age, a divergence-free turbulent field (a sum of transverse
 //! travelling plane waves), a small per-particle random walk, and drag towards the air velocity,
 //! which is where the wind gust enters.
+//!
+//! A scene's emitters (`[[emitters]]`) are independent pools stepped on one clock in one wind:
+//! each draws only from its own seed's streams, so its particles are bit for bit those it would
+//! make alone, and the frame lists them emitter by emitter.
 
 use glam::Vec3;
 use rand::{Rng, SeedableRng};
@@ -227,28 +231,86 @@ pub fn step_index(step_s: f32, time_s: f32) -> u64 {
     (time_s.max(0.0) / step_s).round() as u64
 }
 
-/// The emitter's state between fixed steps, for callers that move through time (the viewer's
+/// The emitters' state between fixed steps, for callers that move through time (the viewer's
 /// play and scrub): stepping forward continues; going back replays from t = 0, so the state at
 /// a time is always the one [`simulate_until`] gives.
 pub struct Simulation {
-    emitter: Emitter,
+    /// One pool per emitter, in the scene's order.
+    pools: Vec<Pool>,
     wind: Wind,
     step_s: f32,
+    /// Steps taken so far.
+    steps: u64,
+}
+
+/// One emitter's pool: its slots, its turbulence and its birth schedule. Pools share nothing but
+/// the wind and the clock, so each emitter's particles are exactly those it would make alone.
+struct Pool {
+    emitter: Emitter,
     turbulence: Turbulence,
     slots: Vec<Slot>,
     /// The first slot not yet born (particles are born in index order).
     next_birth: usize,
-    /// Steps taken so far.
-    steps: u64,
 }
 
 impl Simulation {
     /// The state at t = 0.
     pub fn new(scene: &Scene) -> Self {
-        Self::start(scene.emitter.clone(), scene.wind.clone(), scene.sim.step_s)
+        Self::start(&scene.emitters, scene.wind.clone(), scene.sim.step_s)
     }
 
-    fn start(e: Emitter, wind: Wind, step_s: f32) -> Self {
+    fn start(emitters: &[Emitter], wind: Wind, step_s: f32) -> Self {
+        Self {
+            pools: emitters.iter().cloned().map(Pool::new).collect(),
+            wind,
+            step_s,
+            steps: 0,
+        }
+    }
+
+    /// Simulated time, seconds.
+    pub fn time_s(&self) -> f32 {
+        self.steps as f32 * self.step_s
+    }
+
+    /// Steps forward (or replays from the start) to the step nearest `time_s`.
+    pub fn advance_to(&mut self, time_s: f32) {
+        self.advance_to_reporting(time_s, &mut |_, _| {});
+    }
+
+    /// [`Simulation::advance_to`], calling `progress(done, total)` after each step with the
+    /// steps taken and the steps this call takes in all (for a progress bar).
+    pub fn advance_to_reporting(&mut self, time_s: f32, progress: &mut dyn FnMut(u64, u64)) {
+        let target = step_index(self.step_s, time_s);
+        if target < self.steps {
+            let emitters: Vec<Emitter> = self.pools.iter().map(|p| p.emitter.clone()).collect();
+            *self = Self::start(&emitters, self.wind.clone(), self.step_s);
+        }
+        let first = self.steps;
+        while self.steps < target {
+            let t = self.steps as f32 * self.step_s;
+            let air = wind_velocity(&self.wind, t);
+            for pool in &mut self.pools {
+                pool.step(t, self.step_s, air);
+            }
+            self.steps += 1;
+            progress(self.steps - first, target - first);
+        }
+    }
+
+    /// The live particles, emitter by emitter in pool order, with their age-dependent radius,
+    /// density and albedo.
+    pub fn particles(&self) -> Vec<Particle> {
+        let mut all = Vec::new();
+        for pool in &self.pools {
+            all.extend(pool.particles());
+        }
+        all
+    }
+}
+
+impl Pool {
+    fn new(e: Emitter) -> Self {
         let turbulence = Turbulence::new(&mut Pcg32::seed_from_u64(e.seed), &e);
         let empty = Particle {
             position: e.position,
@@ -270,49 +332,20 @@ impl Simulation {
         Self {
             slots,
             emitter: e,
-            wind,
-            step_s,
             turbulence,
             next_birth: 0,
-            steps: 0,
         }
     }
 
-    /// Simulated time, seconds.
-    pub fn time_s(&self) -> f32 {
-        self.steps as f32 * self.step_s
-    }
-
-    /// Steps forward (or replays from the start) to the step nearest `time_s`.
-    pub fn advance_to(&mut self, time_s: f32) {
-        self.advance_to_reporting(time_s, &mut |_, _| {});
-    }
-
-    /// [`Simulation::advance_to`], calling `progress(done, total)` after each step with the
-    /// steps taken and the steps this call takes in all (for a progress bar).
-    pub fn advance_to_reporting(&mut self, time_s: f32, progress: &mut dyn FnMut(u64, u64)) {
-        let target = step_index(self.step_s, time_s);
-        if target < self.steps {
-            *self = Self::start(self.emitter.clone(), self.wind.clone(), self.step_s);
-        }
-        let first = self.steps;
-        while self.steps < target {
-            self.step();
-            progress(self.steps - first, target - first);
-        }
-    }
-
-    /// One fixed step: the births due in it (in slot order, each from its own stream), then
-    /// every live slot advanced in parallel. A slot's update reads only its own state and the
-    /// shared, read-only emitter, turbulence and air velocity, so the schedule cannot change it.
-    fn step(&mut self) {
+    /// One fixed step from `t` of `dt` in the air velocity `air`: the births due in it (in slot
+    /// order, each from its own stream), then every live slot advanced in parallel. A slot's
+    /// update reads only its own state and the shared, read-only emitter, turbulence and air
+    /// velocity, so the schedule cannot change it.
+    fn step(&mut self, t: f32, dt: f32, air: Vec3) {
         let e = &self.emitter;
         let count = e.count as usize;
         let birth_interval = e.lifetime_s / e.count as f32;
-        let dt = self.step_s;
-        let t = self.steps as f32 * dt;
         let t_end = t + dt;
-        let air = wind_velocity(&self.wind, t);
         while self.next_birth < count && (self.next_birth as f32) * birth_interval < t_end {
             spawn(&mut self.slots[self.next_birth], e);
             self.next_birth += 1;
@@ -327,11 +360,9 @@ impl Simulation {
                     advance(slot, e, turbulence, air, dt);
                 }
             });
-        self.steps += 1;
     }
 
-    /// The live particles in pool order, with their age-dependent radius, density and albedo.
-    pub fn particles(&self) -> Vec<Particle> {
+    fn particles(&self) -> Vec<Particle> {
         let e = &self.emitter;
         self.slots
             .par_iter()
@@ -419,8 +450,8 @@ mod tests {
 
     fn small_scene(seed: u64) -> Scene {
         let mut scene = Scene::thesis_plume();
-        scene.emitter.count = 300;
-        scene.emitter.seed = seed;
+        scene.emitters[0].count = 300;
+        scene.emitters[0].seed = seed;
         scene.sim.duration_s = 3.0;
         scene
     }
@@ -464,12 +495,12 @@ mod tests {
     fn thread_count_does_not_change_a_bit() {
         // Enough slots for many rayon tasks (SLOTS_PER_TASK each), a wind gust and re-births.
         let mut scene = small_scene(11);
-        scene.emitter.count = 6 * SLOTS_PER_TASK as u32 + 37;
-        scene.emitter.lifetime_s = 1.5;
+        scene.emitters[0].count = 6 * SLOTS_PER_TASK as u32 + 37;
+        scene.emitters[0].lifetime_s = 1.5;
         scene.wind.strength_m_per_s = 2.0;
         scene.wind.start_s = 1.0;
         let one = on_threads(1, || simulate(&scene));
-        assert_eq!(one.len(), scene.emitter.count as usize);
+        assert_eq!(one.len(), scene.emitters[0].count as usize);
         for threads in [2, 3, 8] {
             let many = on_threads(threads, || simulate(&scene));
             assert_eq!(bits(&one), bits(&many), "{threads} threads");
@@ -536,12 +567,12 @@ mod tests {
     #[test]
     fn pool_is_full_after_one_lifetime_and_partial_before() {
         let mut scene = small_scene(1);
-        scene.sim.duration_s = scene.emitter.lifetime_s * 0.5;
+        scene.sim.duration_s = scene.emitters[0].lifetime_s * 0.5;
         let half = simulate(&scene).len();
-        scene.sim.duration_s = scene.emitter.lifetime_s * 2.0;
+        scene.sim.duration_s = scene.emitters[0].lifetime_s * 2.0;
         let full = simulate(&scene).len();
-        assert_eq!(full, scene.emitter.count as usize);
-        let expected = scene.emitter.count as usize / 2;
+        assert_eq!(full, scene.emitters[0].count as usize);
+        let expected = scene.emitters[0].count as usize / 2;
         assert!(
             half.abs_diff(expected) <= 2,
             "half-life pool has {half}, expected ~{expected}"
@@ -552,7 +583,7 @@ mod tests {
     fn particles_rise_grow_and_fade() {
         let scene = small_scene(3);
         let ps = simulate(&scene);
-        let e = &scene.emitter;
+        let e = &scene.emitters[0];
         for p in &ps {
             assert!(p.age_s < e.lifetime_s);
             let r = e.radius_birth_m + e.growth_m_per_s * p.age_s;

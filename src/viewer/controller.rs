@@ -272,7 +272,7 @@ pub struct Controller {
     pub(super) gpu: Option<Arc<Gpu>>,
     sim: Simulation,
     particles: Arc<Vec<Particle>>,
-    sim_inputs: (crate::scene::Emitter, crate::scene::Wind, f32),
+    sim_inputs: (Vec<crate::scene::Emitter>, crate::scene::Wind, f32),
     pub(super) views: [Option<View>; 2],
     /// Sides rendered on the worker (see [`WorkerView`]).
     pub(super) worker_views: [WorkerView; 2],
@@ -335,7 +335,7 @@ impl Controller {
             scene: scene.clone(),
         };
         Self {
-            sim_inputs: (scene.emitter.clone(), scene.wind.clone(), scene.sim.step_s),
+            sim_inputs: (scene.emitters.clone(), scene.wind.clone(), scene.sim.step_s),
             loaded_scene: scene.clone(),
             valid_scene: scene,
             scene_path: path.unwrap_or_else(|| "scene.toml".to_owned()),
@@ -658,7 +658,7 @@ impl Controller {
     /// Brings the particles to the current time and emitter settings.
     fn update_particles(&mut self) {
         let s = &self.state.scene;
-        let inputs = (s.emitter.clone(), s.wind.clone(), s.sim.step_s);
+        let inputs = (s.emitters.clone(), s.wind.clone(), s.sim.step_s);
         if inputs != self.sim_inputs {
             self.sim = Simulation::new(s);
             self.sim_inputs = inputs;

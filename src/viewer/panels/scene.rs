@@ -1,5 +1,5 @@
 //! The scene panel: the scene file (load, save, the thesis scene, reset the camera) and the
-//! scene's emitter, wind and spotlight as drag values. Edits go through
+//! scene's emitters, wind and spotlight as drag values. Edits go through
 //! [`Controller::edit_scene`], which reverts one that does not validate and reports it.
 
 use eframe::egui::{self, Color32};
@@ -33,45 +33,53 @@ pub fn show(controller: &mut Controller, ui: &mut egui::Ui) {
         ui.colored_label(Color32::RED, err);
     }
     controller.edit_scene(|s| {
-        let e = &mut s.emitter;
-        egui::CollapsingHeader::new("Emitter")
-            .default_open(true)
-            .show(ui, |ui| {
-                egui::Grid::new("emitter").show(ui, |ui| {
-                    drag(ui, "Particles", &mut e.count, 1.0, 1.0..=100_000.0);
-                    drag(ui, "Seed", &mut e.seed, 1.0, 0.0..=1e9);
-                    drag(
-                        ui,
-                        "Density τ (1/m)",
-                        &mut e.density_per_m,
-                        0.01,
-                        0.0..=50.0,
-                    );
-                    drag(
-                        ui,
-                        "Radius at birth (m)",
-                        &mut e.radius_birth_m,
-                        0.005,
-                        0.01..=5.0,
-                    );
-                    drag(ui, "Growth (m/s)", &mut e.growth_m_per_s, 0.002, 0.0..=2.0);
-                    drag(ui, "Lifetime (s)", &mut e.lifetime_s, 0.05, 0.1..=60.0);
-                    drag(
-                        ui,
-                        "Buoyancy (m/s²)",
-                        &mut e.buoyancy_m_per_s2,
-                        0.02,
-                        0.0..=20.0,
-                    );
-                    drag(
-                        ui,
-                        "Turbulence (m/s²)",
-                        &mut e.turbulence_m_per_s2,
-                        0.02,
-                        0.0..=20.0,
-                    );
+        // One header per emitter; a scene of several names them by number.
+        let several = s.emitters.len() > 1;
+        for (i, e) in s.emitters.iter_mut().enumerate() {
+            let title = match several {
+                true => format!("Emitter {}", i + 1),
+                false => "Emitter".to_owned(),
+            };
+            egui::CollapsingHeader::new(title)
+                .id_salt(("emitter", i))
+                .default_open(i == 0)
+                .show(ui, |ui| {
+                    egui::Grid::new(("emitter", i)).show(ui, |ui| {
+                        drag(ui, "Particles", &mut e.count, 1.0, 1.0..=100_000.0);
+                        drag(ui, "Seed", &mut e.seed, 1.0, 0.0..=1e9);
+                        drag(
+                            ui,
+                            "Density τ (1/m)",
+                            &mut e.density_per_m,
+                            0.01,
+                            0.0..=50.0,
+                        );
+                        drag(
+                            ui,
+                            "Radius at birth (m)",
+                            &mut e.radius_birth_m,
+                            0.005,
+                            0.01..=5.0,
+                        );
+                        drag(ui, "Growth (m/s)", &mut e.growth_m_per_s, 0.002, 0.0..=2.0);
+                        drag(ui, "Lifetime (s)", &mut e.lifetime_s, 0.05, 0.1..=60.0);
+                        drag(
+                            ui,
+                            "Buoyancy (m/s²)",
+                            &mut e.buoyancy_m_per_s2,
+                            0.02,
+                            0.0..=20.0,
+                        );
+                        drag(
+                            ui,
+                            "Turbulence (m/s²)",
+                            &mut e.turbulence_m_per_s2,
+                            0.02,
+                            0.0..=20.0,
+                        );
+                    });
                 });
-            });
+        }
         let w = &mut s.wind;
         egui::CollapsingHeader::new("Wind").show(ui, |ui| {
             egui::Grid::new("wind").show(ui, |ui| {
