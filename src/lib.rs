@@ -10,6 +10,7 @@ pub mod diff;
 pub mod frame;
 pub mod gpu;
 pub mod output;
+pub mod particles;
 pub mod progress;
 pub mod render;
 pub mod report;

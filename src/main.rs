@@ -49,6 +49,9 @@ enum Command {
     /// simulation, sort, every GPU pass, each technique's frame and bytes, as a table, CSV,
     /// JSON and log-log SVG charts.
     Bench(commands::bench::BenchArgs),
+    /// Write a scene's particles (simulated, or read from its particle file) as PLY or CSV, at
+    /// one time or as a numbered sequence of frames.
+    Particles(commands::particles::ParticlesArgs),
 }
 
 fn main() -> ExitCode {
@@ -110,6 +113,7 @@ fn main() -> ExitCode {
         Command::Bench(args) => {
             commands::bench::run(args, &cli.adapter).map(|()| ExitCode::SUCCESS)
         }
+        Command::Particles(args) => commands::particles::run(args).map(|()| ExitCode::SUCCESS),
     };
     match result {
         Ok(code) => code,

@@ -115,7 +115,7 @@ struct Rendered {
 /// Renders a baseline's configuration: the tone-mapped frame and the HDR frame's block means.
 fn render(gpu: &Gpu, baseline: &Baseline) -> anyhow::Result<Rendered> {
     let scene = Scene::embedded(&baseline.scene).expect("selected scenes are embedded");
-    let particles = crate::progress::simulate(&scene);
+    let particles = crate::particles::scene_particles(&scene)?;
     let config = config(&baseline.technique, &scene);
     let frame = render_offscreen(gpu, &scene, &particles, &config, &RenderOptions::default())?;
     Ok(Rendered {

@@ -214,7 +214,7 @@ pub fn run(gpu: &Gpu, scene: &Scene, options: &BenchOptions) -> anyhow::Result<B
         let scaled = scene.clone().with_particles(count)?;
         progress.start(&format!("simulating {count} particles"));
         let sim_start = Instant::now();
-        let particles = progress.suspend(|| crate::progress::simulate(&scaled));
+        let particles = progress.suspend(|| crate::particles::scene_particles(&scaled))?;
         let sim_ms = sim_start.elapsed().as_secs_f64() * 1e3;
         let mut counted = CountResult {
             particles: count,

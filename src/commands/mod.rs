@@ -5,6 +5,7 @@ pub mod bench;
 pub mod compare;
 pub mod diff;
 pub mod info;
+pub mod particles;
 pub mod probe;
 pub mod render;
 pub mod sweep;
@@ -42,7 +43,13 @@ pub fn parse_particles(s: &str) -> Result<u32, String> {
 /// The scene-loading path every command shares: an embedded scene's name or a file path (the
 /// embedded thesis scene when `None`), rescaled to `--particles` when given.
 pub fn load_scene(arg: Option<&Path>, particles: ParticlesArg) -> anyhow::Result<Scene> {
-    let scene = Scene::load_or_default(arg)?;
+    let scene = match arg {
+        // A particle file where a scene is expected: the default scene around its particles.
+        Some(path) if crate::particles::Format::of_path(path).is_some() => {
+            crate::particles::scene_for_file(path)?
+        }
+        arg => Scene::load_or_default(arg)?,
+    };
     Ok(match particles.particles {
         Some(n) => scene.with_particles(n)?,
         None => scene,

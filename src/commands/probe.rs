@@ -85,7 +85,7 @@ pub fn run(args: &ProbeArgs, adapter: &AdapterPreference) -> anyhow::Result<()> 
         params: technique.params.clone(),
     };
     let gpu = Gpu::new(adapter)?;
-    let particles = crate::progress::simulate(&scene);
+    let particles = crate::particles::scene_particles(&scene)?;
     let light = LightSpace::fit(&scene.light, &particles);
 
     let mut points = vec![args.at];

@@ -87,7 +87,7 @@ pub fn run(args: &RenderArgs, adapter: &AdapterPreference) -> anyhow::Result<()>
     }
 
     let sim_start = Instant::now();
-    let particles = crate::progress::simulate(&scene);
+    let particles = crate::particles::scene_particles(&scene)?;
     let sim_ms = sim_start.elapsed().as_secs_f64() * 1e3;
 
     let options = RenderOptions {
@@ -141,10 +141,16 @@ pub fn run(args: &RenderArgs, adapter: &AdapterPreference) -> anyhow::Result<()>
     }
     let t = renderer.technique();
     println!(
-        "wrote {} ({w}x{h}, {} particles simulated to t = {} s in {sim_ms:.0} ms, technique {} with {} channels, {} bytes of shadow memory{}, {} billboards)",
+        "wrote {} ({w}x{h}, {} particles {} in {sim_ms:.0} ms, technique {} with {} channels, {} bytes of shadow memory{}, {} billboards)",
         args.output.display(),
         particles.len(),
-        scene.sim.duration_s,
+        match &scene.particles {
+            Some(source) => format!(
+                "read from {}",
+                source.path_at(scene.sim.duration_s).display()
+            ),
+            None => format!("simulated to t = {} s", scene.sim.duration_s),
+        },
         t.name(),
         t.channels_used(),
         t.memory().total_bytes(),

@@ -120,7 +120,7 @@ pub fn run(
         std::fs::create_dir_all(out_dir.join(sub))
             .with_context(|| format!("cannot create {}", out_dir.join(sub).display()))?;
     }
-    let particles = crate::progress::simulate(scene);
+    let particles = crate::particles::scene_particles(scene)?;
     let (w, h) = (scene.output.width_px, scene.output.height_px);
     let config = |name: &str, channels: u32| {
         let mut params = scene.shadow.params(channels);

@@ -99,6 +99,8 @@ pub struct Scene {
     /// The smoke's emitters, at least one; each is simulated on its own (its own seed, source,
     /// forces and lifetime) in the one wind, and their particles are listed emitter by emitter.
     pub emitters: Vec<Emitter>,
+    /// Particles from a file instead of the emitters (`[particles]`): then `emitters` is empty.
+    pub particles: Option<ParticleSource>,
     pub wind: Wind,
     pub sim: SimClock,
     pub shadow: ShadowSettings,
@@ -123,6 +125,8 @@ struct SceneFile {
     emitter: Option<Emitter>,
     #[serde(skip_serializing_if = "Vec::is_empty")]
     emitters: Vec<Emitter>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    particles: Option<ParticleSource>,
     wind: Wind,
     sim: SimClock,
     shadow: ShadowSettings,
@@ -145,7 +149,16 @@ impl TryFrom<SceneFile> for Scene {
     type Error = String;
 
     fn try_from(f: SceneFile) -> Result<Self, String> {
+        let from_file = f.particles.is_some();
+        if from_file && (f.emitter.is_some() || !f.emitters.is_empty()) {
+            return Err(
+                "both [particles] and an emitter are given: the particles come from \
+                        the file or from the emitters, not both"
+                    .to_owned(),
+            );
+        }
         let emitters = match (f.emitter, f.emitters.is_empty()) {
+            _ if from_file => Vec::new(),
             (Some(_), false) => {
                 return Err(
                     "both [emitter] and [[emitters]] are given: use one [emitter] table or an \
@@ -166,6 +179,7 @@ impl TryFrom<SceneFile> for Scene {
             ground: f.ground,
             boxes: f.boxes,
             emitters,
+            particles: f.particles,
             wind: f.wind,
             sim: f.sim,
             shadow: f.shadow,
@@ -190,6 +204,7 @@ impl From<Scene> for SceneFile {
             boxes: s.boxes,
             emitter,
             emitters,
+            particles: s.particles,
             wind: s.wind,
             sim: s.sim,
             shadow: s.shadow,
@@ -309,6 +324,43 @@ pub struct Emitter {
     pub albedo_jitter: f32,
 }
 
+/// Particles from a file (`[particles]`): a PLY or CSV file, or a numbered sequence of them
+/// (`smoke.%04d.ply`) of which the scene's time picks the frame. `crate::particles` reads them.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ParticleSource {
+    /// The file, relative to the scene file's folder; `%04d` (or `%d`) makes it a sequence.
+    pub file: String,
+    /// A sequence's frames per second, > 0.
+    pub frame_rate_hz: f32,
+    /// The frame number at t = 0 (Houdini's first frame is 1).
+    pub frame_at_zero: i64,
+    /// The radius of particles whose file has none, metres, > 0.
+    pub radius_m: f32,
+    /// The extinction of particles whose file has none, 1/m, >= 0.
+    pub density_per_m: f32,
+    /// The albedo of particles whose file has none, linear RGB, each in [0, 1].
+    pub albedo: Vec3,
+    /// The folder `file` is relative to: the scene file's (set when a scene file is loaded;
+    /// not written).
+    #[serde(skip)]
+    pub base_dir: PathBuf,
+}
+
+impl Default for ParticleSource {
+    fn default() -> Self {
+        Self {
+            file: String::new(),
+            frame_rate_hz: 24.0,
+            frame_at_zero: 0,
+            radius_m: 0.1,
+            density_per_m: 2.0,
+            albedo: Vec3::splat(0.8),
+            base_dir: PathBuf::new(),
+        }
+    }
+}
+
 /// A wind gust: the air starts moving at `start_s` and ramps up over `ramp_s`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -386,6 +438,7 @@ impl Default for Scene {
             ground: Ground::default(),
             boxes: Vec::new(),
             emitters: vec![Emitter::default()],
+            particles: None,
             wind: Wind::default(),
             sim: SimClock::default(),
             shadow: ShadowSettings::default(),
@@ -549,7 +602,15 @@ impl Scene {
     /// formatting do not count), hex-encoded: names what a baseline was rendered from.
     pub fn content_hash(&self) -> String {
         use sha2::Digest;
-        let digest = sha2::Sha256::digest(self.to_toml().as_bytes());
+        let mut hasher = sha2::Sha256::new();
+        hasher.update(self.to_toml().as_bytes());
+        // A scene of a particle file is its frame's bytes too (an unreadable file hashes as
+        // absent; reading it will report the problem).
+        if let Some(source) = &self.particles {
+            let path = source.path_at(self.sim.duration_s);
+            hasher.update(std::fs::read(path).unwrap_or_default());
+        }
+        let digest = hasher.finalize();
         digest.iter().map(|b| format!("{b:02x}")).collect()
     }
 
@@ -593,7 +654,11 @@ impl Scene {
             },
             cause,
         })?;
-        Self::from_toml_str(&text, &path.display().to_string())
+        let mut scene = Self::from_toml_str(&text, &path.display().to_string())?;
+        if let Some(source) = &mut scene.particles {
+            source.base_dir = path.parent().map(Path::to_owned).unwrap_or_default();
+        }
+        Ok(scene)
     }
 
     /// A scene argument: the name of an embedded scene (`thesis_wind`), else a file path.
@@ -613,6 +678,14 @@ impl Scene {
     /// each emitter keeps its share of the pool (at least one particle) and is scaled to its
     /// new count by [`Emitter::scaled_to`], so every emitter's smoke keeps its optical depth.
     pub fn with_particles(mut self, count: u32) -> Result<Self, SceneError> {
+        if self.emitters.is_empty() {
+            return Err(SceneError::Invalid {
+                origin: self.name.clone(),
+                message: "--particles scales the emitters, and this scene's particles come from \
+                          a file ([particles])"
+                    .to_owned(),
+            });
+        }
         let total = self.particle_count().max(1);
         let mut left = u64::from(count);
         let last = self.emitters.len() - 1;

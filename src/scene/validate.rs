@@ -194,9 +194,22 @@ pub(super) fn validate(scene: &Scene) -> Result<(), String> {
             true,
         );
     }
-    if scene.emitters.is_empty() {
-        c.errors
-            .push("emitters: the scene has no emitter: give at least one".to_owned());
+    match &scene.particles {
+        None if scene.emitters.is_empty() => {
+            c.errors
+                .push("emitters: the scene has no emitter: give at least one".to_owned());
+        }
+        None => {}
+        Some(p) => {
+            if p.file.trim().is_empty() {
+                c.errors
+                    .push("particles.file is empty: give the particle file's path".to_owned());
+            }
+            c.positive("particles.frame_rate_hz", p.frame_rate_hz);
+            c.positive("particles.radius_m", p.radius_m);
+            c.at_least("particles.density_per_m", p.density_per_m, 0.0);
+            c.each_in("particles.albedo", p.albedo, 0.0, 1.0);
+        }
     }
     let total = scene.particle_count();
     if !single && total > u64::from(LIMITS.max_particles) {

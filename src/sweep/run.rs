@@ -506,7 +506,7 @@ pub fn run(
         }
     }
 
-    let particles = crate::progress::simulate(scene);
+    let particles = crate::particles::scene_particles(scene)?;
     let (w, h) = (scene.output.width_px, scene.output.height_px);
     let mut exact_config = plans[0].config.clone();
     exact_config.name = shadow::reference().name.to_owned();

@@ -1,0 +1,488 @@
+//! Particle files in and out: the particles of a frame as PLY (binary or ASCII, named vertex
+//! properties) or CSV (a header row), so that smoke simulated elsewhere (Houdini, Blender,
+//! EmberGen, an engine) can be brought in and ours taken out.
+//!
+//! - [`write`] writes particles in the format the file name's extension says (`.ply`, binary
+//!   little-endian unless [`Format::PlyAscii`] is asked for; `.csv`).
+//! - [`read`] reads either, mapping the property names of common exporters (see
+//!   [`PROPERTIES`]) onto [`Particle`]; properties it does not know are ignored, missing
+//!   optional ones take the scene's `[particles]` defaults ([`Defaults`]).
+//! - [`scene_particles`] is what every command calls for a frame's particles: the scene's
+//!   particle file (a single file or a `%04d` sequence, the frame picked by the scene's time) or
+//!   its emitters' simulation.
+//!
+//! Every bad file is one [`ParticleFileError`] line naming the file, the element (and particle
+//! index) and the property. Values round-trip exactly: binary files hold the f32s, and ASCII
+//! PLY and CSV print each f32 in the shortest form that reads back to the same bits.
+//!
+//! To accept another exporter's name for a property, add it to [`PROPERTIES`] and to the
+//! mapping table in `scenes/README.md`.
+
+mod csv_file;
+mod ply_file;
+
+use std::path::{Path, PathBuf};
+
+use glam::Vec3;
+
+use crate::scene::{ParticleSource, Scene};
+use crate::sim::Particle;
+
+/// A particle file's format.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Format {
+    /// PLY, binary little-endian.
+    Ply,
+    /// PLY, ASCII.
+    PlyAscii,
+    /// Comma-separated values with a header row.
+    Csv,
+}
+
+impl Format {
+    /// The format a file name's extension says (`.ply` is binary PLY), if any.
+    pub fn of_path(path: &Path) -> Option<Self> {
+        let ext = path.extension()?.to_str()?.to_ascii_lowercase();
+        match ext.as_str() {
+            "ply" => Some(Self::Ply),
+            "csv" => Some(Self::Csv),
+            _ => None,
+        }
+    }
+}
+
+/// One property of a particle as files name it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Field {
+    X,
+    Y,
+    Z,
+    Radius,
+    Density,
+    Red,
+    Green,
+    Blue,
+    Age,
+    Vx,
+    Vy,
+    Vz,
+}
+
+/// Every property we read: the name we write first, then the other exporters' names for it
+/// (matched without regard to case), and whether a file must have it.
+pub const PROPERTIES: &[(Field, &[&str], bool)] = &[
+    (Field::X, &["x", "px", "P.x"], true),
+    (Field::Y, &["y", "py", "P.y"], true),
+    (Field::Z, &["z", "pz", "P.z"], true),
+    (Field::Radius, &["radius", "pscale", "radius_m"], false),
+    (
+        Field::Density,
+        &["density", "extinction", "density_per_m", "sigma_t"],
+        false,
+    ),
+    (Field::Red, &["red", "r", "Cd.r", "albedo_r"], false),
+    (Field::Green, &["green", "g", "Cd.g", "albedo_g"], false),
+    (Field::Blue, &["blue", "b", "Cd.b", "albedo_b"], false),
+    (Field::Age, &["age", "age_s"], false),
+    (Field::Vx, &["vx", "v.x", "velocity_x"], false),
+    (Field::Vy, &["vy", "v.y", "velocity_y"], false),
+    (Field::Vz, &["vz", "v.z", "velocity_z"], false),
+];
+
+/// The columns we write, in order (the first name of each of [`PROPERTIES`]).
+pub fn written_names() -> Vec<&'static str> {
+    PROPERTIES.iter().map(|(_, names, _)| names[0]).collect()
+}
+
+/// The field a file's property name stands for, if any.
+pub fn field_of(name: &str) -> Option<Field> {
+    PROPERTIES
+        .iter()
+        .find(|(_, names, _)| names.iter().any(|n| n.eq_ignore_ascii_case(name)))
+        .map(|(field, _, _)| *field)
+}
+
+/// A particle's values in [`PROPERTIES`] order.
+pub fn values_of(p: &Particle) -> [f32; 12] {
+    [
+        p.position.x,
+        p.position.y,
+        p.position.z,
+        p.radius_m,
+        p.density_per_m,
+        p.albedo.x,
+        p.albedo.y,
+        p.albedo.z,
+        p.age_s,
+        p.velocity.x,
+        p.velocity.y,
+        p.velocity.z,
+    ]
+}
+
+/// What a particle takes for the optional properties its file lacks (`[particles]` in a scene).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Defaults {
+    pub radius_m: f32,
+    pub density_per_m: f32,
+    pub albedo: Vec3,
+}
+
+impl Default for Defaults {
+    fn default() -> Self {
+        let p = ParticleSource::default();
+        Self {
+            radius_m: p.radius_m,
+            density_per_m: p.density_per_m,
+            albedo: p.albedo,
+        }
+    }
+}
+
+/// A particle being read: the fields found so far.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct Partial {
+    values: [Option<f64>; 12],
+}
+
+impl Partial {
+    pub(crate) fn set(&mut self, field: Field, value: f64) {
+        self.values[field as usize] = Some(value);
+    }
+}
+
+/// Errors of particle files: each is one line naming the file and, for bad content, the element
+/// (particle) and property.
+#[derive(Debug, thiserror::Error)]
+pub enum ParticleFileError {
+    #[error("cannot read particle file {path}: {cause}")]
+    Read {
+        path: PathBuf,
+        cause: std::io::Error,
+    },
+    #[error("cannot write particle file {path}: {cause}")]
+    Write { path: PathBuf, cause: String },
+    #[error("particle file {path}: {message}")]
+    Invalid { path: PathBuf, message: String },
+    #[error(
+        "particle file {path}: unknown format: name it .ply (PLY, binary or ASCII) or .csv (a header row)"
+    )]
+    UnknownFormat { path: PathBuf },
+}
+
+impl ParticleFileError {
+    pub(crate) fn invalid(path: &Path, message: impl Into<String>) -> Self {
+        Self::Invalid {
+            path: path.to_owned(),
+            message: message.into(),
+        }
+    }
+}
+
+/// Turns the properties read for each particle into particles, checking each value. `element`
+/// names what the file calls a particle (PLY's `vertex`, CSV's row) in errors, `index_of` the
+/// particle's position in the file (a CSV line number).
+pub(crate) fn finish(
+    path: &Path,
+    element: &str,
+    present: &[Field],
+    partials: Vec<Partial>,
+    defaults: &Defaults,
+    index_of: impl Fn(usize) -> String,
+) -> Result<Vec<Particle>, ParticleFileError> {
+    let bad = |message: String| ParticleFileError::invalid(path, message);
+    for (field, names, required) in PROPERTIES {
+        if *required && !present.contains(field) {
+            return Err(bad(format!(
+                "element {element} has no property {} (also read as: {}); it is required",
+                names[0],
+                names[1..].join(", ")
+            )));
+        }
+    }
+    if partials.is_empty() {
+        return Err(bad(format!("element {element} has no particles")));
+    }
+    let max = crate::scene::LIMITS.max_particles as usize;
+    if partials.len() > max {
+        return Err(bad(format!(
+            "element {element} has {} particles: at most {max}",
+            partials.len()
+        )));
+    }
+    let mut particles = Vec::with_capacity(partials.len());
+    for (i, partial) in partials.iter().enumerate() {
+        let mut v = [0f32; 12];
+        for (field, names, _) in PROPERTIES {
+            let value = match partial.values[*field as usize] {
+                Some(value) => value as f32,
+                None => match field {
+                    Field::Radius => defaults.radius_m,
+                    Field::Density => defaults.density_per_m,
+                    Field::Red => defaults.albedo.x,
+                    Field::Green => defaults.albedo.y,
+                    Field::Blue => defaults.albedo.z,
+                    Field::X | Field::Y | Field::Z => {
+                        return Err(bad(format!(
+                            "element {element} {}: property {} is missing",
+                            index_of(i),
+                            names[0]
+                        )));
+                    }
+                    Field::Age | Field::Vx | Field::Vy | Field::Vz => 0.0,
+                },
+            };
+            let what = || format!("element {element} {}: property {}", index_of(i), names[0]);
+            if !value.is_finite() {
+                return Err(bad(format!("{} = {value}: must be finite", what())));
+            }
+            let range_error = match field {
+                Field::Radius if value <= 0.0 => Some("must be > 0"),
+                Field::Density if value < 0.0 => Some("must be >= 0"),
+                Field::Red | Field::Green | Field::Blue if !(0.0..=1.0).contains(&value) => {
+                    Some("must be in [0, 1]")
+                }
+                Field::Age if value < 0.0 => Some("must be >= 0"),
+                _ => None,
+            };
+            if let Some(range) = range_error {
+                return Err(bad(format!("{} = {value}: {range}", what())));
+            }
+            v[*field as usize] = value;
+        }
+        particles.push(Particle {
+            position: Vec3::new(v[0], v[1], v[2]),
+            radius_m: v[3],
+            density_per_m: v[4],
+            albedo: Vec3::new(v[5], v[6], v[7]),
+            age_s: v[8],
+            velocity: Vec3::new(v[9], v[10], v[11]),
+        });
+    }
+    Ok(particles)
+}
+
+/// Reads a particle file (its format from its extension; a `.ply` may be binary or ASCII).
+pub fn read(path: &Path, defaults: &Defaults) -> Result<Vec<Particle>, ParticleFileError> {
+    match Format::of_path(path) {
+        Some(Format::Ply | Format::PlyAscii) => ply_file::read(path, defaults),
+        Some(Format::Csv) => csv_file::read(path, defaults),
+        None => Err(ParticleFileError::UnknownFormat {
+            path: path.to_owned(),
+        }),
+    }
+}
+
+/// Writes particles to `path` in `format` (default: the extension's), atomically: a temporary
+/// file renamed into place, so a failed write leaves nothing half-written.
+pub fn write(
+    path: &Path,
+    particles: &[Particle],
+    format: Option<Format>,
+) -> Result<(), ParticleFileError> {
+    let format = format.or_else(|| Format::of_path(path)).ok_or_else(|| {
+        ParticleFileError::UnknownFormat {
+            path: path.to_owned(),
+        }
+    })?;
+    let bytes = match format {
+        Format::Ply => ply_file::encode(particles, false),
+        Format::PlyAscii => ply_file::encode(particles, true),
+        Format::Csv => csv_file::encode(particles),
+    }
+    .map_err(|cause| ParticleFileError::Write {
+        path: path.to_owned(),
+        cause,
+    })?;
+    crate::output::write_atomic(path, &bytes).map_err(|e| ParticleFileError::Write {
+        path: path.to_owned(),
+        cause: format!("{e:#}"),
+    })
+}
+
+/// Whether a file name is a numbered sequence's pattern (`smoke.%04d.ply`).
+pub fn is_sequence(pattern: &str) -> bool {
+    sequence_spec(pattern).is_some()
+}
+
+/// The `%d` / `%0Nd` in a pattern: its byte range and zero-padded width.
+fn sequence_spec(pattern: &str) -> Option<(std::ops::Range<usize>, usize)> {
+    let start = pattern.find('%')?;
+    let rest = &pattern[start + 1..];
+    let digits = rest.bytes().take_while(u8::is_ascii_digit).count();
+    if rest.as_bytes().get(digits) != Some(&b'd') {
+        return None;
+    }
+    let width = rest[..digits].parse().unwrap_or(0);
+    Some((start..start + 1 + digits + 1, width))
+}
+
+/// A sequence pattern's file name for `frame` (`smoke.%04d.ply`, 7 -> `smoke.0007.ply`); a name
+/// without a `%d` is returned as it is.
+pub fn frame_name(pattern: &str, frame: i64) -> String {
+    match sequence_spec(pattern) {
+        Some((range, width)) => format!(
+            "{}{frame:0width$}{}",
+            &pattern[..range.start],
+            &pattern[range.end..]
+        ),
+        None => pattern.to_owned(),
+    }
+}
+
+impl ParticleSource {
+    /// The frame of a sequence at simulated time `time_s`: `frame_at_zero` + the nearest whole
+    /// number of frames at `frame_rate_hz`.
+    pub fn frame_at(&self, time_s: f32) -> i64 {
+        self.frame_at_zero + (f64::from(time_s) * f64::from(self.frame_rate_hz)).round() as i64
+    }
+
+    /// The file to read at `time_s`: the file itself, or the sequence's frame, relative to the
+    /// scene file's folder.
+    pub fn path_at(&self, time_s: f32) -> PathBuf {
+        self.base_dir
+            .join(frame_name(&self.file, self.frame_at(time_s)))
+    }
+
+    /// The defaults for the properties a file lacks.
+    pub fn defaults(&self) -> Defaults {
+        Defaults {
+            radius_m: self.radius_m,
+            density_per_m: self.density_per_m,
+            albedo: self.albedo,
+        }
+    }
+
+    /// The particles at `time_s` (the frame of a sequence at that time).
+    pub fn particles_at(&self, time_s: f32) -> Result<Vec<Particle>, ParticleFileError> {
+        read(&self.path_at(time_s), &self.defaults())
+    }
+}
+
+/// The particles of `scene`'s frame: read from its particle file when it has one
+/// (`[particles]`), else simulated from its emitters to `sim.duration_s`.
+pub fn scene_particles(scene: &Scene) -> Result<Vec<Particle>, ParticleFileError> {
+    match &scene.particles {
+        Some(source) => source.particles_at(scene.sim.duration_s),
+        None => Ok(crate::progress::simulate(scene)),
+    }
+}
+
+/// What was loaded: for the viewer's scene panel and `particles`' summary line.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Summary {
+    pub count: usize,
+    pub min: Vec3,
+    pub max: Vec3,
+    pub min_density_per_m: f32,
+    pub max_density_per_m: f32,
+}
+
+impl Summary {
+    /// The count, the bounds of the particles' spheres and the extinction range.
+    pub fn of(particles: &[Particle]) -> Self {
+        let mut s = Self {
+            count: particles.len(),
+            min: Vec3::splat(f32::INFINITY),
+            max: Vec3::splat(f32::NEG_INFINITY),
+            min_density_per_m: f32::INFINITY,
+            max_density_per_m: f32::NEG_INFINITY,
+        };
+        for p in particles {
+            s.min = s.min.min(p.position - Vec3::splat(p.radius_m));
+            s.max = s.max.max(p.position + Vec3::splat(p.radius_m));
+            s.min_density_per_m = s.min_density_per_m.min(p.density_per_m);
+            s.max_density_per_m = s.max_density_per_m.max(p.density_per_m);
+        }
+        s
+    }
+}
+
+impl std::fmt::Display for Summary {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{} particles, bounds [{:.2}, {:.2}, {:.2}] .. [{:.2}, {:.2}, {:.2}] m, extinction {:.3} .. {:.3} /m",
+            self.count,
+            self.min.x,
+            self.min.y,
+            self.min.z,
+            self.max.x,
+            self.max.y,
+            self.max.z,
+            self.min_density_per_m,
+            self.max_density_per_m
+        )
+    }
+}
+
+/// A scene for a bare particle file (`smokeshadow render smoke.ply`, the viewer's Open): the
+/// thesis scene's lighting, shading and shadow settings, its camera and spotlight turned on the
+/// particles. Both keep the thesis scene's directions and are moved out to frame the particles'
+/// bounds as the thesis scene frames its plume; the light's intensity is scaled with its
+/// distance squared, so the smoke receives the thesis' irradiance. The ground is put under the
+/// particles, and the thesis box is left out.
+pub fn scene_for_file(path: &Path) -> Result<Scene, ParticleFileError> {
+    let mut scene = Scene::thesis_plume();
+    let source = ParticleSource {
+        file: path.to_string_lossy().into_owned(),
+        ..ParticleSource::default()
+    };
+    let particles = source.particles_at(scene.sim.duration_s)?;
+    let bounds = Summary::of(&particles);
+    let centre = 0.5 * (bounds.min + bounds.max);
+    let size = (bounds.max - bounds.min).max_element().max(1e-3);
+    // The thesis plume's framing: the largest extent of its particles' bounds at t = 8 s
+    // (8.1 m), and the camera's and light's offsets from its target.
+    const THESIS_PLUME_SIZE_M: f32 = 8.1;
+    let k = size / THESIS_PLUME_SIZE_M;
+    let cam = &mut scene.camera;
+    let cam_offset = (cam.position - cam.target) * k;
+    cam.target = centre;
+    cam.position = centre + cam_offset;
+    cam.near_m = (cam.near_m * k).max(1e-4);
+    cam.far_m = cam.far_m * k.max(1.0);
+    let light = &mut scene.light;
+    let light_offset = (light.position - light.target) * k;
+    light.target = centre;
+    light.position = centre + light_offset;
+    light.intensity *= k * k;
+    scene.ground.height_m = bounds.min.y;
+    scene.ground.size_m = (scene.ground.size_m * k).max(scene.ground.size_m);
+    scene.boxes.clear();
+    scene.emitters.clear();
+    scene.particles = Some(source);
+    scene.name = path
+        .file_stem()
+        .map_or("particles".into(), |s| s.to_string_lossy().into_owned());
+    scene.description = format!("particles of {}", path.display());
+    scene
+        .validate()
+        .map_err(|message| ParticleFileError::invalid(path, message))?;
+    Ok(scene)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sequence_patterns_name_their_frames() {
+        assert_eq!(frame_name("smoke.%04d.ply", 7), "smoke.0007.ply");
+        assert_eq!(frame_name("s_%d.csv", 12), "s_12.csv");
+        assert_eq!(frame_name("one.ply", 3), "one.ply");
+        assert!(is_sequence("a/%03d.ply") && !is_sequence("100%.ply"));
+    }
+
+    #[test]
+    fn every_property_name_maps_back_to_its_field() {
+        for (field, names, _) in PROPERTIES {
+            for name in *names {
+                assert_eq!(field_of(name), Some(*field), "{name}");
+                assert_eq!(field_of(&name.to_uppercase()), Some(*field), "{name}");
+            }
+        }
+        assert_eq!(field_of("Cd"), None);
+        assert_eq!(field_of("nx"), None);
+    }
+}
