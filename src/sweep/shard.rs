@@ -221,7 +221,7 @@ fn plan_difference(a: &ShardManifest, b: &ShardManifest) -> Option<String> {
     for (sa, sb) in a.scenes.iter().zip(&b.scenes) {
         if sa.scene_sha256 != sb.scene_sha256 {
             return Some(format!(
-                "scene {} has hash {} against {}",
+                "scene {} has hash {} against {}: another scene file, --particles, --size or --param",
                 sa.name,
                 &sa.scene_sha256[..12.min(sa.scene_sha256.len())],
                 &sb.scene_sha256[..12.min(sb.scene_sha256.len())]
