@@ -251,6 +251,61 @@ impl Labels {
     }
 }
 
+/// A technique variant: what is ranked.
+#[derive(Clone, PartialEq)]
+struct Variant {
+    technique: String,
+    shadow_res: u32,
+    splat: SplatMode,
+}
+
+impl Variant {
+    fn of(r: &Rank) -> Self {
+        Self {
+            technique: r.technique.clone(),
+            shadow_res: r.shadow_res,
+            splat: r.splat,
+        }
+    }
+}
+
+/// A variant's ranks over some (scene, budget) pairs, and where it ranked worst.
+struct Tally {
+    variant: Variant,
+    ranks: Vec<f64>,
+    worst: u32,
+    worst_at: String,
+    /// The most techniques ranked beside it.
+    of: u32,
+}
+
+/// The ranks of `ranks`, tallied per variant in order of first appearance.
+fn tally<'r>(ranks: impl Iterator<Item = &'r Rank>) -> Vec<Tally> {
+    let mut out: Vec<Tally> = Vec::new();
+    for r in ranks {
+        let variant = Variant::of(r);
+        let at = format!("{} at {} channels", r.scene, r.channels);
+        match out.iter_mut().find(|t| t.variant == variant) {
+            Some(t) => {
+                t.ranks.push(r.rank as f64);
+                t.of = t.of.max(r.of);
+                if r.rank > t.worst {
+                    t.worst = r.rank;
+                    t.worst_at = at;
+                }
+            }
+            None => out.push(Tally {
+                variant,
+                ranks: vec![r.rank as f64],
+                worst: r.rank,
+                worst_at: at,
+                of: r.of,
+            }),
+        }
+    }
+    out
+}
+
 /// Plain-words advice, every figure taken from `ranks` and `ranking`: per scene, the most
 /// accurate technique at each budget and the runner-up; overall, the best median rank at small
 /// (<= [`SMALL_BUDGET_CHANNELS`]) and at large budgets; per scene, the technique that ranks
@@ -317,42 +372,29 @@ pub fn advice(scenes: &[SweepResults], ranks: &[Rank]) -> Vec<String> {
             .iter()
             .filter(|r| (r.channels <= SMALL_BUDGET_CHANNELS) == small)
             .collect();
-        let mut per: Vec<((String, u32, SplatMode), Vec<f64>, u32, String)> = Vec::new();
-        for r in &in_class {
-            let key = (r.technique.clone(), r.shadow_res, r.splat);
-            match per.iter_mut().find(|(k, ..)| *k == key) {
-                Some((_, values, worst, worst_at)) => {
-                    values.push(r.rank as f64);
-                    if r.rank > *worst {
-                        *worst = r.rank;
-                        *worst_at = format!("{} at {} channels", r.scene, r.channels);
-                    }
-                }
-                None => per.push((
-                    key,
-                    vec![r.rank as f64],
-                    r.rank,
-                    format!("{} at {} channels", r.scene, r.channels),
-                )),
-            }
-        }
+        let per = tally(in_class.iter().copied());
         let best = per.iter().min_by(|a, b| {
-            median(&a.1)
-                .total_cmp(&median(&b.1))
-                .then(a.2.cmp(&b.2))
-                .then(registry_index(&a.0.0).cmp(&registry_index(&b.0.0)))
+            median(&a.ranks)
+                .total_cmp(&median(&b.ranks))
+                .then(a.worst.cmp(&b.worst))
+                .then(
+                    registry_index(&a.variant.technique).cmp(&registry_index(&b.variant.technique)),
+                )
         });
-        if let Some(((t, res, splat), values, worst, worst_at)) = best {
+        if let Some(t) = best {
             let scenes: std::collections::BTreeSet<&str> =
                 in_class.iter().map(|r| r.scene.as_str()).collect();
+            let v = &t.variant;
             out.push(format!(
-                "At {class}, {} has the best median rank: {} over {} ranking{} in {} scene{} (its worst: {worst}, on {worst_at}).",
-                labels.label(t, *res, *splat),
-                rank_text(median(values)),
-                values.len(),
-                if values.len() == 1 { "" } else { "s" },
+                "At {class}, {} has the best median rank: {} over {} ranking{} in {} scene{} (its worst: {}, on {}).",
+                labels.label(&v.technique, v.shadow_res, v.splat),
+                rank_text(median(&t.ranks)),
+                t.ranks.len(),
+                if t.ranks.len() == 1 { "" } else { "s" },
                 scenes.len(),
                 if scenes.len() == 1 { "" } else { "s" },
+                t.worst,
+                t.worst_at,
             ));
         }
     }
@@ -360,32 +402,24 @@ pub fn advice(scenes: &[SweepResults], ranks: &[Rank]) -> Vec<String> {
     // Per scene: the technique with the worst mean rank over the scene's budgets.
     for r in scenes {
         let scene = &r.metadata.scene;
-        let mut per: Vec<((String, u32, SplatMode), Vec<f64>, u32)> = Vec::new();
-        for x in ranks.iter().filter(|x| &x.scene == scene) {
-            let key = (x.technique.clone(), x.shadow_res, x.splat);
-            match per.iter_mut().find(|(k, ..)| *k == key) {
-                Some((_, values, of)) => {
-                    values.push(x.rank as f64);
-                    *of = (*of).max(x.of);
-                }
-                None => per.push((key, vec![x.rank as f64], x.of)),
-            }
-        }
+        let per = tally(ranks.iter().filter(|x| &x.scene == scene));
         let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
         if per.len() < 2 {
             continue;
         }
         let worst = per
             .iter()
-            .map(|(_, v, _)| mean(v))
+            .map(|t| mean(&t.ranks))
             .fold(f64::NEG_INFINITY, f64::max);
-        let at_worst: Vec<&((String, u32, SplatMode), Vec<f64>, u32)> =
-            per.iter().filter(|(_, v, _)| mean(v) == worst).collect();
+        let at_worst: Vec<&Tally> = per.iter().filter(|t| mean(&t.ranks) == worst).collect();
         let names: Vec<String> = at_worst
             .iter()
-            .map(|((t, res, splat), ..)| labels.label(t, *res, *splat))
+            .map(|t| {
+                let v = &t.variant;
+                labels.label(&v.technique, v.shadow_res, v.splat)
+            })
             .collect();
-        let (budgets, of) = (at_worst[0].1.len(), at_worst[0].2);
+        let (budgets, of) = (at_worst[0].ranks.len(), at_worst[0].of);
         let over = format!(
             "mean rank {worst:.1} of {of} over {budgets} budget{}",
             if budgets == 1 { "" } else { "s" }
