@@ -234,6 +234,20 @@ fn bad_sweep_input_gets_one_line() {
         (vec!["sweep", "--channels", "40", "-o", "/tmp/x"], "1..=32"),
         (vec!["sweep", "--channels", "", "-o", "/tmp/x"], "channels"),
         (vec!["sweep", "--frames", "0", "-o", "/tmp/x"], "frames"),
+        (
+            vec!["sweep", "--scenes", "thesis_plume,magic", "-o", "/tmp/x"],
+            "--scenes magic",
+        ),
+        (
+            vec!["sweep", "thesis_plume", "--scenes", "thesis_wind"],
+            "cannot be used with",
+        ),
+        (vec!["sweep", "--shard", "3/3"], "K must be below N"),
+        (vec!["sweep", "--shard", "1"], "is not K/N"),
+        (
+            vec!["sweep", "--merge", "/nonexistent/shards", "-o", "/tmp/x"],
+            "no such folder",
+        ),
     ] {
         let out = run(&args);
         assert_eq!(out.status.code(), Some(2), "{args:?}");
@@ -313,4 +327,524 @@ fn exr_writes_every_cells_hdr_frame_and_the_report_links_them() {
             }
         }
     }
+}
+
+/// The two-scene sweep the gallery and shard tests share: the tiny sweep over `thesis_plume`
+/// and `thesis_wind`.
+const TWO_SCENES: &[&str] = &[
+    "--scenes",
+    "thesis_plume,thesis_wind",
+    "--size",
+    "160x120",
+    "--techniques",
+    "osm,fom",
+    "--channels",
+    "24,8",
+    "--shadow-res",
+    "128",
+    "--frames",
+    "2",
+    "--warmup",
+    "1",
+];
+
+fn smokeshadow(args: &[&str]) -> Command {
+    let mut command = Command::new(env!("CARGO_BIN_EXE_smokeshadow"));
+    command.args(args).env("SMOKESHADOW_ADAPTER", "cpu");
+    command
+}
+
+/// `sweep` with the two-scene settings and `extra`.
+fn two_scenes(extra: &[&str]) -> Command {
+    let mut args = vec!["sweep"];
+    args.extend_from_slice(TWO_SCENES);
+    args.extend_from_slice(extra);
+    smokeshadow(&args)
+}
+
+/// The two-scene sweep run by one process, once per test binary; its folder and stdout.
+fn one_process_reference() -> &'static (PathBuf, String) {
+    static REFERENCE: std::sync::OnceLock<(PathBuf, String)> = std::sync::OnceLock::new();
+    REFERENCE.get_or_init(|| {
+        let dir = scratch("sweep-two-scenes");
+        let out = two_scenes(&["-o", dir.to_str().unwrap()]).output().unwrap();
+        ok(&out);
+        (dir, String::from_utf8_lossy(&out.stdout).into_owned())
+    })
+}
+
+/// A CSV's rows without the columns that are times or ratios of times, which differ between
+/// runs; everything else (bytes, errors, image paths) must not.
+fn untimed(path: &Path) -> Vec<Vec<(String, String)>> {
+    let timing = |c: &str| c.contains("_ms_") || c.ends_with("_ratio") || c == "frames_timed";
+    csv_rows(path)
+        .into_iter()
+        .map(|r| r.into_iter().filter(|(c, _)| !timing(c)).collect())
+        .collect()
+}
+
+/// Asserts that the sweep in `dir` has the one-process reference's tables (times aside): the
+/// gallery's, each scene's, and the ranking.
+fn same_tables_as_one_process(dir: &Path) {
+    let (reference, _) = one_process_reference();
+    for table in [
+        "results.csv",
+        "thesis_plume/results.csv",
+        "thesis_wind/results.csv",
+    ] {
+        let (got, want) = (untimed(&dir.join(table)), untimed(&reference.join(table)));
+        assert_eq!(got.len(), want.len(), "{table}");
+        for (g, w) in got.iter().zip(&want) {
+            assert_eq!(g, w, "{table}");
+        }
+    }
+    assert_eq!(
+        std::fs::read_to_string(dir.join("ranking.csv")).unwrap(),
+        std::fs::read_to_string(reference.join("ranking.csv")).unwrap()
+    );
+}
+
+/// Every link of `dir/index.html` resolves inside `dir`.
+fn links_resolve(dir: &Path) {
+    let html = std::fs::read_to_string(dir.join("index.html")).unwrap();
+    for link in smokeshadow::compare::referenced_paths(&html) {
+        assert!(!link.is_absolute(), "{link:?}");
+        assert!(
+            dir.join(&link).is_file(),
+            "{}: missing {link:?}",
+            dir.display()
+        );
+    }
+}
+
+#[test]
+fn scenes_sweep_writes_each_scene_and_a_gallery_whose_ranking_follows_from_its_csv() {
+    let (dir, stdout) = one_process_reference();
+    for scene in ["thesis_plume", "thesis_wind"] {
+        let rows = csv_rows(&dir.join(scene).join("results.csv"));
+        assert_eq!(rows.len(), 5, "{scene}");
+        links_resolve(&dir.join(scene));
+        // The gallery's CSV holds the scene's rows, behind a `scene` column, its paths
+        // relative to the gallery.
+        let gallery: Vec<Vec<(String, String)>> = csv_rows(&dir.join("results.csv"))
+            .into_iter()
+            .filter(|r| get(r, "scene") == scene)
+            .map(|r| {
+                r.into_iter()
+                    .filter(|(c, _)| c != "scene")
+                    .map(|(c, v)| match c.as_str() {
+                        "image" => (c, v.strip_prefix(&format!("{scene}/")).unwrap().to_owned()),
+                        _ => (c, v),
+                    })
+                    .collect()
+            })
+            .collect();
+        assert_eq!(gallery, rows, "{scene}");
+    }
+    links_resolve(dir);
+
+    // The ranks, recomputed from the gallery CSV: within each scene and budget, by FLIP vs exact,
+    // fewer bytes first on a tie; `none` not ranked.
+    let rows = csv_rows(&dir.join("results.csv"));
+    let mut expected: Vec<(String, u32, String, u32)> = Vec::new();
+    for scene in ["thesis_plume", "thesis_wind"] {
+        for budget in [24u32, 8] {
+            let mut at: Vec<&Vec<(String, String)>> = rows
+                .iter()
+                .filter(|r| get(r, "scene") == scene && get(r, "technique") != "none")
+                .filter(|r| get(r, "channels") == budget.to_string())
+                .collect();
+            let key = |r: &Vec<(String, String)>| {
+                (
+                    get(r, "flip_vs_exact").parse::<f64>().unwrap(),
+                    get(r, "bytes").parse::<u64>().unwrap(),
+                )
+            };
+            at.sort_by(|a, b| key(a).partial_cmp(&key(b)).unwrap());
+            assert_eq!(at.len(), 2);
+            for (i, r) in at.iter().enumerate() {
+                expected.push((
+                    scene.into(),
+                    budget,
+                    get(r, "technique").into(),
+                    i as u32 + 1,
+                ));
+            }
+        }
+    }
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("results.json")).unwrap()).unwrap();
+    let mut written: Vec<(String, u32, String, u32)> = json["ranks"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| {
+            (
+                r["scene"].as_str().unwrap().into(),
+                r["channels"].as_u64().unwrap() as u32,
+                r["technique"].as_str().unwrap().into(),
+                r["rank"].as_u64().unwrap() as u32,
+            )
+        })
+        .collect();
+    written.sort();
+    expected.sort();
+    assert_eq!(written, expected);
+
+    // The aggregate: median and worst rank across the two scenes, sorted by them.
+    let ranking = csv_rows(&dir.join("ranking.csv"));
+    assert_eq!(ranking.len(), 4, "{ranking:?}");
+    let mut previous = (0.0, 0);
+    for row in &ranking {
+        let ranks: Vec<u32> = expected
+            .iter()
+            .filter(|(_, b, t, _)| {
+                *t == get(row, "technique") && b.to_string() == get(row, "channels")
+            })
+            .map(|e| e.3)
+            .collect();
+        assert_eq!(ranks.len(), 2, "{row:?}");
+        let median = (ranks[0] + ranks[1]) as f64 / 2.0;
+        let worst = *ranks.iter().max().unwrap();
+        assert_eq!(get(row, "median_rank").parse::<f64>().unwrap(), median);
+        assert_eq!(get(row, "worst_rank").parse::<u32>().unwrap(), worst);
+        assert!((median, worst) >= previous, "not sorted: {ranking:?}");
+        previous = (median, worst);
+    }
+
+    // The page: the advice names each scene's winner at each budget, as ranked.
+    let html = std::fs::read_to_string(dir.join("index.html")).unwrap();
+    for scene in ["thesis_plume", "thesis_wind"] {
+        assert!(
+            html.contains(&format!("href=\"{scene}/index.html\"")),
+            "{scene}"
+        );
+        let winner = &expected
+            .iter()
+            .find(|e| e.0 == scene && e.1 == 8 && e.3 == 1)
+            .unwrap()
+            .2;
+        assert!(
+            html.contains(&format!("For smoke like {scene}: at 24 channels"))
+                && html.contains(&format!("at 8 channels {winner} is the most accurate")),
+            "{scene}: {html}"
+        );
+    }
+    assert!(html.contains("Where each technique wins"));
+    // stdout ends with the aggregate ranking table.
+    let last = stdout.lines().last().unwrap();
+    let row = ranking.last().unwrap();
+    assert!(
+        last.starts_with(get(row, "technique")) && last.contains(get(row, "worst_scene")),
+        "{last}"
+    );
+}
+
+/// The cells of a sweep folder, by scene.
+fn cells_of(dir: &Path, scene: &str) -> Vec<serde_json::Value> {
+    let mut paths: Vec<PathBuf> = std::fs::read_dir(dir.join(scene).join("cells"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "json"))
+        .filter(|p| !p.file_name().unwrap().to_string_lossy().starts_with('.'))
+        .collect();
+    paths.sort();
+    paths
+        .iter()
+        .map(|p| serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap())
+        .collect()
+}
+
+#[test]
+fn three_concurrent_shards_in_one_folder_merge_to_the_one_process_tables() {
+    let shared = scratch("sweep-shards-shared");
+    let children: Vec<_> = (0..3)
+        .map(|k| {
+            two_scenes(&["--shard", &format!("{k}/3"), "-o", shared.to_str().unwrap()])
+                .stdout(std::process::Stdio::piped())
+                .stderr(std::process::Stdio::piped())
+                .spawn()
+                .unwrap()
+        })
+        .collect();
+    for child in children {
+        ok(&child.wait_with_output().unwrap());
+    }
+    // No shard deleted another's cells, and none wrote the tables.
+    assert!(!shared.join("results.csv").exists());
+    for scene in ["thesis_plume", "thesis_wind"] {
+        let cells = cells_of(&shared, scene);
+        assert_eq!(cells.len(), 5, "{scene}");
+        for cell in &cells {
+            // Each cell's overhead is against the `none` its own process measured.
+            let against = &cell["measured_against"];
+            assert!(against["shard"]["n"] == 3, "{cell}");
+            let none = against["none_frame_ms"].as_f64().unwrap();
+            assert!(none > 0.0, "{cell}");
+        }
+    }
+    for k in 0..3 {
+        let manifest: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(shared.join(format!("shards/{k}-of-3.json"))).unwrap(),
+        )
+        .unwrap();
+        assert_eq!(manifest["finished"], true);
+    }
+
+    // Merged elsewhere, with an adapter that does not exist: merging creates no GPU device.
+    let merged = scratch("sweep-shards-merged");
+    let out = smokeshadow(&[
+        "sweep",
+        "--merge",
+        shared.to_str().unwrap(),
+        "-o",
+        merged.to_str().unwrap(),
+    ])
+    .env("SMOKESHADOW_ADAPTER", "no-such-adapter")
+    .output()
+    .unwrap();
+    ok(&out);
+    same_tables_as_one_process(&merged);
+    links_resolve(&merged);
+    links_resolve(&merged.join("thesis_wind"));
+    let results: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(merged.join("results.json")).unwrap())
+            .unwrap();
+    for scene in results["scenes"].as_array().unwrap() {
+        for cell in scene["cells"].as_array().unwrap() {
+            let ratio = cell["overhead_ratio"].as_f64().unwrap();
+            let frame = cell["frame_ms"]["median"].as_f64().unwrap();
+            let none = cell["measured_against"]["none_frame_ms"].as_f64().unwrap();
+            assert!((ratio - frame / none).abs() < 1e-9, "{cell}");
+        }
+    }
+
+    // `--resume` without `--shard` over the shared folder re-measures nothing and writes the
+    // whole report.
+    let out = two_scenes(&["--resume", "-o", shared.to_str().unwrap()])
+        .output()
+        .unwrap();
+    ok(&out);
+    let log = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(log.matches("done earlier, reused").count(), 10, "{log}");
+    assert!(!log.contains("exact reference"), "{log}");
+    same_tables_as_one_process(&shared);
+}
+
+#[test]
+fn a_shard_killed_part_way_and_resumed_finishes_the_same() {
+    let dir = scratch("sweep-shards-killed");
+    let shard = |k: u32, extra: &[&str]| {
+        let mut args = vec!["--shard".to_owned(), format!("{k}/3")];
+        args.extend(extra.iter().map(|s| s.to_string()));
+        args.extend(["-o".to_owned(), dir.to_str().unwrap().to_owned()]);
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        two_scenes(&args)
+    };
+    // Shard 1 owns cells 1, 4 (of thesis_plume), 7 (thesis_wind): kill it once its first cell
+    // file appears.
+    let mut child = shard(1, &[])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let first = dir.join("thesis_plume/cells/osm_24_128_point.json");
+    let start = std::time::Instant::now();
+    while !first.exists() {
+        assert!(
+            child.try_wait().unwrap().is_none(),
+            "the shard ended before its first cell"
+        );
+        assert!(start.elapsed().as_secs() < 300, "no cell after 300 s");
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    child.kill().unwrap();
+    assert!(!child.wait().unwrap().success());
+    assert!(
+        !dir.join("thesis_wind/cells/osm_8_128_point.json").exists(),
+        "killed after its last cell"
+    );
+    let manifest = std::fs::read_to_string(dir.join("shards/1-of-3.json")).unwrap();
+    assert!(manifest.contains("\"finished\": false"), "{manifest}");
+
+    // Merging now names the missing cells and their shard, in one line.
+    let (out_0, out_2) = (
+        shard(0, &[]).output().unwrap(),
+        shard(2, &[]).output().unwrap(),
+    );
+    ok(&out_0);
+    ok(&out_2);
+    let merged = scratch("sweep-shards-killed-merged");
+    let merge = || {
+        smokeshadow(&[
+            "sweep",
+            "--merge",
+            dir.to_str().unwrap(),
+            "-o",
+            merged.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap()
+    };
+    let out = merge();
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    assert!(
+        err.contains("2 of 10 cells missing") && err.contains("2 of shard 1/3 (not finished"),
+        "{err}"
+    );
+
+    // The same shard command again, with --resume: it keeps its finished cell.
+    let out = shard(1, &["--resume"]).output().unwrap();
+    ok(&out);
+    let log = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(log.matches("done earlier, reused").count(), 1, "{log}");
+    ok(&merge());
+    same_tables_as_one_process(&merged);
+}
+
+#[test]
+fn merging_shards_of_different_sweeps_is_refused_in_one_line() {
+    let (a, b, c) = (
+        scratch("sweep-mismatch-a"),
+        scratch("sweep-mismatch-b"),
+        scratch("sweep-mismatch-c"),
+    );
+    ok(&tiny_sweep(&a, &["--shard", "0/2"]));
+    // `--param` changes the scene the sweep runs (its hash), `--frames` every cell's settings.
+    ok(&tiny_sweep(
+        &b,
+        &["--shard", "1/2", "--param", "osm_interp=cubic"],
+    ));
+    ok(&tiny_sweep_frames(&c, "3", &["--shard", "1/2"]));
+    let merged = scratch("sweep-mismatch-merged");
+    let merge = |dirs: &[&Path]| {
+        let mut args = vec!["sweep", "--merge"];
+        args.extend(dirs.iter().map(|d| d.to_str().unwrap()));
+        args.extend(["-o", merged.to_str().unwrap()]);
+        smokeshadow(&args).output().unwrap()
+    };
+    let one_line = |out: &Output| {
+        assert_eq!(out.status.code(), Some(2));
+        let err = String::from_utf8_lossy(&out.stderr).into_owned();
+        assert_eq!(err.trim().lines().count(), 1, "{err}");
+        err
+    };
+    let err = one_line(&merge(&[&a, &b]));
+    assert!(
+        err.contains("refused") && err.contains("scene thesis_plume has hash"),
+        "{err}"
+    );
+    let err = one_line(&merge(&[&a, &c]));
+    assert!(
+        err.contains("refused") && err.contains("frames=2 against frames=3"),
+        "{err}"
+    );
+    // Alone, shard 0 of 2 is missing shard 1's cells.
+    let err = one_line(&merge(&[&a]));
+    assert!(
+        err.contains("missing") && err.contains("shard 1/2 (no manifest"),
+        "{err}"
+    );
+    assert!(!merged.join("results.csv").exists());
+}
+
+/// The fenced block after `<!-- recipe: NAME -->` in README.md.
+fn readme_recipe(name: &str) -> String {
+    let readme =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("README.md")).unwrap();
+    let marker = format!("<!-- recipe: {name} -->");
+    let after = &readme[readme
+        .find(&marker)
+        .unwrap_or_else(|| panic!("no {marker}"))..];
+    let start = after.find("```").unwrap();
+    let body = &after[start..];
+    let body = &body[body.find('\n').unwrap() + 1..];
+    body[..body.find("```").unwrap()].to_owned()
+}
+
+/// A folder with `smokeshadow` (this build) on it, for the README's recipes.
+fn recipe_env(root: &Path) -> String {
+    let bin = root.join("bin");
+    std::fs::create_dir_all(&bin).unwrap();
+    std::os::unix::fs::symlink(env!("CARGO_BIN_EXE_smokeshadow"), bin.join("smokeshadow")).unwrap();
+    format!("{}:{}", bin.display(), std::env::var("PATH").unwrap())
+}
+
+/// Runs a recipe's shell block in `cwd` with the two-scene settings as `SWEEP_ARGS`.
+fn run_recipe(cwd: &Path, path: &str, script: &str) {
+    let out = Command::new("bash")
+        .args(["-euo", "pipefail", "-c", script])
+        .current_dir(cwd)
+        .env("PATH", path)
+        .env("SWEEP_ARGS", TWO_SCENES.join(" "))
+        .env("SMOKESHADOW_ADAPTER", "cpu")
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{script}\n{}\n{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+/// The README's Slurm recipe, literally: the array script, and the submission that runs it and
+/// then the merge. There is no Slurm here: a stand-in `sbatch` runs the script once per index
+/// of its `#SBATCH --array` with `SLURM_ARRAY_TASK_ID` set, and `--wrap` commands as they are.
+#[test]
+fn readme_slurm_recipe_runs_and_merges_to_the_one_process_tables() {
+    let root = scratch("sweep-recipe-slurm");
+    std::fs::create_dir_all(&root).unwrap();
+    let path = recipe_env(&root);
+    std::fs::write(
+        root.join("bin/sbatch"),
+        r#"#!/bin/bash
+# Stand-in for Slurm's sbatch: runs an array job's tasks one after the other, or a --wrap.
+set -euo pipefail
+wrap=""; script=""
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --wrap) wrap="$2"; shift 2 ;;
+    --wrap=*) wrap="${1#--wrap=}"; shift ;;
+    --*) shift ;;
+    *) script="$1"; shift ;;
+  esac
+done
+if [ -n "$wrap" ]; then bash -c "$wrap" >&2; echo 2; exit 0; fi
+range=$(sed -n 's/^#SBATCH --array=\([0-9]*-[0-9]*\).*/\1/p' "$script")
+for i in $(seq "${range%-*}" "${range#*-}"); do SLURM_ARRAY_TASK_ID=$i bash "$script" >&2; done
+echo 1
+"#,
+    )
+    .unwrap();
+    std::fs::set_permissions(
+        root.join("bin/sbatch"),
+        std::os::unix::fs::PermissionsExt::from_mode(0o755),
+    )
+    .unwrap();
+    std::fs::write(
+        root.join("sweep-shard.sbatch"),
+        readme_recipe("slurm-script"),
+    )
+    .unwrap();
+    run_recipe(&root, &path, &readme_recipe("slurm-submit"));
+    same_tables_as_one_process(&root.join("shared/sweep"));
+}
+
+/// The README's GNU parallel recipe, literally (GNU parallel must be installed: `.ci/run`
+/// installs it).
+#[test]
+fn readme_gnu_parallel_recipe_runs_and_merges_to_the_one_process_tables() {
+    let root = scratch("sweep-recipe-parallel");
+    std::fs::create_dir_all(&root).unwrap();
+    let path = recipe_env(&root);
+    let version = Command::new("parallel").arg("--version").output();
+    assert!(
+        version.is_ok_and(|v| String::from_utf8_lossy(&v.stdout).contains("GNU parallel")),
+        "GNU parallel is not installed (apt-get install parallel)"
+    );
+    run_recipe(&root, &path, &readme_recipe("parallel"));
+    same_tables_as_one_process(&root.join("sweep"));
 }

@@ -197,7 +197,7 @@ pub fn run(gpu: &Gpu, scene: &Scene, options: &BenchOptions) -> anyhow::Result<B
     let target = OffscreenTarget::new(gpu, w, h);
     let mut results = BenchResults {
         scene: scene.name.clone(),
-        scene_particles: scene.particle_count() as u32,
+        scene_particles: crate::particles::count(scene) as u32,
         width_px: w,
         height_px: h,
         shadow_res: scene.shadow.resolution_px,

@@ -1,18 +1,36 @@
 //! `smokeshadow sweep`: technique x channels x shadow resolution x splat mode -> time, bytes and
 //! error, as CSV, JSON, SVG charts and an HTML report ([`crate::sweep`]). With no options: the
-//! thesis experiment on the embedded scene.
+//! thesis experiment on the embedded scene. `--scenes` sweeps several scenes into a gallery,
+//! `--shard K/N` runs a part of a sweep, `--merge` assembles the parts.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use crate::gpu::{AdapterPreference, Gpu};
+use crate::scene::Scene;
 use crate::shadow::SplatMode;
-use crate::sweep::{self, SweepOptions};
+use crate::sweep::{self, Shard, SweepOptions, SweepOutcome, SweepResults};
 
 #[derive(Clone, Debug, clap::Args)]
 pub struct SweepArgs {
     /// Scene file (TOML), or the name of an embedded scene (`smokeshadow info` lists them); the
     /// embedded thesis scene when omitted.
+    #[arg(conflicts_with = "scenes")]
     pub scene: Option<PathBuf>,
+    /// Several scenes, comma-separated names or paths, or `all` for the gallery
+    /// (`scene::GALLERY`): each scene's sweep goes to `DIR/<scene>/`, and a gallery report
+    /// ranking the techniques across them to `DIR`.
+    #[arg(long, value_delimiter = ',', value_name = "LIST")]
+    pub scenes: Option<Vec<String>>,
+    /// Run only shard K of N: the cells whose stable index (position in the full plan, over
+    /// every scene) is K mod N. Writes cells and `shards/K-of-N.json`, not the report; shards
+    /// may share one output folder. `--merge` assembles them.
+    #[arg(long, value_name = "K/N")]
+    pub shard: Option<Shard>,
+    /// Assemble the tables, charts and reports from the cells of these shard folders into
+    /// `-o` (no GPU needed); refuses shards of different sweeps, and names missing cells.
+    #[arg(long, num_args = 1.., value_name = "DIR",
+          conflicts_with_all = ["scene", "scenes", "shard", "resume", "exr"])]
+    pub merge: Option<Vec<PathBuf>>,
     #[command(flatten)]
     pub particles: super::ParticlesArg,
     /// Techniques, comma-separated, `all` for every contender (`none` and `exact` are always
@@ -59,12 +77,46 @@ pub struct SweepArgs {
 }
 
 pub fn run(args: &SweepArgs, adapter: &AdapterPreference) -> anyhow::Result<()> {
-    let mut scene = super::load_scene(args.scene.as_deref(), args.particles)?;
-    args.params.apply(&mut scene);
-    if let Some(size) = args.size {
-        scene.output.width_px = size.width;
-        scene.output.height_px = size.height;
+    if let Some(dirs) = &args.merge {
+        // No GPU: merging reads cells.
+        let outcome = sweep::merge(dirs, &args.output)?;
+        print_outcome(&outcome, &args.output, "merged");
+        return Ok(());
     }
+    let names: Vec<PathBuf> = match &args.scenes {
+        None => vec![],
+        Some(list) => {
+            let mut names: Vec<String> = Vec::new();
+            for name in list {
+                let expanded: Vec<String> = match name.as_str() {
+                    "all" => crate::scene::GALLERY
+                        .iter()
+                        .map(|n| n.to_string())
+                        .collect(),
+                    _ => vec![name.clone()],
+                };
+                for n in expanded {
+                    if !names.contains(&n) {
+                        names.push(n);
+                    }
+                }
+            }
+            if names.is_empty() {
+                anyhow::bail!("--scenes is empty: give scene names or paths, or all");
+            }
+            names.into_iter().map(PathBuf::from).collect()
+        }
+    };
+    let scenes: Vec<Scene> = match args.scenes {
+        None => vec![prepare(args, args.scene.as_deref())?],
+        Some(_) => names
+            .iter()
+            .map(|n| {
+                prepare(args, Some(n))
+                    .map_err(|err| anyhow::anyhow!("--scenes {}: {err:#}", n.display()))
+            })
+            .collect::<anyhow::Result<_>>()?,
+    };
     let options = SweepOptions {
         techniques: crate::shadow::expand_all(&args.techniques),
         channels: args.channels.clone(),
@@ -75,15 +127,98 @@ pub fn run(args: &SweepArgs, adapter: &AdapterPreference) -> anyhow::Result<()> 
         cell_seconds: args.cell_seconds,
         resume: args.resume,
         exr: args.exr,
+        gallery: args.scenes.is_some(),
+        shard: args.shard,
     };
     let gpu = Gpu::new(adapter)?;
-    let results = sweep::run(&gpu, &scene, &options, &args.output)?;
+    let outcome = sweep::run(&gpu, &scenes, &options, &args.output)?;
+    print_outcome(&outcome, &args.output, &gpu.describe());
+    Ok(())
+}
+
+/// A scene as the sweep runs it: `--particles`, `--param` and `--size` applied.
+fn prepare(args: &SweepArgs, scene: Option<&Path>) -> anyhow::Result<Scene> {
+    let mut scene = super::load_scene(scene, args.particles)?;
+    args.params.apply(&mut scene);
+    if let Some(size) = args.size {
+        scene.output.width_px = size.width;
+        scene.output.height_px = size.height;
+    }
+    Ok(scene)
+}
+
+/// Prints what a sweep produced: a shard's one line, or every scene's table and, for a
+/// gallery, ending with the aggregate ranking.
+fn print_outcome(outcome: &SweepOutcome, dir: &Path, machine: &str) {
+    match outcome {
+        SweepOutcome::Shard(m) => {
+            println!(
+                "shard {}: {} cells measured, {} reused, in {:.1} s on {}; merge the shards with: smokeshadow sweep --merge {} -o DIR",
+                m.shard,
+                m.measured,
+                m.reused,
+                m.wall_s,
+                machine,
+                dir.display()
+            );
+        }
+        SweepOutcome::Whole { scenes, gallery } => {
+            for r in scenes {
+                let folder = match gallery {
+                    Some(_) => dir.join(&r.metadata.scene),
+                    None => dir.to_owned(),
+                };
+                print_table(r, &folder);
+            }
+            if let Some(g) = gallery {
+                println!(
+                    "\ngallery of {} scenes: {}",
+                    scenes.len(),
+                    dir.join("index.html").display()
+                );
+                for line in &g.advice {
+                    println!("- {line}");
+                }
+                println!(
+                    "\nranking per byte across scenes (rank by FLIP vs exact within each scene and budget):"
+                );
+                println!(
+                    "{:<16} {:>4} {:>12} {:>11} {:<16} {:>7}",
+                    "technique", "ch", "median rank", "worst rank", "worst on", "scenes"
+                );
+                for row in &g.ranking {
+                    let mut t = row.technique.clone();
+                    if scenes
+                        .iter()
+                        .flat_map(|r| &r.cells)
+                        .any(|c| c.shadow_res != row.shadow_res || c.splat != row.splat)
+                    {
+                        t = format!("{t} {} {}", row.shadow_res, row.splat.name());
+                    }
+                    println!(
+                        "{:<16} {:>4} {:>12} {:>11} {:<16} {:>7}",
+                        t,
+                        row.channels,
+                        format!("{}", row.median_rank),
+                        row.worst_rank,
+                        row.worst_scene,
+                        row.scenes
+                    );
+                }
+            }
+        }
+    }
+}
+
+/// One scene's table.
+fn print_table(results: &SweepResults, folder: &Path) {
     println!(
-        "{} cells in {:.1} s on {}; report: {}",
+        "{}: {} cells in {:.1} s on {}; report: {}",
+        results.metadata.scene,
         results.cells.len(),
         results.metadata.wall_s,
-        gpu.describe(),
-        args.output.join("index.html").display()
+        results.metadata.adapter,
+        folder.join("index.html").display()
     );
     println!(
         "{:<10} {:>4} {:>5} {:>8} {:>11} {:>11} {:>10} {:>9} {:>9} {:>11} {:>9}",
@@ -123,7 +258,6 @@ pub fn run(args: &SweepArgs, adapter: &AdapterPreference) -> anyhow::Result<()> 
             s.technique, s.channels, s.reason
         );
     }
-    Ok(())
 }
 
 /// Parses `--cell-seconds`: a positive, finite number of seconds.

@@ -324,7 +324,7 @@ fn html(report: &CompareReport, options: &CompareOptions, scene: &Scene) -> Stri
         e(&report.scene),
         scene.output.width_px,
         scene.output.height_px,
-        scene.particle_count(),
+        crate::particles::count(scene),
         scene.shadow.resolution_px,
         options.splat.name(),
         report::bytes(report.exact_bytes),

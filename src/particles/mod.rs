@@ -368,6 +368,17 @@ pub fn scene_particles(scene: &Scene) -> Result<Vec<Particle>, ParticleFileError
     }
 }
 
+/// How many particles `scene`'s frame has: its emitters' pools, or its particle file's count
+/// (0 when the file cannot be read; reading it for the frame reports why).
+pub fn count(scene: &Scene) -> u64 {
+    match &scene.particles {
+        Some(source) => source
+            .particles_at(scene.sim.duration_s)
+            .map_or(0, |p| p.len() as u64),
+        None => scene.particle_count(),
+    }
+}
+
 /// What was loaded: for the viewer's scene panel and `particles`' summary line.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Summary {

@@ -53,6 +53,13 @@ const PALETTE: [RGBColor; 10] = [
     RGBColor(23, 190, 207),
 ];
 
+/// The `i`-th series colour as RGB (the gallery colours its techniques as the charts do: by
+/// order of first appearance).
+pub fn palette_rgb(i: usize) -> (u8, u8, u8) {
+    let RGBColor(r, g, b) = PALETTE[i % PALETTE.len()];
+    (r, g, b)
+}
+
 /// One chart written into the sweep folder, as `index.html` shows it.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Chart {
@@ -881,6 +888,7 @@ mod tests {
             flip_exact: None,
             hdr_image: None,
             settings_key: "k".into(),
+            measured_against: None,
         }
     }
 
@@ -888,6 +896,7 @@ mod tests {
         SweepMetadata {
             tool_version: "0.1.0".into(),
             scene: "thesis_plume".into(),
+            description: String::new(),
             scene_sha256: "00".into(),
             seed: 1,
             particles: 2500,
@@ -903,6 +912,7 @@ mod tests {
             exact_bytes: 63 << 20,
             started: "2026-01-01T00:00:00Z".into(),
             wall_s: 12.5,
+            shards: Vec::new(),
         }
     }
 

@@ -8,17 +8,26 @@
 //!   atomically under `DIR/cells/` so a killed sweep loses at most the cell in flight and
 //!   `--resume` skips cells already done with identical settings;
 //! - `results.csv` / `results.json` ([`write_results`]), the SVG charts ([`charts`]) and
-//!   `index.html` ([`report`]) are rewritten from the finished cells.
+//!   `index.html` ([`report`]) are rewritten from the finished cells;
+//! - several scenes (`--scenes`): each scene's sweep in its own folder, and a gallery report
+//!   over them ([`gallery`]: the per-budget ranks, their median and worst across scenes, where
+//!   each technique wins, and advice computed from those numbers);
+//! - [`shard`]: `--shard K/N` runs the cells whose stable index is K mod N (a shard records in
+//!   each cell what its ratios and errors were measured against, [`MeasuredAgainst`]), and
+//!   `--merge` assembles the shards' cells into the tables and reports without a GPU.
 
 pub mod charts;
+pub mod gallery;
 pub mod report;
 mod run;
+pub mod shard;
 
 use serde::{Deserialize, Serialize};
 
 use crate::shadow::SplatMode;
 
-pub use run::{CSV_COLUMNS, SweepOptions, run, write_results};
+pub use run::{CSV_COLUMNS, SweepOptions, SweepOutcome, run, write_results};
+pub use shard::{Shard, ShardManifest, merge};
 
 /// Median, minimum and maximum of a measurement over the timed frames, milliseconds.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -100,8 +109,54 @@ pub struct CellResult {
     #[serde(default)]
     pub hdr_image: Option<String>,
     /// Identifies the settings this cell was measured with (scene, size, frames, warm-up, the
-    /// technique's parameters, tool version): `--resume` reuses a cell only when it matches.
+    /// technique's parameters, tool version): `--resume` reuses a cell only when it matches,
+    /// and `--merge` merges only shards whose cells agree on it.
     pub settings_key: String,
+    /// What this cell's ratios and errors were measured against, in the process that measured
+    /// it (a shard measures its own `none` and `exact`); `None` in cells written before it
+    /// existed, whose ratios are against the `none` cell of the results.
+    #[serde(default)]
+    pub measured_against: Option<MeasuredAgainst>,
+}
+
+/// The machine a cell was measured on.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Machine {
+    pub adapter: String,
+    pub backend: String,
+    pub driver: String,
+    /// Whether the GPU times come from timestamp queries (if not, they are absent: 0).
+    pub timestamp_queries: bool,
+}
+
+impl Machine {
+    pub fn of(gpu: &crate::gpu::Gpu) -> Self {
+        Self {
+            adapter: gpu.info.name.clone(),
+            backend: format!("{:?}", gpu.info.backend),
+            driver: format!("{} {}", gpu.info.driver, gpu.info.driver_info),
+            timestamp_queries: gpu.has_timestamps(),
+        }
+    }
+}
+
+/// What a cell's ratios and errors depend on, recorded in the cell by the process that measured
+/// it: every process that measures cells of a scene measures `none` and renders `exact` itself
+/// first, so a cell is self-contained wherever it was measured.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct MeasuredAgainst {
+    /// The median frame time of `none` measured by the same process just before its first cell
+    /// of the scene: `overhead_ratio` = `frame_ms.median` / this.
+    pub none_frame_ms: f64,
+    /// The `exact` reference the errors are against: its bytes, light tiles per side, and the
+    /// SHA-256 of its 8-bit RGB pixels (equal across processes on one machine, which lavapipe
+    /// renders bit-identically; another CPU may differ by 1/255 in a few pixels).
+    pub exact_bytes: u64,
+    pub exact_tiles: u32,
+    pub exact_image_sha256: String,
+    pub machine: Machine,
+    /// The shard that measured it (`None`: an unsharded run).
+    pub shard: Option<Shard>,
 }
 
 /// A requested cell that was not run, and why (a budget below the technique's minimum).
@@ -117,12 +172,17 @@ pub struct SkippedCell {
 pub struct SweepMetadata {
     pub tool_version: String,
     pub scene: String,
+    /// The scene's one-sentence description (may be empty).
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub description: String,
     /// SHA-256 of the scene's canonical TOML.
     pub scene_sha256: String,
     pub seed: u64,
     pub particles: u32,
     pub width_px: u32,
     pub height_px: u32,
+    /// The adapter, backend and driver the cells were measured on (several, `; `-separated,
+    /// when shards ran on different machines).
     pub adapter: String,
     pub backend: String,
     pub driver: String,
@@ -134,9 +194,13 @@ pub struct SweepMetadata {
     pub exact_tiles: u32,
     /// Bytes `exact` allocated.
     pub exact_bytes: u64,
-    /// RFC 3339 (UTC) start of this run, and its wall time in seconds.
+    /// RFC 3339 (UTC) start of this run, and its wall time in seconds (for results merged
+    /// from shards: the earliest shard's start and the sum of the shards' wall times).
     pub started: String,
     pub wall_s: f64,
+    /// The shards the cells came from, `K/N` each (empty for an unsharded run).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub shards: Vec<String>,
 }
 
 /// Everything a sweep produced: written as `results.json` (and, a row per cell, `results.csv`).

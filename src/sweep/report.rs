@@ -527,6 +527,7 @@ mod tests {
             flip_exact: with_error("flip_exact"),
             hdr_image: None,
             settings_key: "k".into(),
+            measured_against: None,
         }
     }
 
@@ -535,6 +536,7 @@ mod tests {
             metadata: SweepMetadata {
                 tool_version: "0.1.0".into(),
                 scene: "thesis_plume".into(),
+                description: String::new(),
                 scene_sha256: "00".into(),
                 seed: 7,
                 particles: 2500,
@@ -550,6 +552,7 @@ mod tests {
                 exact_bytes: 63 << 20,
                 started: "2026-01-01T00:00:00Z".into(),
                 wall_s: 75.0,
+                shards: Vec::new(),
             },
             cells: vec![
                 cell("none", 24, 0, None),

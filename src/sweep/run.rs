@@ -2,12 +2,17 @@
 //! (pipelines are rebuilt only when the technique changes; the particles are simulated once),
 //! compares it with its own 24-channel image and with `exact`, and persists it.
 
-use std::path::Path;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::Context;
 
-use super::{CellResult, ImageError, SkippedCell, SweepMetadata, SweepResults, Timing};
+use super::shard::{self, PlannedCell, PlannedScene, Shard, ShardManifest};
+use super::{
+    CellResult, ImageError, Machine, MeasuredAgainst, SkippedCell, SweepMetadata, SweepResults,
+    Timing,
+};
 use crate::diff;
 use crate::gpu::Gpu;
 use crate::progress::Progress;
@@ -36,6 +41,12 @@ pub struct SweepOptions {
     pub resume: bool,
     /// Also write every cell's linear HDR frame as OpenEXR beside its PNG.
     pub exr: bool,
+    /// The gallery layout (`--scenes`): each scene's sweep in `DIR/<scene name>/`, and a gallery
+    /// report over them at `DIR`.
+    pub gallery: bool,
+    /// Run only the cells whose stable index is K mod N, and write a shard manifest instead of
+    /// the tables and report.
+    pub shard: Option<Shard>,
 }
 
 impl Default for SweepOptions {
@@ -50,6 +61,8 @@ impl Default for SweepOptions {
             cell_seconds: 0.5,
             resume: false,
             exr: false,
+            gallery: false,
+            shard: None,
         }
     }
 }
@@ -248,7 +261,8 @@ pub(super) fn timing(samples: &[f64]) -> Timing {
     }
 }
 
-/// The long-lived state of one sweep.
+/// The long-lived state of one scene's sweep in this process: the particles, one renderer, the
+/// `exact` reference and the `none` frame time every cell it measures is measured against.
 struct Sweeper<'a> {
     gpu: &'a Gpu,
     scene: &'a Scene,
@@ -261,9 +275,92 @@ struct Sweeper<'a> {
     points: Vec<glam::Vec3>,
     exact_t: Vec<f32>,
     exact_image: image::RgbImage,
+    /// Recorded in every cell measured here (`none_frame_ms` is NaN until `none` ran).
+    against: MeasuredAgainst,
+    /// The planned cells' settings keys by name: an image on disk stands in for a technique's
+    /// own 24-channel image only when its cell record, with this run's settings, vouches for it
+    /// (another shard, or an earlier run with other settings, may have left it).
+    keys: &'a BTreeMap<String, String>,
+    /// The 24-channel images rendered or read by this process, by cell name.
+    own_images: BTreeMap<String, image::RgbImage>,
 }
 
-impl Sweeper<'_> {
+impl<'a> Sweeper<'a> {
+    /// Simulates the particles and renders the `exact` reference (its image into `images/`, its
+    /// T at the shaded points kept).
+    fn start(
+        gpu: &'a Gpu,
+        scene: &'a Scene,
+        options: &'a SweepOptions,
+        dir: &'a Path,
+        keys: &'a BTreeMap<String, String>,
+        progress: &mut Progress,
+    ) -> anyhow::Result<Self> {
+        progress.start(&format!("{}: exact reference", scene.name));
+        let particles = progress.suspend(|| crate::particles::scene_particles(scene))?;
+        let (w, h) = (scene.output.width_px, scene.output.height_px);
+        let mut exact_config = Plan::new(
+            scene,
+            shadow::reference().name,
+            1,
+            options.shadow_res[0],
+            options.splats[0],
+        )
+        .config;
+        exact_config.name = shadow::reference().name.to_owned();
+        let mut renderer = Renderer::new(gpu, w, h, OUTPUT_FORMAT, &exact_config)?;
+        let target = OffscreenTarget::new(gpu, w, h);
+        renderer.render(
+            gpu,
+            scene,
+            &particles,
+            &RenderOptions::default(),
+            &target.view,
+        )?;
+        let exact_bytes = renderer.technique().memory().total_bytes();
+        let exact_tiles = counter(&renderer.technique().counters(), "tiles_per_side") as u32;
+        let exact_image =
+            image::DynamicImage::ImageRgba8(crate::gpu::read_texture_rgba8(gpu, &target.texture)?)
+                .into_rgb8();
+        crate::output::write_png_rgb(&dir.join(EXACT_IMAGE), &exact_image)?;
+        if options.exr {
+            let hdr = crate::gpu::read_texture_rgba16f(gpu, renderer.hdr_texture())?;
+            crate::output::write_exr(&dir.join(EXACT_HDR_IMAGE), &hdr)?;
+        }
+        let points = shaded_points(scene, &particles, w, h, SHADED_STRIDE_PX);
+        let exact_t = renderer.probe(gpu, scene, &particles, &points)?;
+        progress.finish(format!(
+            "{}: exact reference ({}² light tiles): {} bytes, T at {} shaded points",
+            scene.name,
+            exact_tiles,
+            exact_bytes,
+            points.len()
+        ));
+        let against = MeasuredAgainst {
+            none_frame_ms: f64::NAN,
+            exact_bytes,
+            exact_tiles,
+            exact_image_sha256: sha256_hex(exact_image.as_raw()),
+            machine: Machine::of(gpu),
+            shard: options.shard,
+        };
+        Ok(Self {
+            gpu,
+            scene,
+            options,
+            dir,
+            particles,
+            renderer,
+            target,
+            points,
+            exact_t,
+            exact_image,
+            against,
+            keys,
+            own_images: BTreeMap::new(),
+        })
+    }
+
     /// Renders `config` once and returns the frame.
     fn render_image(&mut self, config: &TechniqueConfig) -> anyhow::Result<image::RgbImage> {
         self.renderer.set_technique(self.gpu, config)?;
@@ -278,8 +375,10 @@ impl Sweeper<'_> {
         Ok(image::DynamicImage::ImageRgba8(rgba).into_rgb8())
     }
 
-    /// The technique's own 24-channel image at the cell's resolution and splat: from disk when
-    /// an earlier cell (or run) wrote it, else rendered now.
+    /// The technique's own 24-channel image at the cell's resolution and splat: one this
+    /// process has, else its cell's image when the cell record has this run's settings, else
+    /// rendered now (kept in memory only: in a folder shards share, the file belongs to the
+    /// shard whose cell it is).
     fn own_baseline(&mut self, plan: &Plan) -> anyhow::Result<image::RgbImage> {
         let p = &plan.config.params;
         let baseline = Plan::new(
@@ -289,23 +388,32 @@ impl Sweeper<'_> {
             p.resolution_px,
             p.splat,
         );
-        let path = self.dir.join(format!("images/{}.png", baseline.name));
-        if path.is_file() {
-            return Ok(diff::load_png(&path)?);
+        if let Some(image) = self.own_images.get(&baseline.name) {
+            return Ok(image.clone());
         }
-        let image = self.render_image(&baseline.config)?;
-        crate::output::write_png_rgb(&path, &image)?;
+        let vouched = self.keys.get(&baseline.name).and_then(|key| {
+            read_cell(&self.dir.join(format!("cells/{}.json", baseline.name)))
+                .filter(|cell| &cell.settings_key == key)
+                .map(|cell| self.dir.join(cell.image))
+                .filter(|path| path.is_file())
+        });
+        let image = match vouched {
+            Some(path) => diff::load_png(&path)?,
+            None => self.render_image(&baseline.config)?,
+        };
+        self.own_images.insert(baseline.name, image.clone());
         Ok(image)
     }
 
-    /// Times, images and compares one cell.
+    /// Times, images and compares one cell; `record: false` (only for `none`) measures the
+    /// frame baseline for this process's ratios without writing its image.
     ///
     /// The transmittance probe comes first: it builds the maps once (compiling the build's
     /// shaders), and the warm-up frames reuse them, so that a technique whose build takes
     /// seconds pays for it once before the timed frames rather than once per warm-up frame. The
     /// timed frames build their maps every frame. The image comparisons run on every core after
     /// the timing, when nothing else runs.
-    fn measure(&mut self, plan: &Plan, key: String) -> anyhow::Result<CellResult> {
+    fn measure(&mut self, plan: &Plan, key: String, record: bool) -> anyhow::Result<CellResult> {
         self.renderer.set_technique(self.gpu, &plan.config)?;
         let is_frame_baseline = plan.config.name == shadow::frame_baseline().name;
         let probed = if is_frame_baseline {
@@ -356,6 +464,9 @@ impl Sweeper<'_> {
             sort_ms.push(stats.sort_ms);
             frame_ms.push(times.total_ms() + stats.sort_ms);
         }
+        if is_frame_baseline {
+            self.against.none_frame_ms = timing(&frame_ms).median;
+        }
         let technique = self.renderer.technique();
         let (channels_used, bytes, transient_bytes) = (
             technique.channels_used(),
@@ -365,7 +476,7 @@ impl Sweeper<'_> {
         let rgba = crate::gpu::read_texture_rgba8(self.gpu, &self.target.texture)?;
         let image = image::DynamicImage::ImageRgba8(rgba).into_rgb8();
         let image_path = format!("images/{}.png", plan.name);
-        let hdr = match self.options.exr {
+        let hdr = match self.options.exr && record {
             true => Some((
                 format!("images/{}.exr", plan.name),
                 crate::gpu::read_texture_rgba16f(self.gpu, self.renderer.hdr_texture())?,
@@ -407,14 +518,20 @@ impl Sweeper<'_> {
             flip_exact: None,
             hdr_image: hdr.as_ref().map(|(path, _)| path.clone()),
             settings_key: key,
+            measured_against: Some(self.against.clone()),
         };
+        with_ratios(&mut cell, None);
         if is_frame_baseline {
-            write_images()?;
+            if record {
+                write_images()?;
+            }
             return Ok(cell);
         }
         // The 24-channel cell is its own baseline: zero error by definition, no difference
-        // images to look at. The others need it, from disk or rendered now (the last GPU work).
+        // images to look at. The others need it, from this process, disk or rendered now (the
+        // last GPU work).
         let own = if plan.config.params.channels == BASELINE_CHANNELS {
+            self.own_images.insert(plan.name.clone(), image.clone());
             None
         } else {
             Some(self.own_baseline(plan)?)
@@ -476,174 +593,462 @@ fn compare(
     ))
 }
 
-/// Runs the sweep into `dir` and writes every output; returns the results.
+/// What one sweep process produced.
+#[derive(Debug)]
+pub enum SweepOutcome {
+    /// The whole sweep: every scene's results (in the order given) and, with `--scenes`, the
+    /// gallery over them.
+    Whole {
+        scenes: Vec<SweepResults>,
+        gallery: Option<super::gallery::Gallery>,
+    },
+    /// One shard's part of it (no tables or report: `--merge` writes them).
+    Shard(ShardManifest),
+}
+
+/// One scene's planned cells; their stable indices start at `first_index`.
+struct ScenePlan<'a> {
+    scene: &'a Scene,
+    /// The scene's folder relative to the sweep folder: "" for one scene, its name in a gallery.
+    folder: String,
+    first_index: usize,
+    plans: Vec<Plan>,
+    skipped: Vec<SkippedCell>,
+    /// Settings key by cell name.
+    keys: BTreeMap<String, String>,
+}
+
+impl ScenePlan<'_> {
+    /// What the manifest records of it.
+    fn planned(&self) -> PlannedScene {
+        let s = self.scene;
+        PlannedScene {
+            name: s.name.clone(),
+            description: s.description.clone(),
+            folder: self.folder.clone(),
+            scene_sha256: s.content_hash(),
+            seed: s.emitters.first().map_or(0, |e| e.seed),
+            particles: crate::particles::count(s) as u32,
+            width_px: s.output.width_px,
+            height_px: s.output.height_px,
+            cells: self
+                .plans
+                .iter()
+                .enumerate()
+                .map(|(i, p)| PlannedCell {
+                    index: self.first_index + i,
+                    name: p.name.clone(),
+                    settings_key: self.keys[&p.name].clone(),
+                })
+                .collect(),
+            skipped: self.skipped.clone(),
+        }
+    }
+}
+
+/// Plans every scene's cells, one after the other: a cell's stable index is its position in
+/// this list, so it depends only on the options and the scenes, never on what ran before.
+fn plan_scenes<'a>(
+    scenes: &'a [Scene],
+    options: &SweepOptions,
+) -> anyhow::Result<Vec<ScenePlan<'a>>> {
+    if scenes.is_empty() {
+        anyhow::bail!("--scenes is empty: give at least one scene");
+    }
+    if !options.gallery && scenes.len() > 1 {
+        anyhow::bail!("several scenes need the gallery layout (--scenes)");
+    }
+    let mut out: Vec<ScenePlan> = Vec::new();
+    let mut first_index = 0;
+    for scene in scenes {
+        if options.gallery {
+            check_folder_name(&scene.name)?;
+            if out.iter().any(|p| p.scene.name == scene.name) {
+                anyhow::bail!(
+                    "--scenes: two scenes are named \"{}\"; each scene's sweep goes to a folder of its name",
+                    scene.name
+                );
+            }
+        }
+        let (plans, skipped) = plan(scene, options)?;
+        let keys = plans
+            .iter()
+            .map(|p| (p.name.clone(), settings_key(scene, options, p)))
+            .collect();
+        let n = plans.len();
+        out.push(ScenePlan {
+            scene,
+            folder: if options.gallery {
+                scene.name.clone()
+            } else {
+                String::new()
+            },
+            first_index,
+            plans,
+            skipped,
+            keys,
+        });
+        first_index += n;
+    }
+    Ok(out)
+}
+
+/// A scene name is a folder name in a gallery sweep: letters, digits, `_`, `-` and `.` only.
+fn check_folder_name(name: &str) -> anyhow::Result<()> {
+    let ok = !name.is_empty()
+        && !name.starts_with('.')
+        && name
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.'));
+    if !ok {
+        anyhow::bail!(
+            "--scenes: scene name \"{name}\" cannot be a folder name (letters, digits, _ - . only)"
+        );
+    }
+    Ok(())
+}
+
+/// Path of the `exact` reference image inside a scene's folder, and of its HDR frame.
+pub(super) const EXACT_IMAGE: &str = "images/exact.png";
+pub(super) const EXACT_HDR_IMAGE: &str = "images/exact.exr";
+
+/// Reads a cell record; `None` when missing or unreadable (a cell not finished).
+pub(super) fn read_cell(path: &Path) -> Option<CellResult> {
+    std::fs::read_to_string(path)
+        .ok()
+        .and_then(|text| serde_json::from_str(&text).ok())
+}
+
+/// Removes the plain files directly inside `dir` (not folders).
+fn remove_files(dir: &Path) -> anyhow::Result<()> {
+    if !dir.is_dir() {
+        return Ok(());
+    }
+    for entry in std::fs::read_dir(dir)? {
+        let path = entry?.path();
+        if path.is_file() {
+            std::fs::remove_file(&path)
+                .with_context(|| format!("cannot remove {}", path.display()))?;
+        }
+    }
+    Ok(())
+}
+
+/// Removes `path` when it exists.
+fn remove_if_present(path: &Path) -> anyhow::Result<()> {
+    match std::fs::remove_file(path) {
+        Err(err) if err.kind() != std::io::ErrorKind::NotFound => {
+            Err(err).with_context(|| format!("cannot remove {}", path.display()))
+        }
+        _ => Ok(()),
+    }
+}
+
+/// Runs the sweep (or, with `options.shard`, one shard of it) of `scenes` into `dir` and writes
+/// every output.
+///
+/// Every process that has cells of a scene to measure first renders `exact` and measures
+/// `none` itself: the `none` cell (stable index 0 of each scene) is recorded only by the
+/// process it belongs to (shard 0 of a scene whose cells start at a multiple of N, ...); the
+/// others measure it unrecorded, and each cell records the `none` frame time and the `exact` it
+/// was measured against ([`MeasuredAgainst`]). A process that measures nothing (`--resume`
+/// with every cell done) renders nothing.
 pub fn run(
     gpu: &Gpu,
-    scene: &Scene,
+    scenes: &[Scene],
     options: &SweepOptions,
     dir: &Path,
-) -> anyhow::Result<SweepResults> {
+) -> anyhow::Result<SweepOutcome> {
     let started = std::time::SystemTime::now();
     let wall = Instant::now();
-    let (plans, skipped) = plan(scene, options)?;
+    let scene_plans = plan_scenes(scenes, options)?;
     if dir.is_file() {
         anyhow::bail!("output {} is a file; give a folder", dir.display());
     }
-    let cells_dir = dir.join("cells");
-    for sub in ["cells", "images", "diffs"] {
-        std::fs::create_dir_all(dir.join(sub))
-            .with_context(|| format!("cannot create {}", dir.join(sub).display()))?;
+    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let shards_dir = dir.join(shard::SHARDS_DIR);
+    let machine = Machine::of(gpu);
+    let manifest = |finished: bool, measured: usize, reused: usize| {
+        options.shard.map(|shard| ShardManifest {
+            shard,
+            tool_version: env!("CARGO_PKG_VERSION").to_owned(),
+            frames: options.frames,
+            warmup: options.warmup,
+            gallery: options.gallery,
+            scenes: scene_plans.iter().map(ScenePlan::planned).collect(),
+            machine: machine.clone(),
+            started: humantime::format_rfc3339_seconds(started).to_string(),
+            wall_s: wall.elapsed().as_secs_f64(),
+            measured: measured as u32,
+            reused: reused as u32,
+            finished,
+        })
+    };
+    match manifest(false, 0, 0) {
+        Some(m) => shard::write_manifest(dir, &m)?,
+        // A fresh unsharded sweep forgets the shards of earlier runs, as it forgets their cells.
+        None if !options.resume => remove_files(&shards_dir)?,
+        None => {}
     }
-    if !options.resume {
-        // A fresh sweep: forget finished cells and reference images of earlier runs.
-        for sub in ["cells", "images"] {
-            for entry in std::fs::read_dir(dir.join(sub))? {
-                let path = entry?.path();
-                if path.is_file() {
-                    std::fs::remove_file(&path)?;
+
+    // What this process runs of each scene, and which of those cells it reuses.
+    struct Own<'p> {
+        plan: &'p Plan,
+        key: String,
+        reused: Option<CellResult>,
+    }
+    let mut work: Vec<(PathBuf, Vec<Own>)> = Vec::new();
+    for sp in &scene_plans {
+        let scene_dir = dir.join(&sp.folder);
+        let mine: Vec<&Plan> = sp
+            .plans
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| options.shard.is_none_or(|s| s.owns(sp.first_index + i)))
+            .map(|(_, p)| p)
+            .collect();
+        if mine.is_empty() {
+            work.push((scene_dir, Vec::new()));
+            continue;
+        }
+        for sub in ["cells", "images", "diffs"] {
+            std::fs::create_dir_all(scene_dir.join(sub))
+                .with_context(|| format!("cannot create {}", scene_dir.join(sub).display()))?;
+        }
+        if !options.resume {
+            match options.shard {
+                // A fresh shard forgets only its own cells: other shards may share the folder.
+                Some(_) => {
+                    for p in &mine {
+                        remove_if_present(&scene_dir.join(format!("cells/{}.json", p.name)))?;
+                        remove_if_present(&scene_dir.join(format!("images/{}.png", p.name)))?;
+                        remove_if_present(&scene_dir.join(format!("images/{}.exr", p.name)))?;
+                    }
+                }
+                // A fresh sweep: forget finished cells and reference images of earlier runs.
+                None => {
+                    remove_files(&scene_dir.join("cells"))?;
+                    remove_files(&scene_dir.join("images"))?;
                 }
             }
         }
+        let own = mine
+            .into_iter()
+            .map(|plan| {
+                let key = sp.keys[&plan.name].clone();
+                let record = scene_dir.join(format!("cells/{}.json", plan.name));
+                let reused = options
+                    .resume
+                    .then(|| read_cell(&record))
+                    .flatten()
+                    .filter(|cell| {
+                        cell.settings_key == key && scene_dir.join(&cell.image).is_file()
+                    })
+                    .filter(|cell| {
+                        // A cell measured without its EXR is measured again when one is asked for.
+                        !options.exr
+                            || cell
+                                .hdr_image
+                                .as_ref()
+                                .is_some_and(|p| scene_dir.join(p).is_file())
+                    });
+                Own { plan, key, reused }
+            })
+            .collect();
+        work.push((scene_dir, own));
     }
+    // Progress: every own cell, plus `exact` (and `none` when unrecorded) where a scene needs
+    // measuring.
+    let needs_gpu = |scene_dir: &Path, own: &[Own]| {
+        own.iter().any(|o| o.reused.is_none())
+            || (!own.is_empty() && !scene_dir.join(EXACT_IMAGE).is_file())
+    };
+    let records_none = |own: &[Own]| {
+        own.first().is_some_and(|o| {
+            o.plan.config.name == shadow::frame_baseline().name && o.reused.is_none()
+        })
+    };
+    let total: usize = work
+        .iter()
+        .map(|(d, own)| {
+            own.len()
+                + match needs_gpu(d, own) {
+                    true => 1 + usize::from(!records_none(own)),
+                    false => 0,
+                }
+        })
+        .sum();
+    let mut progress = Progress::new(total, "cells");
 
-    let particles = crate::particles::scene_particles(scene)?;
-    let (w, h) = (scene.output.width_px, scene.output.height_px);
-    let mut exact_config = plans[0].config.clone();
-    exact_config.name = shadow::reference().name.to_owned();
-    let mut progress = Progress::new(plans.len() + 1, "cells");
-    progress.start("exact reference");
-    let mut renderer = Renderer::new(gpu, w, h, OUTPUT_FORMAT, &exact_config)?;
-    let target = OffscreenTarget::new(gpu, w, h);
-    renderer.render(
-        gpu,
-        scene,
-        &particles,
-        &RenderOptions::default(),
-        &target.view,
-    )?;
-    let exact_bytes = renderer.technique().memory().total_bytes();
-    let exact_tiles = counter(&renderer.technique().counters(), "tiles_per_side") as u32;
-    let exact_image =
-        image::DynamicImage::ImageRgba8(crate::gpu::read_texture_rgba8(gpu, &target.texture)?)
-            .into_rgb8();
-    let exact_image_path = "images/exact.png".to_owned();
-    crate::output::write_png_rgb(&dir.join(&exact_image_path), &exact_image)?;
-    let exact_hdr_path = match options.exr {
-        true => {
-            let path = "images/exact.exr".to_owned();
-            let hdr = crate::gpu::read_texture_rgba16f(gpu, renderer.hdr_texture())?;
-            crate::output::write_exr(&dir.join(&path), &hdr)?;
-            Some(path)
+    let (mut measured, mut reused) = (0usize, 0usize);
+    let mut results: Vec<SweepResults> = Vec::new();
+    for (sp, (scene_dir, own)) in scene_plans.iter().zip(&work) {
+        let planned = sp.planned();
+        let mut sweeper: Option<Sweeper> = None;
+        let mut exact_info: Option<(u64, u32)> = None;
+        if needs_gpu(scene_dir, own) {
+            let mut sw =
+                Sweeper::start(gpu, sp.scene, options, scene_dir, &sp.keys, &mut progress)?;
+            exact_info = Some((sw.against.exact_bytes, sw.against.exact_tiles));
+            if !records_none(own) {
+                // This process's frame baseline: its ratios are against it, but the `none` cell
+                // is another process's (or was measured earlier).
+                progress.start(&format!(
+                    "{}: none (this process's baseline)",
+                    sp.scene.name
+                ));
+                let none = sw.measure(&sp.plans[0], String::new(), false)?;
+                progress.finish(format!(
+                    "{}: none, this process's frame baseline: frame {:.1} ms (not recorded: {})",
+                    sp.scene.name,
+                    none.frame_ms.median,
+                    match options.shard {
+                        Some(s) => format!(
+                            "cell {} belongs to shard {}",
+                            sp.first_index,
+                            Shard {
+                                k: (sp.first_index % s.n as usize) as u32,
+                                ..s
+                            }
+                        ),
+                        None => "the none cell was measured earlier".to_owned(),
+                    }
+                ));
+            }
+            sweeper = Some(sw);
         }
-        false => None,
-    };
-    let points = shaded_points(scene, &particles, w, h, SHADED_STRIDE_PX);
-    let exact_t = renderer.probe(gpu, scene, &particles, &points)?;
-    progress.finish(format!(
-        "exact reference ({}² light tiles): {} bytes, T at {} shaded points",
-        exact_tiles,
-        exact_bytes,
-        points.len()
-    ));
-
-    let mut sweeper = Sweeper {
-        gpu,
-        scene,
-        options,
-        dir,
-        particles,
-        renderer,
-        target,
-        points,
-        exact_t,
-        exact_image,
-    };
-    let metadata = |wall_s: f64| SweepMetadata {
-        tool_version: env!("CARGO_PKG_VERSION").to_owned(),
-        scene: scene.name.clone(),
-        scene_sha256: scene.content_hash(),
-        seed: scene.emitters[0].seed,
-        particles: scene.particle_count() as u32,
-        width_px: w,
-        height_px: h,
-        adapter: gpu.info.name.clone(),
-        backend: format!("{:?}", gpu.info.backend),
-        driver: format!("{} {}", gpu.info.driver, gpu.info.driver_info),
-        timestamp_queries: gpu.has_timestamps(),
-        frames: options.frames,
-        warmup: options.warmup,
-        exact_tiles,
-        exact_bytes,
-        started: humantime::format_rfc3339_seconds(started).to_string(),
-        wall_s,
-    };
-    let mut cells: Vec<CellResult> = Vec::new();
-    for plan in &plans {
-        let key = settings_key(scene, options, plan);
-        let record = cells_dir.join(format!("{}.json", plan.name));
-        progress.start(&plan.name);
-        let reused = options
-            .resume
-            .then(|| std::fs::read_to_string(&record).ok())
-            .flatten()
-            .and_then(|text| serde_json::from_str::<CellResult>(&text).ok())
-            .filter(|cell| cell.settings_key == key && dir.join(&cell.image).is_file())
-            .filter(|cell| {
-                // A cell measured without its EXR is measured again when one is asked for.
-                !options.exr
-                    || cell
-                        .hdr_image
-                        .as_ref()
-                        .is_some_and(|p| dir.join(p).is_file())
-            });
-        let cell = match reused {
-            Some(cell) => {
-                progress.finish(format!("{}: done earlier, reused", plan.name));
-                cell
-            }
-            None => {
-                let cell = sweeper.measure(plan, key)?;
-                crate::output::write_atomic(
-                    &record,
-                    serde_json::to_string_pretty(&cell)?.as_bytes(),
-                )?;
-                progress.finish(summary(&cell));
-                cell
-            }
+        let mut cells: Vec<CellResult> = Vec::new();
+        let metadata_now = |cells: &[CellResult]| {
+            assemble(
+                &planned,
+                env!("CARGO_PKG_VERSION"),
+                options.frames,
+                options.warmup,
+                cells,
+                Some(&machine),
+                exact_info,
+                humantime::format_rfc3339_seconds(started).to_string(),
+                wall.elapsed().as_secs_f64(),
+                Vec::new(),
+                scene_dir,
+            )
         };
-        cells.push(cell);
-        // Keep the tables current, so a sweep stopped here leaves consistent results.
-        let partial = results(
-            metadata(wall.elapsed().as_secs_f64()),
-            &cells,
-            &skipped,
-            &exact_image_path,
-            exact_hdr_path.as_deref(),
-        );
-        write_results(&partial, dir)?;
+        for o in own {
+            progress.start(&o.plan.name);
+            let cell = match &o.reused {
+                Some(cell) => {
+                    progress.finish(format!("{}: done earlier, reused", o.plan.name));
+                    reused += 1;
+                    cell.clone()
+                }
+                None => {
+                    let sw = sweeper
+                        .as_mut()
+                        .expect("a scene with cells to measure has a sweeper");
+                    let cell = sw.measure(o.plan, o.key.clone(), true)?;
+                    crate::output::write_atomic(
+                        &scene_dir.join(format!("cells/{}.json", o.plan.name)),
+                        serde_json::to_string_pretty(&cell)?.as_bytes(),
+                    )?;
+                    progress.finish(summary(&cell));
+                    measured += 1;
+                    cell
+                }
+            };
+            cells.push(cell);
+            if options.shard.is_none() {
+                // Keep the tables current, so a sweep stopped here leaves consistent results.
+                write_results(&metadata_now(&cells), scene_dir)?;
+            }
+        }
+        drop(sweeper);
+        if options.shard.is_none() {
+            let r = metadata_now(&cells);
+            write_results(&r, scene_dir)?;
+            let charts = super::charts::write_charts(&r, scene_dir)?;
+            super::report::write_html(&r, &charts, scene_dir)?;
+            results.push(r);
+        }
     }
     progress.end();
-    let results = results(
-        metadata(wall.elapsed().as_secs_f64()),
-        &cells,
-        &skipped,
-        &exact_image_path,
-        exact_hdr_path.as_deref(),
-    );
-    write_results(&results, dir)?;
-    let charts = super::charts::write_charts(&results, dir)?;
-    super::report::write_html(&results, &charts, dir)?;
-    Ok(results)
+    if let Some(m) = manifest(true, measured, reused) {
+        shard::write_manifest(dir, &m)?;
+        return Ok(SweepOutcome::Shard(m));
+    }
+    let gallery = match options.gallery {
+        true => Some(super::gallery::write(dir, &results)?),
+        false => None,
+    };
+    Ok(SweepOutcome::Whole {
+        scenes: results,
+        gallery,
+    })
 }
 
-/// The results so far, with overhead ratios against the `none` cell.
-fn results(
-    metadata: SweepMetadata,
+/// A scene's results from its planned cells and the cells finished so far (in plan order),
+/// with their overhead ratios ([`with_ratios`]). The machine and the `exact` figures come
+/// from the cells' records, `fallback` and `exact` stand in for cells written before those
+/// existed.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn assemble(
+    planned: &PlannedScene,
+    tool_version: &str,
+    frames: u32,
+    warmup: u32,
     cells: &[CellResult],
-    skipped: &[SkippedCell],
-    exact_image: &str,
-    exact_hdr_image: Option<&str>,
+    fallback: Option<&Machine>,
+    exact: Option<(u64, u32)>,
+    started: String,
+    wall_s: f64,
+    shards: Vec<String>,
+    scene_dir: &Path,
 ) -> SweepResults {
+    let against: Vec<&MeasuredAgainst> = cells
+        .iter()
+        .filter_map(|c| c.measured_against.as_ref())
+        .collect();
+    let distinct = |field: &dyn Fn(&Machine) -> String, fallback: Option<String>| {
+        let mut values: Vec<String> = Vec::new();
+        for a in &against {
+            let v = field(&a.machine);
+            if !values.contains(&v) {
+                values.push(v);
+            }
+        }
+        if values.is_empty() {
+            values.extend(fallback);
+        }
+        values.join("; ")
+    };
+    let exact = against
+        .first()
+        .map(|a| (a.exact_bytes, a.exact_tiles))
+        .or(exact)
+        .unwrap_or((0, 0));
+    let metadata = SweepMetadata {
+        tool_version: tool_version.to_owned(),
+        scene: planned.name.clone(),
+        description: planned.description.clone(),
+        scene_sha256: planned.scene_sha256.clone(),
+        seed: planned.seed,
+        particles: planned.particles,
+        width_px: planned.width_px,
+        height_px: planned.height_px,
+        adapter: distinct(&|m| m.adapter.clone(), fallback.map(|m| m.adapter.clone())),
+        backend: distinct(&|m| m.backend.clone(), fallback.map(|m| m.backend.clone())),
+        driver: distinct(&|m| m.driver.clone(), fallback.map(|m| m.driver.clone())),
+        timestamp_queries: match against.is_empty() {
+            true => fallback.is_some_and(|m| m.timestamp_queries),
+            false => against.iter().all(|a| a.machine.timestamp_queries),
+        },
+        frames,
+        warmup,
+        exact_tiles: exact.1,
+        exact_bytes: exact.0,
+        started,
+        wall_s,
+        shards,
+    };
     let baseline = cells
         .iter()
         .find(|c| c.technique == shadow::frame_baseline().name)
@@ -652,19 +1057,43 @@ fn results(
         .iter()
         .cloned()
         .map(|mut c| {
-            let baseline = baseline.filter(|b| *b > 0.0);
-            c.overhead_ratio = baseline.map(|b| c.frame_ms.median / b);
-            c.shadow_ratio = baseline.map(|b| c.gpu_shadow_ms.median / b);
+            with_ratios(&mut c, baseline);
             c
         })
         .collect();
     SweepResults {
         metadata,
         cells,
-        skipped: skipped.to_vec(),
-        exact_image: exact_image.to_owned(),
-        exact_hdr_image: exact_hdr_image.map(str::to_owned),
+        skipped: planned.skipped.clone(),
+        exact_image: EXACT_IMAGE.to_owned(),
+        exact_hdr_image: scene_dir
+            .join(EXACT_HDR_IMAGE)
+            .is_file()
+            .then(|| EXACT_HDR_IMAGE.to_owned()),
     }
+}
+
+/// Sets a cell's overhead and shadow ratios: against the `none` frame time of the process that
+/// measured it, or for a cell written before that was recorded, against `results_none` (the
+/// `none` cell of the results).
+fn with_ratios(cell: &mut CellResult, results_none: Option<f64>) {
+    let baseline = cell
+        .measured_against
+        .as_ref()
+        .map(|a| a.none_frame_ms)
+        .or(results_none)
+        .filter(|b| b.is_finite() && *b > 0.0);
+    cell.overhead_ratio = baseline.map(|b| cell.frame_ms.median / b);
+    cell.shadow_ratio = baseline.map(|b| cell.gpu_shadow_ms.median / b);
+}
+
+/// SHA-256 of `bytes`, hex-encoded.
+fn sha256_hex(bytes: &[u8]) -> String {
+    use sha2::Digest;
+    sha2::Sha256::digest(bytes)
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect()
 }
 
 /// One line about a finished cell.
@@ -721,42 +1150,47 @@ pub const CSV_COLUMNS: &[&str] = &[
 pub fn write_results(results: &SweepResults, dir: &Path) -> anyhow::Result<()> {
     let mut writer = csv::Writer::from_writer(Vec::new());
     writer.write_record(CSV_COLUMNS)?;
-    let opt = |v: Option<f64>, digits: usize| v.map_or(String::new(), |v| format!("{v:.digits$}"));
     for c in &results.cells {
-        writer.write_record([
-            c.technique.clone(),
-            c.channels.to_string(),
-            c.channels_used.to_string(),
-            c.shadow_res.to_string(),
-            c.splat.name().to_owned(),
-            c.bytes.to_string(),
-            c.transient_bytes.to_string(),
-            format!("{:.3}", c.gpu_shadow_ms.median),
-            format!("{:.3}", c.gpu_shadow_ms.min),
-            format!("{:.3}", c.gpu_shadow_ms.max),
-            format!("{:.3}", c.gpu_render_ms.median),
-            format!("{:.3}", c.gpu_render_ms.min),
-            format!("{:.3}", c.gpu_render_ms.max),
-            format!("{:.3}", c.cpu_sort_ms.median),
-            format!("{:.3}", c.frame_ms.median),
-            format!("{:.3}", c.frame_ms.min),
-            format!("{:.3}", c.frame_ms.max),
-            format!("{:.3}", c.wall_ms.median),
-            c.frames_timed.to_string(),
-            opt(c.overhead_ratio, 3),
-            opt(c.shadow_ratio, 3),
-            opt(c.vs_own_24.map(|e| e.flip_mean), 6),
-            opt(c.vs_own_24.map(|e| e.rmse), 6),
-            opt(c.vs_exact.map(|e| e.flip_mean), 6),
-            opt(c.vs_exact.map(|e| e.rmse), 6),
-            opt(c.rms_transmittance_error, 6),
-            c.image.clone(),
-        ])?;
+        writer.write_record(csv_row(c))?;
     }
     let csv = writer.into_inner().context("cannot encode results.csv")?;
     crate::output::write_atomic(&dir.join("results.csv"), &csv)?;
     let json = serde_json::to_string_pretty(results)?;
     crate::output::write_atomic(&dir.join("results.json"), json.as_bytes())
+}
+
+/// A cell's `results.csv` row, in [`CSV_COLUMNS`] order.
+pub(super) fn csv_row(c: &CellResult) -> Vec<String> {
+    let opt = |v: Option<f64>, digits: usize| v.map_or(String::new(), |v| format!("{v:.digits$}"));
+    vec![
+        c.technique.clone(),
+        c.channels.to_string(),
+        c.channels_used.to_string(),
+        c.shadow_res.to_string(),
+        c.splat.name().to_owned(),
+        c.bytes.to_string(),
+        c.transient_bytes.to_string(),
+        format!("{:.3}", c.gpu_shadow_ms.median),
+        format!("{:.3}", c.gpu_shadow_ms.min),
+        format!("{:.3}", c.gpu_shadow_ms.max),
+        format!("{:.3}", c.gpu_render_ms.median),
+        format!("{:.3}", c.gpu_render_ms.min),
+        format!("{:.3}", c.gpu_render_ms.max),
+        format!("{:.3}", c.cpu_sort_ms.median),
+        format!("{:.3}", c.frame_ms.median),
+        format!("{:.3}", c.frame_ms.min),
+        format!("{:.3}", c.frame_ms.max),
+        format!("{:.3}", c.wall_ms.median),
+        c.frames_timed.to_string(),
+        opt(c.overhead_ratio, 3),
+        opt(c.shadow_ratio, 3),
+        opt(c.vs_own_24.map(|e| e.flip_mean), 6),
+        opt(c.vs_own_24.map(|e| e.rmse), 6),
+        opt(c.vs_exact.map(|e| e.flip_mean), 6),
+        opt(c.vs_exact.map(|e| e.rmse), 6),
+        opt(c.rms_transmittance_error, 6),
+        c.image.clone(),
+    ]
 }
 
 #[cfg(test)]
