@@ -71,22 +71,34 @@ pub enum Field {
 /// Every property we read: the name we write first, then the other exporters' names for it
 /// (matched without regard to case), and whether a file must have it.
 pub const PROPERTIES: &[(Field, &[&str], bool)] = &[
-    (Field::X, &["x", "px", "P.x"], true),
-    (Field::Y, &["y", "py", "P.y"], true),
-    (Field::Z, &["z", "pz", "P.z"], true),
+    (Field::X, &["x", "px", "P.x", "P[0]"], true),
+    (Field::Y, &["y", "py", "P.y", "P[1]"], true),
+    (Field::Z, &["z", "pz", "P.z", "P[2]"], true),
     (Field::Radius, &["radius", "pscale", "radius_m"], false),
     (
         Field::Density,
         &["density", "extinction", "density_per_m", "sigma_t"],
         false,
     ),
-    (Field::Red, &["red", "r", "Cd.r", "albedo_r"], false),
-    (Field::Green, &["green", "g", "Cd.g", "albedo_g"], false),
-    (Field::Blue, &["blue", "b", "Cd.b", "albedo_b"], false),
+    (
+        Field::Red,
+        &["red", "r", "Cd.r", "Cd[0]", "albedo_r"],
+        false,
+    ),
+    (
+        Field::Green,
+        &["green", "g", "Cd.g", "Cd[1]", "albedo_g"],
+        false,
+    ),
+    (
+        Field::Blue,
+        &["blue", "b", "Cd.b", "Cd[2]", "albedo_b"],
+        false,
+    ),
     (Field::Age, &["age", "age_s"], false),
-    (Field::Vx, &["vx", "v.x", "velocity_x"], false),
-    (Field::Vy, &["vy", "v.y", "velocity_y"], false),
-    (Field::Vz, &["vz", "v.z", "velocity_z"], false),
+    (Field::Vx, &["vx", "v.x", "v[0]", "velocity_x"], false),
+    (Field::Vy, &["vy", "v.y", "v[1]", "velocity_y"], false),
+    (Field::Vz, &["vz", "v.z", "v[2]", "velocity_z"], false),
 ];
 
 /// The columns we write, in order (the first name of each of [`PROPERTIES`]).
@@ -443,16 +455,17 @@ pub fn scene_for_file(path: &Path) -> Result<Scene, ParticleFileError> {
     let bounds = Summary::of(&particles);
     let centre = 0.5 * (bounds.min + bounds.max);
     let size = (bounds.max - bounds.min).max_element().max(1e-3);
-    // The thesis plume's framing: the largest extent of its particles' bounds at t = 8 s
-    // (8.1 m), and the camera's and light's offsets from its target.
-    const THESIS_PLUME_SIZE_M: f32 = 8.1;
+    // The thesis plume's framing: the camera's and light's offsets from its target, for a
+    // plume of this size (between the 5 m the plume looks and the 8.1 m its particles' bounds
+    // span at t = 8 s: a bare file's bounds are often a tight box, and get some margin).
+    const THESIS_PLUME_SIZE_M: f32 = 6.0;
     let k = size / THESIS_PLUME_SIZE_M;
     let cam = &mut scene.camera;
     let cam_offset = (cam.position - cam.target) * k;
     cam.target = centre;
     cam.position = centre + cam_offset;
     cam.near_m = (cam.near_m * k).max(1e-4);
-    cam.far_m = cam.far_m * k.max(1.0);
+    cam.far_m *= k.max(1.0);
     let light = &mut scene.light;
     let light_offset = (light.position - light.target) * k;
     light.target = centre;
