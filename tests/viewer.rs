@@ -359,3 +359,64 @@ fn a_configuration_the_gpu_cannot_hold_is_shown_in_red_and_the_previous_one_kept
         "{shown_config:?} still shows"
     );
 }
+
+#[test]
+fn the_viewer_opens_particle_files_and_plays_their_frames() {
+    use smokeshadow::particles;
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("viewer-particle-files");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    // Three frames of the thesis plume early in its life (it grows frame by frame), at 4 fps.
+    let mut sim = smokeshadow::sim::Simulation::new(&Scene::thesis_plume());
+    for frame in 4..=6 {
+        sim.advance_to(frame as f32 / 4.0);
+        let path = dir.join(particles::frame_name("smoke.%04d.ply", frame));
+        particles::write(&path, &sim.particles(), None).unwrap();
+    }
+    let counts: Vec<usize> = (4..=6)
+        .map(|f| {
+            let path = dir.join(particles::frame_name("smoke.%04d.ply", f));
+            particles::read(&path, &particles::Defaults::default())
+                .unwrap()
+                .len()
+        })
+        .collect();
+    assert!(counts[0] < counts[1] && counts[1] < counts[2], "{counts:?}");
+
+    // A bare file opens framed on its particles; the panel's summary is the file's.
+    let mut c = Controller::new(small_scene(), None, None);
+    c.scene_path = dir.join("smoke.0006.ply").to_string_lossy().into_owned();
+    c.load_scene();
+    assert_eq!(c.scene_error, None);
+    c.update((640, 480), false);
+    assert_eq!(c.particle_summary.count, counts[2]);
+    assert!(c.state.scene.emitters.is_empty() && c.state.scene.particles.is_some());
+
+    // A sequence: the time picks the frame, and moving it reads the next one.
+    let mut scene = small_scene();
+    scene.emitters.clear();
+    scene.particles = Some(smokeshadow::scene::ParticleSource {
+        file: "smoke.%04d.ply".into(),
+        frame_rate_hz: 4.0,
+        base_dir: dir.clone(),
+        ..Default::default()
+    });
+    scene.sim.duration_s = 1.0;
+    let mut c = Controller::new(scene, None, None);
+    c.update((640, 480), false);
+    assert_eq!(
+        (c.particle_summary.count, c.scene_error.as_ref()),
+        (counts[0], None)
+    );
+    for (i, t) in [1.25, 1.5].into_iter().enumerate() {
+        c.state.time_s = t;
+        c.update((640, 480), false);
+        assert_eq!(c.particle_summary.count, counts[i + 1], "t = {t}");
+    }
+    // Past the last frame: the missing file is named and the last frame kept.
+    c.state.time_s = 1.75;
+    c.update((640, 480), false);
+    let err = c.scene_error.clone().expect("a missing frame is reported");
+    assert!(err.contains("smoke.0007.ply"), "{err}");
+    assert_eq!(c.particle_summary.count, counts[2]);
+}

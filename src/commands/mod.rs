@@ -43,13 +43,7 @@ pub fn parse_particles(s: &str) -> Result<u32, String> {
 /// The scene-loading path every command shares: an embedded scene's name or a file path (the
 /// embedded thesis scene when `None`), rescaled to `--particles` when given.
 pub fn load_scene(arg: Option<&Path>, particles: ParticlesArg) -> anyhow::Result<Scene> {
-    let scene = match arg {
-        // A particle file where a scene is expected: the default scene around its particles.
-        Some(path) if crate::particles::Format::of_path(path).is_some() => {
-            crate::particles::scene_for_file(path)?
-        }
-        arg => Scene::load_or_default(arg)?,
-    };
+    let scene = crate::particles::open_scene(arg)?;
     Ok(match particles.particles {
         Some(n) => scene.with_particles(n)?,
         None => scene,

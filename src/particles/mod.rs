@@ -439,6 +439,16 @@ impl std::fmt::Display for Summary {
     }
 }
 
+/// A scene argument of any command and of the viewer's Open: a particle file (`.ply`, `.csv`:
+/// [`scene_for_file`]), an embedded scene's name or a scene file ([`Scene::open`]); the
+/// embedded thesis scene when `None`.
+pub fn open_scene(arg: Option<&Path>) -> anyhow::Result<Scene> {
+    Ok(match arg {
+        Some(path) if Format::of_path(path).is_some() => scene_for_file(path)?,
+        arg => Scene::load_or_default(arg)?,
+    })
+}
+
 /// A scene for a bare particle file (`smokeshadow render smoke.ply`, the viewer's Open): the
 /// thesis scene's lighting, shading and shadow settings, its camera and spotlight turned on the
 /// particles. Both keep the thesis scene's directions and are moved out to frame the particles'

@@ -273,6 +273,11 @@ pub struct Controller {
     sim: Simulation,
     particles: Arc<Vec<Particle>>,
     sim_inputs: (Vec<crate::scene::Emitter>, crate::scene::Wind, f32),
+    /// For a scene of a particle file: the file (the sequence's frame) the particles were read
+    /// from, so that a frame is read once, and again only when time picks another.
+    read_from: Option<PathBuf>,
+    /// What the particles on screen are: count, bounds, extinction range (the scene panel).
+    pub particle_summary: crate::particles::Summary,
     pub(super) views: [Option<View>; 2],
     /// Sides rendered on the worker (see [`WorkerView`]).
     pub(super) worker_views: [WorkerView; 2],
@@ -310,7 +315,15 @@ impl Controller {
         let time_s = scene.sim.duration_s;
         let mut sim = Simulation::new(&scene);
         sim.advance_to(time_s);
-        let particles = Arc::new(sim.particles());
+        let (particles, read_from, scene_error) = match &scene.particles {
+            Some(source) => match source.particles_at(time_s) {
+                Ok(ps) => (ps, Some(source.path_at(time_s)), None),
+                Err(err) => (Vec::new(), None, Some(err.to_string())),
+            },
+            None => (sim.particles(), None, None),
+        };
+        let particle_summary = crate::particles::Summary::of(&particles);
+        let particles = Arc::new(particles);
         let state = ViewState {
             orbit: Orbit::from_camera(&scene.camera),
             time_s,
@@ -343,6 +356,8 @@ impl Controller {
             gpu,
             sim,
             particles,
+            read_from,
+            particle_summary,
             views: [None, None],
             worker_views: Default::default(),
             analysis,
@@ -357,7 +372,7 @@ impl Controller {
             next_request: 0,
             probe: None,
             technique_error: None,
-            scene_error: None,
+            scene_error,
             status: String::new(),
             frames_rendered: 0,
             last_render: None,
@@ -548,12 +563,12 @@ impl Controller {
 
     /// Loads the scene named in the path field; on an error the current scene stays.
     pub fn load_scene(&mut self) {
-        match Scene::open(std::path::Path::new(&self.scene_path)) {
+        match crate::particles::open_scene(Some(std::path::Path::new(&self.scene_path))) {
             Ok(scene) => {
                 self.set_scene(scene);
                 self.status = format!("loaded {}", self.scene_path);
             }
-            Err(err) => self.scene_error = Some(err.to_string()),
+            Err(err) => self.scene_error = Some(format!("{err:#}")),
         }
     }
 
@@ -577,6 +592,7 @@ impl Controller {
         self.valid_scene = scene.clone();
         self.state.scene = scene;
         self.scene_error = None;
+        self.read_from = None;
     }
 
     /// Slides the spotlight's target in its horizontal plane to where the ray through `uv`
@@ -655,22 +671,55 @@ impl Controller {
         }
     }
 
-    /// Brings the particles to the current time and emitter settings.
+    /// Brings the particles to the current time and emitter settings, or for a scene of a
+    /// particle file, reads the file (a sequence's frame at the current time) when it changes.
     fn update_particles(&mut self) {
         let s = &self.state.scene;
-        let inputs = (s.emitters.clone(), s.wind.clone(), s.sim.step_s);
-        if inputs != self.sim_inputs {
-            self.sim = Simulation::new(s);
-            self.sim_inputs = inputs;
-        }
-        if (self.sim.time_s() - self.state.time_s).abs() > s.sim.step_s * 0.5
-            || self.particles.is_empty() && self.sim.time_s() > 0.0
-        {
-            self.sim.advance_to(self.state.time_s);
-        }
+        let fresh = match &s.particles {
+            Some(source) => {
+                let path = source.path_at(self.state.time_s);
+                match self.read_from.as_ref() == Some(&path) {
+                    true => None,
+                    false => {
+                        self.read_from = Some(path);
+                        match source.particles_at(self.state.time_s) {
+                            Ok(ps) => Some(ps),
+                            Err(err) => {
+                                // Keep the last frame on screen and say why there is no new one.
+                                self.scene_error = Some(err.to_string());
+                                None
+                            }
+                        }
+                    }
+                }
+            }
+            None => {
+                self.read_from = None;
+                let inputs = (s.emitters.clone(), s.wind.clone(), s.sim.step_s);
+                if inputs != self.sim_inputs {
+                    self.sim = Simulation::new(s);
+                    self.sim_inputs = inputs;
+                }
+                if (self.sim.time_s() - self.state.time_s).abs() > s.sim.step_s * 0.5
+                    || self.particles.is_empty() && self.sim.time_s() > 0.0
+                {
+                    self.sim.advance_to(self.state.time_s);
+                }
+                None
+            }
+        };
         let state = (self.frame_scene(), self.state.spherical, self.state.time_s);
-        if self.last_frame_state.as_ref() != Some(&state) {
-            self.particles = Arc::new(self.sim.particles());
+        if fresh.is_some() || self.last_frame_state.as_ref() != Some(&state) {
+            // A file's particles stay as read until another frame is read.
+            let particles = match (fresh, &self.state.scene.particles) {
+                (Some(ps), _) => Some(ps),
+                (None, Some(_)) => None,
+                (None, None) => Some(self.sim.particles()),
+            };
+            if let Some(particles) = particles {
+                self.particle_summary = crate::particles::Summary::of(&particles);
+                self.particles = Arc::new(particles);
+            }
             self.last_frame_state = Some(state);
             self.revision += 1;
             self.last_change = Instant::now();

@@ -36,7 +36,6 @@ use std::sync::Arc;
 use eframe::egui_wgpu;
 
 use crate::gpu::{self, AdapterPreference};
-use crate::scene::Scene;
 
 pub use app::ViewerApp;
 pub use controller::{CompareMode, Controller, Side, Source, ViewState};
@@ -78,14 +77,14 @@ pub fn native_options(preference: AdapterPreference) -> eframe::NativeOptions {
 }
 
 /// Opens the viewer on `scene` (the embedded thesis scene when `None`), rescaled to `particles`
-/// when given ([`Scene::with_particles`]), and returns when the window closes. Problems found
+/// when given ([`crate::scene::Scene::with_particles`]), and returns when the window closes. Problems found
 /// before the window exists (a bad scene file, no adapter) are returned as one-line errors.
 pub fn run(
     scene_path: Option<PathBuf>,
     particles: Option<u32>,
     preference: AdapterPreference,
 ) -> anyhow::Result<()> {
-    let scene = Scene::load_or_default(scene_path.as_deref())?;
+    let scene = crate::particles::open_scene(scene_path.as_deref())?;
     let scene = match particles {
         Some(n) => scene.with_particles(n)?,
         None => scene,
