@@ -492,15 +492,29 @@ fn every_command_takes_an_embedded_scenes_name() {
         String::from_utf8_lossy(&probe.stderr)
     );
     assert!(String::from_utf8_lossy(&probe.stdout).contains("\"thesis_wind\""));
+    // A gallery scene with several emitters, by name.
+    let outlier = dir.join("outlier.png");
+    let out = smokeshadow(&[
+        "render",
+        "outlier",
+        "-t",
+        "none",
+        "--size",
+        "64x48",
+        "-o",
+        outlier.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(String::from_utf8_lossy(&out.stdout).contains("2560 particles"));
     // Neither a file nor an embedded scene: the line names the embedded ones.
     let missing = smokeshadow(&["render", "thesis_breeze", "-o", png.to_str().unwrap()]);
-    assert_one_line_error(
-        &missing,
-        &[
-            "thesis_breeze",
-            "embedded scenes: thesis_plume, thesis_wind, plume_scaled, plume_65k",
-        ],
-    );
+    let hint = format!("embedded scenes: {}", smokeshadow::scene::embedded_names());
+    assert!(hint.contains("thesis_plume, thesis_wind, plume_scaled, plume_65k, two_plumes"));
+    assert_one_line_error(&missing, &["thesis_breeze", &hint]);
 }
 
 #[test]

@@ -3,10 +3,12 @@
 
 mod common;
 
-use common::{REDUCED_H as H, REDUCED_W as W, gpu, luminance, reduced_plume, technique};
+use common::{
+    REDUCED_H as H, REDUCED_W as W, gpu, luminance, reduced_plume, segment_hits_box, technique,
+};
 use glam::Vec3;
 use smokeshadow::render::{CameraMatrices, OffscreenFrame, RenderOptions, render_offscreen};
-use smokeshadow::scene::{BoxShape, Scene};
+use smokeshadow::scene::Scene;
 use smokeshadow::shadow::SplatMode;
 use smokeshadow::sim::{Particle, simulate};
 
@@ -28,32 +30,6 @@ fn render(
         },
     )
     .unwrap()
-}
-
-/// Whether the segment from `a` to `b` passes through the box.
-fn segment_hits_box(a: Vec3, b: Vec3, bx: &BoxShape) -> bool {
-    let lo = bx.center - bx.size * 0.5;
-    let hi = bx.center + bx.size * 0.5;
-    let d = b - a;
-    let (mut t0, mut t1) = (0.0f32, 1.0f32);
-    for axis in 0..3 {
-        if d[axis].abs() < 1e-9 {
-            if a[axis] < lo[axis] || a[axis] > hi[axis] {
-                return false;
-            }
-        } else {
-            let (mut ta, mut tb) = (
-                (lo[axis] - a[axis]) / d[axis],
-                (hi[axis] - a[axis]) / d[axis],
-            );
-            if ta > tb {
-                std::mem::swap(&mut ta, &mut tb);
-            }
-            t0 = t0.max(ta);
-            t1 = t1.min(tb);
-        }
-    }
-    t0 <= t1
 }
 
 #[test]

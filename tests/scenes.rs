@@ -139,6 +139,7 @@ fn the_scaling_family_is_the_thesis_plume_at_other_counts() {
     assert_eq!(
         Scene {
             name: thesis.name.clone(),
+            description: thesis.description.clone(),
             ..base.clone()
         },
         thesis,
@@ -151,6 +152,7 @@ fn the_scaling_family_is_the_thesis_plume_at_other_counts() {
     assert_eq!(
         Scene {
             name: base.name.clone(),
+            description: base.description.clone(),
             ..k65.clone()
         },
         scaled

@@ -45,9 +45,18 @@ pub fn run(preference: &AdapterPreference) -> anyhow::Result<()> {
         yes_no(ok)
     );
     println!(
-        "embedded scenes (any command takes their name for a scene file): {}",
-        crate::scene::embedded_names()
+        "embedded scenes (any command takes their name for a scene file; * = in the gallery, \
+         scene::GALLERY):"
     );
+    for (name, _) in crate::scene::EMBEDDED {
+        let gallery = if crate::scene::GALLERY.contains(name) {
+            '*'
+        } else {
+            ' '
+        };
+        let summary = crate::scene::embedded_summary(name).unwrap_or_default();
+        println!("  {gallery} {name:<13} {summary}");
+    }
     println!("techniques:");
     for e in shadow::REGISTRY {
         let role = match e.role {

@@ -32,17 +32,42 @@ pub const PLUME_SCALED_TOML: &str = include_str!("../../scenes/plume_scaled.toml
 /// `plume_scaled` at 65,536 particles, the scaling rule applied.
 pub const PLUME_65K_TOML: &str = include_str!("../../scenes/plume_65k.toml");
 
+/// Gallery: two plumes with clear air between them along the light's rays (gaps along a ray).
+pub const TWO_PLUMES_TOML: &str = include_str!("../../scenes/two_plumes.toml");
+/// Gallery: the thesis plume with a stray puff between it and the light (stretched depth bounds).
+pub const OUTLIER_TOML: &str = include_str!("../../scenes/outlier.toml");
+/// Gallery: a thin, wide layer lit almost edge-on (long paths through a thin slab).
+pub const THIN_SHEET_TOML: &str = include_str!("../../scenes/thin_sheet.toml");
+/// Gallery: a tall, dense column lit from above (long, dense paths along its axis).
+pub const COLUMN_TOML: &str = include_str!("../../scenes/column.toml");
+/// Gallery: a low, wide layer with the camera inside it (particles containing the eye).
+pub const GROUND_FOG_TOML: &str = include_str!("../../scenes/ground_fog.toml");
+
 /// The scenes embedded in the binary, by name.
 pub const EMBEDDED: &[(&str, &str)] = &[
     ("thesis_plume", THESIS_PLUME_TOML),
     ("thesis_wind", THESIS_WIND_TOML),
     ("plume_scaled", PLUME_SCALED_TOML),
     ("plume_65k", PLUME_65K_TOML),
+    ("two_plumes", TWO_PLUMES_TOML),
+    ("outlier", OUTLIER_TOML),
+    ("thin_sheet", THIN_SHEET_TOML),
+    ("column", COLUMN_TOML),
+    ("ground_fog", GROUND_FOG_TOML),
 ];
 
 /// The gallery: the embedded scenes that `sweep --scenes all` runs, each a different kind of
-/// smoke (`scenes/README.md` says what each one tests).
-pub const GALLERY: &[&str] = &["thesis_plume", "plume_65k"];
+/// smoke stressing one failure mode (`scenes/README.md` says what each one tests;
+/// `tests/gallery.rs` checks that it does).
+pub const GALLERY: &[&str] = &[
+    "thesis_plume",
+    "two_plumes",
+    "outlier",
+    "thin_sheet",
+    "column",
+    "ground_fog",
+    "plume_65k",
+];
 
 /// The embedded scenes with committed baselines (`baselines/<scene>/`): the thesis experiment.
 /// The scaling family is for timing; its smoke is the thesis plume's at other counts.
@@ -55,6 +80,28 @@ pub fn embedded_names() -> String {
         .map(|(n, _)| *n)
         .collect::<Vec<_>>()
         .join(", ")
+}
+
+/// One line on what the embedded scene `name` is, for `smokeshadow info`: its `description`, or
+/// for a scene without one (the thesis scenes keep theirs empty so that their content hash, which
+/// the baselines record, does not change) the first sentence of the file's header comment.
+pub fn embedded_summary(name: &str) -> Option<String> {
+    let (_, text) = EMBEDDED.iter().find(|(n, _)| *n == name)?;
+    let scene = Scene::embedded(name)?;
+    if !scene.description.is_empty() {
+        return Some(scene.description);
+    }
+    let header: Vec<&str> = text
+        .lines()
+        .map_while(|l| l.strip_prefix('#'))
+        .map(str::trim)
+        .collect();
+    let header = header.join(" ");
+    let sentence = match header.find(". ") {
+        Some(end) => &header[..=end],
+        None => header.as_str(),
+    };
+    Some(sentence.trim().to_owned())
 }
 
 /// Errors from loading or validating a scene. Each renders as one line for the user.

@@ -9,7 +9,7 @@ pub mod sphere;
 use glam::Vec3;
 use smokeshadow::gpu::{AdapterPreference, Gpu};
 use smokeshadow::render::{OUTPUT_FORMAT, Renderer, TechniqueConfig};
-use smokeshadow::scene::Scene;
+use smokeshadow::scene::{BoxShape, Scene};
 use smokeshadow::shadow::{SplatMode, TechniqueParams};
 use smokeshadow::sim::Particle;
 
@@ -148,4 +148,30 @@ pub fn error_lines(out: &Output) -> Vec<String> {
         .filter(|l| !l.trim().is_empty() && !l.contains("XDG_RUNTIME_DIR"))
         .map(str::to_owned)
         .collect()
+}
+
+/// Whether the segment from `a` to `b` passes through the box.
+pub fn segment_hits_box(a: Vec3, b: Vec3, bx: &BoxShape) -> bool {
+    let lo = bx.center - bx.size * 0.5;
+    let hi = bx.center + bx.size * 0.5;
+    let d = b - a;
+    let (mut t0, mut t1) = (0.0f32, 1.0f32);
+    for axis in 0..3 {
+        if d[axis].abs() < 1e-9 {
+            if a[axis] < lo[axis] || a[axis] > hi[axis] {
+                return false;
+            }
+        } else {
+            let (mut ta, mut tb) = (
+                (lo[axis] - a[axis]) / d[axis],
+                (hi[axis] - a[axis]) / d[axis],
+            );
+            if ta > tb {
+                std::mem::swap(&mut ta, &mut tb);
+            }
+            t0 = t0.max(ta);
+            t1 = t1.min(tb);
+        }
+    }
+    t0 <= t1
 }

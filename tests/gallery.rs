@@ -1,0 +1,529 @@
+//! The gallery of hard scenes (`scene::GALLERY`): every scene loads and says what it is, its
+//! geometry is what its description claims (CPU), it renders smoke where its particles are (GPU,
+//! small), and the failure modes it was made for show in the numbers: the stray puff of `outlier`
+//! stretches OSM's depth bounds and its error, and FOM rings in the empty gap of `two_plumes`
+//! (GPU, small). GPU tests run on lavapipe and fail, never skip, without an adapter.
+
+mod common;
+
+use std::sync::OnceLock;
+
+use common::{gpu, probe_all, segment_hits_box, technique};
+use glam::{Vec2, Vec3};
+use smokeshadow::render::shaded::{particle_lighting_points, rms_difference};
+use smokeshadow::render::{CameraMatrices, RenderOptions, render_offscreen};
+use smokeshadow::scene::{EMBEDDED, GALLERY, Scene, embedded_summary};
+use smokeshadow::shadow::{LightSpace, SplatMode};
+use smokeshadow::sim::{Particle, simulate};
+
+/// The gallery scenes these tests simulate: all but `plume_65k`, whose 65,536 particles take
+/// most of a minute to simulate in a debug build; it is the thesis plume from more particles,
+/// which `tests/scenes.rs` and `tests/scaling.rs` check.
+const SIMULATED: &[&str] = &[
+    "thesis_plume",
+    "two_plumes",
+    "outlier",
+    "thin_sheet",
+    "column",
+    "ground_fog",
+];
+
+/// A gallery scene and its particles at the scene's time.
+struct Simulated {
+    scene: Scene,
+    particles: Vec<Particle>,
+}
+
+impl Simulated {
+    /// The particles of emitter `i` (the frame lists them emitter by emitter).
+    fn emitter(&self, i: usize) -> &[Particle] {
+        let start: usize = self.scene.emitters[..i]
+            .iter()
+            .map(|e| e.count as usize)
+            .sum();
+        &self.particles[start..start + self.scene.emitters[i].count as usize]
+    }
+}
+
+/// Each scene of [`SIMULATED`] simulated once for all the tests of this file.
+fn simulated(name: &str) -> &'static Simulated {
+    static ALL: OnceLock<Vec<Simulated>> = OnceLock::new();
+    let all = ALL.get_or_init(|| {
+        SIMULATED
+            .iter()
+            .map(|name| {
+                let scene = Scene::embedded(name).unwrap();
+                let particles = simulate(&scene);
+                // Every pool is full: each scene runs longer than its emitters' lifetimes.
+                assert_eq!(particles.len() as u64, scene.particle_count(), "{name}");
+                Simulated { scene, particles }
+            })
+            .collect()
+    });
+    &all[SIMULATED.iter().position(|n| *n == name).unwrap()]
+}
+
+/// The `q` quantile (0..=1) of `values`.
+fn quantile(values: impl IntoIterator<Item = f32>, q: f32) -> f32 {
+    let mut v: Vec<f32> = values.into_iter().collect();
+    v.sort_by(f32::total_cmp);
+    v[((v.len() - 1) as f32 * q).round() as usize]
+}
+
+/// The axis-aligned bounds of the particles' spheres.
+fn sphere_bounds(particles: &[Particle]) -> (Vec3, Vec3) {
+    particles.iter().fold(
+        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+        |(lo, hi), p| {
+            (
+                lo.min(p.position - p.radius_m),
+                hi.max(p.position + p.radius_m),
+            )
+        },
+    )
+}
+
+/// The nearest and farthest distance from `light` that the particles' spheres reach (the depth
+/// the techniques fit their bounds to, [`LightSpace::fit`]).
+fn light_distance_range(light: Vec3, particles: &[Particle]) -> (f32, f32) {
+    particles.iter().fold((f32::INFINITY, 0.0f32), |(n, f), p| {
+        let d = p.position.distance(light);
+        (n.min(d - p.radius_m), f.max(d + p.radius_m))
+    })
+}
+
+/// Whether the ray from `origin` along the unit `dir` passes through the particle's sphere.
+fn ray_hits(origin: Vec3, dir: Vec3, p: &Particle) -> bool {
+    let t = (p.position - origin).dot(dir);
+    t > 0.0 && (origin + dir * t).distance(p.position) < p.radius_m
+}
+
+#[test]
+fn every_gallery_scene_loads_and_says_what_it_is() {
+    assert_eq!(GALLERY[0], "thesis_plume");
+    assert_eq!(GALLERY[GALLERY.len() - 1], "plume_65k");
+    for name in GALLERY {
+        let scene = Scene::embedded(name).unwrap_or_else(|| panic!("{name} is not embedded"));
+        scene.validate().unwrap();
+        assert_eq!(scene.name, *name);
+        // The thesis screen and shadow map, so that a gallery sweep compares like with like.
+        assert_eq!(
+            (scene.output.width_px, scene.output.height_px),
+            (1024, 768),
+            "{name}"
+        );
+        assert_eq!(scene.shadow.resolution_px, 512, "{name}");
+        // Moderate counts keep a default sweep of the gallery practical (plume_65k is the
+        // scaling family's dense member, there for its count).
+        if *name != "plume_65k" {
+            let n = scene.particle_count();
+            assert!((2500..=10_000).contains(&n), "{name}: {n} particles");
+        }
+        // One sentence on what it is; the thesis plume keeps its description empty so that its
+        // content hash (which its baselines record) does not change.
+        let d = &scene.description;
+        if *name != "thesis_plume" {
+            assert!(
+                d.ends_with('.') && !d.contains('\n') && d.len() < 200,
+                "{name}: {d:?}"
+            );
+        }
+    }
+    for (name, _) in EMBEDDED {
+        let summary = embedded_summary(name).unwrap();
+        assert!(
+            !summary.is_empty() && !summary.contains('\n') && summary.len() < 200,
+            "{name}: {summary:?}"
+        );
+    }
+    assert!(embedded_summary("no_such_scene").is_none());
+}
+
+#[test]
+fn two_plumes_have_clear_air_between_them_along_the_light() {
+    let s = simulated("two_plumes");
+    let light = s.scene.light.position;
+    let (near, far) = (s.emitter(0), s.emitter(1));
+    let (_, near_end) = light_distance_range(light, near);
+    let (far_start, _) = light_distance_range(light, far);
+    // Every sphere of the near plume ends before any of the far one starts (measured: 9.44 m
+    // and 10.96 m; the bulk of the plumes, by their centres, lie 3 m apart).
+    println!("near plume ends at {near_end} m from the light, far plume starts at {far_start} m");
+    assert!(far_start - near_end > 1.2, "{near_end} .. {far_start}");
+    // The near plume stands in front of the far one: the far plume's particles see the light
+    // through it (measured: all of them; the thin plume's silhouette from the light is wider).
+    let shaded = far
+        .iter()
+        .step_by(10)
+        .filter(|q| {
+            let dir = (q.position - light).normalize();
+            near.iter().any(|p| ray_hits(light, dir, p))
+        })
+        .count();
+    let share = shaded as f32 / far.iter().step_by(10).count() as f32;
+    println!(
+        "{:.0}% of the far plume is behind the near one",
+        share * 100.0
+    );
+    assert!(share > 0.5, "{share}");
+    // The near plume is the thin one: less extinction in all (count x τ).
+    let [a, b] = [&s.scene.emitters[0], &s.scene.emitters[1]];
+    assert!(a.count as f32 * a.density_per_m < 0.25 * b.count as f32 * b.density_per_m);
+}
+
+#[test]
+fn the_stray_puff_lies_between_the_light_and_the_plume_and_stretches_the_bounds() {
+    let s = simulated("outlier");
+    let thesis = simulated("thesis_plume");
+    // The plume is the thesis plume, particle for particle; the puff is a few slow particles.
+    assert_eq!(s.scene.emitters[0], thesis.scene.emitters[0]);
+    assert_eq!(s.emitter(0).len(), thesis.particles.len());
+    let puff = &s.scene.emitters[1];
+    assert!(puff.count <= 100 && puff.velocity_m_per_s.length() < 0.1);
+    let light = &s.scene.light;
+    let (plume_near, _) = light_distance_range(light.position, s.emitter(0));
+    let (puff_near, puff_far) = light_distance_range(light.position, s.emitter(1));
+    println!("puff {puff_near}..{puff_far} m from the light, plume from {plume_near} m");
+    assert!(
+        plume_near - puff_far > 2.0,
+        "a gap of empty air behind the puff"
+    );
+    // In the light's cone, so it is in the map and casts its shadow.
+    let axis = (light.target - light.position).normalize();
+    for p in s.emitter(1) {
+        let angle = axis.angle_between(p.position - light.position).to_degrees();
+        assert!(angle < light.cone_angle_deg, "{angle}°");
+    }
+    // The depth range the techniques fit to the smoke grows by more than half with the puff
+    // (measured: 5.6 m -> 10.0 m), so OSM's slices over the plume are that much coarser.
+    let with = LightSpace::fit(light, &s.particles);
+    let without = LightSpace::fit(light, s.emitter(0));
+    let stretch = (with.far_m - with.near_m) / (without.far_m - without.near_m);
+    println!("depth range stretched {stretch:.2}x by the puff");
+    assert!(stretch > 1.5, "{stretch}");
+}
+
+#[test]
+fn the_thin_sheet_is_thin_and_lit_nearly_edge_on() {
+    let s = simulated("thin_sheet");
+    let (lo, hi) = sphere_bounds(&s.particles);
+    let size = hi - lo;
+    let width = size.x.min(size.z);
+    // Measured: 1.03 m thick (every sphere), 7.8 m wide: 0.13.
+    println!("sheet {size} m");
+    assert!(size.y < 0.2 * width, "{size}");
+    // The light's rays meet the sheet's plane at a few degrees (measured: 4.3°).
+    let centre = s.particles.iter().map(|p| p.position).sum::<Vec3>() / s.particles.len() as f32;
+    let dir = (centre - s.scene.light.position).normalize();
+    let elevation = dir.y.abs().asin().to_degrees();
+    println!("light {elevation:.1}° above the sheet's plane");
+    assert!(elevation < 10.0, "{elevation}°");
+    // So a ray through the sheet's middle runs metres through it: the sheet's extent along the
+    // light's horizontal direction is many times its thickness.
+    let along = Vec3::new(dir.x, 0.0, dir.z).normalize();
+    let extent = quantile(s.particles.iter().map(|p| p.position.dot(along)), 0.95)
+        - quantile(s.particles.iter().map(|p| p.position.dot(along)), 0.05);
+    assert!(extent > 5.0 * size.y, "{extent} m along the light");
+}
+
+#[test]
+fn the_column_is_several_times_taller_than_wide_and_lit_from_above() {
+    let s = simulated("column");
+    let axis_xz = |p: &Particle| Vec2::new(p.position.x, p.position.z);
+    let centre = s.particles.iter().map(axis_xz).sum::<Vec2>() / s.particles.len() as f32;
+    // 90% of the particles lie within a cylinder: its diameter against its height.
+    let mean_r = s.particles.iter().map(|p| p.radius_m).sum::<f32>() / s.particles.len() as f32;
+    let radius = quantile(s.particles.iter().map(|p| axis_xz(p).distance(centre)), 0.9);
+    let width = 2.0 * (radius + mean_r);
+    let ys = || s.particles.iter().map(|p| p.position.y);
+    let height = quantile(ys(), 0.95) - quantile(ys(), 0.05) + 2.0 * mean_r;
+    // Measured: 5.6 m tall, 1.6 m wide.
+    println!("column {height} m tall, {width} m wide");
+    assert!(height > 3.0 * width, "{height} x {width}");
+    // The light is above the top and its rays run nearly along the axis.
+    let light = &s.scene.light;
+    let (_, hi) = sphere_bounds(&s.particles);
+    assert!(light.position.y > hi.y + 2.0);
+    let tilt = (light.target - light.position)
+        .angle_between(Vec3::NEG_Y)
+        .to_degrees();
+    assert!(tilt < 15.0, "{tilt}°");
+}
+
+#[test]
+fn the_ground_fog_is_low_and_wide_and_holds_the_camera() {
+    let s = simulated("ground_fog");
+    let (lo, hi) = sphere_bounds(&s.particles);
+    let eye = s.scene.camera.position;
+    assert!(
+        eye.cmpgt(lo).all() && eye.cmplt(hi).all(),
+        "camera {eye} outside {lo}..{hi}"
+    );
+    let top = quantile(s.particles.iter().map(|p| p.position.y + p.radius_m), 0.95);
+    let width = (hi.x - lo.x).min(hi.z - lo.z);
+    // Measured: 95% of the spheres end below 1.3 m, over 15 m.
+    println!("fog below {top} m, {width} m wide");
+    assert!(top < 0.15 * width && eye.y < top, "{top} over {width}");
+    // Particles surround the eye and some contain it (measured: 4), which is what the scene
+    // tests.
+    let containing = s
+        .particles
+        .iter()
+        .filter(|p| p.position.distance(eye) < p.radius_m)
+        .count();
+    let within_2m = s
+        .particles
+        .iter()
+        .filter(|p| p.position.distance(eye) < 2.0)
+        .count();
+    println!("{containing} particles contain the eye, {within_2m} lie within 2 m");
+    assert!(containing >= 1 && within_2m >= 20);
+}
+
+#[test]
+fn gallery_scenes_render_smoke_where_their_particles_are() {
+    // 160x120 with the `none` technique: the smoke's coverage (the HDR frame's alpha) does not
+    // depend on the shadow technique.
+    const W: u32 = 160;
+    const H: u32 = 120;
+    let gpu = gpu();
+    for name in SIMULATED {
+        let s = simulated(name);
+        let mut scene = s.scene.clone();
+        scene.output.width_px = W;
+        scene.output.height_px = H;
+        let config = technique("none", 1, 128, SplatMode::Point);
+        let frame = render_offscreen(
+            &gpu,
+            &scene,
+            &s.particles,
+            &config,
+            &RenderOptions::default(),
+        )
+        .unwrap();
+        let alpha = |x: u32, y: u32| frame.hdr.get(x, y)[3];
+        for y in 0..H {
+            for x in 0..W {
+                let c = frame.hdr.get(x, y);
+                assert!(
+                    c.iter().all(|v| v.is_finite() && *v >= 0.0) && c[3] <= 1.0,
+                    "{name}: pixel ({x}, {y}) is {c:?}"
+                );
+            }
+        }
+        let cam = CameraMatrices::new(&scene, W, H);
+        let focal_px = H as f32 * 0.5 / (scene.camera.fov_y_deg.to_radians() * 0.5).tan();
+
+        // Every visible particle (centre in view, in front of the near plane by more than its
+        // radius, not behind a box, above the ground) makes its pixel at least half as opaque
+        // as the particle alone would be on its central ray (as tests/gpu_render.rs holds for
+        // the thesis plume).
+        let mut checked = 0;
+        let mut surrounds_eye = false;
+        let mut covered = vec![false; (W * H) as usize];
+        for p in &s.particles {
+            let depth = (p.position - cam.position).dot(cam.forward);
+            if depth - p.radius_m < 2.0 * scene.camera.near_m {
+                // A sphere at (or around) the eye may cover any pixel.
+                surrounds_eye |= depth + p.radius_m > 0.0;
+                continue;
+            }
+            let Some(px) = cam.project_to_pixel(p.position, W, H) else {
+                continue;
+            };
+            // Pixels this particle may cover: its projected disc with a margin.
+            let r = p.radius_m * focal_px / depth * 1.25 + 2.0;
+            let (x0, x1) = ((px.x - r).max(0.0) as u32, (px.x + r).min(W as f32) as u32);
+            let (y0, y1) = ((px.y - r).max(0.0) as u32, (px.y + r).min(H as f32) as u32);
+            for y in y0..y1 {
+                for x in x0..x1 {
+                    covered[(y * W + x) as usize] = true;
+                }
+            }
+            let (x, y) = (px.x as i64, px.y as i64);
+            let hidden = scene
+                .boxes
+                .iter()
+                .any(|b| segment_hits_box(cam.position, p.position, b));
+            if x < 0
+                || y < 0
+                || x >= W as i64
+                || y >= H as i64
+                || hidden
+                || p.position.y < p.radius_m
+            {
+                continue;
+            }
+            let own = 1.0 - (-p.density_per_m * 2.0 * p.radius_m).exp();
+            let a = alpha(x as u32, y as u32);
+            assert!(
+                a >= 0.5 * own,
+                "{name}: pixel ({x}, {y}) over a particle has alpha {a}, expected >= {}",
+                0.5 * own
+            );
+            checked += 1;
+        }
+        let smoky =
+            (0..W * H).filter(|&i| alpha(i % W, i / W) > 0.05).count() as f32 / (W * H) as f32;
+        println!(
+            "{name}: {checked} particles checked, smoke (alpha > 0.05) over {:.0}% of the frame",
+            smoky * 100.0
+        );
+        assert!(checked > 100, "{name}: only {checked} particles in view");
+        if surrounds_eye {
+            // The fog around the camera veils most of the frame (measured: 75%; above the
+            // layer it thins out), and it is neither black nor blown out anywhere: the darkest
+            // and brightest tone-mapped pixels stay inside the range (measured: 27 and 217 of
+            // 255 in luma, the sky above the fog and the fog in the light).
+            assert!(smoky > 0.6, "{name}: smoke over {smoky}");
+            let luma = |p: &image::Rgba<u8>| {
+                (0.2126 * f32::from(p[0]) + 0.7152 * f32::from(p[1]) + 0.0722 * f32::from(p[2]))
+                    as u8
+            };
+            let (dark, bright) = frame.image.pixels().fold((u8::MAX, 0), |(lo, hi), p| {
+                (lo.min(luma(p)), hi.max(luma(p)))
+            });
+            println!("{name}: tone-mapped luma {dark}..{bright}");
+            assert!(dark >= 5 && bright <= 250, "{name}: luma {dark}..{bright}");
+        } else {
+            // Pixels far from every particle have no smoke at all.
+            for (i, _) in covered.iter().enumerate().filter(|(_, c)| !**c) {
+                let (x, y) = (i as u32 % W, i as u32 / W);
+                assert!(
+                    alpha(x, y) < 1e-3,
+                    "{name}: pixel ({x}, {y}) is far from every particle but has alpha {}",
+                    alpha(x, y)
+                );
+            }
+            assert!(smoky > 0.02, "{name}: smoke over {smoky}");
+        }
+    }
+}
+
+#[test]
+fn the_stray_puff_makes_osm_worse_on_the_plume() {
+    // OSM fits its slices to the depth range of all the smoke: the puff spreads them over the
+    // empty air behind it, so the plume gets fewer. The error is RMS T against `exact` at the
+    // plume's lighting points (the sweep's metric without the ground), with the puff and with
+    // its emitter removed (the thesis plume, particle for particle). Measured here (RMS T
+    // without -> with the puff): point splats, 8 channels 0.0578 -> 0.0690 (1.19x); segment
+    // splats, 16 channels 0.0217 -> 0.0368 (1.70x), 24 channels 0.0128 -> 0.0255 (1.99x).
+    // With point splats at 16 channels the puff *lowers* the error (0.0584 -> 0.0385; printed,
+    // not held): there the error is the point splat's staircase, which coarser slices smear
+    // towards the chords `exact` integrates. The margins (1.08x, 1.4x and 1.5x) leave room for
+    // another CPU's rounding and keep the direction.
+    let gpu = gpu();
+    let s = simulated("outlier");
+    let mut scene = s.scene.clone();
+    scene.output.width_px = 160;
+    scene.output.height_px = 120;
+    scene.shadow.resolution_px = 256;
+    let plume = s.emitter(0);
+    let points = particle_lighting_points(scene.camera.position, plume);
+    let mut without = scene.clone();
+    without.emitters.truncate(1);
+    let configs = [
+        technique("exact", 1, 256, SplatMode::Segment),
+        technique("osm", 8, 256, SplatMode::Point),
+        technique("osm", 16, 256, SplatMode::Point),
+        technique("osm", 16, 256, SplatMode::Segment),
+        technique("osm", 24, 256, SplatMode::Segment),
+    ];
+    let errors = |scene: &Scene, particles: &[Particle]| {
+        let t = probe_all(&gpu, scene, particles, &configs, &points);
+        t[1..]
+            .iter()
+            .map(|c| rms_difference(c, &t[0]))
+            .collect::<Vec<_>>()
+    };
+    let with_puff = errors(&scene, &s.particles);
+    let plume_only = errors(&without, plume);
+    for (i, c) in configs[1..].iter().enumerate() {
+        println!(
+            "osm/{} {:?}: RMS T {:.4} without the puff, {:.4} with it",
+            c.params.channels, c.params.splat, plume_only[i], with_puff[i]
+        );
+    }
+    assert!(
+        with_puff[0] > 1.08 * plume_only[0],
+        "osm/8 point: {with_puff:?} against {plume_only:?}"
+    );
+    assert!(
+        with_puff[2] > 1.4 * plume_only[2],
+        "osm/16 segment: {with_puff:?} against {plume_only:?}"
+    );
+    assert!(
+        with_puff[3] > 1.5 * plume_only[3],
+        "osm/24 segment: {with_puff:?} against {plume_only:?}"
+    );
+}
+
+#[test]
+fn fom_rings_in_the_empty_gap_between_the_two_plumes() {
+    // In the gap between the plumes there is no smoke, so T is constant along each light ray
+    // there. FOM's truncated Fourier series of the extinction rings instead: T swings up and
+    // down across the gap (measured at 8 channels, the mean over 250 rays of each ray's max - min:
+    // 0.55); sigma factors damp it (0.14) and DOM, whose layers hold the optical depth that
+    // reached each boundary, stays flat (0.0001), as does exact (0.0000). Tolerances: 1e-3 for
+    // exact is f32 rounding; the others keep the order with a factor of 3 or more to spare.
+    let gpu = gpu();
+    let s = simulated("two_plumes");
+    let mut scene = s.scene.clone();
+    scene.output.width_px = 160;
+    scene.output.height_px = 120;
+    scene.shadow.resolution_px = 256;
+    let light = scene.light.position;
+    let (_, near_end) = light_distance_range(light, s.emitter(0));
+    let (far_start, _) = light_distance_range(light, s.emitter(1));
+    // Rays from the light towards the far plume's particles that pass through the near one,
+    // sampled across the gap (10 cm clear of either plume).
+    const SAMPLES: usize = 12;
+    let rays: Vec<Vec3> = s
+        .emitter(1)
+        .iter()
+        .step_by(10)
+        .map(|q| (q.position - light).normalize())
+        .filter(|&dir| s.emitter(0).iter().any(|p| ray_hits(light, dir, p)))
+        .collect();
+    let points: Vec<Vec3> = rays
+        .iter()
+        .flat_map(|&dir| {
+            (0..SAMPLES).map(move |i| {
+                let t =
+                    near_end + 0.1 + (far_start - near_end - 0.2) * i as f32 / (SAMPLES - 1) as f32;
+                light + dir * t
+            })
+        })
+        .collect();
+    let configs = [
+        technique("exact", 1, 256, SplatMode::Segment),
+        technique("fom", 8, 256, SplatMode::Point),
+        technique("fom_sigma", 8, 256, SplatMode::Point),
+        technique("dom", 8, 256, SplatMode::Point),
+    ];
+    let t = probe_all(&gpu, &scene, &s.particles, &configs, &points);
+    // Each ray's swing (max - min of T across the gap), averaged over the rays.
+    let swing = |t: &[f32]| {
+        let per_ray = t.chunks(SAMPLES).map(|ray| {
+            let (lo, hi) = ray
+                .iter()
+                .fold((f32::MAX, f32::MIN), |(lo, hi), &v| (lo.min(v), hi.max(v)));
+            hi - lo
+        });
+        per_ray.sum::<f32>() / rays.len() as f32
+    };
+    let [exact, fom, fom_sigma, dom] = [0, 1, 2, 3].map(|i| swing(&t[i]));
+    println!(
+        "{} rays: mean swing of T across the gap: exact {exact:.4}, fom {fom:.4}, \
+         fom_sigma {fom_sigma:.4}, dom {dom:.4}",
+        rays.len()
+    );
+    assert!(rays.len() > 50, "{} rays", rays.len());
+    assert!(exact < 1e-3, "exact is not constant in the gap: {exact}");
+    assert!(fom > 0.1, "fom does not ring: {fom}");
+    assert!(fom > 5.0 * dom, "fom {fom} against dom {dom}");
+    assert!(
+        fom_sigma < fom,
+        "sigma factors do not damp: {fom_sigma} against {fom}"
+    );
+}
