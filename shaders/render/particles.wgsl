@@ -31,6 +31,12 @@ struct VertexOut {
 // particle_lighting.wgsl): the fragment's position in that 2x2 grid weights their radiance.
 const SHADE_OFFSET: f32 = 0.5;
 
+// A particle whose sphere holds the eye, or nearly (within 1% of its radius, where its
+// silhouette fills most of the view and the centre quad would need to grow without bound), is
+// drawn as a full-screen quad at this normalised depth (just past the near plane at 0).
+const EYE_INSIDE_MARGIN: f32 = 1.01;
+const EYE_INSIDE_DEPTH: f32 = 1.0e-6;
+
 @vertex
 fn vs_main(
     @builtin(vertex_index) vi: u32,
@@ -41,14 +47,25 @@ fn vs_main(
     let center = particle.center_radius.xyz;
     let radius = particle.center_radius.w;
     let eye = frame.camera_pos.xyz;
-    let bb = billboard_frame(center, radius, eye);
     let corner = quad_corner(vi);
-    let world = billboard_corner(center, radius, bb, corner);
-    out.clip = frame.clip_from_world * vec4<f32>(world, 1.0);
-    out.world = world;
+    if distance(center, eye) < radius * EYE_INSIDE_MARGIN {
+        // The eye is inside the sphere (or at its surface): rays leave it in every direction,
+        // and many miss a quad through the centre, so the sphere is drawn as the whole screen
+        // just past the near plane; each fragment clips its own chord (fs_spherical discards
+        // the rays that miss it). Its lighting is the four points' mean (local = 0).
+        out.clip = vec4<f32>(corner, EYE_INSIDE_DEPTH, 1.0);
+        let world = frame.world_from_clip * out.clip;
+        out.world = world.xyz / world.w;
+        out.local = vec2<f32>(0.0);
+    } else {
+        let bb = billboard_frame(center, radius, eye);
+        let world = billboard_corner(center, radius, bb, corner);
+        out.clip = frame.clip_from_world * vec4<f32>(world, 1.0);
+        out.world = world;
+        out.local = corner;
+    }
     out.center_radius = particle.center_radius;
     out.density = particle.albedo_density.a;
-    out.local = corner;
     let light = particle_light[instance];
     out.radiance_00 = light.radiance[0].rgb;
     out.radiance_10 = light.radiance[1].rgb;
