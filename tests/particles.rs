@@ -372,3 +372,43 @@ fn bad_particle_files_get_one_line_naming_the_element_and_property() {
         .to_string();
     assert!(err.contains("both [particles] and an emitter"), "{err}");
 }
+
+#[test]
+fn baselines_of_your_own_particles_bless_check_and_notice_a_changed_file() {
+    let dir = scratch("particles_baselines");
+    let ply = dir.join("mine.ply");
+    ok(&smokeshadow(&["particles", "-o", ply.to_str().unwrap()]));
+    let baselines = dir.join("baselines");
+    let run = |mode: &str| {
+        smokeshadow(&[
+            "baseline",
+            mode,
+            "--scene",
+            ply.to_str().unwrap(),
+            "--technique",
+            "none",
+            "--dir",
+            baselines.to_str().unwrap(),
+            "--out",
+            dir.join("out").to_str().unwrap(),
+        ])
+    };
+    let blessed = ok(&run("--bless"));
+    assert!(baselines.join("mine/none.png").is_file(), "{blessed}");
+    let checked = run("--check");
+    assert_eq!(
+        checked.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&checked.stdout)
+    );
+    // The scene's identity includes its particles: moving one makes the baseline stale.
+    let mut moved = particles::read(&ply, &Defaults::default()).unwrap();
+    moved[0].position.y += 0.5;
+    particles::write(&ply, &moved, None).unwrap();
+    let stale = run("--check");
+    let text = String::from_utf8_lossy(&stale.stdout).into_owned()
+        + &String::from_utf8_lossy(&stale.stderr);
+    assert_eq!(stale.status.code(), Some(1), "{text}");
+    assert!(text.contains("the scene mine changed since"), "{text}");
+}

@@ -16,6 +16,7 @@ pub mod criterion;
 
 use std::path::{Path, PathBuf};
 
+use anyhow::Context;
 use serde::{Deserialize, Serialize};
 
 use crate::diff::{self, Comparison};
@@ -56,7 +57,14 @@ pub struct Sidecar {
 /// One baseline: which scene and technique, and where its files are.
 #[derive(Clone, Debug)]
 pub struct Baseline {
+    /// The scene's name: the folder under the baselines' folder.
     pub scene: String,
+    /// The scene rendered: an embedded baseline scene, or a user's scene file or particle file
+    /// given with `--scene`.
+    pub source: Scene,
+    /// How `--scene` names it (and `--dir` when not the committed folder), for the hints that
+    /// say how to bless it.
+    pub select_args: String,
     pub technique: String,
     pub png: PathBuf,
     /// The HDR frame's block means ([`criterion::HdrBlocks`]).
@@ -70,29 +78,49 @@ pub fn select(
     scenes: &[String],
     techniques: &[String],
 ) -> anyhow::Result<Vec<Baseline>> {
-    for s in scenes {
-        if !scene::BASELINE_SCENES.contains(&s.as_str()) {
-            anyhow::bail!(
-                "unknown scene \"{s}\"; baselines exist for: {}",
-                scene::BASELINE_SCENES.join(", ")
-            );
-        }
-    }
     for t in techniques {
         shadow::find(t)?;
     }
+    // The committed scenes by default; a `--scene` that is not one of them is the user's own
+    // (a scene file, another embedded scene, or a particle file), with baselines of its own.
+    let names: Vec<String> = match scenes.is_empty() {
+        true => scene::BASELINE_SCENES
+            .iter()
+            .map(|n| n.to_string())
+            .collect(),
+        false => scenes.to_vec(),
+    };
+    let sources: Vec<(String, Scene)> = names
+        .iter()
+        .map(|s| {
+            let scene = match scene::BASELINE_SCENES.contains(&s.as_str()) {
+                true => Ok(Scene::embedded(s).expect("baseline scenes are embedded")),
+                false => crate::particles::open_scene(Some(Path::new(s))).with_context(|| {
+                    format!(
+                        "scene \"{s}\" is not a committed baseline scene ({}) nor a scene or particle file that opens",
+                        scene::BASELINE_SCENES.join(", ")
+                    )
+                }),
+            }?;
+            let dir_arg = match dir == Path::new("baselines") {
+                true => String::new(),
+                false => format!(" --dir {}", dir.display()),
+            };
+            Ok((format!("--scene {s}{dir_arg}"), scene))
+        })
+        .collect::<anyhow::Result<_>>()?;
     let mut out = Vec::new();
-    for scene_name in scene::BASELINE_SCENES {
-        if !scenes.is_empty() && !scenes.iter().any(|s| s == scene_name) {
-            continue;
-        }
+    for (select_args, source) in sources {
+        let scene_name = source.name.clone();
         for entry in shadow::REGISTRY {
             if !techniques.is_empty() && !techniques.iter().any(|t| t == entry.name) {
                 continue;
             }
-            let folder = dir.join(scene_name);
+            let folder = dir.join(&scene_name);
             out.push(Baseline {
-                scene: (*scene_name).to_owned(),
+                scene: scene_name.clone(),
+                source: source.clone(),
+                select_args: select_args.clone(),
                 technique: entry.name.to_owned(),
                 png: folder.join(format!("{}.png", entry.name)),
                 blocks: folder.join(format!("{}.blocks.exr", entry.name)),
@@ -114,7 +142,7 @@ struct Rendered {
 
 /// Renders a baseline's configuration: the tone-mapped frame and the HDR frame's block means.
 fn render(gpu: &Gpu, baseline: &Baseline) -> anyhow::Result<Rendered> {
-    let scene = Scene::embedded(&baseline.scene).expect("selected scenes are embedded");
+    let scene = baseline.source.clone();
     let particles = crate::particles::scene_particles(&scene)?;
     let config = config(&baseline.technique, &scene);
     let frame = render_offscreen(gpu, &scene, &particles, &config, &RenderOptions::default())?;
@@ -224,14 +252,14 @@ fn check_one(
     row: &mut CheckRow,
 ) -> anyhow::Result<Option<String>> {
     let bless_hint = format!(
-        "run `smokeshadow baseline --bless --scene {} --technique {}` if the change is intended",
-        b.scene, b.technique
+        "run `smokeshadow baseline --bless {} --technique {}` if the change is intended",
+        b.select_args, b.technique
     );
     if !b.png.is_file() || !b.blocks.is_file() || !b.sidecar.is_file() {
         return Ok(Some(format!(
-            "missing baseline {} (or its .blocks.exr or .json); create it with `smokeshadow baseline --bless --scene {} --technique {}`",
+            "missing baseline {} (or its .blocks.exr or .json); create it with `smokeshadow baseline --bless {} --technique {}`",
             b.png.display(),
-            b.scene,
+            b.select_args,
             b.technique
         )));
     }

@@ -17,7 +17,9 @@ pub struct BaselineArgs {
     /// Render the selected baselines and (over)write them and their .json sidecars.
     #[arg(long)]
     pub bless: bool,
-    /// Only this embedded scene (repeatable; default: all).
+    /// Only this scene (repeatable; default: the committed scenes). Besides the committed
+    /// scenes, your own: a scene file, an embedded scene's name or a particle file, whose
+    /// baselines go to `--dir`/<its name>/ (bless them first).
     #[arg(long = "scene")]
     pub scenes: Vec<String>,
     /// Only this technique (repeatable; default: all).
