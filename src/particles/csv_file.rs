@@ -11,10 +11,7 @@ const ELEMENT: &str = "row";
 
 /// Reads the particles of a CSV file with a header row.
 pub(super) fn read(path: &Path, defaults: &Defaults) -> Result<Vec<Particle>, ParticleFileError> {
-    let bytes = std::fs::read(path).map_err(|cause| ParticleFileError::Read {
-        path: path.to_owned(),
-        cause,
-    })?;
+    let bytes = super::read_bytes(path)?;
     let bad = |message: String| ParticleFileError::invalid(path, message);
     if bytes.iter().all(u8::is_ascii_whitespace) {
         return Err(bad("the file is empty (no header row)".to_owned()));

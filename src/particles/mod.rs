@@ -274,6 +274,14 @@ pub(crate) fn finish(
     Ok(particles)
 }
 
+/// A particle file's bytes, or the error that names it.
+fn read_bytes(path: &Path) -> Result<Vec<u8>, ParticleFileError> {
+    std::fs::read(path).map_err(|cause| ParticleFileError::Read {
+        path: path.to_owned(),
+        cause,
+    })
+}
+
 /// Reads a particle file (its format from its extension; a `.ply` may be binary or ASCII).
 pub fn read(path: &Path, defaults: &Defaults) -> Result<Vec<Particle>, ParticleFileError> {
     match Format::of_path(path) {

@@ -144,10 +144,7 @@ fn check_binary_length(
 
 /// Reads the particles of a PLY file (ASCII or binary).
 pub(super) fn read(path: &Path, defaults: &Defaults) -> Result<Vec<Particle>, ParticleFileError> {
-    let bytes = std::fs::read(path).map_err(|cause| ParticleFileError::Read {
-        path: path.to_owned(),
-        cause,
-    })?;
+    let bytes = super::read_bytes(path)?;
     let bad = |message: String| ParticleFileError::invalid(path, message);
     if bytes.is_empty() {
         return Err(bad("the file is empty (not a PLY file)".to_owned()));
