@@ -248,6 +248,18 @@ fn bad_sweep_input_gets_one_line() {
             vec!["sweep", "--merge", "/nonexistent/shards", "-o", "/tmp/x"],
             "no such folder",
         ),
+        (
+            vec![
+                "sweep",
+                "--merge",
+                "/tmp/shards",
+                "--frames",
+                "3",
+                "-o",
+                "/tmp/x",
+            ],
+            "cannot be used with",
+        ),
     ] {
         let out = run(&args);
         assert_eq!(out.status.code(), Some(2), "{args:?}");
@@ -604,6 +616,11 @@ fn three_concurrent_shards_in_one_folder_merge_to_the_one_process_tables() {
     .output()
     .unwrap();
     ok(&out);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        !stdout.contains("note:"),
+        "one machine, one exact: {stdout}"
+    );
     same_tables_as_one_process(&merged);
     links_resolve(&merged);
     links_resolve(&merged.join("thesis_wind"));
@@ -618,6 +635,39 @@ fn three_concurrent_shards_in_one_folder_merge_to_the_one_process_tables() {
             assert!((ratio - frame / none).abs() < 1e-9, "{cell}");
         }
     }
+
+    // A cell compared with another exact image (as a shard on another CPU would be) is
+    // merged, with a note saying so.
+    let cells = merged.join("thesis_wind/cells");
+    let first = std::fs::read_dir(&cells)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .find(|p| {
+            std::fs::read_to_string(p)
+                .unwrap()
+                .contains("exact_image_sha256")
+        })
+        .unwrap();
+    let mut cell: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&first).unwrap()).unwrap();
+    cell["measured_against"]["exact_image_sha256"] = serde_json::json!("0".repeat(64));
+    std::fs::write(&first, serde_json::to_string(&cell).unwrap()).unwrap();
+    let remerged = scratch("sweep-shards-remerged");
+    let out = smokeshadow(&[
+        "sweep",
+        "--merge",
+        merged.to_str().unwrap(),
+        "-o",
+        remerged.to_str().unwrap(),
+    ])
+    .output()
+    .unwrap();
+    ok(&out);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        stdout.contains("note: thesis_wind's cells were compared with 2 different exact images"),
+        "{stdout}"
+    );
 
     // `--resume` without `--shard` over the shared folder re-measures nothing and writes the
     // whole report.

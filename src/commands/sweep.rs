@@ -29,7 +29,9 @@ pub struct SweepArgs {
     /// Assemble the tables, charts and reports from the cells of these shard folders into
     /// `-o` (no GPU needed); refuses shards of different sweeps, and names missing cells.
     #[arg(long, num_args = 1.., value_name = "DIR",
-          conflicts_with_all = ["scene", "scenes", "shard", "resume", "exr"])]
+          conflicts_with_all = ["scene", "scenes", "shard", "resume", "exr", "techniques",
+                                "channels", "shadow_res", "splat", "params", "frames",
+                                "warmup", "cell_seconds", "size", "particles"])]
     pub merge: Option<Vec<PathBuf>>,
     #[command(flatten)]
     pub particles: super::ParticlesArg,
@@ -81,6 +83,11 @@ pub fn run(args: &SweepArgs, adapter: &AdapterPreference) -> anyhow::Result<()> 
         // No GPU: merging reads cells.
         let outcome = sweep::merge(dirs, &args.output)?;
         print_outcome(&outcome, &args.output, "merged");
+        if let SweepOutcome::Whole { scenes, .. } = &outcome {
+            for note in exact_notes(scenes) {
+                println!("{note}");
+            }
+        }
         return Ok(());
     }
     let names: Vec<PathBuf> = match &args.scenes {
@@ -149,6 +156,35 @@ fn prepare(args: &SweepArgs, scene: Option<&Path>) -> anyhow::Result<Scene> {
 
 /// Prints what a sweep produced: a shard's one line, or every scene's table and, for a
 /// gallery, ending with the aggregate ranking.
+/// For merged shards: a note per scene whose cells were compared with different `exact`
+/// images (shards on machines whose lavapipe rounds differently): each cell's errors are
+/// against its own machine's reference, which the report's numbers should be read with.
+fn exact_notes(scenes: &[SweepResults]) -> Vec<String> {
+    scenes
+        .iter()
+        .filter_map(|r| {
+            let mut seen: Vec<(&str, &str)> = Vec::new();
+            for c in &r.cells {
+                if let Some(m) = &c.measured_against {
+                    let key = (m.exact_image_sha256.as_str(), m.machine.adapter.as_str());
+                    if !seen.iter().any(|(h, _)| *h == key.0) {
+                        seen.push(key);
+                    }
+                }
+            }
+            (seen.len() > 1).then(|| {
+                let adapters: Vec<&str> = seen.iter().map(|(_, a)| *a).collect();
+                format!(
+                    "note: {}'s cells were compared with {} different exact images (adapters: {}); each cell's errors are against the exact its own shard rendered",
+                    r.metadata.scene,
+                    seen.len(),
+                    adapters.join(", ")
+                )
+            })
+        })
+        .collect()
+}
+
 fn print_outcome(outcome: &SweepOutcome, dir: &Path, machine: &str) {
     match outcome {
         SweepOutcome::Shard(m) => {
