@@ -374,3 +374,26 @@ fn scaling_several_emitters_keeps_their_shares_and_the_total() {
         assert_eq!(s.density_per_m, e.density_per_m);
     }
 }
+
+#[test]
+fn a_scene_says_what_it_is_from_its_description_or_its_embedded_header() {
+    let thesis = Scene::thesis_plume();
+    assert!(
+        thesis.description.is_empty(),
+        "the baselines' hash needs it empty"
+    );
+    assert!(
+        thesis.summary().starts_with("The thesis experiment"),
+        "{}",
+        thesis.summary()
+    );
+    // Another output size is still the thesis smoke; another emitter is not.
+    let mut resized = thesis.clone();
+    resized.output.width_px = 160;
+    assert_eq!(resized.summary(), thesis.summary());
+    let mut other = thesis.clone();
+    other.emitters[0].seed += 1;
+    assert_eq!(other.summary(), "");
+    other.description = "My smoke.".into();
+    assert_eq!(other.summary(), "My smoke.");
+}

@@ -536,8 +536,14 @@ fn scenes_sweep_writes_each_scene_and_a_gallery_whose_ranking_follows_from_its_c
             .find(|e| e.0 == scene && e.1 == 8 && e.3 == 1)
             .unwrap()
             .2;
+        // Each scene is said in its own words (the thesis scenes: their header's sentence).
+        let summary = smokeshadow::scene::Scene::embedded(scene)
+            .unwrap()
+            .summary();
+        let like = format!("{scene} ({})", summary.trim_end_matches('.'));
+        assert!(!summary.is_empty(), "{scene}");
         assert!(
-            html.contains(&format!("For smoke like {scene}: at 24 channels"))
+            html.contains(&format!("For smoke like {like}: at 24 channels"))
                 && html.contains(&format!("at 8 channels {winner} is the most accurate")),
             "{scene}: {html}"
         );

@@ -645,6 +645,27 @@ impl Scene {
         })
     }
 
+    /// What the scene is, in a sentence: its `description`, or for an embedded scene that has
+    /// none (the thesis scenes keep theirs empty, so their baselines' hash stays) and whose smoke,
+    /// camera and light are the embedded scene's, the first sentence of its header comment
+    /// ([`embedded_summary`]); empty otherwise.
+    pub fn summary(&self) -> String {
+        if !self.description.is_empty() {
+            return self.description.clone();
+        }
+        match Self::embedded(&self.name) {
+            Some(e)
+                if e.emitters == self.emitters
+                    && e.particles == self.particles
+                    && e.camera == self.camera
+                    && e.light == self.light =>
+            {
+                embedded_summary(&self.name).unwrap_or_default()
+            }
+            _ => String::new(),
+        }
+    }
+
     /// SHA-256 of the scene as the tool reads it (its canonical TOML, so comments and
     /// formatting do not count), hex-encoded: names what a baseline was rendered from.
     pub fn content_hash(&self) -> String {

@@ -624,7 +624,7 @@ impl ScenePlan<'_> {
         let s = self.scene;
         PlannedScene {
             name: s.name.clone(),
-            description: s.description.clone(),
+            description: s.summary(),
             folder: self.folder.clone(),
             scene_sha256: s.content_hash(),
             seed: s.emitters.first().map_or(0, |e| e.seed),
