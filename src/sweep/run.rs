@@ -218,11 +218,13 @@ fn first_budget(entry: &shadow::TechniqueEntry, budgets: &[u32]) -> Option<u32> 
 }
 
 /// What a cell's measurement depends on, as a string (`--resume` reuses a cell only when equal).
-fn settings_key(scene: &Scene, options: &SweepOptions, plan: &Plan) -> String {
+/// `scene_sha256` is the scene's [`Scene::content_hash`], computed once per scene (for a particle
+/// file it reads and hashes the file).
+fn settings_key(scene: &Scene, scene_sha256: &str, options: &SweepOptions, plan: &Plan) -> String {
     format!(
         "tool={} scene={} size={}x{} frames={} warmup={} cell_seconds={} exact=closed-form technique={} params={}",
         env!("CARGO_PKG_VERSION"),
-        scene.content_hash(),
+        scene_sha256,
         scene.output.width_px,
         scene.output.height_px,
         options.frames,
@@ -616,6 +618,8 @@ struct ScenePlan<'a> {
     skipped: Vec<SkippedCell>,
     /// Settings key by cell name.
     keys: BTreeMap<String, String>,
+    /// [`Scene::content_hash`], computed once.
+    scene_sha256: String,
 }
 
 impl ScenePlan<'_> {
@@ -626,7 +630,7 @@ impl ScenePlan<'_> {
             name: s.name.clone(),
             description: s.summary(),
             folder: self.folder.clone(),
-            scene_sha256: s.content_hash(),
+            scene_sha256: self.scene_sha256.clone(),
             seed: s.emitters.first().map_or(0, |e| e.seed),
             particles: crate::particles::count(s) as u32,
             width_px: s.output.width_px,
@@ -671,9 +675,15 @@ fn plan_scenes<'a>(
             }
         }
         let (plans, skipped) = plan(scene, options)?;
+        let scene_sha256 = scene.content_hash();
         let keys = plans
             .iter()
-            .map(|p| (p.name.clone(), settings_key(scene, options, p)))
+            .map(|p| {
+                (
+                    p.name.clone(),
+                    settings_key(scene, &scene_sha256, options, p),
+                )
+            })
             .collect();
         let n = plans.len();
         out.push(ScenePlan {
@@ -687,6 +697,7 @@ fn plan_scenes<'a>(
             plans,
             skipped,
             keys,
+            scene_sha256,
         });
         first_index += n;
     }
