@@ -315,12 +315,11 @@ impl Controller {
         let time_s = scene.sim.duration_s;
         let mut sim = Simulation::new(&scene);
         sim.advance_to(time_s);
-        let (particles, read_from, scene_error) = match &scene.particles {
-            Some(source) => match source.particles_at(time_s) {
-                Ok(ps) => (ps, Some(source.path_at(time_s)), None),
-                Err(err) => (Vec::new(), None, Some(err.to_string())),
-            },
-            None => (sim.particles(), None, None),
+        // A particle file's frame is read by the first update (`update_particles`), as every
+        // later one.
+        let particles = match &scene.particles {
+            Some(_) => Vec::new(),
+            None => sim.particles(),
         };
         let particle_summary = crate::particles::Summary::of(&particles);
         let particles = Arc::new(particles);
@@ -356,7 +355,7 @@ impl Controller {
             gpu,
             sim,
             particles,
-            read_from,
+            read_from: None,
             particle_summary,
             views: [None, None],
             worker_views: Default::default(),
@@ -372,7 +371,7 @@ impl Controller {
             next_request: 0,
             probe: None,
             technique_error: None,
-            scene_error,
+            scene_error: None,
             status: String::new(),
             frames_rendered: 0,
             last_render: None,
