@@ -19,14 +19,18 @@ use smokeshadow::sim::{Particle, simulate};
 /// The gallery scenes these tests simulate: all but `plume_65k`, whose 65,536 particles take
 /// most of a minute to simulate in a debug build; it is the thesis plume from more particles,
 /// which `tests/scenes.rs` and `tests/scaling.rs` check.
-const SIMULATED: &[&str] = &[
-    "thesis_plume",
-    "two_plumes",
-    "outlier",
-    "thin_sheet",
-    "column",
-    "ground_fog",
-];
+fn simulated_names() -> impl Iterator<Item = &'static str> {
+    GALLERY.iter().copied().filter(|n| *n != "plume_65k")
+}
+
+/// `scene` at the size the failure-mode tests probe it: 160x120, a 256² shadow map.
+fn probe_size(scene: &Scene) -> Scene {
+    let mut scene = scene.clone();
+    scene.output.width_px = 160;
+    scene.output.height_px = 120;
+    scene.shadow.resolution_px = 256;
+    scene
+}
 
 /// A gallery scene and its particles at the scene's time.
 struct Simulated {
@@ -45,12 +49,11 @@ impl Simulated {
     }
 }
 
-/// Each scene of [`SIMULATED`] simulated once for all the tests of this file.
+/// Each scene of [`simulated_names`] simulated once for all the tests of this file.
 fn simulated(name: &str) -> &'static Simulated {
     static ALL: OnceLock<Vec<Simulated>> = OnceLock::new();
     let all = ALL.get_or_init(|| {
-        SIMULATED
-            .iter()
+        simulated_names()
             .map(|name| {
                 let scene = Scene::embedded(name).unwrap();
                 let particles = simulate(&scene);
@@ -60,7 +63,7 @@ fn simulated(name: &str) -> &'static Simulated {
             })
             .collect()
     });
-    &all[SIMULATED.iter().position(|n| *n == name).unwrap()]
+    &all[simulated_names().position(|n| n == name).unwrap()]
 }
 
 /// The `q` quantile (0..=1) of `values`.
@@ -287,7 +290,7 @@ fn gallery_scenes_render_smoke_where_their_particles_are() {
     const W: u32 = 160;
     const H: u32 = 120;
     let gpu = gpu();
-    for name in SIMULATED {
+    for name in simulated_names() {
         let s = simulated(name);
         let mut scene = s.scene.clone();
         scene.output.width_px = W;
@@ -414,10 +417,7 @@ fn the_stray_puff_makes_osm_worse_on_the_plume() {
     // another CPU's rounding and keep the direction.
     let gpu = gpu();
     let s = simulated("outlier");
-    let mut scene = s.scene.clone();
-    scene.output.width_px = 160;
-    scene.output.height_px = 120;
-    scene.shadow.resolution_px = 256;
+    let scene = probe_size(&s.scene);
     let plume = s.emitter(0);
     let points = particle_lighting_points(scene.camera.position, plume);
     let mut without = scene.clone();
@@ -468,10 +468,7 @@ fn fom_rings_in_the_empty_gap_between_the_two_plumes() {
     // exact is f32 rounding; the others keep the order with a factor of 3 or more to spare.
     let gpu = gpu();
     let s = simulated("two_plumes");
-    let mut scene = s.scene.clone();
-    scene.output.width_px = 160;
-    scene.output.height_px = 120;
-    scene.shadow.resolution_px = 256;
+    let scene = probe_size(&s.scene);
     let light = scene.light.position;
     let (_, near_end) = light_distance_range(light, s.emitter(0));
     let (far_start, _) = light_distance_range(light, s.emitter(1));

@@ -12,31 +12,27 @@ fn scratch(name: &str) -> PathBuf {
     dir
 }
 
-/// The tiny sweep: 2 techniques x 2 budgets x 1 resolution, `frames` timed frames.
+/// The tiny sweep's settings: 2 techniques x 2 budgets x 1 resolution, one warm-up frame.
+const TINY: &[&str] = &[
+    "--size",
+    "160x120",
+    "--techniques",
+    "osm,fom",
+    "--channels",
+    "24,8",
+    "--shadow-res",
+    "128",
+    "--warmup",
+    "1",
+];
+
+/// The tiny sweep into `dir` with `frames` timed frames.
 fn tiny_sweep_frames(dir: &Path, frames: &str, extra: &[&str]) -> Output {
-    let mut args = vec![
-        "sweep",
-        "--size",
-        "160x120",
-        "--techniques",
-        "osm,fom",
-        "--channels",
-        "24,8",
-        "--shadow-res",
-        "128",
-        "--frames",
-        frames,
-        "--warmup",
-        "1",
-        "-o",
-        dir.to_str().unwrap(),
-    ];
+    let mut args = vec!["sweep"];
+    args.extend_from_slice(TINY);
+    args.extend_from_slice(&["--frames", frames, "-o", dir.to_str().unwrap()]);
     args.extend_from_slice(extra);
-    Command::new(env!("CARGO_BIN_EXE_smokeshadow"))
-        .args(&args)
-        .env("SMOKESHADOW_ADAPTER", "cpu")
-        .output()
-        .unwrap()
+    smokeshadow(&args).output().unwrap()
 }
 
 fn tiny_sweep(dir: &Path, extra: &[&str]) -> Output {
@@ -343,22 +339,11 @@ fn exr_writes_every_cells_hdr_frame_and_the_report_links_them() {
 
 /// The two-scene sweep the gallery and shard tests share: the tiny sweep over `thesis_plume`
 /// and `thesis_wind`.
-const TWO_SCENES: &[&str] = &[
-    "--scenes",
-    "thesis_plume,thesis_wind",
-    "--size",
-    "160x120",
-    "--techniques",
-    "osm,fom",
-    "--channels",
-    "24,8",
-    "--shadow-res",
-    "128",
-    "--frames",
-    "2",
-    "--warmup",
-    "1",
-];
+fn two_scene_args() -> Vec<&'static str> {
+    let mut args = vec!["--scenes", "thesis_plume,thesis_wind", "--frames", "2"];
+    args.extend_from_slice(TINY);
+    args
+}
 
 fn smokeshadow(args: &[&str]) -> Command {
     let mut command = Command::new(env!("CARGO_BIN_EXE_smokeshadow"));
@@ -369,7 +354,7 @@ fn smokeshadow(args: &[&str]) -> Command {
 /// `sweep` with the two-scene settings and `extra`.
 fn two_scenes(extra: &[&str]) -> Command {
     let mut args = vec!["sweep"];
-    args.extend_from_slice(TWO_SCENES);
+    args.extend(two_scene_args());
     args.extend_from_slice(extra);
     smokeshadow(&args)
 }
@@ -834,7 +819,7 @@ fn run_recipe(cwd: &Path, path: &str, script: &str) {
         .args(["-euo", "pipefail", "-c", script])
         .current_dir(cwd)
         .env("PATH", path)
-        .env("SWEEP_ARGS", TWO_SCENES.join(" "))
+        .env("SWEEP_ARGS", two_scene_args().join(" "))
         .env("SMOKESHADOW_ADAPTER", "cpu")
         .output()
         .unwrap();
