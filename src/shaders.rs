@@ -16,6 +16,11 @@ pub const FILES: &[(&str, &str)] = include!(concat!(env!("OUT_DIR"), "/shader_fi
 /// Name of the virtual import that stands for the active shadow technique's lookup shader.
 pub const SHADOW_TECHNIQUE: &str = "shadow_technique";
 
+/// Name of the virtual import that defines `occluder_visibility(p)`, the light's visibility
+/// through the opaque geometry: the filtered depth map for every technique, the analytic test
+/// for the reference (`TechniqueEntry::frame_imports`).
+pub const OCCLUDERS: &str = "occluders";
+
 /// The embedded source of `path`.
 pub fn source(path: &str) -> Option<&'static str> {
     FILES.iter().find(|(p, _)| *p == path).map(|(_, s)| *s)
@@ -86,10 +91,14 @@ mod tests {
     fn imports_are_resolved_once() {
         let text = compose(
             "render/opaque.wgsl",
-            &[(SHADOW_TECHNIQUE, source("shadow/none.wgsl").unwrap())],
+            &[
+                (SHADOW_TECHNIQUE, source("shadow/none.wgsl").unwrap()),
+                (OCCLUDERS, source("common/occluders_map.wgsl").unwrap()),
+            ],
         );
         assert_eq!(text.matches("struct Frame {").count(), 1);
         assert!(!text.contains("#import"));
         assert!(text.contains("fn shadow_transmittance"));
+        assert!(text.contains("fn occluder_visibility"));
     }
 }

@@ -5,6 +5,10 @@ struct Frame {
     clip_from_world: mat4x4<f32>,
     world_from_clip: mat4x4<f32>,
     light_clip_from_world: mat4x4<f32>,
+    // The light's projection for rasterising the opaque occluders' depth map: the same view and
+    // field of view as `light_clip_from_world` (so the same map coordinates), with near and far
+    // planes around the opaque geometry instead of the smoke.
+    occluder_clip_from_world: mat4x4<f32>,
     // xyz: eye position (m); w: near clip distance (m).
     camera_pos: vec4<f32>,
     // xyz: unit view direction; w: far clip distance (m).
@@ -24,6 +28,11 @@ struct Frame {
     ambient: vec4<f32>,
     // rgb: background radiance; w: unused.
     background: vec4<f32>,
+    // The opaque occluders (common/occluders_*.wgsl): x: the depth map's far distance from the
+    // light (m), y: its inverse, z: the map's side (texels), w: the number of boxes.
+    occluders: vec4<f32>,
+    // x: ground height (m), y: half the ground square's side (m); zw: unused.
+    ground: vec4<f32>,
 };
 
 @group(0) @binding(0) var<uniform> frame: Frame;

@@ -1,7 +1,9 @@
 // Opaque pass: the ground and the boxes, lit by the spotlight and shadowed by the smoke through
-// the active technique's `shadow_transmittance`.
+// the active technique's `shadow_transmittance` and by the opaque geometry through
+// `occluder_visibility`.
 #import common/lighting.wgsl
 #import shadow_technique
+#import occluders
 
 struct VertexIn {
     @location(0) position: vec3<f32>,
@@ -36,7 +38,10 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     // Only where the spotlight reaches does the smoke's shadow matter: outside its cone (or on
     // faces turned away) the lookup is skipped, not multiplied by zero.
     if any(irradiance > vec3<f32>(0.0)) {
-        direct = irradiance * shadow_transmittance(in.world);
+        let visibility = occluder_visibility(in.world);
+        if visibility > 0.0 {
+            direct = irradiance * (visibility * shadow_transmittance(in.world));
+        }
     }
     let radiance = in.albedo * (direct / PI + frame.ambient.rgb);
     // Alpha 0: the HDR target's alpha channel accumulates smoke opacity only.

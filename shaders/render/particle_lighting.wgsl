@@ -7,6 +7,7 @@
 #import common/lighting.wgsl
 #import common/particle.wgsl
 #import shadow_technique
+#import occluders
 
 // Where the four lighting points sit, as a fraction of the radius along the billboard's axes.
 const SHADE_OFFSET: f32 = 0.5;
@@ -36,7 +37,9 @@ fn scattered_radiance(p: vec3<f32>, eye: vec3<f32>, albedo: vec3<f32>) -> vec3<f
     let light_dir = normalize(p - frame.light_pos.xyz);
     let view_dir = normalize(p - eye);
     let phase = hg_phase_4pi(dot(light_dir, -view_dir), frame.light_radiance.w);
-    let direct = spot_irradiance(p) * shadow_transmittance(p) * phase;
+    // The opaque geometry's shadow times the smoke's: every technique's T(p) is multiplied by
+    // the same occluder visibility (only `exact` computes it exactly).
+    let direct = spot_irradiance(p) * (occluder_visibility(p) * shadow_transmittance(p)) * phase;
     // Normalised like a diffuse surface (E/π), so smoke and ground share one exposure: single
     // scattering alone would leave dense smoke far darker than the multiple scattering of real
     // smoke makes it look.

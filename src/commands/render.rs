@@ -141,7 +141,7 @@ pub fn run(args: &RenderArgs, adapter: &AdapterPreference) -> anyhow::Result<()>
     }
     let t = renderer.technique();
     println!(
-        "wrote {} ({w}x{h}, {} particles {} in {sim_ms:.0} ms, technique {} with {} channels, {} bytes of shadow memory{}, {} billboards)",
+        "wrote {} ({w}x{h}, {} particles {} in {sim_ms:.0} ms, technique {} with {} channels, {} bytes of shadow memory{} + {} of the occluders' {}² depth map, {} billboards)",
         args.output.display(),
         particles.len(),
         match &scene.particles {
@@ -155,6 +155,8 @@ pub fn run(args: &RenderArgs, adapter: &AdapterPreference) -> anyhow::Result<()>
         t.channels_used(),
         t.memory().total_bytes(),
         transient_note(t.memory()),
+        renderer.occluder_memory().total_bytes(),
+        scene.shadow.occluder_resolution_px,
         if options.spherical {
             "spherical"
         } else {

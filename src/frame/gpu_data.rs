@@ -9,6 +9,9 @@ pub struct FrameUniforms {
     pub clip_from_world: [[f32; 4]; 4],
     pub world_from_clip: [[f32; 4]; 4],
     pub light_clip_from_world: [[f32; 4]; 4],
+    /// The light's projection for rasterising the occluders' depth map (same view and field of
+    /// view as `light_clip_from_world`, near/far around the opaque geometry).
+    pub occluder_clip_from_world: [[f32; 4]; 4],
     /// xyz eye position, w near clip (m).
     pub camera_pos: [f32; 4],
     /// xyz unit view direction, w far clip (m).
@@ -27,6 +30,19 @@ pub struct FrameUniforms {
     pub ambient: [f32; 4],
     /// rgb background.
     pub background: [f32; 4],
+    /// The occluders' depth map: far distance (m), 1 / far, side (texels), number of boxes.
+    pub occluders: [f32; 4],
+    /// Ground height (m), half the ground's side (m), unused x2.
+    pub ground: [f32; 4],
+}
+
+/// One box of the opaque geometry for the analytic occluder test (`common/occluders_exact.wgsl`):
+/// its corners, world metres (w unused).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct OccluderBox {
+    pub min: [f32; 4],
+    pub max: [f32; 4],
 }
 
 /// Vertices drawn per billboard (a quad as two triangles). Keep in sync with `BILLBOARD_VERTICES` in
@@ -78,25 +94,36 @@ impl OpaqueVertex {
 
 /// The WGSL structs mirrored here (vertex inputs are laid out by their buffer layouts instead).
 pub fn layouts() -> Vec<crate::gpu::MirrorLayout> {
-    vec![crate::mirror_layout!(
-        FrameUniforms,
-        "common/frame.wgsl",
-        "Frame",
-        [
-            clip_from_world,
-            world_from_clip,
-            light_clip_from_world,
-            camera_pos,
-            camera_forward,
-            viewport,
-            light_pos,
-            light_dir,
-            light_radiance,
-            light_depth,
-            ambient,
-            background,
-        ]
-    )]
+    vec![
+        crate::mirror_layout!(
+            FrameUniforms,
+            "common/frame.wgsl",
+            "Frame",
+            [
+                clip_from_world,
+                world_from_clip,
+                light_clip_from_world,
+                occluder_clip_from_world,
+                camera_pos,
+                camera_forward,
+                viewport,
+                light_pos,
+                light_dir,
+                light_radiance,
+                light_depth,
+                ambient,
+                background,
+                occluders,
+                ground,
+            ]
+        ),
+        crate::mirror_layout!(
+            OccluderBox,
+            "common/occluders_exact.wgsl",
+            "OccluderBox",
+            [min, max]
+        ),
+    ]
 }
 
 #[cfg(test)]
@@ -105,8 +132,8 @@ mod tests {
 
     #[test]
     fn sizes_match_the_wgsl_layouts() {
-        // 3 mat4x4 + 9 vec4.
-        assert_eq!(std::mem::size_of::<FrameUniforms>(), 3 * 64 + 9 * 16);
+        // 4 mat4x4 + 11 vec4.
+        assert_eq!(std::mem::size_of::<FrameUniforms>(), 4 * 64 + 11 * 16);
         assert_eq!(std::mem::size_of::<ParticleInstance>(), 32);
         assert_eq!(std::mem::size_of::<OpaqueVertex>(), 36);
     }

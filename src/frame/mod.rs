@@ -8,6 +8,7 @@ pub mod camera;
 pub mod fullscreen;
 pub mod geometry;
 pub mod gpu_data;
+pub mod occluders;
 pub mod particles;
 
 pub use camera::CameraMatrices;

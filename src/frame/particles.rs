@@ -113,19 +113,20 @@ pub struct ParticleLighting {
 }
 
 impl ParticleLighting {
-    /// `lookup_source`: the technique's lookup shader (group 1, `shadow_transmittance`).
+    /// `imports`: the technique's lookup shader (group 1, `shadow_transmittance`) and the
+    /// occluders' visibility, as `TechniqueEntry::frame_imports` gives them.
     pub fn new(
         device: &wgpu::Device,
         name: &str,
         frame_layout: &wgpu::BindGroupLayout,
         lookup_layout: &wgpu::BindGroupLayout,
-        lookup_source: &str,
+        imports: &[(&str, &str)],
         layouts: &ParticleLayouts,
     ) -> Self {
         let module = shaders::module(
             device,
             &format!("particle_lighting[{name}]"),
-            &lighting_source(lookup_source),
+            &lighting_source(imports),
         );
         let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("particle_lighting.pipeline_layout"),
@@ -269,12 +270,10 @@ impl LightBuffers {
     }
 }
 
-/// The composed lighting shader for a technique's lookup.
-pub fn lighting_source(lookup_source: &str) -> String {
-    shaders::compose(
-        "render/particle_lighting.wgsl",
-        &[(shaders::SHADOW_TECHNIQUE, lookup_source)],
-    )
+/// The composed lighting shader for a technique's `imports` (its lookup and the occluders'
+/// visibility: `TechniqueEntry::frame_imports`).
+pub fn lighting_source(imports: &[(&str, &str)]) -> String {
+    shaders::compose("render/particle_lighting.wgsl", imports)
 }
 
 /// The particle pass's two pipelines (`shaders/render/particles.wgsl`): spherical billboards

@@ -28,6 +28,7 @@ use std::time::Instant;
 use glam::Vec3;
 use rayon::prelude::*;
 
+use crate::frame::occluders::{self, Occluders};
 use crate::gpu::{Gpu, GpuError, GpuTimer, PassTimes};
 use crate::scene::Scene;
 use crate::shaders;
@@ -97,6 +98,8 @@ pub struct Renderer {
     frame_layout: wgpu::BindGroupLayout,
     frame_buffer: wgpu::Buffer,
     frame_bind_group: wgpu::BindGroup,
+    /// The opaque geometry's depth map from the light (group 0's bindings 1-3).
+    occluders: Occluders,
     depth_layout: wgpu::BindGroupLayout,
     hdr_layout: wgpu::BindGroupLayout,
     tonemap_pipeline: wgpu::RenderPipeline,
@@ -132,18 +135,25 @@ impl Renderer {
         technique: &TechniqueConfig,
     ) -> Result<Self, ShadowError> {
         let device = &gpu.device;
+        // Group 0: the frame's uniforms, then the occluders' map, sampler and boxes.
+        let [map_entry, sampler_entry, boxes_entry] = occluders::frame_layout_entries();
         let frame_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("frame.layout"),
-            entries: &[wgpu::BindGroupLayoutEntry {
-                binding: 0,
-                visibility: wgpu::ShaderStages::VERTEX_FRAGMENT | wgpu::ShaderStages::COMPUTE,
-                ty: wgpu::BindingType::Buffer {
-                    ty: wgpu::BufferBindingType::Uniform,
-                    has_dynamic_offset: false,
-                    min_binding_size: None,
+            entries: &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::VERTEX_FRAGMENT | wgpu::ShaderStages::COMPUTE,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
                 },
-                count: None,
-            }],
+                map_entry,
+                sampler_entry,
+                boxes_entry,
+            ],
         });
         let frame_buffer = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("frame.uniforms"),
@@ -151,14 +161,12 @@ impl Renderer {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let frame_bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("frame.bind_group"),
-            layout: &frame_layout,
-            entries: &[wgpu::BindGroupEntry {
-                binding: 0,
-                resource: frame_buffer.as_entire_binding(),
-            }],
-        });
+        let occluders = Occluders::new(
+            gpu,
+            &frame_buffer,
+            crate::scene::DEFAULT_OCCLUDER_RESOLUTION_PX,
+        )?;
+        let frame_bind_group = frame_bind_group(device, &frame_layout, &frame_buffer, &occluders);
         let depth_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("particles.depth_layout"),
             entries: &[wgpu::BindGroupLayoutEntry {
@@ -241,6 +249,7 @@ impl Renderer {
             frame_layout,
             frame_buffer,
             frame_bind_group,
+            occluders,
             depth_layout,
             hdr_layout,
             tonemap_pipeline,
@@ -308,6 +317,11 @@ impl Renderer {
     /// The active technique.
     pub fn technique(&self) -> &dyn ShadowTechnique {
         self.technique.as_ref()
+    }
+
+    /// What the opaque occluders' depth map and boxes occupy, apart from the technique's bytes.
+    pub fn occluder_memory(&self) -> &crate::gpu::MemoryLedger {
+        self.occluders.memory()
     }
 
     /// The HDR frame of the last render (premultiplied radiance, alpha = smoke opacity).
@@ -517,6 +531,14 @@ impl Renderer {
     ) -> Result<(wgpu::CommandEncoder, FrameStats, CameraMatrices), ShadowError> {
         let (width, height) = self.size();
         self.upload_opaque(gpu, scene);
+        if self.occluders.prepare(gpu, scene)? {
+            self.frame_bind_group = frame_bind_group(
+                &gpu.device,
+                &self.frame_layout,
+                &self.frame_buffer,
+                &self.occluders,
+            );
+        }
 
         let camera = CameraMatrices::new(scene, width, height);
         let light = LightSpace::fit(&scene.light, particles);
@@ -546,6 +568,12 @@ impl Renderer {
                 label: Some("frame.encoder"),
             });
         self.timer.begin_frame(&mut encoder);
+        self.occluders.record(
+            &mut encoder,
+            &mut self.timer,
+            &self.opaque_vertices,
+            self.opaque_vertex_count,
+        );
         // Hashing every particle costs milliseconds at a million: only frames that may reuse
         // the maps pay for it (a frame that does not leaves `built_from` unset).
         let build_key = reuse_shadow_maps
@@ -796,12 +824,11 @@ impl TechniquePipelines {
     ) -> Self {
         let name = technique.name();
         let entry = shadow::find(name).expect("a live technique is registered");
-        let lookup =
-            shaders::source(entry.lookup_shader).expect("registered lookup shader is embedded");
+        let imports = entry.frame_imports();
         let opaque_module = shaders::module(
             device,
             &format!("opaque[{name}]"),
-            &shaders::compose("render/opaque.wgsl", &[(shaders::SHADOW_TECHNIQUE, lookup)]),
+            &shaders::compose("render/opaque.wgsl", &imports),
         );
         let tech_layout = technique.bind_group_layout();
         let opaque_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -844,7 +871,7 @@ impl TechniquePipelines {
             name,
             frame_layout,
             tech_layout,
-            lookup,
+            &imports,
             particle_layouts,
         );
         Self { opaque, lighting }
@@ -865,10 +892,13 @@ fn frame_uniforms(
     let axis = (l.target - l.position).normalize();
     let clip_from_world = camera.clip_from_world();
     let s = &scene.shading;
+    let (occluder_clip_from_world, occluder_far_m) =
+        occluders::clip_from_world(scene, light.view_from_world, light.tan_half_fov);
     FrameUniforms {
         clip_from_world: clip_from_world.to_cols_array_2d(),
         world_from_clip: clip_from_world.inverse().to_cols_array_2d(),
         light_clip_from_world: light.clip_from_world.to_cols_array_2d(),
+        occluder_clip_from_world: occluder_clip_from_world.to_cols_array_2d(),
         camera_pos: camera.position.extend(scene.camera.near_m).to_array(),
         camera_forward: camera.forward.extend(scene.camera.far_m).to_array(),
         viewport: [
@@ -888,7 +918,37 @@ fn frame_uniforms(
         ],
         ambient: s.ambient.extend(s.exposure).to_array(),
         background: s.background.extend(0.0).to_array(),
+        occluders: [
+            occluder_far_m,
+            1.0 / occluder_far_m,
+            scene.shadow.occluder_resolution_px as f32,
+            scene.boxes.len() as f32,
+        ],
+        ground: [scene.ground.height_m, 0.5 * scene.ground.size_m, 0.0, 0.0],
     }
+}
+
+/// Group 0: the frame's uniforms and the occluders' map, sampler and boxes.
+fn frame_bind_group(
+    device: &wgpu::Device,
+    layout: &wgpu::BindGroupLayout,
+    frame_buffer: &wgpu::Buffer,
+    occluders: &Occluders,
+) -> wgpu::BindGroup {
+    let [map, sampler, boxes] = occluders.frame_entries();
+    device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("frame.bind_group"),
+        layout,
+        entries: &[
+            wgpu::BindGroupEntry {
+                binding: 0,
+                resource: frame_buffer.as_entire_binding(),
+            },
+            map,
+            sampler,
+            boxes,
+        ],
+    })
 }
 
 /// An offscreen output texture the CLI and tests render into and read back.

@@ -432,12 +432,20 @@ pub struct SimClock {
     pub step_s: f32,
 }
 
+/// The opaque occluders' depth map side unless a scene says otherwise: 4 MiB, and at the
+/// thesis scene's framing about 1 cm per texel where the box stands.
+pub const DEFAULT_OCCLUDER_RESOLUTION_PX: u32 = 1024;
+
 /// Shadow-map settings shared by every technique.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ShadowSettings {
     /// Shadow-map resolution (square), pixels, 1..=8192. The thesis uses 512.
     pub resolution_px: u32,
+    /// Resolution (square, pixels, 16..=8192) of the depth map of the opaque geometry (ground
+    /// and boxes) seen from the light, whose filtered (PCF) visibility every technique's T is
+    /// multiplied by; its bytes are reported apart from the technique's. Default 1024.
+    pub occluder_resolution_px: u32,
     /// Where the layered techniques put a particle's optical depth along the light ray:
     /// `point` (the thesis, default) or `segment`.
     pub splat: SplatMode,
@@ -613,6 +621,7 @@ impl Default for ShadowSettings {
         let defaults = TechniqueParams::new(1, 512);
         Self {
             resolution_px: defaults.resolution_px,
+            occluder_resolution_px: DEFAULT_OCCLUDER_RESOLUTION_PX,
             splat: defaults.splat,
             params: BTreeMap::new(),
         }

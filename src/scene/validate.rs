@@ -246,6 +246,12 @@ pub(super) fn validate(scene: &Scene) -> Result<(), String> {
         1,
         max_px,
     );
+    c.int_range(
+        "shadow.occluder_resolution_px",
+        scene.shadow.occluder_resolution_px.into(),
+        16,
+        max_px,
+    );
     for (key, value) in &scene.shadow.params {
         // Which keys exist, their ranges and their choices are the techniques' registry's to
         // say; it checks them when a technique is created from these settings

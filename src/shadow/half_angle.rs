@@ -285,8 +285,6 @@ impl HalfAngle {
             &[LIGHT_FORMAT],
             ADDITIVE,
         );
-        let lookup_source =
-            shaders::source(ENTRY.lookup_shader).expect("registered lookup shader is embedded");
         let eye = |label, blend| {
             ParticlePipelines::new(
                 device,
@@ -303,7 +301,7 @@ impl HalfAngle {
             "has",
             ctx.frame_layout,
             &lookup_layout,
-            lookup_source,
+            &ENTRY.frame_imports(),
             ctx.particle_layouts,
         );
 

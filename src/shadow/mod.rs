@@ -417,6 +417,27 @@ pub struct TechniqueEntry {
     pub uses_budget: bool,
 }
 
+impl TechniqueEntry {
+    /// The virtual imports the lighting shaders are composed with for this technique: its
+    /// lookup (`shadow_transmittance`) and the occluders' visibility, read from the filtered
+    /// depth map, or for the reference tested exactly against the boxes and the ground
+    /// (`src/frame/occluders.rs`).
+    pub fn frame_imports(&self) -> [(&'static str, &'static str); 2] {
+        let lookup = crate::shaders::source(self.lookup_shader)
+            .expect("registered lookup shader is embedded");
+        let occluders = if self.role == Role::Reference {
+            "common/occluders_exact.wgsl"
+        } else {
+            "common/occluders_map.wgsl"
+        };
+        let occluders = crate::shaders::source(occluders).expect("occluder shaders are embedded");
+        [
+            (crate::shaders::SHADOW_TECHNIQUE, lookup),
+            (crate::shaders::OCCLUDERS, occluders),
+        ]
+    }
+}
+
 /// Every technique, in the order lists and reports show them.
 pub static REGISTRY: &[TechniqueEntry] = &[
     none::ENTRY,
@@ -595,22 +616,21 @@ pub fn create(
 
 /// Every WGSL module the renderer and the techniques compile, composed: (label, source).
 pub fn all_shader_modules() -> Vec<(String, String)> {
-    use crate::shaders::{SHADOW_TECHNIQUE, compose};
+    use crate::shaders::compose;
     let mut out: Vec<(String, String)> = [
         "render/tonemap.wgsl",
         "render/particles.wgsl",
         "render/map_view.wgsl",
+        "render/occluder_map.wgsl",
     ]
     .iter()
     .map(|f| ((*f).to_owned(), compose(f, &[])))
     .collect();
     for entry in REGISTRY {
-        let lookup = crate::shaders::source(entry.lookup_shader)
-            .expect("registered lookup shader is embedded");
         for frame_shader in ["render/opaque.wgsl", "render/particle_lighting.wgsl"] {
             out.push((
                 format!("{frame_shader}[{}]", entry.name),
-                compose(frame_shader, &[(SHADOW_TECHNIQUE, lookup)]),
+                compose(frame_shader, &entry.frame_imports()),
             ));
         }
         out.extend((entry.extra_shaders)());
