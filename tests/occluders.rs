@@ -248,7 +248,7 @@ fn the_occluder_map_is_its_own_memory_at_the_scene_resolution() {
             .unwrap();
         // A 32-bit depth per texel, and one box of two vec4s.
         assert_eq!(
-            renderer.occluder_memory().total_bytes(),
+            renderer.occluder_bytes(),
             side * side * 4 + 32,
             "occluder map at {side}²"
         );

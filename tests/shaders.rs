@@ -67,7 +67,7 @@ fn every_shader_file_is_embedded_and_composes() {
 /// naga's reflection of the WGSL struct: the same size, and every named field at the same offset.
 #[test]
 fn every_rust_mirror_matches_nagas_reflection_of_its_wgsl_struct() {
-    use smokeshadow::shaders::{SHADOW_TECHNIQUE, compose, source};
+    use smokeshadow::shaders::compose;
     use smokeshadow::shadow::{
         deep_capture, deep_nodes, exact, half_angle, layered, light_maps, volume,
     };
@@ -84,9 +84,10 @@ fn every_rust_mirror_matches_nagas_reflection_of_its_wgsl_struct() {
         smokeshadow::viewer::map_view::layouts(),
     ]
     .concat();
-    let none = source("shadow/none.wgsl").unwrap();
+    // `none`'s lookup and the occluders' map for the frame shaders' virtual imports.
+    let imports = smokeshadow::shadow::frame_baseline().frame_imports();
     for m in &mirrors {
-        let text = compose(m.wgsl_file, &[(SHADOW_TECHNIQUE, none)]);
+        let text = compose(m.wgsl_file, &imports);
         let module = naga::front::wgsl::parse_str(&text)
             .unwrap_or_else(|e| panic!("{}: {}", m.wgsl_file, e.emit_to_string(&text)));
         let (members, span) = module

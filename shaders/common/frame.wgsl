@@ -22,7 +22,8 @@ struct Frame {
     // rgb: colour x radiant intensity; w: Henyey-Greenstein g.
     light_radiance: vec4<f32>,
     // Radial distance from the light bounding the smoke this frame:
-    // x: near (m), y: far (m), z: 1 / (far - near), w: unused.
+    // x: near (m), y: far (m), z: 1 / (far - near), w: the cube face (0..6) of a point light's
+    // light space, or -1 for a spotlight's (common/lighting.wgsl: `in_light_face`).
     light_depth: vec4<f32>,
     // rgb: ambient radiance; w: exposure.
     ambient: vec4<f32>,

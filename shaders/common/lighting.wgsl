@@ -13,6 +13,31 @@ fn spot_irradiance(p: vec3<f32>) -> vec3<f32> {
     return frame.light_radiance.rgb * (cone / dist2);
 }
 
+// The cube face a direction from a point light falls in: its dominant axis (ties to x, then y),
+// 0..6 for +x, -x, +y, -y, +z, -z. Keep in sync with `cube_face` in src/shadow/light_space.rs.
+fn cube_face(d: vec3<f32>) -> u32 {
+    let a = abs(d);
+    if a.x >= a.y && a.x >= a.z {
+        return select(1u, 0u, d.x >= 0.0);
+    }
+    if a.y >= a.z {
+        return select(3u, 2u, d.y >= 0.0);
+    }
+    return select(5u, 4u, d.z >= 0.0);
+}
+
+// Whether this frame's light space lights `p`: always for a spotlight (light_depth.w < 0); for
+// a point light, whose maps are built on the six faces of a cube, whether `p` lies in the face
+// this pass's light space covers (light_depth.w). Passes that light points run once per face
+// and keep only their face's points.
+fn in_light_face(p: vec3<f32>) -> bool {
+    let face = frame.light_depth.w;
+    if face < 0.0 {
+        return true;
+    }
+    return f32(cube_face(p - frame.light_pos.xyz)) == face;
+}
+
 // Henyey-Greenstein phase function times 4π (so an isotropic medium gives 1), for the angle
 // between the light's propagation direction and the direction towards the eye.
 fn hg_phase_4pi(cos_theta: f32, g: f32) -> f32 {

@@ -30,6 +30,10 @@ fn vs_main(v: VertexIn) -> VertexOut {
 
 @fragment
 fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
+    // A point light draws the geometry once per cube face, each fragment in its own face's pass.
+    if !in_light_face(in.world) {
+        discard;
+    }
     let n = normalize(in.normal);
     let to_light = normalize(frame.light_pos.xyz - in.world);
     let lambert = max(dot(n, to_light), 0.0);

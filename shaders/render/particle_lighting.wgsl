@@ -62,11 +62,13 @@ fn light_particles(@builtin(global_invocation_id) id: vec3<u32>) {
     let albedo = particle.albedo_density.rgb;
     // A loop, not four calls: the technique's lookup is then compiled once, not inlined four
     // times (llvmpipe compiles this shader in up to seconds for the moment maps otherwise).
-    var out: ParticleLight;
+    // A point light's six faces each light the points in their own face (`in_light_face`).
     for (var k = 0u; k < 4u; k++) {
         let sx = select(-1.0, 1.0, (k & 1u) != 0u);
         let sy = select(-1.0, 1.0, (k & 2u) != 0u);
-        out.radiance[k] = vec4<f32>(scattered_radiance(center + sx * r + sy * u, eye, albedo), 0.0);
+        let p = center + sx * r + sy * u;
+        if in_light_face(p) {
+            lit_out[index].radiance[k] = vec4<f32>(scattered_radiance(p, eye, albedo), 0.0);
+        }
     }
-    lit_out[index] = out;
 }

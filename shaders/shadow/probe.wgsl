@@ -1,5 +1,6 @@
 // The transmittance probe: evaluates the active technique's `shadow_transmittance` (the same
-// function the lighting shaders call) at a list of world points.
+// function the lighting shaders call) at a list of world points: the smoke's T, without the
+// opaque occluders' visibility.
 #import common/lighting.wgsl
 #import shadow_technique
 
@@ -12,5 +13,9 @@ fn probe_main(@builtin(global_invocation_id) id: vec3<u32>) {
     if id.x >= arrayLength(&probe_results) {
         return;
     }
-    probe_results[id.x] = shadow_transmittance(probe_points[id.x].xyz);
+    // A point light's faces are probed in turn, each writing the points in its face.
+    let p = probe_points[id.x].xyz;
+    if in_light_face(p) {
+        probe_results[id.x] = shadow_transmittance(p);
+    }
 }

@@ -324,7 +324,7 @@ impl CellBench<'_> {
         let technique = self.renderer.technique();
         Ok(Measured {
             channels_used: technique.channels_used(),
-            bytes: technique.memory().total_bytes(),
+            bytes: self.renderer.shadow_bytes().0,
             counters: technique
                 .counters()
                 .into_iter()

@@ -26,6 +26,10 @@ pub struct RenderArgs {
     /// Draw flat billboards with a hard depth test instead of spherical billboards.
     #[arg(long)]
     pub no_spherical: bool,
+    /// The light's kind (default: the scene's `light.kind`): `point` lights every direction
+    /// from the light's position, every technique building its maps on six cube faces.
+    #[arg(long, value_enum)]
+    pub light: Option<crate::scene::LightKind>,
     /// Output PNG.
     #[arg(long, short = 'o', default_value = "smoke.png")]
     pub output: PathBuf,
@@ -50,6 +54,9 @@ pub fn run(args: &RenderArgs, adapter: &AdapterPreference) -> anyhow::Result<()>
     if let Some(size) = args.size {
         scene.output.width_px = size.width;
         scene.output.height_px = size.height;
+    }
+    if let Some(kind) = args.light {
+        scene.light.kind = kind;
     }
     let technique = args.technique.config(&scene)?;
     if args.output.is_dir() {
@@ -153,9 +160,9 @@ pub fn run(args: &RenderArgs, adapter: &AdapterPreference) -> anyhow::Result<()>
         },
         t.name(),
         t.channels_used(),
-        t.memory().total_bytes(),
-        transient_note(t.memory()),
-        renderer.occluder_memory().total_bytes(),
+        renderer.shadow_bytes().0,
+        transient_note(&renderer),
+        renderer.occluder_bytes(),
         scene.shadow.occluder_resolution_px,
         if options.spherical {
             "spherical"
@@ -171,11 +178,16 @@ pub fn run(args: &RenderArgs, adapter: &AdapterPreference) -> anyhow::Result<()>
     Ok(())
 }
 
-/// " (N of them transient)" when part of the bytes is build scratch the lookup never reads.
-fn transient_note(memory: &crate::gpu::MemoryLedger) -> String {
-    match memory.transient_bytes() {
-        0 => String::new(),
-        t => format!(" ({t} of them transient)"),
+/// " over the 6 faces of a cube" for a point light's maps, and " (N of them transient)" when
+/// part of the bytes is build scratch the lookup never reads.
+fn transient_note(renderer: &crate::render::Renderer) -> String {
+    let faces = match renderer.light_faces() {
+        1 => String::new(),
+        n => format!(" over the {n} faces of a cube"),
+    };
+    match renderer.shadow_bytes().1 {
+        0 => faces,
+        t => format!("{faces} ({t} of them transient)"),
     }
 }
 
@@ -222,8 +234,8 @@ fn bench(
         particles.len(),
         t.name(),
         t.channels_used(),
-        t.memory().total_bytes(),
-        transient_note(t.memory()),
+        renderer.shadow_bytes().0,
+        transient_note(&renderer),
     );
     if !gpu.has_timestamps() {
         println!("  GPU pass times: not available (the adapter has no timestamp queries)");

@@ -24,7 +24,8 @@ pub struct FrameUniforms {
     pub light_dir: [f32; 4],
     /// rgb colour x intensity, w Henyey-Greenstein g.
     pub light_radiance: [f32; 4],
-    /// near, far, 1/(far - near) of the smoke's radial distance from the light; w unused.
+    /// near, far, 1/(far - near) of the smoke's radial distance from the light; w the cube
+    /// face of a point light's light space, -1 for a spotlight.
     pub light_depth: [f32; 4],
     /// rgb ambient, w exposure.
     pub ambient: [f32; 4],

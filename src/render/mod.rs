@@ -30,7 +30,7 @@ use rayon::prelude::*;
 
 use crate::frame::occluders::{self, Occluders};
 use crate::gpu::{Gpu, GpuError, GpuTimer, PassTimes};
-use crate::scene::Scene;
+use crate::scene::{LightKind, Scene};
 use crate::shaders;
 use crate::shadow::probe::Probe;
 use crate::shadow::{
@@ -82,6 +82,43 @@ struct TechniquePipelines {
     lighting: ParticleLighting,
 }
 
+/// What one light space owns: its frame uniforms (the light's projection for this face) and
+/// group 0, the occluders' depth map seen through it, and the technique's maps built in it.
+struct LightFace {
+    frame_buffer: wgpu::Buffer,
+    frame_bind_group: wgpu::BindGroup,
+    occluders: Occluders,
+    technique: Box<dyn ShadowTechnique>,
+}
+
+impl LightFace {
+    fn new(
+        gpu: &Gpu,
+        frame_layout: &wgpu::BindGroupLayout,
+        technique: Box<dyn ShadowTechnique>,
+    ) -> Result<Self, ShadowError> {
+        let frame_buffer = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("frame.uniforms"),
+            size: std::mem::size_of::<FrameUniforms>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let occluders = Occluders::new(
+            gpu,
+            &frame_buffer,
+            crate::scene::DEFAULT_OCCLUDER_RESOLUTION_PX,
+        )?;
+        let frame_bind_group =
+            frame_bind_group(&gpu.device, frame_layout, &frame_buffer, &occluders);
+        Ok(Self {
+            frame_buffer,
+            frame_bind_group,
+            occluders,
+            technique,
+        })
+    }
+}
+
 /// Size-dependent targets.
 struct Targets {
     width: u32,
@@ -96,10 +133,9 @@ struct Targets {
 /// Everything needed to draw frames; see the module docs.
 pub struct Renderer {
     frame_layout: wgpu::BindGroupLayout,
-    frame_buffer: wgpu::Buffer,
-    frame_bind_group: wgpu::BindGroup,
-    /// The opaque geometry's depth map from the light (group 0's bindings 1-3).
-    occluders: Occluders,
+    /// One per light space: a spotlight's one, a point light's six cube faces. The camera's
+    /// passes bind the first one's group 0 (the camera half of every face's uniforms is the same).
+    faces: Vec<LightFace>,
     depth_layout: wgpu::BindGroupLayout,
     hdr_layout: wgpu::BindGroupLayout,
     tonemap_pipeline: wgpu::RenderPipeline,
@@ -115,7 +151,6 @@ pub struct Renderer {
     lights: LightBuffers,
     /// The particle pass's draw pipelines (independent of the technique).
     particle_pipelines: ParticlePipelines,
-    technique: Box<dyn ShadowTechnique>,
     technique_config: TechniqueConfig,
     pipelines: TechniquePipelines,
     timer: GpuTimer,
@@ -155,18 +190,6 @@ impl Renderer {
                 boxes_entry,
             ],
         });
-        let frame_buffer = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("frame.uniforms"),
-            size: std::mem::size_of::<FrameUniforms>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let occluders = Occluders::new(
-            gpu,
-            &frame_buffer,
-            crate::scene::DEFAULT_OCCLUDER_RESOLUTION_PX,
-        )?;
-        let frame_bind_group = frame_bind_group(device, &frame_layout, &frame_buffer, &occluders);
         let depth_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("particles.depth_layout"),
             entries: &[wgpu::BindGroupLayoutEntry {
@@ -220,6 +243,7 @@ impl Renderer {
             &particle_layouts,
             technique_impl.as_ref(),
         );
+        let faces = vec![LightFace::new(gpu, &frame_layout, technique_impl)?];
 
         let particle_capacity = 1024;
         let particles = particle_buffer(device, particle_capacity);
@@ -247,14 +271,11 @@ impl Renderer {
             particle_pipelines,
             instances: Vec::new(),
             frame_layout,
-            frame_buffer,
-            frame_bind_group,
-            occluders,
+            faces,
             depth_layout,
             hdr_layout,
             tonemap_pipeline,
             targets,
-            technique: technique_impl,
             technique_config: technique.clone(),
             pipelines,
             timer: GpuTimer::new(gpu),
@@ -272,7 +293,31 @@ impl Renderer {
         if *config == self.technique_config {
             return Ok(());
         }
-        let technique = shadow::create(
+        // Every face its own instance (its own maps), all built before any replaces the old.
+        let techniques = (0..self.faces.len())
+            .map(|_| self.create_technique(gpu, config))
+            .collect::<Result<Vec<_>, _>>()?;
+        self.pipelines = TechniquePipelines::new(
+            &gpu.device,
+            &self.frame_layout,
+            &self.particle_layouts,
+            techniques[0].as_ref(),
+        );
+        for (face, technique) in self.faces.iter_mut().zip(techniques) {
+            face.technique = technique;
+        }
+        self.technique_config = config.clone();
+        self.probe = None;
+        self.built_from = None;
+        Ok(())
+    }
+
+    fn create_technique(
+        &self,
+        gpu: &Gpu,
+        config: &TechniqueConfig,
+    ) -> Result<Box<dyn ShadowTechnique>, ShadowError> {
+        shadow::create(
             &TechniqueContext {
                 gpu,
                 frame_layout: &self.frame_layout,
@@ -281,17 +326,31 @@ impl Renderer {
             },
             &config.name,
             &config.params,
-        )?;
-        self.pipelines = TechniquePipelines::new(
-            &gpu.device,
-            &self.frame_layout,
-            &self.particle_layouts,
-            technique.as_ref(),
-        );
-        self.technique = technique;
-        self.technique_config = config.clone();
-        self.probe = None;
-        self.built_from = None;
+        )
+    }
+
+    /// Makes one light face per light space of `light` (a point light's six cube faces, a
+    /// spotlight's one), each with its own instance of the technique. A technique that draws
+    /// the particles itself slices them along the one direction of a spotlight, and refuses a
+    /// point light.
+    fn match_light(
+        &mut self,
+        gpu: &Gpu,
+        light: &crate::scene::Spotlight,
+    ) -> Result<(), ShadowError> {
+        let wanted = light.kind.faces();
+        if wanted > 1 && self.faces[0].technique.particle_pass().is_some() {
+            return Err(ShadowError::PointLightUnsupported {
+                technique: self.faces[0].technique.name(),
+            });
+        }
+        self.faces.truncate(wanted);
+        while self.faces.len() < wanted {
+            let technique = self.create_technique(gpu, &self.technique_config.clone())?;
+            self.faces
+                .push(LightFace::new(gpu, &self.frame_layout, technique)?);
+            self.built_from = None;
+        }
         Ok(())
     }
 
@@ -314,14 +373,42 @@ impl Renderer {
         Ok(())
     }
 
-    /// The active technique.
+    /// The active technique (a point light's first cube face's instance).
     pub fn technique(&self) -> &dyn ShadowTechnique {
-        self.technique.as_ref()
+        self.faces[0].technique.as_ref()
     }
 
-    /// What the opaque occluders' depth map and boxes occupy, apart from the technique's bytes.
-    pub fn occluder_memory(&self) -> &crate::gpu::MemoryLedger {
-        self.occluders.memory()
+    /// Light spaces the technique builds its maps in: 1 for a spotlight, 6 (cube faces) for a
+    /// point light.
+    pub fn light_faces(&self) -> usize {
+        self.faces.len()
+    }
+
+    /// Bytes the technique allocated in each light face (a point light's cube faces in
+    /// [`crate::shadow::light_space::cube_face`]'s order).
+    pub fn face_shadow_bytes(&self) -> Vec<u64> {
+        self.faces
+            .iter()
+            .map(|f| f.technique.memory().total_bytes())
+            .collect()
+    }
+
+    /// Bytes the technique allocated over every light face, and how many of them are transient
+    /// (build scratch the lookup never reads).
+    pub fn shadow_bytes(&self) -> (u64, u64) {
+        self.faces.iter().fold((0, 0), |(total, transient), f| {
+            let m = f.technique.memory();
+            (total + m.total_bytes(), transient + m.transient_bytes())
+        })
+    }
+
+    /// Bytes of the opaque occluders' depth maps and boxes over every light face, apart from
+    /// the technique's.
+    pub fn occluder_bytes(&self) -> u64 {
+        self.faces
+            .iter()
+            .map(|f| f.occluders.memory().total_bytes())
+            .sum()
     }
 
     /// The HDR frame of the last render (premultiplied radiance, alpha = smoke opacity).
@@ -380,8 +467,9 @@ impl Renderer {
         let (mut encoder, mut stats, camera) =
             self.begin_frame(gpu, scene, particles, options.reuse_shadow_maps)?;
         let particle_count = stats.particle_count;
-        if self.technique.particle_pass().is_none() {
-            // Each particle's lighting, once, with the technique's T (part of rendering them).
+        if self.faces[0].technique.particle_pass().is_none() {
+            // Each particle's lighting, once, with the technique's T (part of rendering them);
+            // a point light's faces each light the points in their face.
             let lighting = &self.pipelines.lighting;
             let everything = 0..particle_count;
             lighting.set_ranges(&gpu.queue, &self.lights, std::slice::from_ref(&everything));
@@ -389,14 +477,16 @@ impl Renderer {
                 label: Some("particles.lighting"),
                 timestamp_writes: self.timer.compute_pass("particles"),
             });
-            lighting.dispatch(
-                &mut pass,
-                &self.frame_bind_group,
-                self.technique.bind_group(),
-                &self.lights,
-                0,
-                particle_count,
-            );
+            for face in &self.faces {
+                lighting.dispatch(
+                    &mut pass,
+                    &face.frame_bind_group,
+                    face.technique.bind_group(),
+                    &self.lights,
+                    0,
+                    particle_count,
+                );
+            }
         }
         let bg = scene.shading.background;
         {
@@ -429,18 +519,23 @@ impl Renderer {
                 multiview_mask: None,
             });
             pass.set_pipeline(&self.pipelines.opaque);
-            pass.set_bind_group(0, &self.frame_bind_group, &[]);
-            pass.set_bind_group(1, self.technique.bind_group(), &[]);
             pass.set_vertex_buffer(0, self.opaque_vertices.slice(..));
-            pass.draw(0..self.opaque_vertex_count, 0..1);
+            // A point light's faces each shade the fragments in their face (the others are
+            // discarded, so each pixel is written by one face's draw).
+            for face in &self.faces {
+                pass.set_bind_group(0, &face.frame_bind_group, &[]);
+                pass.set_bind_group(1, face.technique.bind_group(), &[]);
+                pass.draw(0..self.opaque_vertex_count, 0..1);
+            }
         }
-        if let Some(owner) = self.technique.particle_pass() {
+        let first = &mut self.faces[0];
+        if let Some(owner) = first.technique.particle_pass() {
             stats.sort_ms += owner.record(
                 gpu,
                 shadow::ParticlePassInputs {
                     encoder: &mut encoder,
                     timer: &mut self.timer,
-                    frame_bind_group: &self.frame_bind_group,
+                    frame_bind_group: &first.frame_bind_group,
                     particles,
                     camera: &camera,
                     light: &stats.light,
@@ -485,7 +580,7 @@ impl Renderer {
                 } else {
                     pass.set_pipeline(&self.particle_pipelines.flat);
                 }
-                pass.set_bind_group(0, &self.frame_bind_group, &[]);
+                pass.set_bind_group(0, &self.faces[0].frame_bind_group, &[]);
                 pass.set_bind_group(1, &self.lights.read_bind_group, &[]);
                 if particle_count > 0 {
                     pass.set_vertex_buffer(0, self.particles.slice(..));
@@ -511,7 +606,7 @@ impl Renderer {
                 multiview_mask: None,
             });
             pass.set_pipeline(&self.tonemap_pipeline);
-            pass.set_bind_group(0, &self.frame_bind_group, &[]);
+            pass.set_bind_group(0, &self.faces[0].frame_bind_group, &[]);
             pass.set_bind_group(1, &self.targets.tonemap_bind_group, &[]);
             pass.draw(0..3, 0..1);
         }
@@ -531,22 +626,25 @@ impl Renderer {
     ) -> Result<(wgpu::CommandEncoder, FrameStats, CameraMatrices), ShadowError> {
         let (width, height) = self.size();
         self.upload_opaque(gpu, scene);
-        if self.occluders.prepare(gpu, scene)? {
-            self.frame_bind_group = frame_bind_group(
-                &gpu.device,
-                &self.frame_layout,
-                &self.frame_buffer,
-                &self.occluders,
-            );
-        }
+        self.match_light(gpu, &scene.light)?;
 
         let camera = CameraMatrices::new(scene, width, height);
-        let light = LightSpace::fit(&scene.light, particles);
-        gpu.queue.write_buffer(
-            &self.frame_buffer,
-            0,
-            bytemuck::bytes_of(&frame_uniforms(scene, &camera, &light, width, height)),
-        );
+        let lights = LightSpace::faces(&scene.light, particles);
+        for (face, light) in self.faces.iter_mut().zip(&lights) {
+            if face.occluders.prepare(gpu, scene)? {
+                face.frame_bind_group = frame_bind_group(
+                    &gpu.device,
+                    &self.frame_layout,
+                    &face.frame_buffer,
+                    &face.occluders,
+                );
+            }
+            gpu.queue.write_buffer(
+                &face.frame_buffer,
+                0,
+                bytemuck::bytes_of(&frame_uniforms(scene, &camera, light, width, height)),
+            );
+        }
 
         // Back-to-front by view depth; ties keep pool order so the result is deterministic. The
         // time covers the keys and the sort (`sort::back_to_front`), not the gather below.
@@ -568,36 +666,40 @@ impl Renderer {
                 label: Some("frame.encoder"),
             });
         self.timer.begin_frame(&mut encoder);
-        self.occluders.record(
-            &mut encoder,
-            &mut self.timer,
-            &self.opaque_vertices,
-            self.opaque_vertex_count,
-        );
+        for face in &self.faces {
+            face.occluders.record(
+                &mut encoder,
+                &mut self.timer,
+                &self.opaque_vertices,
+                self.opaque_vertex_count,
+            );
+        }
         // Hashing every particle costs milliseconds at a million: only frames that may reuse
         // the maps pay for it (a frame that does not leaves `built_from` unset).
         let build_key = reuse_shadow_maps
-            .then(|| build_key(particles, &scene.light, &light, &self.technique_config));
+            .then(|| build_key(particles, &scene.light, &lights[0], &self.technique_config));
         if build_key.is_none() || self.built_from != build_key {
             self.built_from = None;
-            self.technique.build(
-                gpu,
-                shadow::BuildInputs {
-                    encoder: &mut encoder,
-                    timer: &mut self.timer,
-                    frame_bind_group: &self.frame_bind_group,
-                    particles: &self.particles,
-                    particle_count,
-                    instances: &self.instances,
-                    light: &light,
-                },
-            )?;
+            for (face, light) in self.faces.iter_mut().zip(&lights) {
+                face.technique.build(
+                    gpu,
+                    shadow::BuildInputs {
+                        encoder: &mut encoder,
+                        timer: &mut self.timer,
+                        frame_bind_group: &face.frame_bind_group,
+                        particles: &self.particles,
+                        particle_count,
+                        instances: &self.instances,
+                        light,
+                    },
+                )?;
+            }
             self.built_from = build_key;
         }
         let stats = FrameStats {
             sort_ms,
             particle_count,
-            light,
+            light: lights[0],
         };
         Ok((encoder, stats, camera))
     }
@@ -635,15 +737,16 @@ impl Renderer {
         // probe) are probed as they are; a probe leaves them reusable for the next such render.
         let (mut encoder, stats, _) = self.begin_frame(gpu, scene, particles, true)?;
         self.timer.resolve(&mut encoder);
-        let probe = self
-            .probe
-            .get_or_insert_with(|| Probe::new(gpu, &self.frame_layout, self.technique.as_ref()));
-        let results = match self.technique.probe_pass() {
+        let probe = self.probe.get_or_insert_with(|| {
+            Probe::new(gpu, &self.frame_layout, self.faces[0].technique.as_ref())
+        });
+        let first = &mut self.faces[0];
+        let results = match first.technique.probe_pass() {
             Some(owner) => owner.probe(
                 gpu,
                 shadow::ProbeInputs {
                     encoder,
-                    frame_bind_group: &self.frame_bind_group,
+                    frame_bind_group: &first.frame_bind_group,
                     particles,
                     light: &stats.light,
                     light_axis: (scene.light.target - scene.light.position).normalize(),
@@ -653,13 +756,12 @@ impl Renderer {
                 },
             )?,
             None => {
-                let pending = probe.record(
-                    gpu,
-                    &mut encoder,
-                    &self.frame_bind_group,
-                    self.technique.bind_group(),
-                    points,
-                );
+                let lookups: Vec<(&wgpu::BindGroup, &wgpu::BindGroup)> = self
+                    .faces
+                    .iter()
+                    .map(|f| (&f.frame_bind_group, f.technique.bind_group()))
+                    .collect();
+                let pending = probe.record(gpu, &mut encoder, &lookups, points);
                 gpu.queue.submit([encoder.finish()]);
                 pending.read(gpu)?
             }
@@ -886,10 +988,19 @@ fn frame_uniforms(
     height: u32,
 ) -> FrameUniforms {
     let l = &scene.light;
-    let cone = l.cone_angle_deg.to_radians();
-    let cos_outer = cone.cos();
-    let cos_inner = (cone * (1.0 - l.penumbra)).cos().max(cos_outer + 1e-4);
-    let axis = (l.target - l.position).normalize();
+    let (cos_outer, cos_inner) = match l.kind {
+        LightKind::Spot => {
+            let cone = l.cone_angle_deg.to_radians();
+            let cos_outer = cone.cos();
+            (
+                cos_outer,
+                (cone * (1.0 - l.penumbra)).cos().max(cos_outer + 1e-4),
+            )
+        }
+        // Below any cosine: the cone's smoothstep is 1 in every direction.
+        LightKind::Point => (-2.0, -1.5),
+    };
+    let axis = (l.target - l.position).normalize_or(Vec3::NEG_Y);
     let clip_from_world = camera.clip_from_world();
     let s = &scene.shading;
     let (occluder_clip_from_world, occluder_far_m) =
@@ -914,7 +1025,7 @@ fn frame_uniforms(
             light.near_m,
             light.far_m,
             1.0 / (light.far_m - light.near_m),
-            0.0,
+            light.face.map_or(-1.0, f32::from),
         ],
         ambient: s.ambient.extend(s.exposure).to_array(),
         background: s.background.extend(0.0).to_array(),

@@ -290,6 +290,11 @@ pub struct Camera {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct Spotlight {
+    /// `spot` (default): a cone from `position` towards `target`; `point`: an omnidirectional
+    /// light at `position` (it ignores `target`, `cone_angle_deg` and `penumbra`), whose shadows
+    /// every technique builds on the six faces of a cube around it.
+    #[serde(skip_serializing_if = "LightKind::is_spot")]
+    pub kind: LightKind,
     /// Light position, world metres.
     pub position: Vec3,
     /// Point the cone axis aims at, world metres; must differ from `position`.
@@ -302,6 +307,31 @@ pub struct Spotlight {
     pub color: Vec3,
     /// Radiant intensity on the axis (W/sr-like units; irradiance = intensity / distance²), >= 0.
     pub intensity: f32,
+}
+
+/// What shape of light `[light]` is.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "snake_case")]
+pub enum LightKind {
+    /// A spotlight: one light space covering its cone.
+    #[default]
+    Spot,
+    /// A point light: six cube-face light spaces, one per axis direction.
+    Point,
+}
+
+impl LightKind {
+    pub fn is_spot(&self) -> bool {
+        *self == LightKind::Spot
+    }
+
+    /// The light spaces (shadow-map faces) a technique builds for this light.
+    pub fn faces(self) -> usize {
+        match self {
+            LightKind::Spot => 1,
+            LightKind::Point => 6,
+        }
+    }
 }
 
 /// The ground plane: a square centred under the origin.
@@ -526,6 +556,7 @@ impl Default for Camera {
 impl Default for Spotlight {
     fn default() -> Self {
         Self {
+            kind: LightKind::Spot,
             position: Vec3::new(-6.0, 8.0, 4.0),
             target: Vec3::new(0.0, 2.0, 0.0),
             cone_angle_deg: 30.0,

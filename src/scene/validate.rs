@@ -116,12 +116,14 @@ pub(super) fn validate(scene: &Scene) -> Result<(), String> {
     let light = &scene.light;
     c.finite("light.position", light.position);
     c.finite("light.target", light.target);
-    c.distinct(
-        "light.position",
-        light.position,
-        "light.target",
-        light.target,
-    );
+    if light.kind.is_spot() {
+        c.distinct(
+            "light.position",
+            light.position,
+            "light.target",
+            light.target,
+        );
+    }
     c.range(
         "light.cone_angle_deg",
         light.cone_angle_deg,

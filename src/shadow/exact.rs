@@ -580,6 +580,7 @@ mod tests {
             max_radius_m: mean_radius_m,
             mean_radius_m,
             mean_dist_m,
+            face: None,
         }
     }
 

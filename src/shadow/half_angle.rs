@@ -670,8 +670,7 @@ impl ProbePass for HalfAngle {
                     inputs.probe.record(
                         gpu,
                         &mut encoder,
-                        inputs.frame_bind_group,
-                        &self.lookup_bind_group,
+                        &[(inputs.frame_bind_group, &self.lookup_bind_group)],
                         &points,
                     ),
                 ));

@@ -5,10 +5,17 @@
 //! ray crosses a particle along an exact chord and the slices/layers are concentric shells; it is
 //! fitted tightly to the particles every frame (nearest sphere surface to farthest), as the
 //! thesis' opacity maps require.
+//!
+//! A point light has six light spaces, the faces of a cube around it ([`LightSpace::faces`]):
+//! each a 90° perspective (widened by [`CUBE_FACE_MARGIN`] so that filtered lookups at a face's
+//! edge read texels of that face) along one axis direction, all sharing the same radial bounds,
+//! so the slices of a layered map are the same spherical shells on every face. A point belongs
+//! to the face of its dominant axis ([`cube_face`], mirrored by `cube_face` in
+//! shaders/common/lighting.wgsl).
 
 use glam::{Mat4, Vec3};
 
-use crate::scene::Spotlight;
+use crate::scene::{LightKind, Spotlight};
 use crate::sim::Particle;
 
 /// The light's projection and the frame's depth bounds.
@@ -33,9 +40,53 @@ pub struct LightSpace {
     /// metres (0 without particles): the typical footprint `exact` sizes its tiles by.
     pub mean_radius_m: f32,
     pub mean_dist_m: f32,
+    /// The cube face (0..6: +x, −x, +y, −y, +z, −z) of a point light's light space; `None`
+    /// for a spotlight's.
+    pub face: Option<u8>,
+}
+
+/// tan of half a cube face's field of view: 1 (90°) plus 2%, about five texels of a 512² map
+/// on each side, so the bilinear and filtered taps of a point on the face's edge stay inside it.
+pub const CUBE_FACE_MARGIN: f32 = 1.02;
+
+/// Axis direction and up vector of each cube face.
+const CUBE_FACES: [(Vec3, Vec3); 6] = [
+    (Vec3::X, Vec3::NEG_Y),
+    (Vec3::NEG_X, Vec3::NEG_Y),
+    (Vec3::Y, Vec3::Z),
+    (Vec3::NEG_Y, Vec3::NEG_Z),
+    (Vec3::Z, Vec3::NEG_Y),
+    (Vec3::NEG_Z, Vec3::NEG_Y),
+];
+
+/// The cube face a direction from a point light falls in: its dominant axis (ties to x, then
+/// y), positive or negative. Keep in sync with `cube_face` in shaders/common/lighting.wgsl.
+pub fn cube_face(d: Vec3) -> u8 {
+    let a = d.abs();
+    if a.x >= a.y && a.x >= a.z {
+        if d.x >= 0.0 { 0 } else { 1 }
+    } else if a.y >= a.z {
+        if d.y >= 0.0 { 2 } else { 3 }
+    } else if d.z >= 0.0 {
+        4
+    } else {
+        5
+    }
 }
 
 impl LightSpace {
+    /// The light spaces of `light` this frame: the spotlight's one, or a point light's six
+    /// cube faces in [`cube_face`]'s order.
+    pub fn faces(light: &Spotlight, particles: &[Particle]) -> Vec<Self> {
+        match light.kind {
+            LightKind::Spot => vec![Self::fit(light, particles)],
+            LightKind::Point => (0..6)
+                .map(|f| Self::fit_face(light, f, particles))
+                .collect(),
+        }
+    }
+
+    /// The spotlight's light space: its cone (the point light's faces: [`LightSpace::faces`]).
     pub fn fit(light: &Spotlight, particles: &[Particle]) -> Self {
         let axis = (light.target - light.position).normalize();
         let helper = if axis.y.abs() > 0.99 {
@@ -46,10 +97,30 @@ impl LightSpace {
         let view = Mat4::look_at_rh(light.position, light.target, helper);
         // A small margin so the penumbra edge is inside the map.
         let fov = (2.0 * light.cone_angle_deg.to_radians() * 1.04).min(170f32.to_radians());
+        Self::with_view(light.position, view, fov, None, particles)
+    }
+
+    /// Cube face `face` of a point light at `light.position`.
+    fn fit_face(light: &Spotlight, face: u8, particles: &[Particle]) -> Self {
+        let (axis, up) = CUBE_FACES[usize::from(face)];
+        let view = Mat4::look_at_rh(light.position, light.position + axis, up);
+        let fov = 2.0 * CUBE_FACE_MARGIN.atan();
+        Self::with_view(light.position, view, fov, Some(face), particles)
+    }
+
+    /// A light space looking through `view` with a square `fov` (radians), its radial bounds
+    /// fitted to every particle (the same on every face of a point light).
+    fn with_view(
+        position: Vec3,
+        view: Mat4,
+        fov: f32,
+        face: Option<u8>,
+        particles: &[Particle],
+    ) -> Self {
         let (mut near, mut far, mut max_radius) = (f32::INFINITY, 0.0f32, 0.0f32);
         let (mut radius_sum, mut dist_sum) = (0.0f64, 0.0f64);
         for p in particles {
-            let dist = p.position.distance(light.position);
+            let dist = p.position.distance(position);
             near = near.min(dist - p.radius_m);
             far = far.max(dist + p.radius_m);
             max_radius = max_radius.max(p.radius_m);
@@ -64,7 +135,7 @@ impl LightSpace {
         let far = far.max(near + 1e-3);
         let proj = Mat4::perspective_rh(fov, 1.0, 0.05, far.max(1.0) * 2.0);
         Self {
-            position: light.position,
+            position,
             clip_from_world: proj * view,
             view_from_world: view,
             tan_half_fov: (0.5 * fov).tan(),
@@ -73,6 +144,7 @@ impl LightSpace {
             max_radius_m: max_radius,
             mean_radius_m: (radius_sum / count) as f32,
             mean_dist_m: (dist_sum / count) as f32,
+            face,
         }
     }
 }

@@ -141,6 +141,11 @@ pub enum ShadowError {
     UnknownParam { key: String, valid: String },
     #[error(transparent)]
     Param(#[from] ParamError),
+    #[error(
+        "{technique} draws the particles itself, sliced along the one direction of a spotlight; \
+         a point light has none: use `[light] kind = \"spot\"` or another technique"
+    )]
+    PointLightUnsupported { technique: &'static str },
     #[error("{technique} needs the adapter feature {feature}, which this adapter lacks")]
     MissingFeature {
         technique: &'static str,

@@ -65,13 +65,14 @@ impl Probe {
         Self { layout, pipeline }
     }
 
-    /// Records the evaluation of T at `points` with the lookup bound as `technique_bind_group`.
+    /// Records the evaluation of T at `points` with each (frame, lookup) bind group pair of
+    /// `lookups` in turn: one for a spotlight; a point light's six faces, each writing the
+    /// points in its face.
     pub fn record(
         &self,
         gpu: &Gpu,
         encoder: &mut wgpu::CommandEncoder,
-        frame_bind_group: &wgpu::BindGroup,
-        technique_bind_group: &wgpu::BindGroup,
+        lookups: &[(&wgpu::BindGroup, &wgpu::BindGroup)],
         points: &[Vec3],
     ) -> PendingProbe {
         let device = &gpu.device;
@@ -112,10 +113,12 @@ impl Probe {
                 timestamp_writes: None,
             });
             pass.set_pipeline(&self.pipeline);
-            pass.set_bind_group(0, frame_bind_group, &[]);
-            pass.set_bind_group(1, technique_bind_group, &[]);
             pass.set_bind_group(2, &bind_group, &[]);
-            pass.dispatch_workgroups((count as u32).div_ceil(64), 1, 1);
+            for (frame_bind_group, technique_bind_group) in lookups {
+                pass.set_bind_group(0, *frame_bind_group, &[]);
+                pass.set_bind_group(1, *technique_bind_group, &[]);
+                pass.dispatch_workgroups((count as u32).div_ceil(64), 1, 1);
+            }
         }
         PendingProbe { results, count }
     }

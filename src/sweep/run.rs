@@ -319,7 +319,7 @@ impl<'a> Sweeper<'a> {
             &RenderOptions::default(),
             &target.view,
         )?;
-        let exact_bytes = renderer.technique().memory().total_bytes();
+        let exact_bytes = renderer.shadow_bytes().0;
         let exact_tiles = counter(&renderer.technique().counters(), "tiles_per_side") as u32;
         let exact_image =
             image::DynamicImage::ImageRgba8(crate::gpu::read_texture_rgba8(gpu, &target.texture)?)
@@ -469,12 +469,8 @@ impl<'a> Sweeper<'a> {
         if is_frame_baseline {
             self.against.none_frame_ms = timing(&frame_ms).median;
         }
-        let technique = self.renderer.technique();
-        let (channels_used, bytes, transient_bytes) = (
-            technique.channels_used(),
-            technique.memory().total_bytes(),
-            technique.memory().transient_bytes(),
-        );
+        let (bytes, transient_bytes) = self.renderer.shadow_bytes();
+        let channels_used = self.renderer.technique().channels_used();
         let rgba = crate::gpu::read_texture_rgba8(self.gpu, &self.target.texture)?;
         let image = image::DynamicImage::ImageRgba8(rgba).into_rgb8();
         let image_path = format!("images/{}.png", plan.name);

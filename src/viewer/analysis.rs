@@ -333,12 +333,7 @@ impl Worker {
             } => {
                 let image = self.render(&frame, &config)?;
                 let size = (frame.scene.output.width_px, frame.scene.output.height_px);
-                let bytes = self
-                    .renderer(&config, size)?
-                    .2
-                    .technique()
-                    .memory()
-                    .total_bytes();
+                let bytes = self.renderer(&config, size)?.2.shadow_bytes().0;
                 Ok(Reply::Render { id, image, bytes })
             }
             Request::Screenshot {

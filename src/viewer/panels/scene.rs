@@ -4,7 +4,7 @@
 
 use eframe::egui::{self, Color32};
 
-use crate::scene::Scene;
+use crate::scene::{LightKind, Scene};
 use crate::viewer::controller::Controller;
 
 /// Right panel, top: the scene file and the scene's settings.
@@ -115,15 +115,21 @@ pub fn show(controller: &mut Controller, ui: &mut egui::Ui) {
             });
         });
         let l = &mut s.light;
-        egui::CollapsingHeader::new("Spotlight").show(ui, |ui| {
+        egui::CollapsingHeader::new("Light").show(ui, |ui| {
+            ui.horizontal(|ui| {
+                ui.radio_value(&mut l.kind, LightKind::Spot, "Spot");
+                ui.radio_value(&mut l.kind, LightKind::Point, "Point (six cube faces)");
+            });
             egui::Grid::new("light").show(ui, |ui| {
                 drag(ui, "Position x", &mut l.position.x, 0.05, -100.0..=100.0);
                 drag(ui, "Position y", &mut l.position.y, 0.05, -100.0..=100.0);
                 drag(ui, "Position z", &mut l.position.z, 0.05, -100.0..=100.0);
-                drag(ui, "Target x", &mut l.target.x, 0.05, -100.0..=100.0);
-                drag(ui, "Target y", &mut l.target.y, 0.05, -100.0..=100.0);
-                drag(ui, "Target z", &mut l.target.z, 0.05, -100.0..=100.0);
-                drag(ui, "Cone (deg)", &mut l.cone_angle_deg, 0.2, 1.0..=79.0);
+                if l.kind.is_spot() {
+                    drag(ui, "Target x", &mut l.target.x, 0.05, -100.0..=100.0);
+                    drag(ui, "Target y", &mut l.target.y, 0.05, -100.0..=100.0);
+                    drag(ui, "Target z", &mut l.target.z, 0.05, -100.0..=100.0);
+                    drag(ui, "Cone (deg)", &mut l.cone_angle_deg, 0.2, 1.0..=79.0);
+                }
                 drag(ui, "Intensity", &mut l.intensity, 1.0, 0.0..=1e5);
             });
             ui.label("In the view: drag the yellow ring to aim the light; shift-drag moves the light around its target.");
