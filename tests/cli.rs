@@ -645,6 +645,27 @@ fn bench_writes_a_table_csv_json_and_charts() {
     let osm = rows.iter().find(|r| &r[col("technique")] == "osm").unwrap();
     assert!(number(osm, "gpu_shadow_ms_median") > 0.0, "{osm:?}");
     assert!(number(osm, "bytes") > 0.0, "{osm:?}");
+    // The bound of its build: at one channel osm draws what the cheapest build draws (one R16F
+    // channel over the same billboards), so the counts agree; the derived columns are finite.
+    for name in [
+        "build_ms_median",
+        "fragments",
+        "channel_writes",
+        "ns_per_fragment",
+        "ns_per_channel_write",
+        "cheapest_build_ms",
+        "build_over_cheapest",
+    ] {
+        let v = number(osm, name);
+        assert!(v.is_finite() && v > 0.0, "{name}: {osm:?}");
+    }
+    assert_eq!(&osm[col("fragments")], &osm[col("cheapest_fragments")]);
+    // `none` builds nothing: no bound.
+    let none = rows
+        .iter()
+        .find(|r| &r[col("technique")] == "none")
+        .unwrap();
+    assert!(none[col("fragments")].is_empty(), "{none:?}");
 
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("bench.json")).unwrap()).unwrap();

@@ -385,3 +385,63 @@ fn a_particle_around_the_eye_veils_every_pixel_by_its_closed_form() {
     }
     assert!(worst < 0.01);
 }
+
+/// The bench's bound analysis counts what it claims (issue 14, section 5). Every map-building
+/// technique draws the same light-facing billboards as the bench's cheapest build, so its build
+/// runs the fragment shader as often per pass over them: `osm` and `fom` once, `dom` twice (its
+/// start-depth pass draws the same spheres first, `dom_start_dilation` = 1) and `has` twice (its
+/// build for the opaque pass, then every batch once in the particle pass). Each pass's channel
+/// writes are its fragments times the components of its targets. No time is asserted.
+#[test]
+fn build_fragment_counts_are_whole_passes_over_the_cheapest_builds_billboards() {
+    use smokeshadow::bench::{BenchOptions, bound::BuildWork};
+    let gpu = gpu();
+    assert!(
+        gpu.has_pipeline_statistics(),
+        "lavapipe counts fragment-shader invocations"
+    );
+    let options = BenchOptions {
+        counts: vec![500],
+        techniques: ["osm", "fom", "dom", "has"].map(str::to_owned).to_vec(),
+        channels: 8,
+        frames: 1,
+        warmup: 0,
+    };
+    let results = smokeshadow::bench::run(&gpu, &reduced_plume(), &options).unwrap();
+    let count = &results.counts[0];
+    let cheapest = count.cheapest.as_ref().unwrap();
+    let floor = cheapest.work.unwrap().fragments;
+    assert!(floor > 0);
+    // One R16F channel, two bytes per fragment.
+    assert_eq!(
+        cheapest.work.unwrap(),
+        BuildWork {
+            fragments: floor,
+            channel_writes: floor,
+            bytes_written: 2 * floor,
+        }
+    );
+    let work = |name: &str| -> BuildWork {
+        let cell = count.cells.iter().find(|c| c.technique == name).unwrap();
+        let m = cell.measured.as_ref().unwrap();
+        let bound = m.bound.unwrap();
+        assert!(bound.ns_per_fragment.is_finite() && bound.ns_per_fragment > 0.0);
+        assert!(bound.over_cheapest.is_finite() && bound.over_cheapest > 0.0);
+        assert_eq!(bound.cheapest_fragments, floor);
+        m.build_work.unwrap()
+    };
+    // 8 slices in two RGBA16F targets.
+    let osm = work("osm");
+    assert_eq!((osm.fragments, osm.channel_writes), (floor, 8 * floor));
+    assert_eq!(osm.bytes_written, 16 * floor);
+    // 3 harmonics: 7 coefficients in two RGBA32F targets (the eighth channel blended too).
+    let fom = work("fom");
+    assert_eq!((fom.fragments, fom.channel_writes), (floor, 8 * floor));
+    assert_eq!(fom.bytes_written, 32 * floor);
+    // The start depth (one R16F channel), then 7 layers in two RGBA16F targets.
+    let dom = work("dom");
+    assert_eq!((dom.fragments, dom.channel_writes), (2 * floor, 9 * floor));
+    // The opaque pass's light buffer, then the batches into it again: R16F both times.
+    let has = work("has");
+    assert_eq!((has.fragments, has.channel_writes), (2 * floor, 2 * floor));
+}

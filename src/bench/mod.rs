@@ -12,8 +12,15 @@
 //! technique that refuses a configuration (its create, its budget check or its build fails) is
 //! a refused cell with the one-line reason; the rest of the run goes on.
 //!
+//! Before the techniques, each count measures the cheapest possible build over the same
+//! billboards, and after each technique's timed frames one more frame counts its build's
+//! fragments (pipeline-statistics queries, where the adapter has them): [`bound`] sets each
+//! build against that floor (ns per fragment, per channel written, and the ratio).
+//!
 //! [`write`] puts `bench.csv` (a row per count x technique), `bench.json` (everything) and three
 //! log-log SVG charts (time, GPU passes and bytes against the particle count) into a folder.
+
+pub mod bound;
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -28,6 +35,7 @@ use crate::scene::Scene;
 use crate::shadow;
 use crate::sweep::Timing;
 use crate::sweep::charts::{LogLogSeries, log_log_svg};
+use bound::{Bound, BuildWork, CheapestBuild, CheapestMeasured};
 
 /// The particle counts a bench runs by default: the thesis' 2,500 up to a million, about a
 /// factor of four apart.
@@ -77,6 +85,9 @@ pub struct CountResult {
     /// Fixed steps simulated and their CPU wall time.
     pub sim_steps: u64,
     pub sim_ms: f64,
+    /// The cheapest possible build over these particles' billboards ([`bound`]), measured
+    /// before the techniques; `None` when it failed (its reason is printed).
+    pub cheapest: Option<CheapestMeasured>,
     pub cells: Vec<Cell>,
 }
 
@@ -107,6 +118,13 @@ pub struct Measured {
     pub frame_ms: Timing,
     /// CPU wall time of `render` and reading its timestamps back.
     pub wall_ms: Timing,
+    /// The build passes' fragment work, counted in one more frame after the timed ones (absent
+    /// without pipeline-statistics queries, or for a technique without build passes).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub build_work: Option<BuildWork>,
+    /// The build against the cheapest build at the same count ([`bound`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub bound: Option<Bound>,
 }
 
 #[derive(Clone, Debug, Serialize)]
@@ -216,10 +234,31 @@ pub fn run(gpu: &Gpu, scene: &Scene, options: &BenchOptions) -> anyhow::Result<B
         let sim_start = Instant::now();
         let particles = progress.suspend(|| crate::particles::scene_particles(&scaled))?;
         let sim_ms = sim_start.elapsed().as_secs_f64() * 1e3;
+        progress.start(&format!("cheapest build at {count} particles"));
+        let cheapest = {
+            let mut bench = CellBench {
+                gpu,
+                renderer: &mut renderer,
+                scene: &scaled,
+                particles: &particles,
+                target: &target,
+                options,
+            };
+            match bench.measure_cheapest() {
+                Ok(measured) => Some(measured),
+                Err(err) => {
+                    progress.suspend(|| {
+                        eprintln!("warning: cheapest build at {count} particles: {err:#}")
+                    });
+                    None
+                }
+            }
+        };
         let mut counted = CountResult {
             particles: count,
             sim_steps: crate::sim::step_index(scaled.sim.step_s, scaled.sim.duration_s),
             sim_ms,
+            cheapest,
             cells: Vec::new(),
         };
         for name in &options.techniques {
@@ -236,7 +275,7 @@ pub fn run(gpu: &Gpu, scene: &Scene, options: &BenchOptions) -> anyhow::Result<B
                 target: &target,
                 options,
             };
-            let cell = match bench.measure(&config) {
+            let cell = match bench.measure(&config, counted.cheapest.as_ref()) {
                 Ok(measured) => Cell {
                     technique: name.clone(),
                     refused: None,
@@ -283,7 +322,70 @@ struct CellBench<'a> {
 }
 
 impl CellBench<'_> {
-    fn measure(&mut self, config: &TechniqueConfig) -> anyhow::Result<Measured> {
+    /// The cheapest build ([`bound::CheapestBuild`]): `warmup` and `frames` frames of it alone,
+    /// then one counted frame.
+    fn measure_cheapest(&mut self) -> anyhow::Result<CheapestMeasured> {
+        let cheapest = CheapestBuild::new(
+            self.gpu,
+            self.renderer.frame_layout(),
+            self.scene.shadow.resolution_px,
+        )?;
+        let mut pass = |_: &Gpu, inputs: shadow::BuildInputs<'_>| {
+            cheapest.record(inputs);
+            Ok(())
+        };
+        for _ in 0..self.options.warmup {
+            self.renderer
+                .light_pass_frame(self.gpu, self.scene, self.particles, &mut pass)?;
+            self.gpu.wait_idle()?;
+        }
+        let mut build = Vec::new();
+        for _ in 0..self.options.frames {
+            self.renderer
+                .light_pass_frame(self.gpu, self.scene, self.particles, &mut pass)?;
+            let times = self.renderer.gpu_times(self.gpu)?;
+            if let Some(ms) = times.get(bound::BUILD_PASS) {
+                build.push(ms);
+            }
+        }
+        if build.is_empty() {
+            anyhow::bail!("no GPU timestamps to time it with");
+        }
+        let mut work = None;
+        if self.renderer.set_count_fragments(self.gpu, true) {
+            self.renderer
+                .light_pass_frame(self.gpu, self.scene, self.particles, &mut pass)?;
+            work = BuildWork::of(&self.renderer.fragment_counts(self.gpu)?);
+            self.renderer.set_count_fragments(self.gpu, false);
+        }
+        Ok(CheapestMeasured {
+            build_ms: Timing::of(&build),
+            work,
+        })
+    }
+
+    /// The build's fragment work in one more frame, if the adapter counts fragments.
+    fn count_build(&mut self, options: &RenderOptions) -> anyhow::Result<Option<BuildWork>> {
+        if !self.renderer.set_count_fragments(self.gpu, true) {
+            return Ok(None);
+        }
+        self.renderer.render(
+            self.gpu,
+            self.scene,
+            self.particles,
+            options,
+            &self.target.view,
+        )?;
+        let work = BuildWork::of(&self.renderer.fragment_counts(self.gpu)?);
+        self.renderer.set_count_fragments(self.gpu, false);
+        Ok(work)
+    }
+
+    fn measure(
+        &mut self,
+        config: &TechniqueConfig,
+        cheapest: Option<&CheapestMeasured>,
+    ) -> anyhow::Result<Measured> {
         // `shadow::create` (through `set_technique`) checks the budget and the parameters.
         self.renderer.set_technique(self.gpu, config)?;
         let options = RenderOptions::default();
@@ -321,6 +423,14 @@ impl CellBench<'_> {
                 }
             }
         }
+        let build_work = self.count_build(&options)?;
+        let build_ms = passes
+            .iter()
+            .find(|(n, _)| *n == bound::BUILD_PASS)
+            .map(|(_, v)| Timing::of(v).median);
+        let bound = build_ms
+            .zip(cheapest)
+            .and_then(|(ms, floor)| Bound::new(ms, build_work, floor));
         let technique = self.renderer.technique();
         Ok(Measured {
             channels_used: technique.channels_used(),
@@ -341,6 +451,8 @@ impl CellBench<'_> {
             gpu_total_ms: Timing::of(&gpu_total),
             frame_ms: Timing::of(&frame),
             wall_ms: Timing::of(&wall),
+            build_work,
+            bound,
         })
     }
 }
@@ -359,6 +471,16 @@ pub const CSV_COLUMNS: &[&str] = &[
     "wall_ms_median",
     "channels_used",
     "bytes",
+    // The bound of the build ([`bound::Bound`]); empty where there is none.
+    "build_ms_median",
+    "fragments",
+    "channel_writes",
+    "bytes_written",
+    "ns_per_fragment",
+    "ns_per_channel_write",
+    "cheapest_build_ms",
+    "cheapest_fragments",
+    "build_over_cheapest",
 ];
 
 /// The files [`write`] puts in its folder.
@@ -422,6 +544,7 @@ fn csv(results: &BenchResults) -> anyhow::Result<Vec<u8>> {
                         m.channels_used.to_string(),
                         m.bytes.to_string(),
                     ]);
+                    row.extend(bound_fields(m.bound.as_ref()));
                     row.extend(
                         passes
                             .iter()
@@ -435,7 +558,7 @@ fn csv(results: &BenchResults) -> anyhow::Result<Vec<u8>> {
                 }
                 None => row.extend(std::iter::repeat_n(
                     String::new(),
-                    8 + passes.len() + counters.len(),
+                    CSV_COLUMNS.len() - 3 + passes.len() + counters.len(),
                 )),
             }
             row.push(cell.refused.clone().unwrap_or_default());
@@ -445,6 +568,24 @@ fn csv(results: &BenchResults) -> anyhow::Result<Vec<u8>> {
     writer
         .into_inner()
         .map_err(|e| anyhow::anyhow!("cannot encode {CSV_FILE}: {e}"))
+}
+
+/// The bound columns of a row ([`CSV_COLUMNS`] from `build_ms_median`), empty without one.
+fn bound_fields(bound: Option<&Bound>) -> Vec<String> {
+    let Some(b) = bound else {
+        return vec![String::new(); 9];
+    };
+    vec![
+        format!("{:.4}", b.build_ms),
+        b.fragments.to_string(),
+        b.channel_writes.to_string(),
+        b.bytes_written.to_string(),
+        format!("{:.4}", b.ns_per_fragment),
+        format!("{:.4}", b.ns_per_channel_write),
+        format!("{:.4}", b.cheapest_build_ms),
+        b.cheapest_fragments.to_string(),
+        format!("{:.4}", b.over_cheapest),
+    ]
 }
 
 /// The three charts' SVG documents, in [`CHART_FILES`] order.

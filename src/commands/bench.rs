@@ -77,6 +77,7 @@ pub fn run(args: &BenchArgs, adapter: &AdapterPreference) -> anyhow::Result<()> 
     let results = bench::run(&gpu, &scene, &options)?;
     let written = bench::write(&results, &args.output)?;
     print_table(&results);
+    print_bound_table(&results);
     println!(
         "wrote {} files to {} ({}, {})",
         written.len(),
@@ -150,6 +151,71 @@ fn print_table(results: &BenchResults) {
                 )),
             }
             println!("{row}");
+        }
+    }
+}
+
+/// The builds against the limit ([`bench::bound`]): one row per count and technique that built
+/// maps, below the cheapest build at that count.
+fn print_bound_table(results: &BenchResults) {
+    if !results.counts.iter().any(|c| c.cheapest.is_some()) {
+        return;
+    }
+    println!(
+        "bound: each build against the cheapest possible one (one additive half-float channel \
+         over the same billboards); ns per fragment-shader invocation and per channel written"
+    );
+    println!(
+        "{:>9} {:<10} {:>3} {:>10} {:>12} {:>8} {:>10} {:>10} {:>8}",
+        "particles",
+        "technique",
+        "ch",
+        "build ms",
+        "fragments",
+        "ns/frag",
+        "ns/ch-wr",
+        "cheapest",
+        "ratio"
+    );
+    for count in &results.counts {
+        if let Some(c) = &count.cheapest {
+            let fragments = c.work.map_or("-".to_owned(), |w| w.fragments.to_string());
+            let ns = c.work.map_or("-".to_owned(), |w| {
+                format!("{:.2}", c.build_ms.median * 1e6 / w.fragments.max(1) as f64)
+            });
+            println!(
+                "{:>9} {:<10} {:>3} {:>10.3} {:>12} {:>8} {:>10} {:>10.3} {:>8.2}",
+                count.particles,
+                "cheapest",
+                1,
+                c.build_ms.median,
+                fragments,
+                ns,
+                ns,
+                c.build_ms.median,
+                1.0
+            );
+        }
+        for cell in &count.cells {
+            let Some((m, b)) = cell
+                .measured
+                .as_ref()
+                .and_then(|m| m.bound.as_ref().map(|b| (m, b)))
+            else {
+                continue;
+            };
+            println!(
+                "{:>9} {:<10} {:>3} {:>10.3} {:>12} {:>8.2} {:>10.3} {:>10.3} {:>8.2}",
+                count.particles,
+                cell.technique,
+                m.channels_used,
+                b.build_ms,
+                b.fragments,
+                b.ns_per_fragment,
+                b.ns_per_channel_write,
+                b.cheapest_build_ms,
+                b.over_cheapest
+            );
         }
     }
 }

@@ -5,12 +5,14 @@
 //! [`AdapterPreference`]) and then by name, so a result never depends on enumeration order.
 //! Tests ask for [`AdapterPreference::Cpu`] (lavapipe) so they run the same everywhere.
 
+mod fragments;
 mod layout;
 mod memory;
 mod readback;
 mod timing;
 pub mod trace;
 
+pub use fragments::{FragmentTally, TargetWrites};
 pub use layout::MirrorLayout;
 pub use memory::{AllocationError, LedgerEntry, MemoryBudget, MemoryLedger};
 pub use readback::{
@@ -127,7 +129,8 @@ impl fmt::Display for AdapterPreference {
 /// Features the renderer uses when the adapter has them; none is required.
 pub const OPTIONAL_FEATURES: wgpu::Features = wgpu::Features::TIMESTAMP_QUERY
     .union(wgpu::Features::FLOAT32_BLENDABLE)
-    .union(wgpu::Features::FLOAT32_FILTERABLE);
+    .union(wgpu::Features::FLOAT32_FILTERABLE)
+    .union(wgpu::Features::PIPELINE_STATISTICS_QUERY);
 
 /// llvmpipe's loop limit, 65,535, less a margin for the short loops around the ones a shader
 /// budgets ([`Gpu::loop_budget`]).
@@ -211,6 +214,13 @@ impl Gpu {
     /// Whether GPU pass times can be measured on this adapter.
     pub fn has_timestamps(&self) -> bool {
         self.features.contains(wgpu::Features::TIMESTAMP_QUERY)
+    }
+
+    /// Whether the fragment-shader invocations of a pass can be counted on this adapter
+    /// (pipeline-statistics queries: the bench's bound analysis).
+    pub fn has_pipeline_statistics(&self) -> bool {
+        self.features
+            .contains(wgpu::Features::PIPELINE_STATISTICS_QUERY)
     }
 
     /// One line: adapter name, type, backend and driver.

@@ -16,7 +16,8 @@
 //! read 1-5 ms for 0.25-0.6 s of work. On a hardware GPU the gaps between passes are tiny and
 //! the partition differs from the pairs by barrier time only.
 
-use super::{Gpu, GpuError};
+use super::fragments::FragmentCounter;
+use super::{FragmentTally, Gpu, GpuError, TargetWrites};
 
 /// Most passes one frame may time (half-angle slicing records two per slice), the frame's
 /// start included.
@@ -34,6 +35,8 @@ pub struct GpuTimer {
     readbacks: Vec<Readback>,
     period_ns: f32,
     names: Vec<&'static str>,
+    /// Fragment counts of the passes that opt in, while counting is on (the bench).
+    fragments: Option<FragmentCounter>,
 }
 
 /// Milliseconds per named pass for one frame, in the order the passes were first recorded.
@@ -98,6 +101,7 @@ impl GpuTimer {
             readbacks: Vec::new(),
             period_ns: 0.0,
             names: Vec::new(),
+            fragments: None,
         }
     }
 
@@ -133,6 +137,43 @@ impl GpuTimer {
             readbacks,
             period_ns: gpu.queue.get_timestamp_period(),
             names: Vec::new(),
+            fragments: None,
+        }
+    }
+
+    /// Turns fragment counting on or off for the frames recorded from now on; returns whether
+    /// it is on (it stays off where the adapter has no pipeline-statistics queries).
+    pub fn set_count_fragments(&mut self, gpu: &Gpu, on: bool) -> bool {
+        match (on, self.fragments.is_some()) {
+            (false, _) => self.fragments = None,
+            (true, false) => self.fragments = FragmentCounter::new(gpu),
+            (true, true) => {}
+        }
+        self.fragments.is_some()
+    }
+
+    /// Records the draws `record` makes in `pass`, counting their fragment-shader invocations
+    /// under `name` while counting is on; `writes` is what each of them writes to the pass's
+    /// colour targets. A pass that does not opt in is not counted.
+    pub fn count_fragments<'p>(
+        &mut self,
+        pass: &mut wgpu::RenderPass<'p>,
+        name: &'static str,
+        writes: TargetWrites,
+        record: impl FnOnce(&mut wgpu::RenderPass<'p>),
+    ) {
+        match &mut self.fragments {
+            Some(counter) => counter.count(pass, name, writes, record),
+            None => record(pass),
+        }
+    }
+
+    /// The fragment counts of the last resolved frame, per pass name (blocks until it
+    /// finished); empty when counting was off.
+    pub fn read_fragments(&mut self, gpu: &Gpu) -> Result<Vec<FragmentTally>, GpuError> {
+        match &mut self.fragments {
+            Some(counter) => counter.read(gpu),
+            None => Ok(Vec::new()),
         }
     }
 
@@ -145,6 +186,9 @@ impl GpuTimer {
     /// into `encoder`, before any of the frame's work.
     pub fn begin_frame(&mut self, encoder: &mut wgpu::CommandEncoder) {
         self.names.clear();
+        if let Some(counter) = &mut self.fragments {
+            counter.begin_frame();
+        }
         if self.enabled() {
             encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("timer.frame_start"),
@@ -191,6 +235,9 @@ impl GpuTimer {
     /// pass. When every buffer still holds an unread frame (a viewer that never polls), the
     /// oldest is dropped.
     pub fn resolve(&mut self, encoder: &mut wgpu::CommandEncoder) {
+        if let Some(counter) = &mut self.fragments {
+            counter.resolve(encoder);
+        }
         let (Some(set), Some(resolve)) = (&self.query_set, &self.resolve) else {
             return;
         };

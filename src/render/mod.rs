@@ -29,7 +29,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::frame::occluders::{self, Occluders};
-use crate::gpu::{Gpu, GpuError, GpuTimer, PassTimes};
+use crate::gpu::{FragmentTally, Gpu, GpuError, GpuTimer, PassTimes};
 use crate::scene::{LightKind, Scene};
 use crate::shaders;
 use crate::shadow::probe::Probe;
@@ -66,6 +66,11 @@ pub struct TechniqueConfig {
     pub name: String,
     pub params: TechniqueParams,
 }
+
+/// A pass recorded in place of the technique's build, with the frame's build inputs
+/// ([`Renderer::light_pass_frame`]).
+pub type LightPass<'a> =
+    &'a mut dyn FnMut(&Gpu, shadow::BuildInputs<'_>) -> Result<(), ShadowError>;
 
 /// CPU-side measurements of one frame.
 #[derive(Clone, Debug, PartialEq)]
@@ -432,6 +437,46 @@ impl Renderer {
         self.timer.poll(gpu)
     }
 
+    /// Turns counting the fragment-shader invocations of the build passes on or off for the
+    /// frames rendered from now on; returns whether it is on (never without
+    /// pipeline-statistics queries). Read the counts with [`Renderer::fragment_counts`].
+    pub fn set_count_fragments(&mut self, gpu: &Gpu, on: bool) -> bool {
+        self.timer.set_count_fragments(gpu, on)
+    }
+
+    /// The fragment counts of the last frame, per pass name (blocks until it finished);
+    /// empty when counting was off.
+    pub fn fragment_counts(&mut self, gpu: &Gpu) -> Result<Vec<FragmentTally>, GpuError> {
+        self.timer.read_fragments(gpu)
+    }
+
+    /// Layout of group 0 (the frame uniforms), for a pass recorded by
+    /// [`Renderer::light_pass_frame`].
+    pub fn frame_layout(&self) -> &wgpu::BindGroupLayout {
+        &self.frame_layout
+    }
+
+    /// Records and submits a frame's start (light fit, uniforms, sort, upload) with `pass`
+    /// recorded where the technique's build would be, and nothing after it: the bench measures
+    /// the cheapest possible build over the same light-facing billboards this way
+    /// (`crate::bench`). Its times and counts read as a frame's.
+    pub fn light_pass_frame(
+        &mut self,
+        gpu: &Gpu,
+        scene: &Scene,
+        particles: &[Particle],
+        pass: LightPass<'_>,
+    ) -> Result<FrameStats, ShadowError> {
+        let frame = gpu.scoped(|| -> Result<FrameStats, ShadowError> {
+            let (mut encoder, stats, _) =
+                self.begin_frame(gpu, scene, particles, false, Some(pass))?;
+            self.timer.resolve(&mut encoder);
+            gpu.queue.submit([encoder.finish()]);
+            Ok(stats)
+        });
+        frame.map_err(|r| ShadowError::Gpu(r.during("recording a light pass").to_string()))?
+    }
+
     /// Renders one frame of `scene` with `particles` into `output` (size = [`Renderer::size`]).
     /// What the device refuses while recording and submitting the frame (a buffer it cannot
     /// grow, a validation error) is a [`ShadowError::Gpu`] line, not a panic.
@@ -465,7 +510,7 @@ impl Renderer {
         output: &wgpu::TextureView,
     ) -> Result<FrameStats, ShadowError> {
         let (mut encoder, mut stats, camera) =
-            self.begin_frame(gpu, scene, particles, options.reuse_shadow_maps)?;
+            self.begin_frame(gpu, scene, particles, options.reuse_shadow_maps, None)?;
         let particle_count = stats.particle_count;
         if self.faces[0].technique.particle_pass().is_none() {
             // Each particle's lighting, once, with the technique's T (part of rendering them);
@@ -617,12 +662,15 @@ impl Renderer {
 
     /// The start every frame shares: fit the light space, upload the uniforms, sort the particles
     /// back to front for the camera (timed) and upload them, and record the technique's build.
+    /// `build`, when given, is recorded instead of the technique's build (the bench's light
+    /// pass, see [`Renderer::light_pass_frame`]).
     fn begin_frame(
         &mut self,
         gpu: &Gpu,
         scene: &Scene,
         particles: &[Particle],
         reuse_shadow_maps: bool,
+        build: Option<LightPass<'_>>,
     ) -> Result<(wgpu::CommandEncoder, FrameStats, CameraMatrices), ShadowError> {
         let (width, height) = self.size();
         self.upload_opaque(gpu, scene);
@@ -680,21 +728,38 @@ impl Renderer {
             .then(|| build_key(particles, &scene.light, &lights[0], &self.technique_config));
         if build_key.is_none() || self.built_from != build_key {
             self.built_from = None;
-            for (face, light) in self.faces.iter_mut().zip(&lights) {
-                face.technique.build(
+            match build {
+                // The bench's light pass: once, in the first light space.
+                Some(build) => build(
                     gpu,
                     shadow::BuildInputs {
                         encoder: &mut encoder,
                         timer: &mut self.timer,
-                        frame_bind_group: &face.frame_bind_group,
+                        frame_bind_group: &self.faces[0].frame_bind_group,
                         particles: &self.particles,
                         particle_count,
                         instances: &self.instances,
-                        light,
+                        light: &lights[0],
                     },
-                )?;
+                )?,
+                None => {
+                    for (face, light) in self.faces.iter_mut().zip(&lights) {
+                        face.technique.build(
+                            gpu,
+                            shadow::BuildInputs {
+                                encoder: &mut encoder,
+                                timer: &mut self.timer,
+                                frame_bind_group: &face.frame_bind_group,
+                                particles: &self.particles,
+                                particle_count,
+                                instances: &self.instances,
+                                light,
+                            },
+                        )?;
+                    }
+                    self.built_from = build_key;
+                }
             }
-            self.built_from = build_key;
         }
         let stats = FrameStats {
             sort_ms,
@@ -735,7 +800,7 @@ impl Renderer {
     ) -> anyhow::Result<Vec<f32>> {
         // Maps built for this very frame (a render with `reuse_shadow_maps`, or an earlier
         // probe) are probed as they are; a probe leaves them reusable for the next such render.
-        let (mut encoder, stats, _) = self.begin_frame(gpu, scene, particles, true)?;
+        let (mut encoder, stats, _) = self.begin_frame(gpu, scene, particles, true, None)?;
         self.timer.resolve(&mut encoder);
         let probe = self.probe.get_or_insert_with(|| {
             Probe::new(gpu, &self.frame_layout, self.faces[0].technique.as_ref())

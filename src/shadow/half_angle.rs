@@ -37,7 +37,7 @@ use super::{
 use crate::frame::gpu_data::{BILLBOARD_VERTICES, ParticleInstance};
 use crate::frame::particles::{LightBuffers, ParticleLighting};
 use crate::frame::{HDR_FORMAT, OVER, ParticleLayouts, ParticlePipelines, UNDER, fullscreen};
-use crate::gpu::{AllocationError, Gpu, MemoryLedger};
+use crate::gpu::{AllocationError, Gpu, MemoryLedger, TargetWrites};
 use crate::shaders;
 use crate::sim::Particle;
 
@@ -416,10 +416,17 @@ impl HalfAngle {
             multiview_mask: None,
         });
         if let Some(batch) = batch.filter(|b| !b.is_empty()) {
-            pass.set_pipeline(&self.light_pipeline);
-            pass.set_bind_group(0, frame_bind_group, &[]);
-            pass.set_vertex_buffer(0, self.instances.slice(..));
-            pass.draw(0..BILLBOARD_VERTICES, batch);
+            timer.count_fragments(
+                &mut pass,
+                "shadow",
+                TargetWrites::of(&[LIGHT_FORMAT]),
+                |pass| {
+                    pass.set_pipeline(&self.light_pipeline);
+                    pass.set_bind_group(0, frame_bind_group, &[]);
+                    pass.set_vertex_buffer(0, self.instances.slice(..));
+                    pass.draw(0..BILLBOARD_VERTICES, batch);
+                },
+            );
         }
     }
 
@@ -497,10 +504,17 @@ impl ShadowTechnique for HalfAngle {
                 multiview_mask: None,
             });
         if inputs.particle_count > 0 {
-            pass.set_pipeline(&self.light_pipeline);
-            pass.set_bind_group(0, inputs.frame_bind_group, &[]);
-            pass.set_vertex_buffer(0, inputs.particles.slice(..));
-            pass.draw(0..BILLBOARD_VERTICES, 0..inputs.particle_count);
+            inputs.timer.count_fragments(
+                &mut pass,
+                "shadow",
+                TargetWrites::of(&[LIGHT_FORMAT]),
+                |pass| {
+                    pass.set_pipeline(&self.light_pipeline);
+                    pass.set_bind_group(0, inputs.frame_bind_group, &[]);
+                    pass.set_vertex_buffer(0, inputs.particles.slice(..));
+                    pass.draw(0..BILLBOARD_VERTICES, 0..inputs.particle_count);
+                },
+            );
         }
         Ok(())
     }

@@ -19,7 +19,7 @@ use super::{
     SplatMode, TechniqueContext, TechniqueParams,
 };
 use crate::frame::gpu_data::{BILLBOARD_VERTICES, ParticleInstance};
-use crate::gpu::{AllocationError, Gpu, MemoryLedger};
+use crate::gpu::{AllocationError, Gpu, MemoryLedger, TargetWrites};
 use crate::shaders;
 
 /// Most render targets a layered technique writes (8 x 4 = 32 channels).
@@ -308,6 +308,8 @@ pub struct Layered {
     params_buffer: wgpu::Buffer,
     /// The render-target views, in channel order: the full RGBA layers, then the remainder.
     targets: Vec<wgpu::TextureView>,
+    /// What each fragment of the build pass writes to them (for the bench's fragment counts).
+    target_writes: TargetWrites,
     build_pipeline: wgpu::RenderPipeline,
     build_bind_group: wgpu::BindGroup,
     /// The depth channel's pass, for specs that have one.
@@ -794,6 +796,7 @@ impl Layered {
             params: params.clone(),
             params_buffer,
             targets,
+            target_writes: TargetWrites::of(&formats),
             build_pipeline,
             build_bind_group,
             depth,
@@ -916,14 +919,19 @@ impl ShadowTechnique for Layered {
                     occlusion_query_set: None,
                     multiview_mask: None,
                 });
-            draw_particles(
-                &mut pass,
-                &depth.pipeline,
-                inputs.frame_bind_group,
-                &depth.bind_group,
-                particles,
-                inputs.particle_count,
-            );
+            let writes = TargetWrites::of(&[DEPTH_FORMAT]);
+            inputs
+                .timer
+                .count_fragments(&mut pass, "shadow", writes, |pass| {
+                    draw_particles(
+                        pass,
+                        &depth.pipeline,
+                        inputs.frame_bind_group,
+                        &depth.bind_group,
+                        particles,
+                        inputs.particle_count,
+                    );
+                });
         }
         let attachments: Vec<_> = self
             .targets
@@ -940,14 +948,18 @@ impl ShadowTechnique for Layered {
                 occlusion_query_set: None,
                 multiview_mask: None,
             });
-        draw_particles(
-            &mut pass,
-            &self.build_pipeline,
-            inputs.frame_bind_group,
-            &self.build_bind_group,
-            particles,
-            inputs.particle_count,
-        );
+        inputs
+            .timer
+            .count_fragments(&mut pass, "shadow", self.target_writes, |pass| {
+                draw_particles(
+                    pass,
+                    &self.build_pipeline,
+                    inputs.frame_bind_group,
+                    &self.build_bind_group,
+                    particles,
+                    inputs.particle_count,
+                );
+            });
         Ok(())
     }
 }

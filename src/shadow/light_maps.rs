@@ -20,7 +20,7 @@ use super::{
     BuildInputs, DebugMap, LOOKUP_STAGES, MapKind, ParamSpec, ShadowError, ShadowTechnique,
     TechniqueContext, TechniqueParams,
 };
-use crate::gpu::{Gpu, MemoryLedger};
+use crate::gpu::{Gpu, MemoryLedger, TargetWrites};
 use crate::shaders;
 
 /// The most maps one technique of this kind keeps (bindings 2..2 + MAX_MAPS).
@@ -241,14 +241,19 @@ impl ShadowTechnique for LightMaps {
                 occlusion_query_set: None,
                 multiview_mask: None,
             });
-        draw_particles(
-            &mut pass,
-            &self.build_pipeline,
-            inputs.frame_bind_group,
-            &self.build_bind_group,
-            inputs.particles.slice(..),
-            inputs.particle_count,
-        );
+        let formats: Vec<_> = self.spec.maps.iter().map(|m| m.format).collect();
+        inputs
+            .timer
+            .count_fragments(&mut pass, "shadow", TargetWrites::of(&formats), |pass| {
+                draw_particles(
+                    pass,
+                    &self.build_pipeline,
+                    inputs.frame_bind_group,
+                    &self.build_bind_group,
+                    inputs.particles.slice(..),
+                    inputs.particle_count,
+                );
+            });
         Ok(())
     }
     fn debug_maps(&self) -> Vec<DebugMap<'_>> {

@@ -627,6 +627,8 @@ pub fn all_shader_modules() -> Vec<(String, String)> {
         "render/particles.wgsl",
         "render/map_view.wgsl",
         "render/occluder_map.wgsl",
+        // The bench's cheapest build (crate::bench::bound), drawn like a technique's build.
+        "bench/cheapest_build.wgsl",
     ]
     .iter()
     .map(|f| ((*f).to_owned(), compose(f, &[])))
