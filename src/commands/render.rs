@@ -235,7 +235,7 @@ fn bench(
         t.name(),
         t.channels_used(),
         renderer.shadow_bytes().0,
-        transient_note(&renderer),
+        transient_note(renderer),
     );
     if !gpu.has_timestamps() {
         println!("  GPU pass times: not available (the adapter has no timestamp queries)");
