@@ -127,7 +127,8 @@ impl fmt::Display for AdapterPreference {
 /// Features the renderer uses when the adapter has them; none is required.
 pub const OPTIONAL_FEATURES: wgpu::Features = wgpu::Features::TIMESTAMP_QUERY
     .union(wgpu::Features::FLOAT32_BLENDABLE)
-    .union(wgpu::Features::FLOAT32_FILTERABLE);
+    .union(wgpu::Features::FLOAT32_FILTERABLE)
+    .union(wgpu::Features::PIPELINE_STATISTICS_QUERY);
 
 /// llvmpipe's loop limit, 65,535, less a margin for the short loops around the ones a shader
 /// budgets ([`Gpu::loop_budget`]).
