@@ -406,6 +406,7 @@ fn build_fragment_counts_are_whole_passes_over_the_cheapest_builds_billboards() 
         channels: 8,
         frames: 1,
         warmup: 0,
+        particle_res: Default::default(),
     };
     let results = smokeshadow::bench::run(&gpu, &reduced_plume(), &options).unwrap();
     let count = &results.counts[0];

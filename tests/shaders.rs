@@ -82,6 +82,7 @@ fn every_rust_mirror_matches_nagas_reflection_of_its_wgsl_struct() {
         light_maps::layouts(),
         volume::layouts(),
         smokeshadow::viewer::map_view::layouts(),
+        smokeshadow::render::mixed_res::layouts(),
     ]
     .concat();
     // `none`'s lookup and the occluders' map for the frame shaders' virtual imports.

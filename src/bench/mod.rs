@@ -30,7 +30,9 @@ use serde::Serialize;
 
 use crate::gpu::Gpu;
 use crate::progress::Progress;
-use crate::render::{OUTPUT_FORMAT, OffscreenTarget, RenderOptions, Renderer, TechniqueConfig};
+use crate::render::{
+    OUTPUT_FORMAT, OffscreenTarget, ParticleRes, RenderOptions, Renderer, TechniqueConfig,
+};
 use crate::scene::Scene;
 use crate::shadow;
 use crate::sweep::Timing;
@@ -56,6 +58,8 @@ pub struct BenchOptions {
     pub channels: u32,
     pub frames: u32,
     pub warmup: u32,
+    /// The particle pass's resolution (`--particle-res`).
+    pub particle_res: ParticleRes,
 }
 
 /// Everything one bench measured.
@@ -70,6 +74,8 @@ pub struct BenchResults {
     pub channels: u32,
     pub frames: u32,
     pub warmup: u32,
+    /// The particle pass's resolution, `1`, `1/2` or `1/4` of the frame's per axis.
+    pub particle_res: ParticleRes,
     pub adapter: String,
     /// Whether GPU pass times were measured (the adapter has timestamp queries).
     pub gpu_timestamps: bool,
@@ -125,6 +131,10 @@ pub struct Measured {
     /// The build against the cheapest build at the same count ([`bound`]).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub bound: Option<Bound>,
+    /// Fragment shader invocations of the last frame's particle pass (pipeline-statistics
+    /// query; absent without one, or when the technique draws its own particle pass).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub particle_fragments: Option<u64>,
 }
 
 #[derive(Clone, Debug, Serialize)]
@@ -222,6 +232,7 @@ pub fn run(gpu: &Gpu, scene: &Scene, options: &BenchOptions) -> anyhow::Result<B
         channels: options.channels,
         frames: options.frames,
         warmup: options.warmup,
+        particle_res: options.particle_res,
         adapter: gpu.describe(),
         gpu_timestamps: gpu.has_timestamps(),
         cpu_threads: rayon::current_num_threads(),
@@ -388,7 +399,10 @@ impl CellBench<'_> {
     ) -> anyhow::Result<Measured> {
         // `shadow::create` (through `set_technique`) checks the budget and the parameters.
         self.renderer.set_technique(self.gpu, config)?;
-        let options = RenderOptions::default();
+        let options = RenderOptions {
+            particle_res: self.options.particle_res,
+            ..RenderOptions::default()
+        };
         for _ in 0..self.options.warmup {
             self.renderer.render(
                 self.gpu,
@@ -453,6 +467,7 @@ impl CellBench<'_> {
             wall_ms: Timing::of(&wall),
             build_work,
             bound,
+            particle_fragments: self.renderer.particle_fragments(self.gpu)?,
         })
     }
 }

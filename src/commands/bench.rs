@@ -40,6 +40,10 @@ pub struct BenchArgs {
     /// Output folder (created if missing).
     #[arg(long, short = 'o', default_value = "bench")]
     pub output: PathBuf,
+    /// Resolution of the particle pass: 1, 1/2 or 1/4 of the frame's per axis (`has`, which
+    /// draws its own, is refused below 1).
+    #[arg(long, value_name = "RES", default_value = "1", value_parser = crate::render::parse_particle_res)]
+    pub particle_res: crate::render::ParticleRes,
 }
 
 /// The embedded scene a bench runs when none is given.
@@ -72,6 +76,7 @@ pub fn run(args: &BenchArgs, adapter: &AdapterPreference) -> anyhow::Result<()> 
         channels: args.channels,
         frames: args.frames,
         warmup: args.warmup,
+        particle_res: args.particle_res,
     };
     let gpu = Gpu::new(adapter)?;
     let results = bench::run(&gpu, &scene, &options)?;
@@ -91,10 +96,11 @@ pub fn run(args: &BenchArgs, adapter: &AdapterPreference) -> anyhow::Result<()> 
 /// The results as a table: one row per count and technique.
 fn print_table(results: &BenchResults) {
     println!(
-        "bench: {} at {}x{}, {} channels, shadow map {}², {} frames after {} warm-up, {} CPU threads, {}",
+        "bench: {} at {}x{} (particles at {}), {} channels, shadow map {}², {} frames after {} warm-up, {} CPU threads, {}",
         results.scene,
         results.width_px,
         results.height_px,
+        results.particle_res,
         results.channels,
         results.shadow_res,
         results.frames,
@@ -134,8 +140,15 @@ fn print_table(results: &BenchResults) {
                             None => format!(" {:>10}", "-"),
                         });
                     }
-                    let counters: Vec<String> =
-                        m.counters.iter().map(|(n, v)| format!("{n}={v}")).collect();
+                    let counters: Vec<String> = m
+                        .counters
+                        .iter()
+                        .map(|(n, v)| format!("{n}={v}"))
+                        .chain(
+                            m.particle_fragments
+                                .map(|n| format!("particle_fragments={n}")),
+                        )
+                        .collect();
                     row.push_str(&format!(
                         " {:>10.3} {:>10.3} {:>10.3} {:>12}  {}",
                         m.gpu_total_ms.median,

@@ -8,7 +8,7 @@ use anyhow::Context;
 
 use super::{ParticlesArg, Size, TechniqueArgs};
 use crate::gpu::{AdapterPreference, Gpu};
-use crate::render::{OUTPUT_FORMAT, OffscreenTarget, RenderOptions, Renderer};
+use crate::render::{OUTPUT_FORMAT, OffscreenTarget, ParticleRes, RenderOptions, Renderer};
 use crate::scene::Scene;
 
 #[derive(Clone, Debug, clap::Args)]
@@ -30,6 +30,10 @@ pub struct RenderArgs {
     /// from the light's position, every technique building its maps on six cube faces.
     #[arg(long, value_enum)]
     pub light: Option<crate::scene::LightKind>,
+    /// Resolution of the particle pass: 1, 1/2 or 1/4 of the frame's per axis, composited over
+    /// it with a depth-aware upsample (`has` draws its own particle pass: 1 only).
+    #[arg(long, value_name = "RES", default_value = "1", value_parser = crate::render::parse_particle_res)]
+    pub particle_res: ParticleRes,
     /// Output PNG.
     #[arg(long, short = 'o', default_value = "smoke.png")]
     pub output: PathBuf,
@@ -99,6 +103,7 @@ pub fn run(args: &RenderArgs, adapter: &AdapterPreference) -> anyhow::Result<()>
 
     let options = RenderOptions {
         spherical: !args.no_spherical,
+        particle_res: args.particle_res,
         ..RenderOptions::default()
     };
     let (w, h) = (scene.output.width_px, scene.output.height_px);
@@ -148,7 +153,7 @@ pub fn run(args: &RenderArgs, adapter: &AdapterPreference) -> anyhow::Result<()>
     }
     let t = renderer.technique();
     println!(
-        "wrote {} ({w}x{h}, {} particles {} in {sim_ms:.0} ms, technique {} with {} channels, {} bytes of shadow memory{} + {} of the occluders' {}² depth map, {} billboards)",
+        "wrote {} ({w}x{h}, {} particles {} in {sim_ms:.0} ms, technique {} with {} channels, {} bytes of shadow memory{} + {} of the occluders' {}² depth map, {} billboards{})",
         args.output.display(),
         particles.len(),
         match &scene.particles {
@@ -168,6 +173,10 @@ pub fn run(args: &RenderArgs, adapter: &AdapterPreference) -> anyhow::Result<()>
             "spherical"
         } else {
             "flat"
+        },
+        match options.particle_res {
+            ParticleRes::Full => String::new(),
+            res => format!(" at {res} resolution"),
         },
     );
     let counters = t.counters();
@@ -256,6 +265,12 @@ fn bench(
     }
     row("cpu sort", &mut sort);
     row("wall frame", &mut wall);
+    if let Some(n) = renderer.particle_fragments(gpu)? {
+        println!(
+            "  particle fragments     {n} (fragment shader invocations of the particle pass at {} resolution)",
+            options.particle_res
+        );
+    }
     Ok(timed)
 }
 

@@ -30,7 +30,7 @@ pub struct SweepArgs {
     /// `-o` (no GPU needed); refuses shards of different sweeps, and names missing cells.
     #[arg(long, num_args = 1.., value_name = "DIR",
           conflicts_with_all = ["scene", "scenes", "shard", "resume", "exr", "techniques",
-                                "channels", "shadow_res", "splat", "params", "frames",
+                                "channels", "shadow_res", "splat", "particle_res", "params", "frames",
                                 "warmup", "cell_seconds", "size", "particles"])]
     pub merge: Option<Vec<PathBuf>>,
     #[command(flatten)]
@@ -49,6 +49,11 @@ pub struct SweepArgs {
     /// Splat modes, comma-separated (techniques that ignore it run once).
     #[arg(long, value_delimiter = ',', value_enum, default_value = "point")]
     pub splat: Vec<SplatMode>,
+    /// Resolutions of the particle pass, comma-separated: 1, 1/2, 1/4 of the frame's per axis,
+    /// each its own cell (`has`, which draws its own particle pass, runs at 1 only).
+    #[arg(long, value_delimiter = ',', value_name = "RES,...", default_value = "1",
+          value_parser = crate::render::parse_particle_res)]
+    pub particle_res: Vec<crate::render::ParticleRes>,
     #[command(flatten)]
     pub params: super::ParamArgs,
     /// Timed frames per cell (medians over these).
@@ -129,6 +134,7 @@ pub fn run(args: &SweepArgs, adapter: &AdapterPreference) -> anyhow::Result<()> 
         channels: args.channels.clone(),
         shadow_res: args.shadow_res.clone(),
         splats: args.splat.clone(),
+        particle_res: args.particle_res.clone(),
         frames: args.frames,
         warmup: args.warmup,
         cell_seconds: args.cell_seconds,
@@ -257,11 +263,12 @@ fn print_table(results: &SweepResults, folder: &Path) {
         folder.join("index.html").display()
     );
     println!(
-        "{:<10} {:>4} {:>5} {:>8} {:>11} {:>11} {:>10} {:>9} {:>9} {:>11} {:>9}",
+        "{:<10} {:>4} {:>5} {:>8} {:>5} {:>11} {:>11} {:>10} {:>9} {:>9} {:>11} {:>9}",
         "technique",
         "ch",
         "res",
         "splat",
+        "prtcl",
         "bytes",
         "transient",
         "frame ms",
@@ -273,11 +280,12 @@ fn print_table(results: &SweepResults, folder: &Path) {
     let opt = |v: Option<f64>| v.map_or("-".to_owned(), |v| format!("{v:.4}"));
     for c in &results.cells {
         println!(
-            "{:<10} {:>4} {:>5} {:>8} {:>11} {:>11} {:>10.2} {:>9} {:>9} {:>11} {:>9}",
+            "{:<10} {:>4} {:>5} {:>8} {:>5} {:>11} {:>11} {:>10.2} {:>9} {:>9} {:>11} {:>9}",
             c.technique,
             c.channels,
             c.shadow_res,
             c.splat.name(),
+            c.particle_res.name(),
             c.bytes,
             c.transient_bytes,
             c.frame_ms.median,

@@ -7,14 +7,19 @@
 //! 3. particle pass: billboards sorted back to front on the CPU (timed), composited with
 //!    premultiplied "over" (thesis Eq. 1.5); spherical billboards (thesis 3.2.2.3) read the opaque
 //!    depth to clip each particle's chord, or, with `spherical = false`, flat billboards use a hard
-//!    depth test; the HDR alpha channel ends up holding the smoke's opacity;
+//!    depth test; the HDR alpha channel ends up holding the smoke's opacity; with
+//!    [`RenderOptions::particle_res`] below 1 the pass draws at a lower resolution and a
+//!    depth-aware upsample composites it ([`mixed_res`]);
 //! 4. tone map (exposure + ACES fit) into the caller's sRGB target.
 //!
 //! Long-lived state (pipelines, layouts, targets, buffers) is built in [`Renderer::new`] and when
 //! the technique or size changes; a frame only uploads uniforms and particles and records passes.
 
+pub mod mixed_res;
 pub mod shaded;
 pub mod sort;
+
+pub use mixed_res::{ParticleRes, parse_particle_res};
 
 // The frame's building blocks live in `crate::frame` (the techniques share them); re-exported
 // here, where callers of the renderer look for them.
@@ -49,6 +54,9 @@ pub struct RenderOptions {
     /// ones the maps were last built from (shadow maps do not depend on the camera). For the
     /// viewer, where the camera moves most; never for timings, which must measure every build.
     pub reuse_shadow_maps: bool,
+    /// The particle pass's resolution: below 1 it draws into a smaller target and a depth-aware
+    /// upsample composites it over the frame ([`mixed_res`]). Full (the default) is the thesis.
+    pub particle_res: ParticleRes,
 }
 
 impl Default for RenderOptions {
@@ -56,6 +64,7 @@ impl Default for RenderOptions {
         Self {
             spherical: true,
             reuse_shadow_maps: false,
+            particle_res: ParticleRes::Full,
         }
     }
 }
@@ -163,6 +172,47 @@ pub struct Renderer {
     probe: Option<Probe>,
     /// What the technique's maps were last built from (see [`RenderOptions::reuse_shadow_maps`]).
     built_from: Option<u64>,
+    /// Mixed-resolution particles: the pipelines (built on first use) and the low-resolution
+    /// targets of the current size and [`ParticleRes`].
+    mixed_res: Option<mixed_res::MixedResPipelines>,
+    low_res: Option<mixed_res::LowResTargets>,
+    /// Counts the particle pass's fragment shader invocations (pipeline-statistics query),
+    /// where the adapter has the feature.
+    fragment_stats: Option<FragmentStats>,
+    /// Whether the last frame's particle pass was counted (not when a technique drew it).
+    fragments_counted: bool,
+}
+
+/// A pipeline-statistics query around the particle pass and the buffer it resolves into.
+struct FragmentStats {
+    set: wgpu::QuerySet,
+    resolved: wgpu::Buffer,
+}
+
+impl FragmentStats {
+    fn new(gpu: &Gpu) -> Option<Self> {
+        if !gpu
+            .features
+            .contains(wgpu::Features::PIPELINE_STATISTICS_QUERY)
+        {
+            return None;
+        }
+        Some(Self {
+            set: gpu.device.create_query_set(&wgpu::QuerySetDescriptor {
+                label: Some("particles.fragment_stats"),
+                ty: wgpu::QueryType::PipelineStatistics(
+                    wgpu::PipelineStatisticsTypes::FRAGMENT_SHADER_INVOCATIONS,
+                ),
+                count: 1,
+            }),
+            resolved: gpu.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("particles.fragment_stats.resolved"),
+                size: 8,
+                usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            }),
+        })
+    }
 }
 
 impl Renderer {
@@ -286,6 +336,10 @@ impl Renderer {
             timer: GpuTimer::new(gpu),
             probe: None,
             built_from: None,
+            mixed_res: None,
+            low_res: None,
+            fragment_stats: FragmentStats::new(gpu),
+            fragments_counted: false,
         })
     }
 
@@ -374,6 +428,7 @@ impl Renderer {
                     )
                 })
                 .map_err(|r| r.during(format!("resizing the frame to {width}x{height}")))?;
+            self.low_res = None;
         }
         Ok(())
     }
@@ -429,6 +484,44 @@ impl Renderer {
     /// GPU pass times of the last frame (blocks until it finished); empty without timestamps.
     pub fn gpu_times(&mut self, gpu: &Gpu) -> Result<PassTimes, GpuError> {
         self.timer.read(gpu)
+    }
+
+    /// Fragment shader invocations of the last frame's particle pass, from a pipeline-statistics
+    /// query (blocks until the frame finished); `None` where the adapter has no such queries or
+    /// the technique drew the particles itself (`has`).
+    pub fn particle_fragments(&self, gpu: &Gpu) -> Result<Option<u64>, GpuError> {
+        match &self.fragment_stats {
+            Some(stats) if self.fragments_counted => {
+                let bytes = crate::gpu::read_buffer(gpu, &stats.resolved, 0, 8)?;
+                Ok(Some(u64::from_le_bytes(
+                    bytes[..8].try_into().expect("8 bytes read"),
+                )))
+            }
+            _ => Ok(None),
+        }
+    }
+
+    /// The low-resolution targets for `res` at the current size, made when missing.
+    fn ensure_low_res(&mut self, gpu: &Gpu, res: ParticleRes) {
+        let size = self.size();
+        if self
+            .low_res
+            .as_ref()
+            .is_some_and(|l| l.res == res && l.frame_size == size)
+        {
+            return;
+        }
+        let pipelines = self.mixed_res.get_or_insert_with(|| {
+            mixed_res::MixedResPipelines::new(&gpu.device, &self.frame_layout)
+        });
+        self.low_res = Some(mixed_res::LowResTargets::new(
+            &gpu.device,
+            pipelines,
+            &self.depth_layout,
+            &self.targets.depth_view,
+            size,
+            res,
+        ));
     }
 
     /// Without waiting: the pass times of the newest frame that has finished since the last
@@ -509,6 +602,12 @@ impl Renderer {
         options: &RenderOptions,
         output: &wgpu::TextureView,
     ) -> Result<FrameStats, ShadowError> {
+        if options.particle_res != ParticleRes::Full && self.faces[0].technique.particle_pass().is_some() {
+            return Err(ShadowError::ParticleResUnsupported {
+                technique: self.faces[0].technique.name(),
+                res: options.particle_res.name(),
+            });
+        }
         let (mut encoder, mut stats, camera) =
             self.begin_frame(gpu, scene, particles, options.reuse_shadow_maps, None)?;
         let particle_count = stats.particle_count;
@@ -573,6 +672,7 @@ impl Renderer {
                 pass.draw(0..self.opaque_vertex_count, 0..1);
             }
         }
+        self.fragments_counted = false;
         let first = &mut self.faces[0];
         if let Some(owner) = first.technique.particle_pass() {
             stats.sort_ms += owner.record(
@@ -593,10 +693,54 @@ impl Renderer {
                 },
             )?;
         } else {
+            // Full resolution draws straight into the frame; a lower one into its own cleared
+            // target against the downsampled depth, composited by the upsample below.
+            let low = match options.particle_res {
+                ParticleRes::Full => None,
+                res => {
+                    self.ensure_low_res(gpu, res);
+                    let low = self.low_res.as_ref().expect("made just above");
+                    let pipelines = self.mixed_res.as_ref().expect("made with the targets");
+                    let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                        label: Some("particles.downsample"),
+                        color_attachments: &[],
+                        depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                            view: &low.depth_view,
+                            depth_ops: Some(wgpu::Operations {
+                                load: wgpu::LoadOp::Clear(1.0),
+                                store: wgpu::StoreOp::Store,
+                            }),
+                            stencil_ops: None,
+                        }),
+                        timestamp_writes: self.timer.pass("downsample"),
+                        occlusion_query_set: None,
+                        multiview_mask: None,
+                    });
+                    pass.set_pipeline(&pipelines.downsample);
+                    pass.set_bind_group(0, &self.faces[0].frame_bind_group, &[]);
+                    pass.set_bind_group(1, &low.downsample_bind_group, &[]);
+                    pass.draw(0..3, 0..1);
+                    Some(low)
+                }
+            };
+            let (color_view, color_load, depth_view, depth_bind_group) = match low {
+                None => (
+                    &self.targets.hdr_view,
+                    wgpu::LoadOp::Load,
+                    &self.targets.depth_view,
+                    &self.targets.depth_bind_group,
+                ),
+                Some(low) => (
+                    &low.color_view,
+                    wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+                    &low.depth_view,
+                    &low.depth_bind_group,
+                ),
+            };
             {
                 let depth_attachment =
                     (!options.spherical).then_some(wgpu::RenderPassDepthStencilAttachment {
-                        view: &self.targets.depth_view,
+                        view: depth_view,
                         depth_ops: Some(wgpu::Operations {
                             load: wgpu::LoadOp::Load,
                             store: wgpu::StoreOp::Store,
@@ -606,11 +750,11 @@ impl Renderer {
                 let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
                     label: Some("particles"),
                     color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                        view: &self.targets.hdr_view,
+                        view: color_view,
                         depth_slice: None,
                         resolve_target: None,
                         ops: wgpu::Operations {
-                            load: wgpu::LoadOp::Load,
+                            load: color_load,
                             store: wgpu::StoreOp::Store,
                         },
                     })],
@@ -619,9 +763,12 @@ impl Renderer {
                     occlusion_query_set: None,
                     multiview_mask: None,
                 });
+                if let Some(stats) = &self.fragment_stats {
+                    pass.begin_pipeline_statistics_query(&stats.set, 0);
+                }
                 if options.spherical {
                     pass.set_pipeline(&self.particle_pipelines.spherical);
-                    pass.set_bind_group(2, &self.targets.depth_bind_group, &[]);
+                    pass.set_bind_group(2, depth_bind_group, &[]);
                 } else {
                     pass.set_pipeline(&self.particle_pipelines.flat);
                 }
@@ -631,6 +778,36 @@ impl Renderer {
                     pass.set_vertex_buffer(0, self.particles.slice(..));
                     pass.draw(0..gpu_data::BILLBOARD_VERTICES, 0..particle_count);
                 }
+                if self.fragment_stats.is_some() {
+                    pass.end_pipeline_statistics_query();
+                }
+            }
+            if let Some(stats) = &self.fragment_stats {
+                encoder.resolve_query_set(&stats.set, 0..1, &stats.resolved, 0);
+                self.fragments_counted = true;
+            }
+            if let Some(low) = low {
+                let pipelines = self.mixed_res.as_ref().expect("made with the targets");
+                let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                    label: Some("particles.upsample"),
+                    color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                        view: &self.targets.hdr_view,
+                        depth_slice: None,
+                        resolve_target: None,
+                        ops: wgpu::Operations {
+                            load: wgpu::LoadOp::Load,
+                            store: wgpu::StoreOp::Store,
+                        },
+                    })],
+                    depth_stencil_attachment: None,
+                    timestamp_writes: self.timer.pass("upsample"),
+                    occlusion_query_set: None,
+                    multiview_mask: None,
+                });
+                pass.set_pipeline(&pipelines.upsample);
+                pass.set_bind_group(0, &self.faces[0].frame_bind_group, &[]);
+                pass.set_bind_group(1, &low.upsample_bind_group, &[]);
+                pass.draw(0..3, 0..1);
             }
         }
         {

@@ -111,4 +111,5 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     create: |ctx, params| Ok(Box::new(Layered::new(ctx, &SPEC, params)?)),
     uses_splat: true,
     uses_budget: true,
+    owns_particle_pass: false,
 };

@@ -66,4 +66,5 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     create: |ctx, params| Ok(Box::new(LightMaps::new(ctx, &SPEC, params)?)),
     uses_splat: false,
     uses_budget: false,
+    owns_particle_pass: false,
 };

@@ -90,6 +90,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     create: |ctx, params| Ok(Box::new(Exact::new(ctx, params)?)),
     uses_splat: false,
     uses_budget: false,
+    owns_particle_pass: false,
 };
 
 /// Keep in sync with `ExactParams` in shaders/shadow/exact.wgsl and exact_build.wgsl.

@@ -84,6 +84,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     create: |ctx, params| Ok(Box::new(Layered::new(ctx, &FOM, params)?)),
     uses_splat: true,
     uses_budget: true,
+    owns_particle_pass: false,
 };
 
 pub const SIGMA_ENTRY: TechniqueEntry = TechniqueEntry {
@@ -106,4 +107,5 @@ pub const SIGMA_ENTRY: TechniqueEntry = TechniqueEntry {
     create: |ctx, params| Ok(Box::new(Layered::new(ctx, &FOM_SIGMA, params)?)),
     uses_splat: true,
     uses_budget: true,
+    owns_particle_pass: false,
 };

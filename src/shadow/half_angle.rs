@@ -79,6 +79,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     create: |ctx, params| Ok(Box::new(HalfAngle::new(ctx, params)?)),
     uses_splat: false,
     uses_budget: true,
+    owns_particle_pass: true,
 };
 
 /// Format of the light buffer (accumulated optical depth).

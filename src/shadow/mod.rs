@@ -155,6 +155,14 @@ pub enum ShadowError {
     Allocation(#[from] crate::gpu::AllocationError),
     #[error("{0}")]
     Gpu(String),
+    /// A technique that draws its own particle pass (`has`) renders it at full resolution only.
+    #[error(
+        "--particle-res {res}: {technique} draws its own particle pass (its half-angle slices), which renders at full resolution only; use --particle-res 1"
+    )]
+    ParticleResUnsupported {
+        technique: &'static str,
+        res: &'static str,
+    },
 }
 
 pub use crate::scene::technique::{ParamError, ParamSpec, ParamValue, SplatMode, TechniqueParams};
@@ -420,6 +428,10 @@ pub struct TechniqueEntry {
     /// Whether the channel budget changes its result (sweeps run the others once, at the first
     /// budget they accept, and say so).
     pub uses_budget: bool,
+    /// Whether it draws the eye image's particles itself ([`ShadowTechnique::particle_pass`]
+    /// is `Some`): such a technique renders them at full resolution only, so the sweep skips
+    /// it at a lower `--particle-res`.
+    pub owns_particle_pass: bool,
 }
 
 impl TechniqueEntry {

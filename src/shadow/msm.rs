@@ -201,6 +201,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     create: |ctx, params| Ok(Box::new(Layered::new(ctx, &MSM, params)?)),
     uses_splat: true,
     uses_budget: true,
+    owns_particle_pass: false,
 };
 
 pub const TRIG_ENTRY: TechniqueEntry = TechniqueEntry {

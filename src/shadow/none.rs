@@ -30,6 +30,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     create: |ctx, params| Ok(Box::new(NoShadow::new(ctx, params)?)),
     uses_splat: false,
     uses_budget: false,
+    owns_particle_pass: false,
 };
 
 pub struct NoShadow {

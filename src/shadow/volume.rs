@@ -230,6 +230,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     create: |ctx, params| Ok(Box::new(Volume::new(ctx, params)?)),
     uses_splat: false,
     uses_budget: true,
+    owns_particle_pass: false,
 };
 
 /// Voxels per side for a `resolution_px`² map of `channels` half floats: G = round(cbrt(res² · B)),

@@ -75,6 +75,23 @@ pub struct Chart {
 /// atomically, and returns them in the order the report shows them. Empty or partial results
 /// still give every chart (one with no points says "no data").
 pub fn write_charts(results: &SweepResults, dir: &Path) -> anyhow::Result<Vec<Chart>> {
+    // The charts compare shadow techniques: cells whose particles were drawn below full
+    // resolution (`--particle-res`) are a cost option of the frame, in the tables only.
+    let full_res;
+    let results = match results
+        .cells
+        .iter()
+        .any(|c| c.particle_res != crate::render::ParticleRes::Full)
+    {
+        false => results,
+        true => {
+            let mut r = results.clone();
+            r.cells
+                .retain(|c| c.particle_res == crate::render::ParticleRes::Full);
+            full_res = r;
+            &full_res
+        }
+    };
     let charts_dir = dir.join(CHARTS_DIR);
     std::fs::create_dir_all(&charts_dir)
         .with_context(|| format!("cannot create folder {}", charts_dir.display()))?;
@@ -868,6 +885,7 @@ mod tests {
             channels_used: channels,
             shadow_res: res,
             splat: SplatMode::Point,
+            particle_res: Default::default(),
             bytes,
             transient_bytes: 0,
             gpu_shadow_ms: timing(1.0),
@@ -875,11 +893,15 @@ mod tests {
             cpu_sort_ms: timing(0.5),
             frame_ms: timing(5.5 + channels as f64 * 0.1),
             wall_ms: timing(7.0),
+            particles_ms: Default::default(),
+            upsample_ms: Default::default(),
+            particle_fragments: None,
             frames_timed: 20,
             overhead_ratio: Some(1.2),
             shadow_ratio: None,
             vs_own_24: error,
             vs_exact: error,
+            vs_full_res: None,
             rms_transmittance_error: flip.map(|f| f * 3.0),
             image: format!("images/{technique}_{channels}_{res}.png"),
             diff_own_24: None,

@@ -107,6 +107,9 @@ pub fn ranks(scenes: &[SweepResults]) -> Vec<Rank> {
             .cells
             .iter()
             .filter(|c| flip(c).is_finite())
+            // Ranks compare shadow techniques: a lower particle resolution is a cost option of
+            // the frame, in each scene's table only.
+            .filter(|c| c.particle_res == crate::render::ParticleRes::Full)
             .filter_map(|c| shadow::find(&c.technique).ok().map(|e| (c, e)))
             .filter(|(_, e)| e.role == shadow::Role::Contender)
             .collect();

@@ -24,6 +24,7 @@ pub mod shard;
 
 use serde::{Deserialize, Serialize};
 
+use crate::render::ParticleRes;
 use crate::shadow::SplatMode;
 
 pub use run::{CSV_COLUMNS, SweepOptions, SweepOutcome, run, write_results};
@@ -65,6 +66,9 @@ pub struct CellResult {
     /// Shadow-map resolution (texels per side).
     pub shadow_res: u32,
     pub splat: SplatMode,
+    /// The particle pass's resolution (`1` in cells written before it was an axis).
+    #[serde(default)]
+    pub particle_res: ParticleRes,
     /// Bytes the technique allocated (its memory ledger).
     pub bytes: u64,
     /// The part of `bytes` that is build scratch the lookup never reads (a deep capture's
@@ -83,6 +87,16 @@ pub struct CellResult {
     pub frame_ms: Timing,
     /// Per frame: wall-clock time of the render call until its GPU work finished.
     pub wall_ms: Timing,
+    /// GPU time of the `particles` passes (their lighting and the draw, at `particle_res`).
+    #[serde(default)]
+    pub particles_ms: Timing,
+    /// GPU time of a lower particle resolution's depth downsample and upsample (0 at full).
+    #[serde(default)]
+    pub upsample_ms: Timing,
+    /// Fragment shader invocations of the last frame's particle pass (pipeline-statistics
+    /// query; `None` without one, or for a technique that draws its own particle pass).
+    #[serde(default)]
+    pub particle_fragments: Option<u64>,
     /// Frames the medians are over (fewer than asked when the cell ran out of its seconds).
     #[serde(default)]
     pub frames_timed: u32,
@@ -96,6 +110,10 @@ pub struct CellResult {
     pub vs_own_24: Option<ImageError>,
     /// Against the `exact` reference image; `None` for `none`.
     pub vs_exact: Option<ImageError>,
+    /// Against the same cell with its particles at full resolution (0 for a full-resolution
+    /// cell); `None` for `none`.
+    #[serde(default)]
+    pub vs_full_res: Option<ImageError>,
     /// RMS difference of T from `exact` over the points the camera view shades (particle
     /// lighting points and lit opaque points); `None` for `none`.
     pub rms_transmittance_error: Option<f64>,

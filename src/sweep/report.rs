@@ -12,6 +12,7 @@ use std::path::Path;
 
 use super::charts::Chart;
 use super::{CellResult, SweepResults, Timing};
+use crate::render::ParticleRes;
 use crate::report::{self, escape as e};
 
 /// Every path the page references (`src` and `href` attributes, and the `compare` page's
@@ -188,8 +189,15 @@ fn table(body: &mut String, results: &SweepResults, variants: &Variants, pareto:
          <div class=\"wide\"><table><tr><th>technique</th><th>channels<br>(used)</th><th>res</th><th>splat</th>\
          <th>bytes</th><th>shadow<br>ms</th><th>render<br>ms</th><th>sort<br>ms</th><th>frame<br>ms</th>\
          <th>overhead</th><th>FLIP<br>vs own 24</th><th>FLIP<br>vs exact</th><th>RMSE<br>vs exact</th>\
-         <th>RMS T<br>error</th></tr>\n",
+         <th>RMS T<br>error</th>",
     );
+    if variants.mixed_res {
+        body.push_str(
+            "<th>particle<br>res</th><th>particles<br>ms</th><th>up/down-<br>sample ms</th>\
+             <th>particle<br>fragments</th><th>FLIP vs<br>full res</th>",
+        );
+    }
+    body.push_str("</tr>\n");
     for (c, &on_front) in results.cells.iter().zip(pareto) {
         let class = if on_front {
             " class=\"pareto\""
@@ -210,7 +218,7 @@ fn table(body: &mut String, results: &SweepResults, variants: &Variants, pareto:
             body,
             "<tr{class}><td>{}</td><td>{channels}</td><td>{}</td><td>{}</td><td>{}</td>\
              <td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td>\
-             <td>{}</td><td>{}</td></tr>",
+             <td>{}</td><td>{}</td>{}</tr>",
             e(&c.technique),
             c.shadow_res,
             c.splat.name(),
@@ -237,6 +245,17 @@ fn table(body: &mut String, results: &SweepResults, variants: &Variants, pareto:
             metric(c.vs_exact.map(|x| x.flip_mean)),
             metric(c.vs_exact.map(|x| x.rmse)),
             metric(c.rms_transmittance_error),
+            match variants.mixed_res {
+                false => String::new(),
+                true => format!(
+                    "<td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td>",
+                    c.particle_res,
+                    gpu_time(&c.particles_ms),
+                    gpu_time(&c.upsample_ms),
+                    c.particle_fragments.map_or("—".into(), |n| n.to_string()),
+                    metric(c.vs_full_res.map(|x| x.flip_mean)),
+                ),
+            },
         );
     }
     body.push_str("</table></div>\n");
@@ -385,6 +404,8 @@ fn exr_link(path: Option<&str>) -> String {
 struct Variants {
     several_res: bool,
     several_splats: bool,
+    /// Some cell draws its particles below full resolution (`--particle-res`).
+    mixed_res: bool,
 }
 
 impl Variants {
@@ -402,11 +423,12 @@ impl Variants {
         Self {
             several_res: several(&|a, b| a.shadow_res != b.shadow_res),
             several_splats: several(&|a, b| a.splat != b.splat),
+            mixed_res: cells.iter().any(|c| c.particle_res != ParticleRes::Full),
         }
     }
 
     fn several(&self) -> bool {
-        self.several_res || self.several_splats
+        self.several_res || self.several_splats || self.mixed_res
     }
 
     /// Technique, with resolution and splat where the sweep varies them: `dom 512² segment`.
@@ -417,6 +439,9 @@ impl Variants {
         }
         if self.several_splats {
             let _ = write!(label, " {}", c.splat.name());
+        }
+        if self.mixed_res {
+            let _ = write!(label, " particles {}", c.particle_res);
         }
         label
     }
@@ -429,6 +454,9 @@ impl Variants {
         }
         if self.several_splats {
             let _ = write!(label, ", {} splat", c.splat.name());
+        }
+        if self.mixed_res {
+            let _ = write!(label, ", particles at {}", c.particle_res);
         }
         label
     }
@@ -507,6 +535,7 @@ mod tests {
             channels_used: if technique == "fom" { 11 } else { channels },
             shadow_res: 512,
             splat: SplatMode::Point,
+            particle_res: Default::default(),
             bytes,
             transient_bytes: 0,
             gpu_shadow_ms: timing(1.0),
@@ -514,11 +543,15 @@ mod tests {
             cpu_sort_ms: timing(0.5),
             frame_ms: timing(6.0),
             wall_ms: timing(8.0),
+            particles_ms: Default::default(),
+            upsample_ms: Default::default(),
+            particle_fragments: None,
             frames_timed: 20,
             overhead_ratio: flip.map(|_| 1.42),
             shadow_ratio: None,
             vs_own_24: error.filter(|_| channels != 24),
             vs_exact: error,
+            vs_full_res: None,
             rms_transmittance_error: flip.map(|f| f * 2.0),
             image: format!("images/{name}.png"),
             diff_own_24: with_error("diff_own").filter(|_| channels != 24),

@@ -17,7 +17,9 @@ use crate::diff;
 use crate::gpu::Gpu;
 use crate::progress::Progress;
 use crate::render::shaded::{rms_difference, shaded_points};
-use crate::render::{OUTPUT_FORMAT, OffscreenTarget, RenderOptions, Renderer, TechniqueConfig};
+use crate::render::{
+    OUTPUT_FORMAT, OffscreenTarget, ParticleRes, RenderOptions, Renderer, TechniqueConfig,
+};
 use crate::scene::Scene;
 use crate::shadow::{self, SplatMode};
 use crate::sim::Particle;
@@ -29,6 +31,8 @@ pub struct SweepOptions {
     pub channels: Vec<u32>,
     pub shadow_res: Vec<u32>,
     pub splats: Vec<SplatMode>,
+    /// Resolutions of the particle pass (`--particle-res`; each its own cell).
+    pub particle_res: Vec<ParticleRes>,
     /// Timed frames per cell (medians over these) and untimed warm-up frames before them.
     pub frames: u32,
     pub warmup: u32,
@@ -56,6 +60,7 @@ impl Default for SweepOptions {
             channels: vec![24, 16, 8, 6],
             shadow_res: vec![512],
             splats: vec![SplatMode::Point],
+            particle_res: vec![ParticleRes::Full],
             frames: 20,
             warmup: 1,
             cell_seconds: 0.5,
@@ -100,6 +105,7 @@ const SHADED_STRIDE_PX: u32 = 4;
 struct Plan {
     name: String,
     config: TechniqueConfig,
+    particle_res: ParticleRes,
 }
 
 impl Plan {
@@ -118,6 +124,24 @@ impl Plan {
                 name: technique.to_owned(),
                 params,
             },
+            particle_res: ParticleRes::Full,
+        }
+    }
+
+    /// The same cell with the particle pass at `res`: its name gains `_p2` or `_p4` (a
+    /// full-resolution cell keeps the name it always had).
+    fn at(mut self, res: ParticleRes) -> Self {
+        if res != ParticleRes::Full {
+            self.name = format!("{}_p{}", self.name, res.divisor());
+        }
+        self.particle_res = res;
+        self
+    }
+
+    fn options(&self) -> RenderOptions {
+        RenderOptions {
+            particle_res: self.particle_res,
+            ..RenderOptions::default()
         }
     }
 }
@@ -136,6 +160,7 @@ fn plan(scene: &Scene, options: &SweepOptions) -> anyhow::Result<(Vec<Plan>, Vec
     non_empty("channels", options.channels.is_empty())?;
     non_empty("shadow-res", options.shadow_res.is_empty())?;
     non_empty("splat", options.splats.is_empty())?;
+    non_empty("particle-res", options.particle_res.is_empty())?;
     if options.frames == 0 {
         anyhow::bail!("--frames 0: time at least one frame");
     }
@@ -144,13 +169,16 @@ fn plan(scene: &Scene, options: &SweepOptions) -> anyhow::Result<(Vec<Plan>, Vec
             anyhow::bail!("--shadow-res {res} is out of range: allowed 1..=8192");
         }
     }
-    let mut cells = vec![Plan::new(
-        scene,
-        shadow::frame_baseline().name,
-        1,
-        options.shadow_res[0],
-        options.splats[0],
-    )];
+    let mut cells = vec![
+        Plan::new(
+            scene,
+            shadow::frame_baseline().name,
+            1,
+            options.shadow_res[0],
+            options.splats[0],
+        )
+        .at(options.particle_res[0]),
+    ];
     let mut skipped = Vec::new();
     for name in &options.techniques {
         let entry = shadow::find(name)?;
@@ -188,18 +216,44 @@ fn plan(scene: &Scene, options: &SweepOptions) -> anyhow::Result<(Vec<Plan>, Vec
             }
         }
     }
+    for &particle_res in &options.particle_res {
+        if particle_res == ParticleRes::Full {
+            continue;
+        }
+        for name in &options.techniques {
+            let entry = shadow::find(name)?;
+            if entry.owns_particle_pass
+                && let Some(b) = first_budget(entry, &options.channels)
+            {
+                skipped.push(SkippedCell {
+                    technique: entry.name.to_owned(),
+                    channels: b,
+                    reason: shadow::ShadowError::ParticleResUnsupported {
+                        technique: entry.name,
+                        res: particle_res.name(),
+                    }
+                    .to_string(),
+                });
+            }
+        }
+    }
     for &res in &options.shadow_res {
-        for (s, &splat) in options.splats.iter().enumerate() {
-            for name in &options.techniques {
-                let entry = shadow::find(name)?;
-                if s > 0 && !entry.uses_splat {
-                    continue;
-                }
-                for &b in &options.channels {
-                    let once =
-                        entry.uses_budget || Some(b) == first_budget(entry, &options.channels);
-                    if shadow::check_channels(entry, b).is_ok() && once {
-                        cells.push(Plan::new(scene, entry.name, b, res, splat));
+        for &particle_res in &options.particle_res {
+            for (s, &splat) in options.splats.iter().enumerate() {
+                for name in &options.techniques {
+                    let entry = shadow::find(name)?;
+                    if s > 0 && !entry.uses_splat
+                        || particle_res != ParticleRes::Full && entry.owns_particle_pass
+                    {
+                        continue;
+                    }
+                    for &b in &options.channels {
+                        let once =
+                            entry.uses_budget || Some(b) == first_budget(entry, &options.channels);
+                        if shadow::check_channels(entry, b).is_ok() && once {
+                            cells
+                                .push(Plan::new(scene, entry.name, b, res, splat).at(particle_res));
+                        }
                     }
                 }
             }
@@ -221,8 +275,14 @@ fn first_budget(entry: &shadow::TechniqueEntry, budgets: &[u32]) -> Option<u32> 
 /// `scene_sha256` is the scene's [`Scene::content_hash`], computed once per scene (for a particle
 /// file it reads and hashes the file).
 fn settings_key(scene: &Scene, scene_sha256: &str, options: &SweepOptions, plan: &Plan) -> String {
+    // A full-resolution cell's key is the one it had before the particle resolution was an
+    // axis, so earlier sweeps' cells stay reusable.
+    let particle_res = match plan.particle_res {
+        ParticleRes::Full => String::new(),
+        res => format!(" particle_res={res}"),
+    };
     format!(
-        "tool={} scene={} size={}x{} frames={} warmup={} cell_seconds={} exact=closed-form technique={} params={}",
+        "tool={} scene={} size={}x{} frames={} warmup={} cell_seconds={} exact=closed-form technique={} params={}{particle_res}",
         env!("CARGO_PKG_VERSION"),
         scene_sha256,
         scene.output.width_px,
@@ -364,23 +424,21 @@ impl<'a> Sweeper<'a> {
     }
 
     /// Renders `config` once and returns the frame.
-    fn render_image(&mut self, config: &TechniqueConfig) -> anyhow::Result<image::RgbImage> {
-        self.renderer.set_technique(self.gpu, config)?;
+    fn render_image(&mut self, plan: &Plan) -> anyhow::Result<image::RgbImage> {
+        self.renderer.set_technique(self.gpu, &plan.config)?;
         self.renderer.render(
             self.gpu,
             self.scene,
             &self.particles,
-            &RenderOptions::default(),
+            &plan.options(),
             &self.target.view,
         )?;
         let rgba = crate::gpu::read_texture_rgba8(self.gpu, &self.target.texture)?;
         Ok(image::DynamicImage::ImageRgba8(rgba).into_rgb8())
     }
 
-    /// The technique's own 24-channel image at the cell's resolution and splat: one this
-    /// process has, else its cell's image when the cell record has this run's settings, else
-    /// rendered now (kept in memory only: in a folder shards share, the file belongs to the
-    /// shard whose cell it is).
+    /// The technique's own 24-channel image at the cell's resolution, splat and particle
+    /// resolution ([`Sweeper::reference`]).
     fn own_baseline(&mut self, plan: &Plan) -> anyhow::Result<image::RgbImage> {
         let p = &plan.config.params;
         let baseline = Plan::new(
@@ -389,7 +447,29 @@ impl<'a> Sweeper<'a> {
             BASELINE_CHANNELS,
             p.resolution_px,
             p.splat,
+        )
+        .at(plan.particle_res);
+        self.reference(baseline)
+    }
+
+    /// The same cell with its particles at full resolution ([`Sweeper::reference`]): what a
+    /// lower `--particle-res` is compared with.
+    fn full_res_baseline(&mut self, plan: &Plan) -> anyhow::Result<image::RgbImage> {
+        let p = &plan.config.params;
+        let baseline = Plan::new(
+            self.scene,
+            &plan.config.name,
+            p.channels,
+            p.resolution_px,
+            p.splat,
         );
+        self.reference(baseline)
+    }
+
+    /// The image of the cell `baseline`: one this process has, else its cell's image when the
+    /// cell record has this run's settings, else rendered now (kept in memory only: in a folder
+    /// shards share, the file belongs to the shard whose cell it is).
+    fn reference(&mut self, baseline: Plan) -> anyhow::Result<image::RgbImage> {
         if let Some(image) = self.own_images.get(&baseline.name) {
             return Ok(image.clone());
         }
@@ -401,7 +481,7 @@ impl<'a> Sweeper<'a> {
         });
         let image = match vouched {
             Some(path) => diff::load_png(&path)?,
-            None => self.render_image(&baseline.config)?,
+            None => self.render_image(&baseline)?,
         };
         self.own_images.insert(baseline.name, image.clone());
         Ok(image)
@@ -428,7 +508,7 @@ impl<'a> Sweeper<'a> {
         };
         let warm = RenderOptions {
             reuse_shadow_maps: true,
-            ..RenderOptions::default()
+            ..plan.options()
         };
         for _ in 0..self.options.warmup {
             self.renderer.render(
@@ -440,9 +520,10 @@ impl<'a> Sweeper<'a> {
             )?;
             self.gpu.wait_idle()?;
         }
-        let options = RenderOptions::default();
+        let options = plan.options();
         let (mut shadow_ms, mut render_ms, mut sort_ms, mut frame_ms, mut wall_ms) =
             (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        let (mut particles_ms, mut upsample_ms) = (Vec::new(), Vec::new());
         let cell_start = Instant::now();
         while !timed_enough(
             &wall_ms.iter().map(|ms| ms / 1e3).collect::<Vec<f64>>(),
@@ -462,6 +543,10 @@ impl<'a> Sweeper<'a> {
             wall_ms.push(start.elapsed().as_secs_f64() * 1e3);
             let shadow = times.get("shadow").unwrap_or(0.0);
             shadow_ms.push(shadow);
+            particles_ms.push(times.get("particles").unwrap_or(0.0));
+            upsample_ms.push(
+                times.get("downsample").unwrap_or(0.0) + times.get("upsample").unwrap_or(0.0),
+            );
             render_ms.push(times.total_ms() - shadow);
             sort_ms.push(stats.sort_ms);
             frame_ms.push(times.total_ms() + stats.sort_ms);
@@ -469,6 +554,7 @@ impl<'a> Sweeper<'a> {
         if is_frame_baseline {
             self.against.none_frame_ms = timing(&frame_ms).median;
         }
+        let particle_fragments = self.renderer.particle_fragments(self.gpu)?;
         let (bytes, transient_bytes) = self.renderer.shadow_bytes();
         let channels_used = self.renderer.technique().channels_used();
         let rgba = crate::gpu::read_texture_rgba8(self.gpu, &self.target.texture)?;
@@ -496,6 +582,7 @@ impl<'a> Sweeper<'a> {
             channels_used,
             shadow_res: plan.config.params.resolution_px,
             splat: plan.config.params.splat,
+            particle_res: plan.particle_res,
             bytes,
             transient_bytes,
             gpu_shadow_ms: timing(&shadow_ms),
@@ -503,11 +590,15 @@ impl<'a> Sweeper<'a> {
             cpu_sort_ms: timing(&sort_ms),
             frame_ms: timing(&frame_ms),
             wall_ms: timing(&wall_ms),
+            particles_ms: timing(&particles_ms),
+            upsample_ms: timing(&upsample_ms),
+            particle_fragments,
             frames_timed: frame_ms.len() as u32,
             overhead_ratio: None,
             shadow_ratio: None,
             vs_own_24: None,
             vs_exact: None,
+            vs_full_res: None,
             rms_transmittance_error: probed.map(|t| rms_difference(&t, &self.exact_t)),
             image: image_path.clone(),
             diff_own_24: None,
@@ -534,6 +625,11 @@ impl<'a> Sweeper<'a> {
         } else {
             Some(self.own_baseline(plan)?)
         };
+        // Likewise a full-resolution cell is its own full-resolution image.
+        let full_res = match plan.particle_res {
+            ParticleRes::Full => None,
+            _ => Some(self.full_res_baseline(plan)?),
+        };
         let ((written, vs_exact), vs_own) = rayon::join(
             || {
                 rayon::join(write_images, || {
@@ -546,10 +642,28 @@ impl<'a> Sweeper<'a> {
                 })
             },
             || {
-                own.as_ref()
-                    .map(|own| compare(dir, own, &image, &format!("{}_vs_own_24", plan.name)))
+                rayon::join(
+                    || {
+                        own.as_ref().map(|own| {
+                            compare(dir, own, &image, &format!("{}_vs_own_24", plan.name))
+                        })
+                    },
+                    || {
+                        full_res.as_ref().map(|full| {
+                            compare(dir, full, &image, &format!("{}_vs_full_res", plan.name))
+                        })
+                    },
+                )
             },
         );
+        let (vs_own, vs_full_res) = vs_own;
+        cell.vs_full_res = Some(match vs_full_res.transpose()? {
+            Some((error, _, _)) => error,
+            None => ImageError {
+                flip_mean: 0.0,
+                rmse: 0.0,
+            },
+        });
         written?;
         let (vs_exact, x4, flip) = vs_exact?;
         cell.vs_exact = Some(vs_exact);
@@ -1106,18 +1220,27 @@ fn sha256_hex(bytes: &[u8]) -> String {
 /// One line about a finished cell.
 fn summary(cell: &CellResult) -> String {
     let mut line = format!(
-        "{} {} ch ({} used) {}² {}: {} bytes, frame {:.1} ms (shadow {:.1})",
+        "{} {} ch ({} used) {}² {}{}: {} bytes, frame {:.1} ms (shadow {:.1})",
         cell.technique,
         cell.channels,
         cell.channels_used,
         cell.shadow_res,
         cell.splat.name(),
+        match cell.particle_res {
+            ParticleRes::Full => String::new(),
+            res => format!(", particles at {res}"),
+        },
         cell.bytes,
         cell.frame_ms.median,
         cell.gpu_shadow_ms.median
     );
     if let Some(e) = &cell.vs_exact {
         line.push_str(&format!(", FLIP vs exact {:.4}", e.flip_mean));
+    }
+    if cell.particle_res != ParticleRes::Full
+        && let Some(e) = &cell.vs_full_res
+    {
+        line.push_str(&format!(", FLIP vs full res {:.4}", e.flip_mean));
     }
     line
 }
@@ -1129,6 +1252,7 @@ pub const CSV_COLUMNS: &[&str] = &[
     "channels_used",
     "shadow_res",
     "splat",
+    "particle_res",
     "bytes",
     "transient_bytes",
     "shadow_ms_median",
@@ -1150,6 +1274,10 @@ pub const CSV_COLUMNS: &[&str] = &[
     "flip_vs_exact",
     "rmse_vs_exact",
     "rms_transmittance_error",
+    "particles_ms_median",
+    "upsample_ms_median",
+    "particle_fragments",
+    "flip_vs_full_res",
     "image",
 ];
 
@@ -1175,6 +1303,7 @@ pub(super) fn csv_row(c: &CellResult) -> Vec<String> {
         c.channels_used.to_string(),
         c.shadow_res.to_string(),
         c.splat.name().to_owned(),
+        c.particle_res.name().to_owned(),
         c.bytes.to_string(),
         c.transient_bytes.to_string(),
         format!("{:.3}", c.gpu_shadow_ms.median),
@@ -1196,6 +1325,11 @@ pub(super) fn csv_row(c: &CellResult) -> Vec<String> {
         opt(c.vs_exact.map(|e| e.flip_mean), 6),
         opt(c.vs_exact.map(|e| e.rmse), 6),
         opt(c.rms_transmittance_error, 6),
+        format!("{:.3}", c.particles_ms.median),
+        format!("{:.3}", c.upsample_ms.median),
+        c.particle_fragments
+            .map_or(String::new(), |n| n.to_string()),
+        opt(c.vs_full_res.map(|e| e.flip_mean), 6),
         c.image.clone(),
     ]
 }

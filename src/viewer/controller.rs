@@ -22,7 +22,7 @@ use super::map_view::{MAP_VIEW_FORMAT, MapView};
 use super::view::View;
 use crate::diff::Metrics;
 use crate::gpu::Gpu;
-use crate::render::{CameraMatrices, RenderOptions, TechniqueConfig};
+use crate::render::{CameraMatrices, ParticleRes, RenderOptions, TechniqueConfig};
 use crate::scene::Scene;
 use crate::shadow::{self, MapKind};
 use crate::sim::{Particle, Simulation};
@@ -110,6 +110,8 @@ pub struct ViewState {
     /// Divider position in split view, 0..1 across the image.
     pub split: f32,
     pub spherical: bool,
+    /// The particle pass's resolution (mixed-resolution particles).
+    pub particle_res: ParticleRes,
     /// Render at the viewport's size instead of the scene's output size.
     pub fit_window: bool,
     /// Inspector: the selected map channel (index into the flattened list) and its scale.
@@ -285,7 +287,7 @@ pub struct Controller {
     pub(super) inspector: Option<Inspector>,
     /// Bumped whenever something that reaches the pixels changes.
     pub revision: u64,
-    last_frame_state: Option<(Scene, bool, f32)>,
+    last_frame_state: Option<(Scene, bool, ParticleRes, f32)>,
     last_change: Instant,
     pub(super) reduced: bool,
     pub(super) times: Smoothed,
@@ -340,6 +342,7 @@ impl Controller {
             mode: CompareMode::Single,
             split: 0.5,
             spherical: true,
+            particle_res: ParticleRes::Full,
             fit_window: false,
             inspect_channel: 0,
             inspect_scale: 1.0,
@@ -707,7 +710,12 @@ impl Controller {
                 None
             }
         };
-        let state = (self.frame_scene(), self.state.spherical, self.state.time_s);
+        let state = (
+            self.frame_scene(),
+            self.state.spherical,
+            self.state.particle_res,
+            self.state.time_s,
+        );
         if fresh.is_some() || self.last_frame_state.as_ref() != Some(&state) {
             // A file's particles stay as read until another frame is read.
             let particles = match (fresh, &self.state.scene.particles) {
@@ -744,6 +752,7 @@ impl Controller {
         let options = RenderOptions {
             spherical: self.state.spherical,
             reuse_shadow_maps: true,
+            particle_res: self.state.particle_res,
         };
         let sides = [self.state.a.clone(), self.state.b.clone()];
         let mut error = None;
@@ -822,6 +831,7 @@ impl Controller {
                 particles: self.particles.clone(),
                 options: RenderOptions {
                     spherical: self.state.spherical,
+                    particle_res: self.state.particle_res,
                     ..RenderOptions::default()
                 },
             },
@@ -1013,6 +1023,7 @@ impl Controller {
                 particles: self.particles.clone(),
                 options: RenderOptions {
                     spherical: self.state.spherical,
+                    particle_res: self.state.particle_res,
                     ..RenderOptions::default()
                 },
             },

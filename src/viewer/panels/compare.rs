@@ -121,6 +121,14 @@ pub fn show(controller: &mut Controller, ui: &mut egui::Ui) {
         }
     }
     ui.checkbox(&mut controller.state.spherical, "Spherical billboards");
+    let res = &mut controller.state.particle_res;
+    egui::ComboBox::from_label("Particle resolution")
+        .selected_text(res.name())
+        .show_ui(ui, |ui| {
+            for r in crate::render::ParticleRes::ALL {
+                ui.selectable_value(res, r, r.name());
+            }
+        });
     ui.checkbox(&mut controller.state.fit_window, "Render at window size");
     ui.add(
         egui::Slider::new(&mut controller.state.scene.shading.exposure, 0.1..=8.0)

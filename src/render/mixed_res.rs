@@ -1,0 +1,384 @@
+//! Mixed-resolution particles (issue 14 §3; the thesis' future work, after Jansen & Bavoil 2011,
+//! "Fast rendering of opacity-mapped particles using DirectX 11 tessellation and mixed
+//! resolutions", NVIDIA's smokeParticles sample, and the low-resolution rendering with bilateral
+//! upsampling in Yusov's slides).
+//!
+//! The particle pass is fill-bound: at [`ParticleRes::Half`] it draws a quarter of the
+//! fragments. With a [`ParticleRes`] below 1 the frame records three passes where the particle
+//! pass was:
+//! 1. `downsample`: the opaque depth reduced to the low resolution, each texel the nearest depth
+//!    of its D x D block (why the nearest: `shaders/render/mixed_res.wgsl`);
+//! 2. `particles`: the same billboards and pipelines as at full resolution, into a cleared
+//!    premultiplied HDR target 1/D the size, clipped against that depth (spherical billboards)
+//!    or depth-tested against it (flat ones); its alpha accumulates the smoke's opacity;
+//! 3. `upsample`: a full-screen pass composites it "over" the full-resolution frame, each pixel
+//!    taking the low-resolution texels that saw its own surface (bilateral in depth, with a
+//!    nearest-depth fallback), so the frame's alpha still ends up holding the smoke's opacity.
+//!
+//! Full resolution records the particle pass exactly as before (bit-identical frames). `has`
+//! draws its own particle pass and refuses other resolutions
+//! ([`crate::shadow::ShadowError::ParticleResUnsupported`]).
+
+use std::fmt;
+use std::str::FromStr;
+
+use bytemuck::{Pod, Zeroable};
+
+use crate::frame::{DEPTH_FORMAT, HDR_FORMAT, OVER};
+use crate::shaders;
+
+/// The resolution of the particle pass relative to the frame, per axis.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum ParticleRes {
+    /// The frame's own resolution (the thesis; the default).
+    #[default]
+    Full,
+    /// Half the width and height: a quarter of the fragments.
+    Half,
+    /// A quarter of the width and height: a sixteenth of the fragments.
+    Quarter,
+}
+
+impl ParticleRes {
+    /// Every resolution, finest first.
+    pub const ALL: [ParticleRes; 3] = [Self::Full, Self::Half, Self::Quarter];
+
+    /// Frame pixels per particle-pass texel along each axis.
+    pub fn divisor(self) -> u32 {
+        match self {
+            Self::Full => 1,
+            Self::Half => 2,
+            Self::Quarter => 4,
+        }
+    }
+
+    /// As the CLI spells it: `1`, `1/2`, `1/4`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Full => "1",
+            Self::Half => "1/2",
+            Self::Quarter => "1/4",
+        }
+    }
+
+    /// The low-resolution target's size for a `width` x `height` frame (rounded up, so every
+    /// frame pixel has a texel).
+    pub fn low_size(self, width: u32, height: u32) -> (u32, u32) {
+        let d = self.divisor();
+        (width.div_ceil(d).max(1), height.div_ceil(d).max(1))
+    }
+}
+
+impl fmt::Display for ParticleRes {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl FromStr for ParticleRes {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, String> {
+        Self::ALL
+            .into_iter()
+            .find(|r| r.name() == s.trim())
+            .ok_or_else(|| {
+                format!("\"{s}\" is not a particle resolution: allowed 1, 1/2, 1/4 (of the frame's, per axis)")
+            })
+    }
+}
+
+/// Parses `--particle-res` (clap's value parser).
+pub fn parse_particle_res(s: &str) -> Result<ParticleRes, String> {
+    s.parse()
+}
+
+impl serde::Serialize for ParticleRes {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        serializer.serialize_str(self.name())
+    }
+}
+
+impl<'de> serde::Deserialize<'de> for ParticleRes {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        let s = String::deserialize(deserializer)?;
+        s.parse().map_err(serde::de::Error::custom)
+    }
+}
+
+/// Keep in sync with `MixedRes` in shaders/render/mixed_res.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct MixedResUniforms {
+    pub divisor: u32,
+    pub depth_tolerance: f32,
+    pub pad0: u32,
+    pub pad1: u32,
+}
+
+/// The layouts of this module's WGSL mirrors, for the naga check.
+pub fn layouts() -> Vec<crate::gpu::MirrorLayout> {
+    vec![crate::mirror_layout!(
+        MixedResUniforms,
+        "render/mixed_res.wgsl",
+        "MixedRes",
+        [divisor, depth_tolerance, pad0, pad1]
+    )]
+}
+
+/// Relative view-depth difference under which a low-resolution texel counts as seeing a
+/// pixel's surface. The thesis scene's silhouettes (the box against the ground 2-6 m behind it,
+/// the ground against the background) differ by far more; a block of ground seen at a grazing
+/// angle spans a few per cent of its depth at 1/4 resolution, which stays within it.
+pub const DEPTH_TOLERANCE: f32 = 0.05;
+
+/// The downsample and upsample pipelines (long-lived; built on the first mixed-resolution frame).
+pub(super) struct MixedResPipelines {
+    downsample_layout: wgpu::BindGroupLayout,
+    upsample_layout: wgpu::BindGroupLayout,
+    pub downsample: wgpu::RenderPipeline,
+    pub upsample: wgpu::RenderPipeline,
+}
+
+fn depth_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::FRAGMENT,
+        ty: wgpu::BindingType::Texture {
+            sample_type: wgpu::TextureSampleType::Depth,
+            view_dimension: wgpu::TextureViewDimension::D2,
+            multisampled: false,
+        },
+        count: None,
+    }
+}
+
+fn uniform_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::FRAGMENT,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Uniform,
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+impl MixedResPipelines {
+    pub fn new(device: &wgpu::Device, frame_layout: &wgpu::BindGroupLayout) -> Self {
+        let module = shaders::module(
+            device,
+            "mixed_res",
+            &shaders::compose("render/mixed_res.wgsl", &[]),
+        );
+        let downsample_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("mixed_res.downsample.layout"),
+            entries: &[depth_entry(0), uniform_entry(3)],
+        });
+        let upsample_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("mixed_res.upsample.layout"),
+            entries: &[
+                depth_entry(0),
+                depth_entry(1),
+                wgpu::BindGroupLayoutEntry {
+                    binding: 2,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+                uniform_entry(3),
+            ],
+        });
+        let pipeline = |label: &str,
+                        group: &wgpu::BindGroupLayout,
+                        fragment: &str,
+                        targets: &[Option<wgpu::ColorTargetState>],
+                        depth_stencil: Option<wgpu::DepthStencilState>| {
+            let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some(label),
+                bind_group_layouts: &[Some(frame_layout), Some(group)],
+                immediate_size: 0,
+            });
+            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some(label),
+                layout: Some(&layout),
+                vertex: wgpu::VertexState {
+                    module: &module,
+                    entry_point: Some("vs_main"),
+                    compilation_options: Default::default(),
+                    buffers: &[],
+                },
+                primitive: wgpu::PrimitiveState::default(),
+                depth_stencil,
+                multisample: Default::default(),
+                fragment: Some(wgpu::FragmentState {
+                    module: &module,
+                    entry_point: Some(fragment),
+                    compilation_options: Default::default(),
+                    targets,
+                }),
+                multiview_mask: None,
+                cache: None,
+            })
+        };
+        let downsample = pipeline(
+            "mixed_res.downsample.pipeline",
+            &downsample_layout,
+            "fs_downsample",
+            &[],
+            Some(wgpu::DepthStencilState {
+                format: DEPTH_FORMAT,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::Always),
+                stencil: Default::default(),
+                bias: Default::default(),
+            }),
+        );
+        let upsample = pipeline(
+            "mixed_res.upsample.pipeline",
+            &upsample_layout,
+            "fs_upsample",
+            &[Some(wgpu::ColorTargetState {
+                format: HDR_FORMAT,
+                blend: Some(wgpu::BlendState {
+                    color: OVER,
+                    alpha: OVER,
+                }),
+                write_mask: wgpu::ColorWrites::ALL,
+            })],
+            None,
+        );
+        Self {
+            downsample_layout,
+            upsample_layout,
+            downsample,
+            upsample,
+        }
+    }
+}
+
+/// The low-resolution targets of one frame size and [`ParticleRes`].
+pub(super) struct LowResTargets {
+    pub res: ParticleRes,
+    /// The full-resolution frame size they were made for.
+    pub frame_size: (u32, u32),
+    pub color_view: wgpu::TextureView,
+    pub depth_view: wgpu::TextureView,
+    /// The low-resolution depth as the particle pass's group 2 (spherical billboards).
+    pub depth_bind_group: wgpu::BindGroup,
+    pub downsample_bind_group: wgpu::BindGroup,
+    pub upsample_bind_group: wgpu::BindGroup,
+}
+
+impl LowResTargets {
+    pub fn new(
+        device: &wgpu::Device,
+        pipelines: &MixedResPipelines,
+        particle_depth_layout: &wgpu::BindGroupLayout,
+        full_depth: &wgpu::TextureView,
+        frame_size: (u32, u32),
+        res: ParticleRes,
+    ) -> Self {
+        let (width, height) = res.low_size(frame_size.0, frame_size.1);
+        let texture = |label, format| {
+            device.create_texture(&wgpu::TextureDescriptor {
+                label: Some(label),
+                size: wgpu::Extent3d {
+                    width,
+                    height,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage: wgpu::TextureUsages::RENDER_ATTACHMENT
+                    | wgpu::TextureUsages::TEXTURE_BINDING,
+                view_formats: &[],
+            })
+        };
+        let color_view = texture("mixed_res.hdr", HDR_FORMAT).create_view(&Default::default());
+        let depth_view = texture("mixed_res.depth", DEPTH_FORMAT).create_view(&Default::default());
+        let uniforms = MixedResUniforms {
+            divisor: res.divisor(),
+            depth_tolerance: DEPTH_TOLERANCE,
+            pad0: 0,
+            pad1: 0,
+        };
+        let params = wgpu::util::DeviceExt::create_buffer_init(
+            device,
+            &wgpu::util::BufferInitDescriptor {
+                label: Some("mixed_res.uniforms"),
+                contents: bytemuck::bytes_of(&uniforms),
+                usage: wgpu::BufferUsages::UNIFORM,
+            },
+        );
+        let view = |binding, view| wgpu::BindGroupEntry {
+            binding,
+            resource: wgpu::BindingResource::TextureView(view),
+        };
+        let depth_bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("mixed_res.particles_depth_bind_group"),
+            layout: particle_depth_layout,
+            entries: &[view(0, &depth_view)],
+        });
+        let downsample_bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("mixed_res.downsample.bind_group"),
+            layout: &pipelines.downsample_layout,
+            entries: &[
+                view(0, full_depth),
+                wgpu::BindGroupEntry {
+                    binding: 3,
+                    resource: params.as_entire_binding(),
+                },
+            ],
+        });
+        let upsample_bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("mixed_res.upsample.bind_group"),
+            layout: &pipelines.upsample_layout,
+            entries: &[
+                view(0, full_depth),
+                view(1, &depth_view),
+                view(2, &color_view),
+                wgpu::BindGroupEntry {
+                    binding: 3,
+                    resource: params.as_entire_binding(),
+                },
+            ],
+        });
+        Self {
+            res,
+            frame_size,
+            color_view,
+            depth_view,
+            depth_bind_group,
+            downsample_bind_group,
+            upsample_bind_group,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn particle_res_parses_its_three_names_and_refuses_the_rest() {
+        for r in ParticleRes::ALL {
+            assert_eq!(r.name().parse::<ParticleRes>(), Ok(r));
+            let json = serde_json::to_string(&r).unwrap();
+            assert_eq!(serde_json::from_str::<ParticleRes>(&json).unwrap(), r);
+        }
+        for bad in ["1/3", "0", "abc", "", "2", "0.5"] {
+            assert!(bad.parse::<ParticleRes>().is_err(), "{bad}");
+        }
+        assert_eq!(ParticleRes::Half.low_size(1024, 768), (512, 384));
+        assert_eq!(ParticleRes::Quarter.low_size(1023, 5), (256, 2));
+    }
+}
