@@ -36,6 +36,7 @@ fn frames(
     let config = technique("osm", 8, 256, SplatMode::Point);
     let mut renderer = Renderer::new(gpu, W, H, OUTPUT_FORMAT, &config).unwrap();
     let target = OffscreenTarget::new(gpu, W, H);
+    renderer.set_count_fragments(gpu, true);
     ParticleRes::ALL
         .into_iter()
         .map(|res| {

@@ -375,10 +375,14 @@ impl CellBench<'_> {
         })
     }
 
-    /// The build's fragment work in one more frame, if the adapter counts fragments.
-    fn count_build(&mut self, options: &RenderOptions) -> anyhow::Result<Option<BuildWork>> {
+    /// The fragment tallies of one more frame (the build's passes and the particle pass), if
+    /// the adapter counts fragments.
+    fn count_frame(
+        &mut self,
+        options: &RenderOptions,
+    ) -> anyhow::Result<Vec<crate::gpu::FragmentTally>> {
         if !self.renderer.set_count_fragments(self.gpu, true) {
-            return Ok(None);
+            return Ok(Vec::new());
         }
         self.renderer.render(
             self.gpu,
@@ -387,9 +391,9 @@ impl CellBench<'_> {
             options,
             &self.target.view,
         )?;
-        let work = BuildWork::of(&self.renderer.fragment_counts(self.gpu)?);
+        let tallies = self.renderer.fragment_counts(self.gpu)?;
         self.renderer.set_count_fragments(self.gpu, false);
-        Ok(work)
+        Ok(tallies)
     }
 
     fn measure(
@@ -437,7 +441,8 @@ impl CellBench<'_> {
                 }
             }
         }
-        let build_work = self.count_build(&options)?;
+        let tallies = self.count_frame(&options)?;
+        let build_work = BuildWork::of(&tallies);
         let build_ms = passes
             .iter()
             .find(|(n, _)| *n == bound::BUILD_PASS)
@@ -467,7 +472,7 @@ impl CellBench<'_> {
             wall_ms: Timing::of(&wall),
             build_work,
             bound,
-            particle_fragments: self.renderer.particle_fragments(self.gpu)?,
+            particle_fragments: crate::render::particle_fragments(&tallies),
         })
     }
 }

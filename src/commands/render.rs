@@ -211,8 +211,15 @@ fn bench(
     warmup: u32,
     frames: u32,
 ) -> anyhow::Result<Vec<crate::gpu::PassTimes>> {
-    for _ in 0..warmup {
+    // The last warm-up frame counts the particle pass's fragments (never a timed frame).
+    let mut particle_fragments = None;
+    for i in 0..warmup {
+        let count = i + 1 == warmup && renderer.set_count_fragments(gpu, true);
         renderer.render(gpu, scene, particles, options, &target.view)?;
+        if count {
+            particle_fragments = renderer.particle_fragments(gpu)?;
+            renderer.set_count_fragments(gpu, false);
+        }
         gpu.wait_idle()?;
     }
     let mut pass_samples: Vec<(&'static str, Vec<f64>)> = Vec::new();
@@ -265,7 +272,7 @@ fn bench(
     }
     row("cpu sort", &mut sort);
     row("wall frame", &mut wall);
-    if let Some(n) = renderer.particle_fragments(gpu)? {
+    if let Some(n) = particle_fragments {
         println!(
             "  particle fragments     {n} (fragment shader invocations of the particle pass at {} resolution)",
             options.particle_res

@@ -34,7 +34,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::frame::occluders::{self, Occluders};
-use crate::gpu::{FragmentTally, Gpu, GpuError, GpuTimer, PassTimes};
+use crate::gpu::{FragmentTally, Gpu, GpuError, GpuTimer, PassTimes, TargetWrites};
 use crate::scene::{LightKind, Scene};
 use crate::shaders;
 use crate::shadow::probe::Probe;
@@ -176,43 +176,6 @@ pub struct Renderer {
     /// targets of the current size and [`ParticleRes`].
     mixed_res: Option<mixed_res::MixedResPipelines>,
     low_res: Option<mixed_res::LowResTargets>,
-    /// Counts the particle pass's fragment shader invocations (pipeline-statistics query),
-    /// where the adapter has the feature.
-    fragment_stats: Option<FragmentStats>,
-    /// Whether the last frame's particle pass was counted (not when a technique drew it).
-    fragments_counted: bool,
-}
-
-/// A pipeline-statistics query around the particle pass and the buffer it resolves into.
-struct FragmentStats {
-    set: wgpu::QuerySet,
-    resolved: wgpu::Buffer,
-}
-
-impl FragmentStats {
-    fn new(gpu: &Gpu) -> Option<Self> {
-        if !gpu
-            .features
-            .contains(wgpu::Features::PIPELINE_STATISTICS_QUERY)
-        {
-            return None;
-        }
-        Some(Self {
-            set: gpu.device.create_query_set(&wgpu::QuerySetDescriptor {
-                label: Some("particles.fragment_stats"),
-                ty: wgpu::QueryType::PipelineStatistics(
-                    wgpu::PipelineStatisticsTypes::FRAGMENT_SHADER_INVOCATIONS,
-                ),
-                count: 1,
-            }),
-            resolved: gpu.device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("particles.fragment_stats.resolved"),
-                size: 8,
-                usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
-                mapped_at_creation: false,
-            }),
-        })
-    }
 }
 
 impl Renderer {
@@ -338,8 +301,6 @@ impl Renderer {
             built_from: None,
             mixed_res: None,
             low_res: None,
-            fragment_stats: FragmentStats::new(gpu),
-            fragments_counted: false,
         })
     }
 
@@ -486,19 +447,11 @@ impl Renderer {
         self.timer.read(gpu)
     }
 
-    /// Fragment shader invocations of the last frame's particle pass, from a pipeline-statistics
-    /// query (blocks until the frame finished); `None` where the adapter has no such queries or
-    /// the technique drew the particles itself (`has`).
-    pub fn particle_fragments(&self, gpu: &Gpu) -> Result<Option<u64>, GpuError> {
-        match &self.fragment_stats {
-            Some(stats) if self.fragments_counted => {
-                let bytes = crate::gpu::read_buffer(gpu, &stats.resolved, 0, 8)?;
-                Ok(Some(u64::from_le_bytes(
-                    bytes[..8].try_into().expect("8 bytes read"),
-                )))
-            }
-            _ => Ok(None),
-        }
+    /// Fragment shader invocations of the particle pass in the last frame rendered with
+    /// fragment counting on ([`Renderer::set_count_fragments`]; blocks until it finished);
+    /// `None` when counting was off, or the technique drew the particles itself (`has`).
+    pub fn particle_fragments(&mut self, gpu: &Gpu) -> Result<Option<u64>, GpuError> {
+        Ok(particle_fragments(&self.fragment_counts(gpu)?))
     }
 
     /// The low-resolution targets for `res` at the current size, made when missing.
@@ -602,7 +555,9 @@ impl Renderer {
         options: &RenderOptions,
         output: &wgpu::TextureView,
     ) -> Result<FrameStats, ShadowError> {
-        if options.particle_res != ParticleRes::Full && self.faces[0].technique.particle_pass().is_some() {
+        if options.particle_res != ParticleRes::Full
+            && self.faces[0].technique.particle_pass().is_some()
+        {
             return Err(ShadowError::ParticleResUnsupported {
                 technique: self.faces[0].technique.name(),
                 res: options.particle_res.name(),
@@ -672,7 +627,6 @@ impl Renderer {
                 pass.draw(0..self.opaque_vertex_count, 0..1);
             }
         }
-        self.fragments_counted = false;
         let first = &mut self.faces[0];
         if let Some(owner) = first.technique.particle_pass() {
             stats.sort_ms += owner.record(
@@ -759,32 +713,26 @@ impl Renderer {
                         },
                     })],
                     depth_stencil_attachment: depth_attachment,
-                    timestamp_writes: self.timer.pass("particles"),
+                    timestamp_writes: self.timer.pass(PARTICLE_PASS),
                     occlusion_query_set: None,
                     multiview_mask: None,
                 });
-                if let Some(stats) = &self.fragment_stats {
-                    pass.begin_pipeline_statistics_query(&stats.set, 0);
-                }
-                if options.spherical {
-                    pass.set_pipeline(&self.particle_pipelines.spherical);
-                    pass.set_bind_group(2, depth_bind_group, &[]);
-                } else {
-                    pass.set_pipeline(&self.particle_pipelines.flat);
-                }
-                pass.set_bind_group(0, &self.faces[0].frame_bind_group, &[]);
-                pass.set_bind_group(1, &self.lights.read_bind_group, &[]);
-                if particle_count > 0 {
-                    pass.set_vertex_buffer(0, self.particles.slice(..));
-                    pass.draw(0..gpu_data::BILLBOARD_VERTICES, 0..particle_count);
-                }
-                if self.fragment_stats.is_some() {
-                    pass.end_pipeline_statistics_query();
-                }
-            }
-            if let Some(stats) = &self.fragment_stats {
-                encoder.resolve_query_set(&stats.set, 0..1, &stats.resolved, 0);
-                self.fragments_counted = true;
+                let writes = TargetWrites::of(&[HDR_FORMAT]);
+                self.timer
+                    .count_fragments(&mut pass, PARTICLE_PASS, writes, |pass| {
+                        if options.spherical {
+                            pass.set_pipeline(&self.particle_pipelines.spherical);
+                            pass.set_bind_group(2, depth_bind_group, &[]);
+                        } else {
+                            pass.set_pipeline(&self.particle_pipelines.flat);
+                        }
+                        pass.set_bind_group(0, &self.faces[0].frame_bind_group, &[]);
+                        pass.set_bind_group(1, &self.lights.read_bind_group, &[]);
+                        if particle_count > 0 {
+                            pass.set_vertex_buffer(0, self.particles.slice(..));
+                            pass.draw(0..gpu_data::BILLBOARD_VERTICES, 0..particle_count);
+                        }
+                    });
             }
             if let Some(low) = low {
                 let pipelines = self.mixed_res.as_ref().expect("made with the targets");
@@ -1051,6 +999,17 @@ impl Renderer {
                 .write_buffer(&self.particles, 0, bytemuck::cast_slice(&self.instances));
         }
     }
+}
+
+/// Name of the particle pass's timestamps and fragment count.
+pub const PARTICLE_PASS: &str = "particles";
+
+/// The particle pass's fragment-shader invocations among a counted frame's tallies.
+pub fn particle_fragments(tallies: &[FragmentTally]) -> Option<u64> {
+    tallies
+        .iter()
+        .find(|t| t.pass == PARTICLE_PASS)
+        .map(|t| t.fragments)
 }
 
 /// Identifies the inputs of a technique's build: the particles, the spotlight and its fitted

@@ -510,7 +510,11 @@ impl<'a> Sweeper<'a> {
             reuse_shadow_maps: true,
             ..plan.options()
         };
-        for _ in 0..self.options.warmup {
+        // The last warm-up frame counts the particle pass's fragments (never a timed frame).
+        let mut particle_fragments = None;
+        for i in 0..self.options.warmup {
+            let count =
+                i + 1 == self.options.warmup && self.renderer.set_count_fragments(self.gpu, true);
             self.renderer.render(
                 self.gpu,
                 self.scene,
@@ -518,6 +522,10 @@ impl<'a> Sweeper<'a> {
                 &warm,
                 &self.target.view,
             )?;
+            if count {
+                particle_fragments = self.renderer.particle_fragments(self.gpu)?;
+                self.renderer.set_count_fragments(self.gpu, false);
+            }
             self.gpu.wait_idle()?;
         }
         let options = plan.options();
@@ -554,7 +562,6 @@ impl<'a> Sweeper<'a> {
         if is_frame_baseline {
             self.against.none_frame_ms = timing(&frame_ms).median;
         }
-        let particle_fragments = self.renderer.particle_fragments(self.gpu)?;
         let (bytes, transient_bytes) = self.renderer.shadow_bytes();
         let channels_used = self.renderer.technique().channels_used();
         let rgba = crate::gpu::read_texture_rgba8(self.gpu, &self.target.texture)?;
