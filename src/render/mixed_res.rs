@@ -140,6 +140,81 @@ pub(super) struct MixedResPipelines {
     pub upsample: wgpu::RenderPipeline,
 }
 
+/// The frame pixels the smoke can cover, as a scissor rectangle `[x, y, width, height]`: the
+/// union of every particle sphere's screen bounds (the eight corners of its view-aligned
+/// bounding cube, projected: the sphere's projection lies within theirs), widened by
+/// `margin_px`. The whole frame when a sphere reaches the camera's near plane; `None` when no
+/// particle is in view. The upsample reads nothing but cleared texels outside it, so
+/// scissoring it there leaves the frame unchanged.
+pub fn smoke_rect(
+    camera: &crate::frame::CameraMatrices,
+    near_m: f32,
+    particles: &[crate::sim::Particle],
+    (width, height): (u32, u32),
+    margin_px: u32,
+) -> Option<[u32; 4]> {
+    use rayon::prelude::*;
+    let clip_from_view = camera.clip_from_view;
+    let view_from_world = camera.view_from_world;
+    let (w, h) = (width as f32, height as f32);
+    // (min x, min y, max x, max y) in pixels, or everything when a sphere is at the eye.
+    let bounds = particles
+        .par_iter()
+        .map(|p| {
+            let c = view_from_world.transform_point3(p.position);
+            let r = p.radius_m;
+            if -(c.z + r) <= near_m {
+                return [
+                    f32::NEG_INFINITY,
+                    f32::NEG_INFINITY,
+                    f32::INFINITY,
+                    f32::INFINITY,
+                ];
+            }
+            let mut b = [
+                f32::INFINITY,
+                f32::INFINITY,
+                f32::NEG_INFINITY,
+                f32::NEG_INFINITY,
+            ];
+            for i in 0..8 {
+                let corner = c + glam::Vec3::new(
+                    if i & 1 == 0 { -r } else { r },
+                    if i & 2 == 0 { -r } else { r },
+                    if i & 4 == 0 { -r } else { r },
+                );
+                let ndc = clip_from_view.project_point3(corner);
+                let (x, y) = ((ndc.x * 0.5 + 0.5) * w, (0.5 - ndc.y * 0.5) * h);
+                b = [b[0].min(x), b[1].min(y), b[2].max(x), b[3].max(y)];
+            }
+            b
+        })
+        .reduce(
+            || {
+                [
+                    f32::INFINITY,
+                    f32::INFINITY,
+                    f32::NEG_INFINITY,
+                    f32::NEG_INFINITY,
+                ]
+            },
+            |a, b| {
+                [
+                    a[0].min(b[0]),
+                    a[1].min(b[1]),
+                    a[2].max(b[2]),
+                    a[3].max(b[3]),
+                ]
+            },
+        );
+    let margin = margin_px as f32;
+    let x0 = (bounds[0] - margin).floor().clamp(0.0, w) as u32;
+    let y0 = (bounds[1] - margin).floor().clamp(0.0, h) as u32;
+    let x1 = (bounds[2] + margin).ceil().clamp(0.0, w) as u32;
+    let y1 = (bounds[3] + margin).ceil().clamp(0.0, h) as u32;
+    (x1 > x0 && y1 > y0).then(|| [x0, y0, x1 - x0, y1 - y0])
+}
+
 fn depth_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry {
         binding,
@@ -367,6 +442,48 @@ impl LowResTargets {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_smoke_rect_holds_every_particles_disc_and_not_the_whole_thesis_frame() {
+        let scene = crate::scene::Scene::thesis_plume();
+        let particles = crate::sim::simulate(&scene);
+        let size = (scene.output.width_px, scene.output.height_px);
+        let camera = crate::frame::CameraMatrices::new(&scene, size.0, size.1);
+        let [x, y, w, h] =
+            smoke_rect(&camera, scene.camera.near_m, &particles, size, 0).expect("smoke in view");
+        // Every particle's disc on screen (its centre and the four points a radius away across
+        // the view) lies inside, up to rounding to whole pixels.
+        let (right, up) = (
+            camera
+                .view_from_world
+                .inverse()
+                .transform_vector3(glam::Vec3::X),
+            camera
+                .view_from_world
+                .inverse()
+                .transform_vector3(glam::Vec3::Y),
+        );
+        for p in &particles {
+            for d in [glam::Vec3::ZERO, right, -right, up, -up] {
+                let q = camera
+                    .project_to_pixel(p.position + d * p.radius_m, size.0, size.1)
+                    .unwrap();
+                assert!(
+                    q.x >= x as f32 - 1.0
+                        && q.y >= y as f32 - 1.0
+                        && q.x <= (x + w) as f32 + 1.0
+                        && q.y <= (y + h) as f32 + 1.0,
+                    "{q} outside [{x}, {y}, {w}, {h}]"
+                );
+            }
+        }
+        // The plume covers under half of the thesis frame's pixels (the scissor's saving).
+        assert!(
+            u64::from(w) * u64::from(h) < u64::from(size.0) * u64::from(size.1) / 2,
+            "[{x}, {y}, {w}, {h}]"
+        );
+        assert_eq!(smoke_rect(&camera, scene.camera.near_m, &[], size, 4), None);
+    }
 
     #[test]
     fn particle_res_parses_its_three_names_and_refuses_the_rest() {

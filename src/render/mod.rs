@@ -752,10 +752,22 @@ impl Renderer {
                     occlusion_query_set: None,
                     multiview_mask: None,
                 });
-                pass.set_pipeline(&pipelines.upsample);
-                pass.set_bind_group(0, &self.faces[0].frame_bind_group, &[]);
-                pass.set_bind_group(1, &low.upsample_bind_group, &[]);
-                pass.draw(0..3, 0..1);
+                // Only where the smoke can be: its screen bounds, widened by one low-resolution
+                // texel (the upsample's bilinear footprint) and a pixel.
+                let rect = mixed_res::smoke_rect(
+                    &camera,
+                    scene.camera.near_m,
+                    particles,
+                    (self.targets.width, self.targets.height),
+                    options.particle_res.divisor() + 1,
+                );
+                if let Some([x, y, w, h]) = rect {
+                    pass.set_scissor_rect(x, y, w, h);
+                    pass.set_pipeline(&pipelines.upsample);
+                    pass.set_bind_group(0, &self.faces[0].frame_bind_group, &[]);
+                    pass.set_bind_group(1, &low.upsample_bind_group, &[]);
+                    pass.draw(0..3, 0..1);
+                }
             }
         }
         {
