@@ -49,14 +49,14 @@ pub struct FragmentTally {
     pub bytes_written: u64,
 }
 
-/// The query set and buffers of the counts, and the recordings of the frame being recorded.
+/// The query set and the buffer its counts resolve into, and the recordings of the frame being
+/// recorded.
 pub(super) struct FragmentCounter {
     query_set: wgpu::QuerySet,
     resolve: wgpu::Buffer,
-    readback: wgpu::Buffer,
     /// This frame's counted recordings, in query order.
     recorded: Vec<(&'static str, TargetWrites)>,
-    /// The recordings of the frame last resolved into `readback`.
+    /// The recordings of the frame last resolved into `resolve`.
     resolved: Vec<(&'static str, TargetWrites)>,
 }
 
@@ -66,15 +66,6 @@ impl FragmentCounter {
         if !gpu.has_pipeline_statistics() {
             return None;
         }
-        let size = u64::from(MAX_COUNTED) * 8;
-        let buffer = |label, usage| {
-            gpu.device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size,
-                usage,
-                mapped_at_creation: false,
-            })
-        };
         Some(Self {
             query_set: gpu.device.create_query_set(&wgpu::QuerySetDescriptor {
                 label: Some("fragments.queries"),
@@ -83,14 +74,12 @@ impl FragmentCounter {
                 ),
                 count: MAX_COUNTED,
             }),
-            resolve: buffer(
-                "fragments.resolve",
-                wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
-            ),
-            readback: buffer(
-                "fragments.readback",
-                wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-            ),
+            resolve: gpu.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("fragments.resolve"),
+                size: u64::from(MAX_COUNTED) * 8,
+                usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            }),
             recorded: Vec::new(),
             resolved: Vec::new(),
         })
@@ -120,14 +109,13 @@ impl FragmentCounter {
         pass.end_pipeline_statistics_query();
     }
 
-    /// Resolves this frame's counts into the readback buffer (after the frame's last pass).
+    /// Resolves this frame's counts into the resolve buffer (after the frame's last pass).
     pub(super) fn resolve(&mut self, encoder: &mut wgpu::CommandEncoder) {
         if self.recorded.is_empty() {
             return;
         }
         let count = self.recorded.len() as u32;
         encoder.resolve_query_set(&self.query_set, 0..count, &self.resolve, 0);
-        encoder.copy_buffer_to_buffer(&self.resolve, 0, &self.readback, 0, u64::from(count) * 8);
         self.resolved = std::mem::take(&mut self.recorded);
     }
 
@@ -138,16 +126,12 @@ impl FragmentCounter {
         if resolved.is_empty() {
             return Ok(Vec::new());
         }
-        let slice = self.readback.slice(..resolved.len() as u64 * 8);
-        slice.map_async(wgpu::MapMode::Read, |_| {});
-        gpu.wait_idle()?;
-        let counts: Vec<u64> = {
-            let view = slice
-                .get_mapped_range()
-                .map_err(|e| GpuError::Readback(e.to_string()))?;
-            bytemuck::cast_slice(&view).to_vec()
-        };
-        self.readback.unmap();
+        // Counting never runs in a timed frame, so the copy to a staging buffer is free to wait.
+        let bytes = super::read_buffer(gpu, &self.resolve, 0, resolved.len() as u64 * 8)?;
+        let counts: Vec<u64> = bytes
+            .chunks_exact(8)
+            .map(|c| u64::from_le_bytes(c.try_into().expect("8-byte chunks")))
+            .collect();
         Ok(tally(&resolved, &counts))
     }
 }
