@@ -1,21 +1,26 @@
 //! Full-screen passes: one triangle over the target that reads one texture, as the tone map,
 //! half-angle slicing's composite of its eye buffer and the viewer's map inspector draw.
 
-/// A layout with one unfilterable 2D float texture at binding 0, read by the fragment stage
-/// (texels are loaded, not sampled).
+/// An unfilterable 2D float texture at `binding`, read by the fragment stage (texels are
+/// loaded, not sampled).
+pub fn texture_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::FRAGMENT,
+        ty: wgpu::BindingType::Texture {
+            sample_type: wgpu::TextureSampleType::Float { filterable: false },
+            view_dimension: wgpu::TextureViewDimension::D2,
+            multisampled: false,
+        },
+        count: None,
+    }
+}
+
+/// A layout with one [`texture_entry`] at binding 0.
 pub fn texture_layout(device: &wgpu::Device, label: &str) -> wgpu::BindGroupLayout {
     device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
         label: Some(label),
-        entries: &[wgpu::BindGroupLayoutEntry {
-            binding: 0,
-            visibility: wgpu::ShaderStages::FRAGMENT,
-            ty: wgpu::BindingType::Texture {
-                sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                view_dimension: wgpu::TextureViewDimension::D2,
-                multisampled: false,
-            },
-            count: None,
-        }],
+        entries: &[texture_entry(0)],
     })
 }
 
@@ -28,6 +33,27 @@ pub fn pipeline(
     (vertex, fragment): (&str, &str),
     layouts: &[Option<&wgpu::BindGroupLayout>],
     target: wgpu::ColorTargetState,
+) -> wgpu::RenderPipeline {
+    pipeline_with(
+        device,
+        label,
+        module,
+        (vertex, fragment),
+        layouts,
+        &[Some(target)],
+        None,
+    )
+}
+
+/// [`pipeline`] writing `targets` (none for a depth-only pass) and `depth_stencil`.
+pub fn pipeline_with(
+    device: &wgpu::Device,
+    label: &str,
+    module: &wgpu::ShaderModule,
+    (vertex, fragment): (&str, &str),
+    layouts: &[Option<&wgpu::BindGroupLayout>],
+    targets: &[Option<wgpu::ColorTargetState>],
+    depth_stencil: Option<wgpu::DepthStencilState>,
 ) -> wgpu::RenderPipeline {
     let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
         label: Some(label),
@@ -44,13 +70,13 @@ pub fn pipeline(
             buffers: &[],
         },
         primitive: wgpu::PrimitiveState::default(),
-        depth_stencil: None,
+        depth_stencil,
         multisample: wgpu::MultisampleState::default(),
         fragment: Some(wgpu::FragmentState {
             module,
             entry_point: Some(fragment),
             compilation_options: Default::default(),
-            targets: &[Some(target)],
+            targets,
         }),
         multiview_mask: None,
         cache: None,

@@ -24,7 +24,7 @@ use std::str::FromStr;
 
 use bytemuck::{Pod, Zeroable};
 
-use crate::frame::{DEPTH_FORMAT, HDR_FORMAT, OVER};
+use crate::frame::{DEPTH_FORMAT, HDR_FORMAT, OVER, fullscreen};
 use crate::shaders;
 
 /// The resolution of the particle pass relative to the frame, per axis.
@@ -257,16 +257,7 @@ impl MixedResPipelines {
             entries: &[
                 depth_entry(0),
                 depth_entry(1),
-                wgpu::BindGroupLayoutEntry {
-                    binding: 2,
-                    visibility: wgpu::ShaderStages::FRAGMENT,
-                    ty: wgpu::BindingType::Texture {
-                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                        view_dimension: wgpu::TextureViewDimension::D2,
-                        multisampled: false,
-                    },
-                    count: None,
-                },
+                fullscreen::texture_entry(2),
                 uniform_entry(3),
             ],
         });
@@ -275,32 +266,15 @@ impl MixedResPipelines {
                         fragment: &str,
                         targets: &[Option<wgpu::ColorTargetState>],
                         depth_stencil: Option<wgpu::DepthStencilState>| {
-            let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                label: Some(label),
-                bind_group_layouts: &[Some(frame_layout), Some(group)],
-                immediate_size: 0,
-            });
-            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                label: Some(label),
-                layout: Some(&layout),
-                vertex: wgpu::VertexState {
-                    module: &module,
-                    entry_point: Some("vs_main"),
-                    compilation_options: Default::default(),
-                    buffers: &[],
-                },
-                primitive: wgpu::PrimitiveState::default(),
+            fullscreen::pipeline_with(
+                device,
+                label,
+                &module,
+                ("vs_main", fragment),
+                &[Some(frame_layout), Some(group)],
+                targets,
                 depth_stencil,
-                multisample: Default::default(),
-                fragment: Some(wgpu::FragmentState {
-                    module: &module,
-                    entry_point: Some(fragment),
-                    compilation_options: Default::default(),
-                    targets,
-                }),
-                multiview_mask: None,
-                cache: None,
-            })
+            )
         };
         let downsample = pipeline(
             "mixed_res.downsample.pipeline",
