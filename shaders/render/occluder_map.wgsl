@@ -2,12 +2,7 @@
 // pipeline culls the faces turned towards the light), each texel keeping the radial distance
 // from the light over the map's far distance. Read by common/occluders_map.wgsl.
 #import common/frame.wgsl
-
-struct VertexIn {
-    @location(0) position: vec3<f32>,
-    @location(1) normal: vec3<f32>,
-    @location(2) albedo: vec3<f32>,
-};
+#import common/opaque_vertex.wgsl
 
 struct VertexOut {
     @builtin(position) clip: vec4<f32>,
@@ -15,7 +10,7 @@ struct VertexOut {
 };
 
 @vertex
-fn vs_main(v: VertexIn) -> VertexOut {
+fn vs_main(v: OpaqueVertex) -> VertexOut {
     var out: VertexOut;
     out.clip = frame.occluder_clip_from_world * vec4<f32>(v.position, 1.0);
     out.world = v.position;

@@ -4,12 +4,7 @@
 #import common/lighting.wgsl
 #import shadow_technique
 #import occluders
-
-struct VertexIn {
-    @location(0) position: vec3<f32>,
-    @location(1) normal: vec3<f32>,
-    @location(2) albedo: vec3<f32>,
-};
+#import common/opaque_vertex.wgsl
 
 struct VertexOut {
     @builtin(position) clip: vec4<f32>,
@@ -19,7 +14,7 @@ struct VertexOut {
 };
 
 @vertex
-fn vs_main(v: VertexIn) -> VertexOut {
+fn vs_main(v: OpaqueVertex) -> VertexOut {
     var out: VertexOut;
     out.clip = frame.clip_from_world * vec4<f32>(v.position, 1.0);
     out.world = v.position;

@@ -96,6 +96,50 @@ pub fn opaque_mesh(scene: &Scene) -> Vec<OpaqueVertex> {
     out
 }
 
+/// A pipeline drawing [`opaque_mesh`]'s triangles (`vs_main`, `fs_main` of `module`) with depth
+/// writes and a `Less` test into `depth_format`, culling `cull`: the opaque pass into the frame
+/// (back faces culled) and the occluders' depth map from the light (front faces culled).
+pub fn mesh_pipeline(
+    device: &wgpu::Device,
+    label: &str,
+    module: &wgpu::ShaderModule,
+    layout: &wgpu::PipelineLayout,
+    cull: wgpu::Face,
+    depth_format: wgpu::TextureFormat,
+    targets: &[Option<wgpu::ColorTargetState>],
+) -> wgpu::RenderPipeline {
+    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some(label),
+        layout: Some(layout),
+        vertex: wgpu::VertexState {
+            module,
+            entry_point: Some("vs_main"),
+            compilation_options: Default::default(),
+            buffers: &[Some(OpaqueVertex::LAYOUT)],
+        },
+        primitive: wgpu::PrimitiveState {
+            cull_mode: Some(cull),
+            ..Default::default()
+        },
+        depth_stencil: Some(wgpu::DepthStencilState {
+            format: depth_format,
+            depth_write_enabled: Some(true),
+            depth_compare: Some(wgpu::CompareFunction::Less),
+            stencil: Default::default(),
+            bias: Default::default(),
+        }),
+        multisample: Default::default(),
+        fragment: Some(wgpu::FragmentState {
+            module,
+            entry_point: Some("fs_main"),
+            compilation_options: Default::default(),
+            targets,
+        }),
+        multiview_mask: None,
+        cache: None,
+    })
+}
+
 fn quad(out: &mut Vec<OpaqueVertex>, corners: [Vec3; 4], normal: Vec3, albedo: Vec3) {
     for i in [0, 1, 2, 0, 2, 3] {
         out.push(OpaqueVertex {

@@ -76,7 +76,8 @@ impl ParticleInstance {
     }
 }
 
-/// A vertex of the opaque geometry. Keep in sync with `VertexIn` in shaders/render/opaque.wgsl.
+/// A vertex of the opaque geometry. Keep in sync with `OpaqueVertex` in
+/// shaders/common/opaque_vertex.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct OpaqueVertex {

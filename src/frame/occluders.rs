@@ -15,7 +15,7 @@
 
 use glam::{Mat4, Vec3};
 
-use super::gpu_data::{OccluderBox, OpaqueVertex};
+use super::gpu_data::OccluderBox;
 use crate::gpu::{AllocationError, Gpu, GpuTimer, MemoryLedger};
 use crate::scene::Scene;
 use crate::shaders;
@@ -76,37 +76,16 @@ impl Occluders {
             bind_group_layouts: &[Some(&uniform_layout)],
             immediate_size: 0,
         });
-        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("occluders.pipeline"),
-            layout: Some(&layout),
-            vertex: wgpu::VertexState {
-                module: &module,
-                entry_point: Some("vs_main"),
-                compilation_options: Default::default(),
-                buffers: &[Some(OpaqueVertex::LAYOUT)],
-            },
-            primitive: wgpu::PrimitiveState {
-                // Back faces only: see the module docs.
-                cull_mode: Some(wgpu::Face::Front),
-                ..Default::default()
-            },
-            depth_stencil: Some(wgpu::DepthStencilState {
-                format: OCCLUDER_MAP_FORMAT,
-                depth_write_enabled: Some(true),
-                depth_compare: Some(wgpu::CompareFunction::Less),
-                stencil: Default::default(),
-                bias: Default::default(),
-            }),
-            multisample: Default::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &module,
-                entry_point: Some("fs_main"),
-                compilation_options: Default::default(),
-                targets: &[],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
+        // Back faces only: see the module docs.
+        let pipeline = super::geometry::mesh_pipeline(
+            device,
+            "occluders.pipeline",
+            &module,
+            &layout,
+            wgpu::Face::Front,
+            OCCLUDER_MAP_FORMAT,
+            &[],
+        );
         let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
             label: Some("occluders.sampler"),
             address_mode_u: wgpu::AddressMode::ClampToEdge,

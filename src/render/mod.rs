@@ -1151,36 +1151,15 @@ impl TechniquePipelines {
             bind_group_layouts: &[Some(frame_layout), Some(tech_layout)],
             immediate_size: 0,
         });
-        let opaque = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("opaque.pipeline"),
-            layout: Some(&opaque_layout),
-            vertex: wgpu::VertexState {
-                module: &opaque_module,
-                entry_point: Some("vs_main"),
-                compilation_options: Default::default(),
-                buffers: &[Some(OpaqueVertex::LAYOUT)],
-            },
-            primitive: wgpu::PrimitiveState {
-                cull_mode: Some(wgpu::Face::Back),
-                ..Default::default()
-            },
-            depth_stencil: Some(wgpu::DepthStencilState {
-                format: DEPTH_FORMAT,
-                depth_write_enabled: Some(true),
-                depth_compare: Some(wgpu::CompareFunction::Less),
-                stencil: Default::default(),
-                bias: Default::default(),
-            }),
-            multisample: Default::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &opaque_module,
-                entry_point: Some("fs_main"),
-                compilation_options: Default::default(),
-                targets: &[Some(HDR_FORMAT.into())],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
+        let opaque = geometry::mesh_pipeline(
+            device,
+            "opaque.pipeline",
+            &opaque_module,
+            &opaque_layout,
+            wgpu::Face::Back,
+            DEPTH_FORMAT,
+            &[Some(HDR_FORMAT.into())],
+        );
         let lighting = ParticleLighting::new(
             device,
             name,
