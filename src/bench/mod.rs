@@ -246,23 +246,20 @@ pub fn run(gpu: &Gpu, scene: &Scene, options: &BenchOptions) -> anyhow::Result<B
         let particles = progress.suspend(|| crate::particles::scene_particles(&scaled))?;
         let sim_ms = sim_start.elapsed().as_secs_f64() * 1e3;
         progress.start(&format!("cheapest build at {count} particles"));
-        let cheapest = {
-            let mut bench = CellBench {
-                gpu,
-                renderer: &mut renderer,
-                scene: &scaled,
-                particles: &particles,
-                target: &target,
-                options,
-            };
-            match bench.measure_cheapest() {
-                Ok(measured) => Some(measured),
-                Err(err) => {
-                    progress.suspend(|| {
-                        eprintln!("warning: cheapest build at {count} particles: {err:#}")
-                    });
-                    None
-                }
+        let mut bench = CellBench {
+            gpu,
+            renderer: &mut renderer,
+            scene: &scaled,
+            particles: &particles,
+            target: &target,
+            options,
+        };
+        let cheapest = match bench.measure_cheapest() {
+            Ok(measured) => Some(measured),
+            Err(err) => {
+                progress
+                    .suspend(|| eprintln!("warning: cheapest build at {count} particles: {err:#}"));
+                None
             }
         };
         let mut counted = CountResult {
@@ -277,14 +274,6 @@ pub fn run(gpu: &Gpu, scene: &Scene, options: &BenchOptions) -> anyhow::Result<B
             let config = TechniqueConfig {
                 name: name.clone(),
                 params: scaled.shadow.params(options.channels),
-            };
-            let mut bench = CellBench {
-                gpu,
-                renderer: &mut renderer,
-                scene: &scaled,
-                particles: &particles,
-                target: &target,
-                options,
             };
             let cell = match bench.measure(&config, counted.cheapest.as_ref()) {
                 Ok(measured) => Cell {
