@@ -62,6 +62,21 @@ fn point_light_techniques() -> Vec<&'static shadow::TechniqueEntry> {
         .collect()
 }
 
+/// The analytic sphere's T at `points` under every [`point_light_techniques`] entry at 24
+/// channels (or its minimum), a 512² map and segment splats, with the technique's name.
+fn probe_sphere(
+    gpu: &smokeshadow::gpu::Gpu,
+    scene: &Scene,
+    points: &[Vec3],
+) -> Vec<(String, Vec<f32>)> {
+    let configs: Vec<_> = point_light_techniques()
+        .iter()
+        .map(|e| technique(e.name, e.min_channels.max(24), 512, SplatMode::Segment))
+        .collect();
+    let results = probe_all(gpu, scene, &[sphere::particle()], &configs, points);
+    configs.into_iter().map(|c| c.name).zip(results).collect()
+}
+
 #[test]
 fn the_sphere_lit_from_inside_one_face_and_across_a_seam_matches_the_closed_form() {
     let gpu = gpu();
@@ -85,19 +100,13 @@ fn the_sphere_lit_from_inside_one_face_and_across_a_seam_matches_the_closed_form
             "one face" => assert_eq!(faces.len(), 1, "{case}: faces {faces:?}"),
             _ => assert_eq!(faces.len(), 2, "{case}: faces {faces:?}"),
         }
-        let configs: Vec<_> = point_light_techniques()
-            .iter()
-            .map(|e| technique(e.name, e.min_channels.max(24), 512, SplatMode::Segment))
-            .collect();
-        let results = probe_all(&gpu, &scene, &[sphere::particle()], &configs, &points);
-        for (config, t) in configs.iter().zip(&results) {
-            let name = &config.name;
-            let entry = shadow::find(name).unwrap();
+        for (name, t) in probe_sphere(&gpu, &scene, &points) {
+            let entry = shadow::find(&name).unwrap();
             assert!(
                 t.iter().all(|v| v.is_finite() && (0.0..=1.0).contains(v)),
                 "{case}, {name}: T outside [0, 1]"
             );
-            let error = max_difference(t, &expected);
+            let error = max_difference(&t, &expected);
             println!("{case}, {name}: largest |T - analytic| {error}");
             // The reference evaluates the closed form per point, whichever face: float
             // precision. The depth-resolving techniques at 24 channels: a cube face's 512²
@@ -141,12 +150,7 @@ fn transmittance_is_continuous_across_a_cube_seam() {
     assert_eq!(seams.len(), 1, "the sweep crosses the seam once: {faces:?}");
     let at = seams[0];
 
-    let configs: Vec<_> = point_light_techniques()
-        .iter()
-        .map(|e| technique(e.name, e.min_channels.max(24), 512, SplatMode::Segment))
-        .collect();
-    let results = probe_all(&gpu, &scene, &[sphere::particle()], &configs, &points);
-    for (config, t) in configs.iter().zip(&results) {
+    for (name, t) in probe_sphere(&gpu, &scene, &points) {
         // A continuous T changes across the seam by about as much as between any two
         // neighbouring points of one face. The two faces' texel grids differ (4 cm texels, 20
         // steps each), which may add the difference between two bilinear reconstructions of
@@ -159,14 +163,10 @@ fn transmittance_is_continuous_across_a_cube_seam() {
             .filter(|&i| i != at)
             .map(|i| (t[i + 1] - t[i]).abs())
             .fold(0.0f32, f32::max);
-        println!(
-            "{}: jump across the seam {jump}, largest neighbouring step {near_steps}",
-            config.name
-        );
+        println!("{name}: jump across the seam {jump}, largest neighbouring step {near_steps}");
         assert!(
             jump <= 1.5 * near_steps + 2e-4,
-            "{}: T jumps by {jump} across the seam (neighbouring steps up to {near_steps})",
-            config.name
+            "{name}: T jumps by {jump} across the seam (neighbouring steps up to {near_steps})"
         );
     }
 }
