@@ -407,6 +407,7 @@ fn build_fragment_counts_are_whole_passes_over_the_cheapest_builds_billboards() 
         frames: 1,
         warmup: 0,
         particle_res: Default::default(),
+        sorts: vec![Default::default()],
     };
     let results = smokeshadow::bench::run(&gpu, &reduced_plume(), &options).unwrap();
     let count = &results.counts[0];

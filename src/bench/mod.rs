@@ -31,7 +31,8 @@ use serde::Serialize;
 use crate::gpu::Gpu;
 use crate::progress::Progress;
 use crate::render::{
-    OUTPUT_FORMAT, OffscreenTarget, ParticleRes, RenderOptions, Renderer, TechniqueConfig,
+    OUTPUT_FORMAT, OffscreenTarget, ParticleRes, RenderOptions, Renderer, SortOrder,
+    TechniqueConfig,
 };
 use crate::scene::Scene;
 use crate::shadow;
@@ -60,6 +61,9 @@ pub struct BenchOptions {
     pub warmup: u32,
     /// The particle pass's resolution (`--particle-res`).
     pub particle_res: ParticleRes,
+    /// The orders of the frame's one sort to measure each technique with (`--sort`); every
+    /// order but the view's also measures its image against the view-sorted one.
+    pub sorts: Vec<SortOrder>,
 }
 
 /// Everything one bench measured.
@@ -76,6 +80,8 @@ pub struct BenchResults {
     pub warmup: u32,
     /// The particle pass's resolution, `1`, `1/2` or `1/4` of the frame's per axis.
     pub particle_res: ParticleRes,
+    /// The sort orders measured (`--sort`).
+    pub sorts: Vec<SortOrder>,
     pub adapter: String,
     /// Whether GPU pass times were measured (the adapter has timestamp queries).
     pub gpu_timestamps: bool,
@@ -97,10 +103,11 @@ pub struct CountResult {
     pub cells: Vec<Cell>,
 }
 
-/// One technique at one count: measured, or refused with the reason.
+/// One technique at one count and sort order: measured, or refused with the reason.
 #[derive(Clone, Debug, Serialize)]
 pub struct Cell {
     pub technique: String,
+    pub sort: SortOrder,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub refused: Option<String>,
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -135,6 +142,10 @@ pub struct Measured {
     /// query; absent without one, or when the technique draws its own particle pass).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub particle_fragments: Option<u64>,
+    /// For a sort order other than the view's: its frame against the same technique's
+    /// view-sorted frame (what sharing the sort costs in accuracy).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub vs_view_sort: Option<crate::sweep::ImageError>,
 }
 
 #[derive(Clone, Debug, Serialize)]
@@ -144,6 +155,15 @@ pub struct PassTiming {
 }
 
 impl Cell {
+    /// The technique's name, with the sort order when it is not the view's: a row's and a
+    /// series' name.
+    pub fn label(&self) -> String {
+        match self.sort {
+            SortOrder::View => self.technique.clone(),
+            sort => format!("{} ({sort} sort)", self.technique),
+        }
+    }
+
     /// The GPU time of `pass`, if measured.
     pub fn pass_ms(&self, pass: &str) -> Option<Timing> {
         let m = self.measured.as_ref()?;
@@ -176,12 +196,13 @@ impl BenchResults {
         names
     }
 
-    /// The techniques in the order they ran.
-    pub fn techniques(&self) -> Vec<String> {
+    /// The cells' labels ([`Cell::label`]) in the order they ran.
+    pub fn labels(&self) -> Vec<String> {
         let mut names: Vec<String> = Vec::new();
         for c in self.counts.iter().flat_map(|c| &c.cells) {
-            if !names.contains(&c.technique) {
-                names.push(c.technique.clone());
+            let label = c.label();
+            if !names.contains(&label) {
+                names.push(label);
             }
         }
         names
@@ -205,6 +226,9 @@ fn check(options: &BenchOptions) -> anyhow::Result<()> {
     }
     if options.frames == 0 {
         anyhow::bail!("--frames 0: time at least one frame");
+    }
+    if options.sorts.is_empty() {
+        anyhow::bail!("--sort is empty: give view, half-angle or both");
     }
     for name in &options.techniques {
         shadow::find(name)?;
@@ -233,12 +257,16 @@ pub fn run(gpu: &Gpu, scene: &Scene, options: &BenchOptions) -> anyhow::Result<B
         frames: options.frames,
         warmup: options.warmup,
         particle_res: options.particle_res,
+        sorts: options.sorts.clone(),
         adapter: gpu.describe(),
         gpu_timestamps: gpu.has_timestamps(),
         cpu_threads: rayon::current_num_threads(),
         counts: Vec::new(),
     };
-    let mut progress = Progress::new(options.counts.len() * options.techniques.len(), "cells");
+    let mut progress = Progress::new(
+        options.counts.len() * options.techniques.len() * options.sorts.len(),
+        "cells",
+    );
     for &count in &options.counts {
         let scaled = scene.clone().with_particles(count)?;
         progress.start(&format!("simulating {count} particles"));
@@ -270,25 +298,25 @@ pub fn run(gpu: &Gpu, scene: &Scene, options: &BenchOptions) -> anyhow::Result<B
             cells: Vec::new(),
         };
         for name in &options.techniques {
-            progress.start(&format!("{name} at {count} particles"));
-            let config = TechniqueConfig {
-                name: name.clone(),
-                params: scaled.shadow.params(options.channels),
-            };
-            let cell = match bench.measure(&config, counted.cheapest.as_ref()) {
-                Ok(measured) => Cell {
+            for &sort in &options.sorts {
+                progress.start(&format!("{name} at {count} particles, {sort} sort"));
+                let config = TechniqueConfig {
+                    name: name.clone(),
+                    params: scaled.shadow.params(options.channels),
+                };
+                let measured = bench.measure(&config, sort, counted.cheapest.as_ref());
+                let cell = Cell {
                     technique: name.clone(),
-                    refused: None,
-                    measured: Some(measured),
-                },
-                Err(err) => Cell {
-                    technique: name.clone(),
-                    refused: Some(format!("{err:#}").replace('\n', " ")),
-                    measured: None,
-                },
-            };
-            progress.finish(summary(count, &cell));
-            counted.cells.push(cell);
+                    sort,
+                    refused: measured
+                        .as_ref()
+                        .err()
+                        .map(|err| format!("{err:#}").replace('\n', " ")),
+                    measured: measured.ok(),
+                };
+                progress.finish(summary(count, &cell));
+                counted.cells.push(cell);
+            }
         }
         results.counts.push(counted);
     }
@@ -301,11 +329,14 @@ fn summary(count: u32, cell: &Cell) -> String {
     match (&cell.measured, &cell.refused) {
         (Some(m), _) => format!(
             "{} at {count} particles: frame {:.2} ms (sort {:.2} ms), {} bytes",
-            cell.technique, m.frame_ms.median, m.sort_ms.median, m.bytes
+            cell.label(),
+            m.frame_ms.median,
+            m.sort_ms.median,
+            m.bytes
         ),
         (None, reason) => format!(
             "{} at {count} particles: refused: {}",
-            cell.technique,
+            cell.label(),
             reason.as_deref().unwrap_or("?")
         ),
     }
@@ -385,15 +416,30 @@ impl CellBench<'_> {
         Ok(tallies)
     }
 
+    /// The tone-mapped frame with `options`, read back.
+    fn image(&mut self, options: &RenderOptions) -> anyhow::Result<image::RgbImage> {
+        self.renderer.render(
+            self.gpu,
+            self.scene,
+            self.particles,
+            options,
+            &self.target.view,
+        )?;
+        let rgba = crate::gpu::read_texture_rgba8(self.gpu, &self.target.texture)?;
+        Ok(image::DynamicImage::ImageRgba8(rgba).into_rgb8())
+    }
+
     fn measure(
         &mut self,
         config: &TechniqueConfig,
+        sort: SortOrder,
         cheapest: Option<&CheapestMeasured>,
     ) -> anyhow::Result<Measured> {
         // `shadow::create` (through `set_technique`) checks the budget and the parameters.
         self.renderer.set_technique(self.gpu, config)?;
         let options = RenderOptions {
             particle_res: self.options.particle_res,
+            sort,
             ..RenderOptions::default()
         };
         for _ in 0..self.options.warmup {
@@ -407,7 +453,7 @@ impl CellBench<'_> {
             self.gpu.wait_idle()?;
         }
         let mut passes: Vec<(&'static str, Vec<f64>)> = Vec::new();
-        let (mut sort, mut gpu_total, mut frame, mut wall) =
+        let (mut sort_times, mut gpu_total, mut frame, mut wall) =
             (Vec::new(), Vec::new(), Vec::new(), Vec::new());
         for _ in 0..self.options.frames {
             let start = Instant::now();
@@ -420,7 +466,7 @@ impl CellBench<'_> {
             )?;
             let times = self.renderer.gpu_times(self.gpu)?;
             wall.push(start.elapsed().as_secs_f64() * 1e3);
-            sort.push(stats.sort_ms);
+            sort_times.push(stats.sort_ms);
             gpu_total.push(times.total_ms());
             frame.push(times.total_ms() + stats.sort_ms);
             for (name, ms) in times.passes {
@@ -431,6 +477,21 @@ impl CellBench<'_> {
             }
         }
         let tallies = self.count_frame(&options)?;
+        let vs_view_sort = match sort {
+            SortOrder::View => None,
+            _ => {
+                let shared = self.image(&options)?;
+                let view = self.image(&RenderOptions {
+                    sort: SortOrder::View,
+                    ..options
+                })?;
+                let metrics = crate::diff::compare(&view, &shared)?.metrics;
+                Some(crate::sweep::ImageError {
+                    flip_mean: metrics.flip_mean,
+                    rmse: metrics.rmse_srgb,
+                })
+            }
+        };
         let build_work = BuildWork::of(&tallies);
         let build_ms = passes
             .iter()
@@ -448,7 +509,7 @@ impl CellBench<'_> {
                 .into_iter()
                 .map(|(n, v)| (n.to_owned(), v))
                 .collect(),
-            sort_ms: Timing::of(&sort),
+            sort_ms: Timing::of(&sort_times),
             gpu_passes: passes
                 .into_iter()
                 .map(|(pass, v)| PassTiming {
@@ -462,6 +523,7 @@ impl CellBench<'_> {
             build_work,
             bound,
             particle_fragments: crate::render::particle_fragments(&tallies),
+            vs_view_sort,
         })
     }
 }
@@ -471,6 +533,7 @@ impl CellBench<'_> {
 pub const CSV_COLUMNS: &[&str] = &[
     "particles",
     "technique",
+    "sort",
     "sim_ms",
     "sort_ms_median",
     "gpu_total_ms_median",
@@ -490,6 +553,9 @@ pub const CSV_COLUMNS: &[&str] = &[
     "cheapest_build_ms",
     "cheapest_fragments",
     "build_over_cheapest",
+    // The frame against the view-sorted one, for another sort order; empty for the view's.
+    "vs_view_sort_flip_mean",
+    "vs_view_sort_rmse",
 ];
 
 /// The files [`write`] puts in its folder.
@@ -539,6 +605,7 @@ fn csv(results: &BenchResults) -> anyhow::Result<Vec<u8>> {
             let mut row = vec![
                 count.particles.to_string(),
                 cell.technique.clone(),
+                cell.sort.name().to_owned(),
                 ms(count.sim_ms),
             ];
             match &cell.measured {
@@ -554,6 +621,10 @@ fn csv(results: &BenchResults) -> anyhow::Result<Vec<u8>> {
                         m.bytes.to_string(),
                     ]);
                     row.extend(bound_fields(m.bound.as_ref()));
+                    row.extend(match &m.vs_view_sort {
+                        Some(e) => [format!("{:.5}", e.flip_mean), format!("{:.5}", e.rmse)],
+                        None => [String::new(), String::new()],
+                    });
                     row.extend(
                         passes
                             .iter()
@@ -567,7 +638,7 @@ fn csv(results: &BenchResults) -> anyhow::Result<Vec<u8>> {
                 }
                 None => row.extend(std::iter::repeat_n(
                     String::new(),
-                    CSV_COLUMNS.len() - 3 + passes.len() + counters.len(),
+                    CSV_COLUMNS.len() - 4 + passes.len() + counters.len(),
                 )),
             }
             row.push(cell.refused.clone().unwrap_or_default());
@@ -601,7 +672,7 @@ fn bound_fields(bound: Option<&Bound>) -> Vec<String> {
 fn charts(results: &BenchResults) -> anyhow::Result<Vec<String>> {
     let x_label = "particles (log scale)";
     let ms_label = "milliseconds (log scale)";
-    let techniques = results.techniques();
+    let techniques = results.labels();
     // A line over the counts where `value` gives a point.
     let line = |label: String, value: &dyn Fn(&CountResult) -> Option<f64>| LogLogSeries {
         label,
@@ -614,7 +685,7 @@ fn charts(results: &BenchResults) -> anyhow::Result<Vec<String>> {
     let cell = |c: &'_ CountResult, t: &str| -> Option<Measured> {
         c.cells
             .iter()
-            .find(|cell| cell.technique == t)
+            .find(|cell| cell.label() == t)
             .and_then(|cell| cell.measured.clone())
     };
 
@@ -639,7 +710,7 @@ fn charts(results: &BenchResults) -> anyhow::Result<Vec<String>> {
             let series = line(format!("{t}: {p}"), &|c| {
                 c.cells
                     .iter()
-                    .find(|cell| cell.technique == *t)
+                    .find(|cell| cell.label() == *t)
                     .and_then(|cell| cell.pass_ms(&p))
                     .map(|ms| ms.median)
             });

@@ -44,6 +44,17 @@ pub struct BenchArgs {
     /// draws its own, is refused below 1).
     #[arg(long, value_name = "RES", default_value = "1", value_parser = crate::render::parse_particle_res)]
     pub particle_res: crate::render::ParticleRes,
+    /// Orders of the frame's one sort, comma-separated: `view` (by view depth) and/or
+    /// `half-angle` (the order `has` draws in, shared with it); each technique is measured
+    /// with each, and a half-angle frame is also compared with the view-sorted one (FLIP).
+    #[arg(
+        long,
+        value_enum,
+        value_delimiter = ',',
+        value_name = "ORDER,...",
+        default_value = "view"
+    )]
+    pub sort: Vec<crate::render::SortOrder>,
 }
 
 /// The embedded scene a bench runs when none is given.
@@ -77,6 +88,7 @@ pub fn run(args: &BenchArgs, adapter: &AdapterPreference) -> anyhow::Result<()> 
         frames: args.frames,
         warmup: args.warmup,
         particle_res: args.particle_res,
+        sorts: args.sort.clone(),
     };
     let gpu = Gpu::new(adapter)?;
     let results = bench::run(&gpu, &scene, &options)?;
@@ -113,9 +125,14 @@ fn print_table(results: &BenchResults) {
     }
     println!("  medians in ms; frame = GPU passes + CPU sort");
     let passes = results.pass_names();
+    let width = label_width(results);
     let mut header = format!(
-        "{:>9} {:<10} {:>10} {:>8}",
-        "particles", "technique", "sim", "sort"
+        "{:>9} {:<w$} {:>10} {:>8}",
+        "particles",
+        "technique",
+        "sim",
+        "sort",
+        w = width
     );
     for p in &passes {
         header.push_str(&format!(" {:>10}", truncate(p, 10)));
@@ -128,8 +145,11 @@ fn print_table(results: &BenchResults) {
     for count in &results.counts {
         for cell in &count.cells {
             let mut row = format!(
-                "{:>9} {:<10} {:>10.1}",
-                count.particles, cell.technique, count.sim_ms
+                "{:>9} {:<w$} {:>10.1}",
+                count.particles,
+                cell.label(),
+                count.sim_ms,
+                w = width
             );
             match &cell.measured {
                 Some(m) => {
@@ -147,6 +167,10 @@ fn print_table(results: &BenchResults) {
                         .chain(
                             m.particle_fragments
                                 .map(|n| format!("particle_fragments={n}")),
+                        )
+                        .chain(
+                            m.vs_view_sort
+                                .map(|e| format!("flip_vs_view_sort={:.5}", e.flip_mean)),
                         )
                         .collect();
                     row.push_str(&format!(
@@ -174,12 +198,13 @@ fn print_bound_table(results: &BenchResults) {
     if !results.counts.iter().any(|c| c.cheapest.is_some()) {
         return;
     }
+    let width = label_width(results);
     println!(
         "bound: each build against the cheapest possible one (one additive half-float channel \
          over the same billboards); ns per fragment-shader invocation and per channel written"
     );
     println!(
-        "{:>9} {:<10} {:>3} {:>10} {:>12} {:>8} {:>10} {:>10} {:>8}",
+        "{:>9} {:<w$} {:>3} {:>10} {:>12} {:>8} {:>10} {:>10} {:>8}",
         "particles",
         "technique",
         "ch",
@@ -188,7 +213,8 @@ fn print_bound_table(results: &BenchResults) {
         "ns/frag",
         "ns/ch-wr",
         "cheapest",
-        "ratio"
+        "ratio",
+        w = width
     );
     for count in &results.counts {
         if let Some(c) = &count.cheapest {
@@ -197,7 +223,7 @@ fn print_bound_table(results: &BenchResults) {
                 format!("{:.2}", c.build_ms.median * 1e6 / w.fragments.max(1) as f64)
             });
             println!(
-                "{:>9} {:<10} {:>3} {:>10.3} {:>12} {:>8} {:>10} {:>10.3} {:>8.2}",
+                "{:>9} {:<w$} {:>3} {:>10.3} {:>12} {:>8} {:>10} {:>10.3} {:>8.2}",
                 count.particles,
                 "cheapest",
                 1,
@@ -206,7 +232,8 @@ fn print_bound_table(results: &BenchResults) {
                 ns,
                 ns,
                 c.build_ms.median,
-                1.0
+                1.0,
+                w = width
             );
         }
         for cell in &count.cells {
@@ -218,16 +245,17 @@ fn print_bound_table(results: &BenchResults) {
                 continue;
             };
             println!(
-                "{:>9} {:<10} {:>3} {:>10.3} {:>12} {:>8.2} {:>10.3} {:>10.3} {:>8.2}",
+                "{:>9} {:<w$} {:>3} {:>10.3} {:>12} {:>8.2} {:>10.3} {:>10.3} {:>8.2}",
                 count.particles,
-                cell.technique,
+                cell.label(),
                 m.channels_used,
                 b.build_ms,
                 b.fragments,
                 b.ns_per_fragment,
                 b.ns_per_channel_write,
                 b.cheapest_build_ms,
-                b.over_cheapest
+                b.over_cheapest,
+                w = width
             );
         }
     }
@@ -235,4 +263,15 @@ fn print_bound_table(results: &BenchResults) {
 
 fn truncate(s: &str, chars: usize) -> String {
     s.chars().take(chars).collect()
+}
+
+/// Width of the technique column: the longest cell label.
+fn label_width(results: &BenchResults) -> usize {
+    results
+        .labels()
+        .iter()
+        .map(String::len)
+        .max()
+        .unwrap_or(0)
+        .max("technique".len())
 }

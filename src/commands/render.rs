@@ -8,7 +8,9 @@ use anyhow::Context;
 
 use super::{ParticlesArg, Size, TechniqueArgs};
 use crate::gpu::{AdapterPreference, Gpu};
-use crate::render::{OUTPUT_FORMAT, OffscreenTarget, ParticleRes, RenderOptions, Renderer};
+use crate::render::{
+    OUTPUT_FORMAT, OffscreenTarget, ParticleRes, RenderOptions, Renderer, SortOrder,
+};
 use crate::scene::Scene;
 
 #[derive(Clone, Debug, clap::Args)]
@@ -34,6 +36,11 @@ pub struct RenderArgs {
     /// it with a depth-aware upsample (`has` draws its own particle pass: 1 only).
     #[arg(long, value_name = "RES", default_value = "1", value_parser = crate::render::parse_particle_res)]
     pub particle_res: ParticleRes,
+    /// The order of the frame's one sort: `view` (back to front by view depth) or
+    /// `half-angle` (along the half-angle between view and light, the order `has` draws in, so
+    /// that it needs no sort of its own; the eye's order is then approximate).
+    #[arg(long, value_enum, default_value_t = SortOrder::View)]
+    pub sort: SortOrder,
     /// Output PNG.
     #[arg(long, short = 'o', default_value = "smoke.png")]
     pub output: PathBuf,
@@ -104,6 +111,7 @@ pub fn run(args: &RenderArgs, adapter: &AdapterPreference) -> anyhow::Result<()>
     let options = RenderOptions {
         spherical: !args.no_spherical,
         particle_res: args.particle_res,
+        sort: args.sort,
         ..RenderOptions::default()
     };
     let (w, h) = (scene.output.width_px, scene.output.height_px);
@@ -224,6 +232,7 @@ fn bench(
     }
     let mut pass_samples: Vec<(&'static str, Vec<f64>)> = Vec::new();
     let mut sort = Vec::new();
+    let mut sorts = 0;
     let mut gpu_total = Vec::new();
     let mut wall = Vec::new();
     let mut timed = Vec::new();
@@ -233,6 +242,7 @@ fn bench(
         let times = renderer.gpu_times(gpu).context("reading GPU timestamps")?;
         wall.push(start.elapsed().as_secs_f64() * 1e3);
         sort.push(stats.sort_ms);
+        sorts = stats.sorts;
         gpu_total.push(times.total_ms());
         for &(name, ms) in &times.passes {
             match pass_samples.iter_mut().find(|(n, _)| *n == name) {
@@ -270,7 +280,10 @@ fn bench(
     if gpu.has_timestamps() {
         row("gpu frame (all passes)", &mut gpu_total);
     }
-    row("cpu sort", &mut sort);
+    row(
+        &format!("cpu sort ({} x {})", options.sort, sorts),
+        &mut sort,
+    );
     row("wall frame", &mut wall);
     if let Some(n) = particle_fragments {
         println!(

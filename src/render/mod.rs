@@ -20,6 +20,7 @@ pub mod shaded;
 pub mod sort;
 
 pub use mixed_res::{ParticleRes, parse_particle_res};
+pub use sort::SortOrder;
 
 // The frame's building blocks live in `crate::frame` (the techniques share them); re-exported
 // here, where callers of the renderer look for them.
@@ -57,6 +58,9 @@ pub struct RenderOptions {
     /// The particle pass's resolution: below 1 it draws into a smaller target and a depth-aware
     /// upsample composites it over the frame ([`mixed_res`]). Full (the default) is the thesis.
     pub particle_res: ParticleRes,
+    /// The order of the frame's one sort: by view depth (the default), or along the half-angle
+    /// so that `has` draws in it without a sort of its own ([`SortOrder`]).
+    pub sort: SortOrder,
 }
 
 impl Default for RenderOptions {
@@ -65,6 +69,7 @@ impl Default for RenderOptions {
             spherical: true,
             reuse_shadow_maps: false,
             particle_res: ParticleRes::Full,
+            sort: SortOrder::View,
         }
     }
 }
@@ -84,8 +89,13 @@ pub type LightPass<'a> =
 /// CPU-side measurements of one frame.
 #[derive(Clone, Debug, PartialEq)]
 pub struct FrameStats {
-    /// Time to sort the particles back to front, milliseconds (CPU wall time of the sort only).
+    /// Time to sort the particles back to front, milliseconds (CPU wall time of the sorts only:
+    /// the frame's, plus a technique's own).
     pub sort_ms: f64,
+    /// Sorts of every particle this frame: the frame's one, plus one when the technique draws
+    /// the particles in an order of its own (`has`, unless the frame sorted along its
+    /// half-angle).
+    pub sorts: u32,
     pub particle_count: u32,
     pub light: LightSpace,
 }
@@ -160,6 +170,9 @@ pub struct Renderer {
     particles: wgpu::Buffer,
     particle_capacity: u64,
     instances: Vec<ParticleInstance>,
+    /// The half-angle slicing `instances` were sorted along this frame, if they were
+    /// ([`SortOrder::HalfAngle`]).
+    slicing: Option<shadow::half_angle::Slicing>,
     particle_layouts: ParticleLayouts,
     /// Lighting of the sorted instances, computed each frame before the particle pass.
     lights: LightBuffers,
@@ -288,6 +301,7 @@ impl Renderer {
             particle_layouts,
             particle_pipelines,
             instances: Vec::new(),
+            slicing: None,
             frame_layout,
             faces,
             depth_layout,
@@ -515,7 +529,7 @@ impl Renderer {
     ) -> Result<FrameStats, ShadowError> {
         let frame = gpu.scoped(|| -> Result<FrameStats, ShadowError> {
             let (mut encoder, stats, _) =
-                self.begin_frame(gpu, scene, particles, false, Some(pass))?;
+                self.begin_frame(gpu, scene, particles, false, SortOrder::View, Some(pass))?;
             self.timer.resolve(&mut encoder);
             gpu.queue.submit([encoder.finish()]);
             Ok(stats)
@@ -563,8 +577,14 @@ impl Renderer {
                 res: options.particle_res.name(),
             });
         }
-        let (mut encoder, mut stats, camera) =
-            self.begin_frame(gpu, scene, particles, options.reuse_shadow_maps, None)?;
+        let (mut encoder, mut stats, camera) = self.begin_frame(
+            gpu,
+            scene,
+            particles,
+            options.reuse_shadow_maps,
+            options.sort,
+            None,
+        )?;
         let particle_count = stats.particle_count;
         if self.faces[0].technique.particle_pass().is_none() {
             // Each particle's lighting, once, with the technique's T (part of rendering them);
@@ -629,7 +649,11 @@ impl Renderer {
         }
         let first = &mut self.faces[0];
         if let Some(owner) = first.technique.particle_pass() {
-            stats.sort_ms += owner.record(
+            let shared_order = self.slicing.map(|slicing| shadow::SharedOrder {
+                slicing,
+                eye_back_to_front: &self.instances,
+            });
+            let own_sort_ms = owner.record(
                 gpu,
                 shadow::ParticlePassInputs {
                     encoder: &mut encoder,
@@ -638,14 +662,19 @@ impl Renderer {
                     particles,
                     camera: &camera,
                     light: &stats.light,
-                    light_axis: (scene.light.target - scene.light.position).normalize(),
+                    light_axis: light_direction(&scene.light, particles),
                     hdr_view: &self.targets.hdr_view,
                     hdr_size: (self.targets.width, self.targets.height),
                     depth_bind_group: &self.targets.depth_bind_group,
                     depth_view: &self.targets.depth_view,
                     spherical: options.spherical,
+                    shared_order,
                 },
             )?;
+            if let Some(ms) = own_sort_ms {
+                stats.sort_ms += ms;
+                stats.sorts += 1;
+            }
         } else {
             // Full resolution draws straight into the frame; a lower one into its own cleared
             // target against the downsampled depth, composited by the upsample below.
@@ -798,7 +827,8 @@ impl Renderer {
     }
 
     /// The start every frame shares: fit the light space, upload the uniforms, sort the particles
-    /// back to front for the camera (timed) and upload them, and record the technique's build.
+    /// back to front for the camera in `sort`'s order (timed) and upload them, and record the
+    /// technique's build.
     /// `build`, when given, is recorded instead of the technique's build (the bench's light
     /// pass, see [`Renderer::light_pass_frame`]).
     fn begin_frame(
@@ -807,6 +837,7 @@ impl Renderer {
         scene: &Scene,
         particles: &[Particle],
         reuse_shadow_maps: bool,
+        sort: SortOrder,
         build: Option<LightPass<'_>>,
     ) -> Result<(wgpu::CommandEncoder, FrameStats, CameraMatrices), ShadowError> {
         let (width, height) = self.size();
@@ -831,10 +862,17 @@ impl Renderer {
             );
         }
 
-        // Back-to-front by view depth; ties keep pool order so the result is deterministic. The
-        // time covers the keys and the sort (`sort::back_to_front`), not the gather below.
+        // Back-to-front by depth along the view or the half-angle; ties keep pool order so the
+        // result is deterministic. The time covers the keys and the sort
+        // (`sort::back_to_front`), not the gather below.
+        let (axis, slicing) = sort::depth_axis(
+            sort,
+            camera.forward,
+            light_direction(&scene.light, particles),
+        );
+        self.slicing = slicing;
         let sort_start = Instant::now();
-        let order = sort::back_to_front(particles, camera.position, camera.forward);
+        let order = sort::back_to_front(particles, camera.position, axis);
         let sort_ms = sort_start.elapsed().as_secs_f64() * 1e3;
         self.instances.clear();
         self.instances.par_extend(
@@ -900,6 +938,7 @@ impl Renderer {
         }
         let stats = FrameStats {
             sort_ms,
+            sorts: 1,
             particle_count,
             light: lights[0],
         };
@@ -937,7 +976,8 @@ impl Renderer {
     ) -> anyhow::Result<Vec<f32>> {
         // Maps built for this very frame (a render with `reuse_shadow_maps`, or an earlier
         // probe) are probed as they are; a probe leaves them reusable for the next such render.
-        let (mut encoder, stats, _) = self.begin_frame(gpu, scene, particles, true, None)?;
+        let (mut encoder, stats, _) =
+            self.begin_frame(gpu, scene, particles, true, SortOrder::View, None)?;
         self.timer.resolve(&mut encoder);
         let probe = self.probe.get_or_insert_with(|| {
             Probe::new(gpu, &self.frame_layout, self.faces[0].technique.as_ref())
@@ -951,7 +991,7 @@ impl Renderer {
                     frame_bind_group: &first.frame_bind_group,
                     particles,
                     light: &stats.light,
-                    light_axis: (scene.light.target - scene.light.position).normalize(),
+                    light_axis: light_direction(&scene.light, particles),
                     camera_forward: CameraMatrices::new(scene, 1, 1).forward,
                     probe,
                     points,
@@ -1026,6 +1066,20 @@ pub fn particle_fragments(tallies: &[FragmentTally]) -> Option<u64> {
 
 /// Identifies the inputs of a technique's build: the particles, the spotlight and its fitted
 /// light space, the technique's configuration.
+/// The direction light travels to the smoke (the half-angle's light direction): the spotlight's
+/// axis, or from a point light to the particles' centroid.
+pub fn light_direction(light: &crate::scene::Spotlight, particles: &[Particle]) -> Vec3 {
+    let axis = (light.target - light.position).normalize();
+    match light.kind {
+        LightKind::Spot => axis,
+        LightKind::Point => {
+            let count = particles.len().max(1) as f32;
+            let centroid = particles.iter().map(|p| p.position).sum::<Vec3>() / count;
+            (centroid - light.position).try_normalize().unwrap_or(axis)
+        }
+    }
+}
+
 fn build_key(
     particles: &[Particle],
     spot: &crate::scene::Spotlight,

@@ -1,5 +1,9 @@
-//! The particle pass's back-to-front order: every particle sorted by its view depth, farthest
-//! first, ties in pool order, so the order (and so the blended pixels) is deterministic.
+//! The particle pass's back-to-front order: every particle sorted by its depth along an axis,
+//! farthest first, ties in pool order, so the order (and so the blended pixels) is
+//! deterministic. The axis is the view direction, or with [`SortOrder::HalfAngle`] the
+//! half-angle axis that `has` slices along, so that one sort serves the eye and the light
+//! (the thesis' chapter 5: "combine HAS with OSMs or DOMs for the purpose of performing only one
+//! sort").
 //!
 //! Each particle gets a `u32` key, `!ordered(depth)`, where `ordered` maps the depth's bits to
 //! an unsigned integer in the order of [`f32::total_cmp`], so ascending keys are descending
@@ -10,10 +14,79 @@
 //! `par_sort_unstable` on `u64` (key, index) and 16-18 ms for `sort_unstable`; 0.3-0.9 ms
 //! against 1.4-2 ms at 65,536.
 
+use std::fmt;
+
 use glam::Vec3;
 use rayon::prelude::*;
 
+use crate::shadow::half_angle::Slicing;
 use crate::sim::Particle;
+
+/// The order of the frame's one sort (`--sort`).
+#[derive(
+    Clone,
+    Copy,
+    Debug,
+    Default,
+    PartialEq,
+    Eq,
+    Hash,
+    PartialOrd,
+    Ord,
+    clap::ValueEnum,
+    serde::Serialize,
+)]
+#[serde(rename_all = "kebab-case")]
+pub enum SortOrder {
+    /// By view depth: exactly back to front for the eye (the default, the thesis' frame).
+    #[default]
+    View,
+    /// Along the half-angle between the view and the light direction ([`Slicing`]), back to
+    /// front for the eye along that axis: the order `has` draws and fills its light buffer in,
+    /// so it needs no sort of its own, and every other technique builds its maps from the same
+    /// sorted particles the eye draws. The eye's order is then approximate where particles
+    /// overlap at different depths along the view but not along the axis.
+    HalfAngle,
+}
+
+impl SortOrder {
+    /// Every order, the default first.
+    pub const ALL: [SortOrder; 2] = [Self::View, Self::HalfAngle];
+
+    /// As the CLI spells it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::View => "view",
+            Self::HalfAngle => "half-angle",
+        }
+    }
+}
+
+impl fmt::Display for SortOrder {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// The axis whose depth the frame sorts by, farthest first, for `order`: the view direction,
+/// or the half-angle axis oriented so that farthest along it is farthest from the eye (the
+/// slicing, returned with it, says which way the light's order runs).
+pub fn depth_axis(order: SortOrder, view_dir: Vec3, light_dir: Vec3) -> (Vec3, Option<Slicing>) {
+    match order {
+        SortOrder::View => (view_dir, None),
+        SortOrder::HalfAngle => {
+            let slicing = Slicing::new(view_dir, light_dir);
+            // Ascending along the axis is front to back for the eye when the camera looks
+            // with the light, back to front when it faces it.
+            let axis = if slicing.eye_front_to_back {
+                slicing.axis
+            } else {
+                -slicing.axis
+            };
+            (axis, Some(slicing))
+        }
+    }
+}
 
 /// From this many particles the keys are computed on rayon's pool (below it the task overhead
 /// would be most of the work).
@@ -98,6 +171,32 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn the_half_angle_order_runs_back_to_front_for_the_eye() {
+        let view = Vec3::new(0.0, 0.0, -1.0);
+        // Light with the view (the eye composites the light's order front to back) and
+        // against it (the camera faces the light).
+        for light in [Vec3::new(0.6, -0.8, 0.0), Vec3::new(0.6, 0.0, 0.8)] {
+            let (axis, slicing) = depth_axis(SortOrder::HalfAngle, view, light);
+            let slicing = slicing.unwrap();
+            assert_eq!(slicing.eye_front_to_back, view.dot(light) >= 0.0);
+            // Farthest first along `axis` is farthest from the eye first: the axis leans
+            // into the view.
+            assert!(axis.dot(view) > 0.0);
+            // Particles strung along the view line come out exactly back to front, and the
+            // light's order (ascending along the slicing axis) is that or its reverse.
+            let line: Vec<Particle> = (0..50).map(|i| particle_at(-(i as f32) * 0.3)).collect();
+            let order = back_to_front(&line, Vec3::ZERO, axis);
+            assert_eq!(order, (0..50).rev().collect::<Vec<u32>>());
+            let mut light_order = slicing.order(&line);
+            if slicing.eye_front_to_back {
+                light_order.reverse();
+            }
+            assert_eq!(light_order, order);
+        }
+        assert_eq!(depth_axis(SortOrder::View, view, Vec3::X), (view, None));
     }
 
     #[test]

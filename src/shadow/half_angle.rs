@@ -131,15 +131,10 @@ impl Slicing {
         }
     }
 
-    /// Particle indices sorted along the axis (ties by index, deterministic).
+    /// Particle indices sorted along the axis (ties by index, deterministic): the frame's radix
+    /// sort, farthest first along the reversed axis.
     pub fn order(&self, particles: &[Particle]) -> Vec<u32> {
-        let mut keyed: Vec<(f32, u32)> = particles
-            .iter()
-            .enumerate()
-            .map(|(i, p)| (p.position.dot(self.axis), i as u32))
-            .collect();
-        keyed.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-        keyed.into_iter().map(|(_, i)| i).collect()
+        crate::render::sort::back_to_front(particles, Vec3::ZERO, -self.axis)
     }
 }
 
@@ -353,18 +348,13 @@ impl HalfAngle {
         })
     }
 
-    /// Sorts the particles along the half-angle and uploads them; returns the batches.
+    /// Uploads the particles in the light's order along the half-angle (front to back from the
+    /// light); returns the batches.
     fn upload_sorted(
         &mut self,
         gpu: &Gpu,
-        particles: &[Particle],
-        slicing: &Slicing,
+        instances: &[ParticleInstance],
     ) -> Result<Vec<Range<u32>>, AllocationError> {
-        let order = slicing.order(particles);
-        let instances: Vec<ParticleInstance> = order
-            .iter()
-            .map(|&i| ParticleInstance::from_particle(&particles[i as usize]))
-            .collect();
         let needed = instances.len() as u64;
         if needed > self.instance_capacity {
             self.instance_capacity = needed.next_power_of_two();
@@ -381,7 +371,7 @@ impl HalfAngle {
         }
         if needed > 0 {
             gpu.queue
-                .write_buffer(&self.instances, 0, bytemuck::cast_slice(&instances));
+                .write_buffer(&self.instances, 0, bytemuck::cast_slice(instances));
         }
         Ok(batches(instances.len() as u32, self.slices))
     }
@@ -538,11 +528,35 @@ impl ShadowTechnique for HalfAngle {
 }
 
 impl ParticlePass for HalfAngle {
-    fn record(&mut self, gpu: &Gpu, inputs: ParticlePassInputs<'_>) -> Result<f64, ShadowError> {
-        let slicing = Slicing::new(inputs.camera.forward, inputs.light_axis);
-        let sort_start = Instant::now();
-        let batches = self.upload_sorted(gpu, inputs.particles, &slicing)?;
-        let sort_ms = sort_start.elapsed().as_secs_f64() * 1e3;
+    fn record(
+        &mut self,
+        gpu: &Gpu,
+        inputs: ParticlePassInputs<'_>,
+    ) -> Result<Option<f64>, ShadowError> {
+        // The light's order: the frame's own when it sorted along this half-angle (reversed
+        // when that is front to back for the eye), else a sort of its own (timed).
+        let (slicing, instances, sort_ms) = match inputs.shared_order {
+            Some(shared) => {
+                let instances: Vec<ParticleInstance> = if shared.slicing.eye_front_to_back {
+                    shared.eye_back_to_front.iter().rev().copied().collect()
+                } else {
+                    shared.eye_back_to_front.to_vec()
+                };
+                (shared.slicing, instances, None)
+            }
+            None => {
+                let slicing = Slicing::new(inputs.camera.forward, inputs.light_axis);
+                let sort_start = Instant::now();
+                let order = slicing.order(inputs.particles);
+                let sort_ms = sort_start.elapsed().as_secs_f64() * 1e3;
+                let instances = order
+                    .iter()
+                    .map(|&i| ParticleInstance::from_particle(&inputs.particles[i as usize]))
+                    .collect();
+                (slicing, instances, Some(sort_ms))
+            }
+        };
+        let batches = self.upload_sorted(gpu, &instances)?;
         self.ensure_eye_buffer(inputs.hdr_size)?;
         let eye = self.eye.as_ref().expect("eye buffer was just made");
         let pipelines = if slicing.eye_front_to_back {
@@ -653,7 +667,11 @@ impl ProbePass for HalfAngle {
         let mut encoder = inputs.encoder;
         let slicing = Slicing::new(inputs.camera_forward, inputs.light_axis);
         let order = slicing.order(inputs.particles);
-        let batches = self.upload_sorted(gpu, inputs.particles, &slicing)?;
+        let instances: Vec<ParticleInstance> = order
+            .iter()
+            .map(|&i| ParticleInstance::from_particle(&inputs.particles[i as usize]))
+            .collect();
+        let batches = self.upload_sorted(gpu, &instances)?;
         let last_keys: Vec<f32> = batches
             .iter()
             .map(|b| {

@@ -247,6 +247,18 @@ pub struct ParticlePassInputs<'a> {
     pub depth_bind_group: &'a wgpu::BindGroup,
     pub depth_view: &'a wgpu::TextureView,
     pub spherical: bool,
+    /// The frame's one sort, when it ran along the half-angle
+    /// ([`crate::render::SortOrder::HalfAngle`]): a technique that draws in that order uses
+    /// it instead of sorting again.
+    pub shared_order: Option<SharedOrder<'a>>,
+}
+
+/// The particles as the frame sorted them along the half-angle.
+#[derive(Clone, Copy)]
+pub struct SharedOrder<'a> {
+    pub slicing: half_angle::Slicing,
+    /// The instances back to front for the eye along `slicing.axis`.
+    pub eye_back_to_front: &'a [crate::frame::gpu_data::ParticleInstance],
 }
 
 /// What a technique with its own probe (see [`ShadowTechnique::probe_pass`]) gets: the frame's
@@ -290,9 +302,14 @@ pub struct DebugMap<'a> {
 
 /// A technique's own particle pass.
 pub trait ParticlePass {
-    /// Records the eye pass; returns the CPU time spent sorting, milliseconds. Fails only when a
-    /// buffer it must grow cannot be held.
-    fn record(&mut self, gpu: &Gpu, inputs: ParticlePassInputs<'_>) -> Result<f64, ShadowError>;
+    /// Records the eye pass; returns the CPU time of its own sort, milliseconds, or `None` when
+    /// it drew in the frame's shared order instead. Fails only when a buffer it must grow
+    /// cannot be held.
+    fn record(
+        &mut self,
+        gpu: &Gpu,
+        inputs: ParticlePassInputs<'_>,
+    ) -> Result<Option<f64>, ShadowError>;
 }
 
 /// The interface every shadow technique implements.

@@ -22,7 +22,7 @@ use super::map_view::{MAP_VIEW_FORMAT, MapView};
 use super::view::View;
 use crate::diff::Metrics;
 use crate::gpu::Gpu;
-use crate::render::{CameraMatrices, ParticleRes, RenderOptions, TechniqueConfig};
+use crate::render::{CameraMatrices, ParticleRes, RenderOptions, SortOrder, TechniqueConfig};
 use crate::scene::Scene;
 use crate::shadow::{self, MapKind};
 use crate::sim::{Particle, Simulation};
@@ -112,6 +112,8 @@ pub struct ViewState {
     pub spherical: bool,
     /// The particle pass's resolution (mixed-resolution particles).
     pub particle_res: ParticleRes,
+    /// The order of the frame's one sort (view depth, or the half-angle shared with `has`).
+    pub sort: SortOrder,
     /// Render at the viewport's size instead of the scene's output size.
     pub fit_window: bool,
     /// Inspector: the selected map channel (index into the flattened list) and its scale.
@@ -287,7 +289,7 @@ pub struct Controller {
     pub(super) inspector: Option<Inspector>,
     /// Bumped whenever something that reaches the pixels changes.
     pub revision: u64,
-    last_frame_state: Option<(Scene, bool, ParticleRes, f32)>,
+    last_frame_state: Option<(Scene, bool, ParticleRes, SortOrder, f32)>,
     last_change: Instant,
     pub(super) reduced: bool,
     pub(super) times: Smoothed,
@@ -343,6 +345,7 @@ impl Controller {
             split: 0.5,
             spherical: true,
             particle_res: ParticleRes::Full,
+            sort: SortOrder::View,
             fit_window: false,
             inspect_channel: 0,
             inspect_scale: 1.0,
@@ -483,6 +486,16 @@ impl Controller {
     /// Size view A last rendered at.
     pub fn view_a_size(&self) -> Option<(u32, u32)> {
         self.views[0].as_ref().map(View::size)
+    }
+
+    /// The frame switches the panels set.
+    fn render_options(&self) -> RenderOptions {
+        RenderOptions {
+            spherical: self.state.spherical,
+            particle_res: self.state.particle_res,
+            sort: self.state.sort,
+            ..RenderOptions::default()
+        }
     }
 
     /// The scene as rendered: the orbit applied to the camera once the user moved it (until
@@ -714,6 +727,7 @@ impl Controller {
             self.frame_scene(),
             self.state.spherical,
             self.state.particle_res,
+            self.state.sort,
             self.state.time_s,
         );
         if fresh.is_some() || self.last_frame_state.as_ref() != Some(&state) {
@@ -750,9 +764,8 @@ impl Controller {
             full
         };
         let options = RenderOptions {
-            spherical: self.state.spherical,
             reuse_shadow_maps: true,
-            particle_res: self.state.particle_res,
+            ..self.render_options()
         };
         let sides = [self.state.a.clone(), self.state.b.clone()];
         let mut error = None;
@@ -813,6 +826,7 @@ impl Controller {
             size,
             config,
         };
+        let options = self.render_options();
         let view = &mut self.worker_views[i];
         if view.shown.as_ref().is_some_and(|s| s.key == key)
             || view.pending.as_ref().is_some_and(|(_, k)| *k == key)
@@ -829,11 +843,7 @@ impl Controller {
             frame: Frame {
                 scene,
                 particles: self.particles.clone(),
-                options: RenderOptions {
-                    spherical: self.state.spherical,
-                    particle_res: self.state.particle_res,
-                    ..RenderOptions::default()
-                },
+                options,
             },
             config: key.config.clone(),
         });
@@ -1021,11 +1031,7 @@ impl Controller {
             frame: Frame {
                 scene: self.frame_scene(),
                 particles: self.particles.clone(),
-                options: RenderOptions {
-                    spherical: self.state.spherical,
-                    particle_res: self.state.particle_res,
-                    ..RenderOptions::default()
-                },
+                options: self.render_options(),
             },
             config,
             path: path.clone(),

@@ -129,6 +129,19 @@ pub fn show(controller: &mut Controller, ui: &mut egui::Ui) {
                 ui.selectable_value(res, r, r.name());
             }
         });
+    let sort = &mut controller.state.sort;
+    egui::ComboBox::from_label("Particle sort")
+        .selected_text(sort.name())
+        .show_ui(ui, |ui| {
+            for order in crate::render::SortOrder::ALL {
+                ui.selectable_value(sort, order, order.name());
+            }
+        })
+        .response
+        .on_hover_text(
+            "view: back to front by view depth; half-angle: one sort along the half-angle \
+             that has draws in too (thesis ch. 5)",
+        );
     ui.checkbox(&mut controller.state.fit_window, "Render at window size");
     ui.add(
         egui::Slider::new(&mut controller.state.scene.shading.exposure, 0.1..=8.0)
