@@ -52,6 +52,14 @@ fn bad_inputs_get_one_clear_line_and_leave_no_file() {
             vec!["unknown field `colour`"],
         ),
         (
+            vec!["render", "--sort", "depth", "-o", out],
+            vec!["--sort", "'depth'"],
+        ),
+        (
+            vec!["bench", "--sort", "view,random", "-o", out],
+            vec!["--sort", "'random'"],
+        ),
+        (
             vec!["render", "--technique", "magic", "-o", out],
             vec!["\"magic\"", "none", "osm"],
         ),

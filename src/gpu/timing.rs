@@ -19,9 +19,10 @@
 use super::fragments::FragmentCounter;
 use super::{FragmentTally, Gpu, GpuError, TargetWrites};
 
-/// Most passes one frame may time (half-angle slicing records two per slice), the frame's
-/// start included.
-const MAX_PASSES: u32 = 160;
+/// Most passes one frame may time, the frame's start included: half-angle slicing records a
+/// lighting, an eye and a light pass per slice, and under a point light one light pass per cube
+/// face, so 32 slices x (2 + 6) = 256 of them, beside the occluders' and the builds' six faces.
+const MAX_PASSES: u32 = 320;
 
 /// Name of the empty pass that marks the frame's start (not reported as a pass).
 const FRAME_START: &str = "frame start";

@@ -4,10 +4,12 @@
 //! 1. the active shadow technique builds its maps from the particles in light space;
 //! 2. opaque pass: ground and boxes, lit by the spotlight and shadowed by the smoke, into an HDR
 //!    colour target (alpha 0) and a depth texture;
-//! 3. particle pass: billboards sorted back to front on the CPU (timed), composited with
-//!    premultiplied "over" (thesis Eq. 1.5); spherical billboards (thesis 3.2.2.3) read the opaque
-//!    depth to clip each particle's chord, or, with `spherical = false`, flat billboards use a hard
-//!    depth test; the HDR alpha channel ends up holding the smoke's opacity; with
+//! 3. particle pass: billboards sorted back to front on the CPU (timed; by view depth, or with
+//!    [`SortOrder::HalfAngle`] along the half-angle, the one sort `has` then draws in too),
+//!    composited with premultiplied "over" (thesis Eq. 1.5); spherical billboards (thesis
+//!    3.2.2.3) read the opaque depth to clip each particle's chord, or, with
+//!    `spherical = false`, flat billboards use a hard depth test; the HDR alpha channel ends up
+//!    holding the smoke's opacity; with
 //!    [`RenderOptions::particle_res`] below 1 the pass draws at a lower resolution and a
 //!    depth-aware upsample composites it ([`mixed_res`]);
 //! 4. tone map (exposure + ACES fit) into the caller's sRGB target.
@@ -364,20 +366,13 @@ impl Renderer {
     }
 
     /// Makes one light face per light space of `light` (a point light's six cube faces, a
-    /// spotlight's one), each with its own instance of the technique. A technique that draws
-    /// the particles itself slices them along the one direction of a spotlight, and refuses a
-    /// point light.
+    /// spotlight's one), each with its own instance of the technique.
     fn match_light(
         &mut self,
         gpu: &Gpu,
         light: &crate::scene::Spotlight,
     ) -> Result<(), ShadowError> {
         let wanted = light.kind.faces();
-        if wanted > 1 && self.faces[0].technique.particle_pass().is_some() {
-            return Err(ShadowError::PointLightUnsupported {
-                technique: self.faces[0].technique.name(),
-            });
-        }
         self.faces.truncate(wanted);
         while self.faces.len() < wanted {
             let technique = self.create_technique(gpu, &self.technique_config.clone())?;
@@ -647,7 +642,10 @@ impl Renderer {
                 pass.draw(0..self.opaque_vertex_count, 0..1);
             }
         }
-        let first = &mut self.faces[0];
+        let (first, rest) = self
+            .faces
+            .split_first_mut()
+            .expect("a light has at least one face");
         if let Some(owner) = first.technique.particle_pass() {
             let shared_order = self.slicing.map(|slicing| shadow::SharedOrder {
                 slicing,
@@ -669,6 +667,7 @@ impl Renderer {
                     depth_view: &self.targets.depth_view,
                     spherical: options.spherical,
                     shared_order,
+                    other_faces: other_faces(rest),
                 },
             )?;
             if let Some(ms) = own_sort_ms {
@@ -982,7 +981,10 @@ impl Renderer {
         let probe = self.probe.get_or_insert_with(|| {
             Probe::new(gpu, &self.frame_layout, self.faces[0].technique.as_ref())
         });
-        let first = &mut self.faces[0];
+        let (first, rest) = self
+            .faces
+            .split_first_mut()
+            .expect("a light has at least one face");
         let results = match first.technique.probe_pass() {
             Some(owner) => owner.probe(
                 gpu,
@@ -995,6 +997,7 @@ impl Renderer {
                     camera_forward: CameraMatrices::new(scene, 1, 1).forward,
                     probe,
                     points,
+                    other_faces: other_faces(rest),
                 },
             )?,
             None => {
@@ -1066,6 +1069,18 @@ pub fn particle_fragments(tallies: &[FragmentTally]) -> Option<u64> {
 
 /// Identifies the inputs of a technique's build: the particles, the spotlight and its fitted
 /// light space, the technique's configuration.
+/// The technique in each of `faces`, with the face's group 0, for the owner of the particle pass
+/// or the probe in the first face.
+fn other_faces(faces: &mut [LightFace]) -> Vec<shadow::OtherFace<'_>> {
+    faces
+        .iter_mut()
+        .map(|f| shadow::OtherFace {
+            frame_bind_group: &f.frame_bind_group,
+            technique: f.technique.as_mut(),
+        })
+        .collect()
+}
+
 /// The direction light travels to the smoke (the half-angle's light direction): the spotlight's
 /// axis, or from a point light to the particles' centroid.
 pub fn light_direction(light: &crate::scene::Spotlight, particles: &[Particle]) -> Vec3 {

@@ -30,9 +30,9 @@ use super::layered::{
 };
 use super::probe::PendingProbe;
 use super::{
-    BuildInputs, DebugMap, LOOKUP_STAGES, MapKind, MemoryUse, ParticlePass, ParticlePassInputs,
-    ProbeInputs, ProbePass, Role, ShadowError, ShadowTechnique, TechniqueContext, TechniqueEntry,
-    TechniqueParams,
+    BuildInputs, DebugMap, LOOKUP_STAGES, MapKind, MemoryUse, OtherFace, ParticlePass,
+    ParticlePassInputs, ProbeInputs, ProbePass, Role, ShadowError, ShadowTechnique,
+    TechniqueContext, TechniqueEntry, TechniqueParams,
 };
 use crate::frame::gpu_data::{BILLBOARD_VERTICES, ParticleInstance};
 use crate::frame::particles::{LightBuffers, ParticleLighting};
@@ -382,6 +382,7 @@ impl HalfAngle {
         encoder: &mut wgpu::CommandEncoder,
         timer: &mut crate::gpu::GpuTimer,
         frame_bind_group: &wgpu::BindGroup,
+        instances: &wgpu::Buffer,
         batch: Option<Range<u32>>,
         clear: bool,
     ) {
@@ -414,10 +415,45 @@ impl HalfAngle {
                 |pass| {
                     pass.set_pipeline(&self.light_pipeline);
                     pass.set_bind_group(0, frame_bind_group, &[]);
-                    pass.set_vertex_buffer(0, self.instances.slice(..));
+                    pass.set_vertex_buffer(0, instances.slice(..));
                     pass.draw(0..BILLBOARD_VERTICES, batch);
                 },
             );
+        }
+    }
+
+    /// [`HalfAngle::light_pass`] into this face's light buffer and every other face's of a
+    /// point light, each through its own light space.
+    fn light_pass_all(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        timer: &mut crate::gpu::GpuTimer,
+        frame_bind_group: &wgpu::BindGroup,
+        others: &mut [OtherFace<'_>],
+        batch: Option<Range<u32>>,
+        clear: bool,
+    ) {
+        self.light_pass(
+            encoder,
+            timer,
+            frame_bind_group,
+            &self.instances,
+            batch.clone(),
+            clear,
+        );
+        for other in others {
+            other
+                .technique
+                .particle_pass()
+                .expect("every face holds the same technique")
+                .light_batch(
+                    encoder,
+                    timer,
+                    other.frame_bind_group,
+                    &self.instances,
+                    batch.clone(),
+                    clear,
+                );
         }
     }
 
@@ -528,11 +564,29 @@ impl ShadowTechnique for HalfAngle {
 }
 
 impl ParticlePass for HalfAngle {
+    fn light_batch(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        timer: &mut crate::gpu::GpuTimer,
+        frame_bind_group: &wgpu::BindGroup,
+        instances: &wgpu::Buffer,
+        batch: Option<Range<u32>>,
+        clear: bool,
+    ) {
+        self.light_pass(encoder, timer, frame_bind_group, instances, batch, clear);
+    }
+
     fn record(
         &mut self,
         gpu: &Gpu,
         inputs: ParticlePassInputs<'_>,
     ) -> Result<Option<f64>, ShadowError> {
+        Self::check_point_light(
+            inputs.particles,
+            inputs.light,
+            inputs.light_axis,
+            inputs.other_faces.len(),
+        )?;
         // The light's order: the frame's own when it sorted along this half-angle (reversed
         // when that is front to back for the eye), else a sort of its own (timed).
         let (slicing, instances, sort_ms) = match inputs.shared_order {
@@ -566,8 +620,16 @@ impl ParticlePass for HalfAngle {
         };
         let encoder = inputs.encoder;
         self.lighting.set_ranges(&gpu.queue, &self.lights, &batches);
-        // The light buffer starts empty; the eye buffer is cleared by the first eye pass.
-        self.light_pass(encoder, inputs.timer, inputs.frame_bind_group, None, true);
+        // The light buffers start empty; the eye buffer is cleared by the first eye pass.
+        let mut others = inputs.other_faces;
+        self.light_pass_all(
+            encoder,
+            inputs.timer,
+            inputs.frame_bind_group,
+            &mut others,
+            None,
+            true,
+        );
         for (k, batch) in batches.iter().enumerate() {
             {
                 // This batch's lighting, through the light buffer as the batches before left it.
@@ -575,14 +637,26 @@ impl ParticlePass for HalfAngle {
                     label: Some("has.lighting"),
                     timestamp_writes: inputs.timer.compute_pass("particles"),
                 });
+                let count = batch.end - batch.start;
                 self.lighting.dispatch(
                     &mut pass,
                     inputs.frame_bind_group,
                     &self.lookup_bind_group,
                     &self.lights,
                     k as u32,
-                    batch.end - batch.start,
+                    count,
                 );
+                // A point light's other faces light the points in their faces.
+                for other in &others {
+                    self.lighting.dispatch(
+                        &mut pass,
+                        other.frame_bind_group,
+                        other.technique.bind_group(),
+                        &self.lights,
+                        k as u32,
+                        count,
+                    );
+                }
             }
             {
                 let load = if k == 0 {
@@ -625,10 +699,11 @@ impl ParticlePass for HalfAngle {
                 pass.set_vertex_buffer(0, self.instances.slice(..));
                 pass.draw(0..BILLBOARD_VERTICES, batch.clone());
             }
-            self.light_pass(
+            self.light_pass_all(
                 encoder,
                 inputs.timer,
                 inputs.frame_bind_group,
+                &mut others,
                 Some(batch.clone()),
                 false,
             );
@@ -660,10 +735,43 @@ impl ParticlePass for HalfAngle {
     }
 }
 
+impl HalfAngle {
+    /// Under a point light (other faces given), the slicing's one light direction must have
+    /// every particle in front of the light.
+    fn check_point_light(
+        particles: &[Particle],
+        light: &super::LightSpace,
+        light_axis: Vec3,
+        faces: usize,
+    ) -> Result<(), ShadowError> {
+        if faces == 0 {
+            return Ok(());
+        }
+        let behind = particles
+            .iter()
+            .filter(|p| (p.position - light.position).dot(light_axis) <= 0.0)
+            .count();
+        if behind > 0 {
+            return Err(ShadowError::PointLightBehind {
+                technique: ENTRY.name,
+                behind: behind as u32,
+                particles: particles.len() as u32,
+            });
+        }
+        Ok(())
+    }
+}
+
 impl ProbePass for HalfAngle {
     /// T at a point as the slicing sees it: the light buffer after every batch that lies wholly
     /// before the point along the half-angle axis.
     fn probe(&mut self, gpu: &Gpu, inputs: ProbeInputs<'_>) -> anyhow::Result<Vec<f32>> {
+        Self::check_point_light(
+            inputs.particles,
+            inputs.light,
+            inputs.light_axis,
+            inputs.other_faces.len(),
+        )?;
         let mut encoder = inputs.encoder;
         let slicing = Slicing::new(inputs.camera_forward, inputs.light_axis);
         let order = slicing.order(inputs.particles);
@@ -687,10 +795,12 @@ impl ProbePass for HalfAngle {
             groups[last_keys.partition_point(|&k| k < key)].push(i);
         }
         let mut timer = crate::gpu::GpuTimer::disabled();
-        self.light_pass(
+        let mut others = inputs.other_faces;
+        self.light_pass_all(
             &mut encoder,
             &mut timer,
             inputs.frame_bind_group,
+            &mut others,
             None,
             true,
         );
@@ -698,21 +808,22 @@ impl ProbePass for HalfAngle {
         for (k, group) in groups.iter().enumerate() {
             if !group.is_empty() {
                 let points: Vec<Vec3> = group.iter().map(|&i| inputs.points[i]).collect();
-                pending.push((
-                    k,
-                    inputs.probe.record(
-                        gpu,
-                        &mut encoder,
-                        &[(inputs.frame_bind_group, &self.lookup_bind_group)],
-                        &points,
-                    ),
-                ));
+                let lookups: Vec<(&wgpu::BindGroup, &wgpu::BindGroup)> =
+                    std::iter::once((inputs.frame_bind_group, &self.lookup_bind_group))
+                        .chain(
+                            others
+                                .iter()
+                                .map(|o| (o.frame_bind_group, o.technique.bind_group())),
+                        )
+                        .collect();
+                pending.push((k, inputs.probe.record(gpu, &mut encoder, &lookups, &points)));
             }
             if let Some(batch) = batches.get(k) {
-                self.light_pass(
+                self.light_pass_all(
                     &mut encoder,
                     &mut timer,
                     inputs.frame_bind_group,
+                    &mut others,
                     Some(batch.clone()),
                     false,
                 );

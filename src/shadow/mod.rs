@@ -142,10 +142,15 @@ pub enum ShadowError {
     #[error(transparent)]
     Param(#[from] ParamError),
     #[error(
-        "{technique} draws the particles itself, sliced along the one direction of a spotlight; \
-         a point light has none: use `[light] kind = \"spot\"` or another technique"
+        "{technique} slices the particles along one light direction, from the point light to \
+         the smoke's centroid, but {behind} of the {particles} particles lie behind the light \
+         along it: move the light out of the smoke, or use another technique"
     )]
-    PointLightUnsupported { technique: &'static str },
+    PointLightBehind {
+        technique: &'static str,
+        behind: u32,
+        particles: u32,
+    },
     #[error("{technique} needs the adapter feature {feature}, which this adapter lacks")]
     MissingFeature {
         technique: &'static str,
@@ -251,6 +256,15 @@ pub struct ParticlePassInputs<'a> {
     /// ([`crate::render::SortOrder::HalfAngle`]): a technique that draws in that order uses
     /// it instead of sorting again.
     pub shared_order: Option<SharedOrder<'a>>,
+    /// Under a point light, the technique in the other cube faces' light spaces (the owner is
+    /// the first face's): it fills their maps and lights their points as it goes.
+    pub other_faces: Vec<OtherFace<'a>>,
+}
+
+/// The technique in another face of a point light's cube, with that face's group 0.
+pub struct OtherFace<'a> {
+    pub frame_bind_group: &'a wgpu::BindGroup,
+    pub technique: &'a mut dyn ShadowTechnique,
 }
 
 /// The particles as the frame sorted them along the half-angle.
@@ -272,6 +286,8 @@ pub struct ProbeInputs<'a> {
     pub camera_forward: glam::Vec3,
     pub probe: &'a probe::Probe,
     pub points: &'a [glam::Vec3],
+    /// As [`ParticlePassInputs::other_faces`].
+    pub other_faces: Vec<OtherFace<'a>>,
 }
 
 /// A technique whose transmittance depends on more than its maps after the build pass.
@@ -310,6 +326,18 @@ pub trait ParticlePass {
         gpu: &Gpu,
         inputs: ParticlePassInputs<'_>,
     ) -> Result<Option<f64>, ShadowError>;
+    /// Records `batch` of `instances` (all of it when `None`) into this face's light maps seen
+    /// through `frame_bind_group`, cleared first when `clear`: how the owner of the particle
+    /// pass fills a point light's other faces ([`ParticlePassInputs::other_faces`]).
+    fn light_batch(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        timer: &mut GpuTimer,
+        frame_bind_group: &wgpu::BindGroup,
+        instances: &wgpu::Buffer,
+        batch: Option<std::ops::Range<u32>>,
+        clear: bool,
+    );
 }
 
 /// The interface every shadow technique implements.
