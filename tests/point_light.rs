@@ -208,10 +208,24 @@ fn every_technique_renders_the_plume_under_a_point_light() {
                 assert_eq!(renderer.light_faces(), 6);
                 let hdr =
                     smokeshadow::gpu::read_texture_rgba16f(&gpu, renderer.hdr_texture()).unwrap();
-                (hdr, renderer.shadow_bytes().0, renderer.face_shadow_bytes())
+                let entries: Vec<u64> = renderer
+                    .face_counters()
+                    .iter()
+                    .map(|c| {
+                        c.iter()
+                            .find(|(n, _)| *n == "tile_entries")
+                            .map_or(0, |c| c.1)
+                    })
+                    .collect();
+                (
+                    hdr,
+                    renderer.shadow_bytes().0,
+                    renderer.face_shadow_bytes(),
+                    entries,
+                )
             })
     };
-    let (lit, _, _) = render("none").unwrap();
+    let (lit, _, _, _) = render("none").unwrap();
     let smoke: Vec<(u32, u32)> = (0..h)
         .flat_map(|y| (0..w).map(move |x| (x, y)))
         .filter(|&(x, y)| lit.get(x, y)[3] > 0.6)
@@ -224,7 +238,16 @@ fn every_technique_renders_the_plume_under_a_point_light() {
             .sum()
     };
     for entry in point_light_techniques() {
-        let (shadowed, bytes, faces) = render(entry.name).unwrap();
+        let (shadowed, bytes, faces, entries) = render(entry.name).unwrap();
+        // Counters are each face's own: `exact`'s tile lists hold the spheres in that face,
+        // so the faces the plume crosses count some and the rest none.
+        if entry.name == "exact" {
+            let holding = entries.iter().filter(|&&n| n > 0).count();
+            assert!(
+                (2..6).contains(&holding),
+                "tile entries per face {entries:?}"
+            );
+        }
         // The memory of all six faces is reported: each face its own maps (the same size for
         // a fixed-size map; a capture's lists or exact's tile lists hold that face's smoke;
         // `has`'s first face also holds the eye buffer and the sorted particles).

@@ -504,11 +504,7 @@ impl CellBench<'_> {
         Ok(Measured {
             channels_used: technique.channels_used(),
             bytes: self.renderer.shadow_bytes().0,
-            counters: technique
-                .counters()
-                .into_iter()
-                .map(|(n, v)| (n.to_owned(), v))
-                .collect(),
+            counters: self.renderer.counters().into_iter().collect(),
             sort_ms: Timing::of(&sort_times),
             gpu_passes: passes
                 .into_iter()

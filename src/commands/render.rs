@@ -187,10 +187,19 @@ pub fn run(args: &RenderArgs, adapter: &AdapterPreference) -> anyhow::Result<()>
             res => format!(" at {res} resolution"),
         },
     );
-    let counters = t.counters();
-    if !counters.is_empty() {
-        let list: Vec<String> = counters.iter().map(|(k, v)| format!("{k} {v}")).collect();
-        println!("{} counters: {}", t.name(), list.join(", "));
+    let faces = renderer.face_counters();
+    for (counters, face) in faces
+        .iter()
+        .zip(crate::shadow::light_space::CUBE_FACE_NAMES)
+    {
+        if !counters.is_empty() {
+            let list: Vec<String> = counters.iter().map(|(k, v)| format!("{k} {v}")).collect();
+            let face = match faces.len() {
+                1 => String::new(),
+                _ => format!(", cube face {face}"),
+            };
+            println!("{} counters{face}: {}", t.name(), list.join(", "));
+        }
     }
     Ok(())
 }

@@ -408,6 +408,34 @@ impl Renderer {
         self.faces[0].technique.as_ref()
     }
 
+    /// The technique's counters from the last frame ([`ShadowTechnique::counters`]): the
+    /// spotlight's as they are; under a point light every face's, each name suffixed with its
+    /// face (`tile_entries.+x`), since a face's counts are its own smoke's.
+    pub fn counters(&self) -> Vec<(String, u64)> {
+        let faces = self.face_counters();
+        if faces.len() == 1 {
+            return faces[0]
+                .iter()
+                .map(|&(name, v)| (name.to_owned(), v))
+                .collect();
+        }
+        faces
+            .iter()
+            .zip(shadow::light_space::CUBE_FACE_NAMES)
+            .flat_map(|(counters, face)| {
+                counters
+                    .iter()
+                    .map(move |&(name, v)| (format!("{name}.{face}"), v))
+            })
+            .collect()
+    }
+
+    /// The technique's counters in each light face (a point light's in
+    /// [`crate::shadow::light_space::cube_face`]'s order).
+    pub fn face_counters(&self) -> Vec<Vec<(&'static str, u64)>> {
+        self.faces.iter().map(|f| f.technique.counters()).collect()
+    }
+
     /// Light spaces the technique builds its maps in: 1 for a spotlight, 6 (cube faces) for a
     /// point light.
     pub fn light_faces(&self) -> usize {

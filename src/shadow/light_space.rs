@@ -49,6 +49,9 @@ pub struct LightSpace {
 /// on each side, so the bilinear and filtered taps of a point on the face's edge stay inside it.
 pub const CUBE_FACE_MARGIN: f32 = 1.02;
 
+/// Names of the cube faces, in [`cube_face`]'s order.
+pub const CUBE_FACE_NAMES: [&str; 6] = ["+x", "-x", "+y", "-y", "+z", "-z"];
+
 /// Axis direction and up vector of each cube face.
 const CUBE_FACES: [(Vec3, Vec3); 6] = [
     (Vec3::X, Vec3::NEG_Y),
