@@ -253,5 +253,25 @@ fn the_occluder_map_is_its_own_memory_at_the_scene_resolution() {
             "occluder map at {side}²"
         );
         assert_eq!(renderer.technique().memory().total_bytes(), technique_bytes);
+        assert_eq!(renderer.occluder_map_px(), Some(side as u32));
+    }
+    // The reference tests the boxes exactly: its frame keeps only the boxes (and a 1x1
+    // placeholder for the binding), and switching back brings the map back.
+    for (name, side) in [("exact", None), ("osm", Some(256u64))] {
+        renderer
+            .set_technique(&gpu, &common::technique(name, 8, 512, SplatMode::Point))
+            .unwrap();
+        renderer
+            .render(
+                &gpu,
+                &scene,
+                &particles,
+                &RenderOptions::default(),
+                &target.view,
+            )
+            .unwrap();
+        assert_eq!(renderer.occluder_map_px(), side.map(|s| s as u32), "{name}");
+        let map_bytes = side.map_or(4, |s| s * s * 4);
+        assert_eq!(renderer.occluder_bytes(), map_bytes + 32, "{name}");
     }
 }

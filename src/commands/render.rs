@@ -161,7 +161,7 @@ pub fn run(args: &RenderArgs, adapter: &AdapterPreference) -> anyhow::Result<()>
     }
     let t = renderer.technique();
     println!(
-        "wrote {} ({w}x{h}, {} particles {} in {sim_ms:.0} ms, technique {} with {} channels, {} bytes of shadow memory{} + {} of the occluders' {}² depth map, {} billboards{})",
+        "wrote {} ({w}x{h}, {} particles {} in {sim_ms:.0} ms, technique {} with {} channels, {} bytes of shadow memory{} + {}, {} billboards{})",
         args.output.display(),
         particles.len(),
         match &scene.particles {
@@ -175,8 +175,16 @@ pub fn run(args: &RenderArgs, adapter: &AdapterPreference) -> anyhow::Result<()>
         t.channels_used(),
         renderer.shadow_bytes().0,
         transient_note(&renderer),
-        renderer.occluder_bytes(),
-        scene.shadow.occluder_resolution_px,
+        match renderer.occluder_map_px() {
+            Some(side) => format!(
+                "{} of the occluders' {side}² depth map",
+                renderer.occluder_bytes()
+            ),
+            None => format!(
+                "{} of the occluders' boxes, tested exactly (no depth map)",
+                renderer.occluder_bytes()
+            ),
+        },
         if options.spherical {
             "spherical"
         } else {

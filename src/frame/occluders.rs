@@ -26,6 +26,9 @@ pub const OCCLUDER_MAP_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth3
 /// The occluders' depth map, the boxes for the exact test, and the pass that draws the map.
 pub struct Occluders {
     resolution_px: u32,
+    /// Whether the lighting reads the map; the reference tests the boxes exactly instead, and
+    /// gets a 1x1 placeholder the pass never draws.
+    uses_map: bool,
     map_view: wgpu::TextureView,
     sampler: wgpu::Sampler,
     boxes: wgpu::Buffer,
@@ -101,6 +104,7 @@ impl Occluders {
         let boxes = box_buffer(gpu, &mut memory, 1)?;
         Ok(Self {
             resolution_px,
+            uses_map: true,
             map_view,
             sampler,
             boxes,
@@ -111,11 +115,22 @@ impl Occluders {
         })
     }
 
-    /// Makes the map `scene`'s resolution and uploads its boxes. True when a resource was
-    /// replaced, so that the frame's group 0 must be bound anew.
-    pub fn prepare(&mut self, gpu: &Gpu, scene: &Scene) -> Result<bool, AllocationError> {
+    /// Makes the map `scene`'s resolution (1x1 when the lighting does not read it: `uses_map`
+    /// false) and uploads its boxes. True when a resource was replaced, so that the frame's
+    /// group 0 must be bound anew.
+    pub fn prepare(
+        &mut self,
+        gpu: &Gpu,
+        scene: &Scene,
+        uses_map: bool,
+    ) -> Result<bool, AllocationError> {
         let mut replaced = false;
-        let resolution_px = scene.shadow.occluder_resolution_px;
+        self.uses_map = uses_map;
+        let resolution_px = if uses_map {
+            scene.shadow.occluder_resolution_px
+        } else {
+            1
+        };
         if resolution_px != self.resolution_px {
             let mut memory = MemoryLedger::for_device(&gpu.device.limits());
             let map = map_texture(gpu, &mut memory, resolution_px)?;
@@ -158,7 +173,13 @@ impl Occluders {
         ]
     }
 
-    /// Records the map's pass ("occluders") over the opaque mesh's `vertex_count` vertices.
+    /// Side of the map the lighting reads, `None` when it reads none (the reference).
+    pub fn map_px(&self) -> Option<u32> {
+        self.uses_map.then_some(self.resolution_px)
+    }
+
+    /// Records the map's pass ("occluders") over the opaque mesh's `vertex_count` vertices;
+    /// nothing when the lighting does not read the map.
     pub fn record(
         &self,
         encoder: &mut wgpu::CommandEncoder,
@@ -166,6 +187,9 @@ impl Occluders {
         vertices: &wgpu::Buffer,
         vertex_count: u32,
     ) {
+        if !self.uses_map {
+            return;
+        }
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("occluders"),
             color_attachments: &[],

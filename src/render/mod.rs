@@ -460,6 +460,12 @@ impl Renderer {
         })
     }
 
+    /// Side of the occluders' depth map the lighting reads; `None` for the reference, which
+    /// tests the boxes exactly and draws no map.
+    pub fn occluder_map_px(&self) -> Option<u32> {
+        self.faces[0].occluders.map_px()
+    }
+
     /// Bytes of the opaque occluders' depth maps and boxes over every light face, apart from
     /// the technique's.
     pub fn occluder_bytes(&self) -> u64 {
@@ -873,8 +879,10 @@ impl Renderer {
 
         let camera = CameraMatrices::new(scene, width, height);
         let lights = LightSpace::faces(&scene.light, particles);
+        let reads_occluder_map =
+            shadow::find(&self.technique_config.name).map_or(true, |e| e.reads_occluder_map());
         for (face, light) in self.faces.iter_mut().zip(&lights) {
-            if face.occluders.prepare(gpu, scene)? {
+            if face.occluders.prepare(gpu, scene, reads_occluder_map)? {
                 face.frame_bind_group = frame_bind_group(
                     &gpu.device,
                     &self.frame_layout,

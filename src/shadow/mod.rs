@@ -480,6 +480,12 @@ pub struct TechniqueEntry {
 }
 
 impl TechniqueEntry {
+    /// Whether its lighting reads the occluders' filtered depth map; the reference tests the
+    /// boxes and the ground exactly instead, so the frame draws no map for it.
+    pub fn reads_occluder_map(&self) -> bool {
+        self.role != Role::Reference
+    }
+
     /// The virtual imports the lighting shaders are composed with for this technique: its
     /// lookup (`shadow_transmittance`) and the occluders' visibility, read from the filtered
     /// depth map, or for the reference tested exactly against the boxes and the ground
@@ -487,7 +493,7 @@ impl TechniqueEntry {
     pub fn frame_imports(&self) -> [(&'static str, &'static str); 2] {
         let lookup = crate::shaders::source(self.lookup_shader)
             .expect("registered lookup shader is embedded");
-        let occluders = if self.role == Role::Reference {
+        let occluders = if !self.reads_occluder_map() {
             "common/occluders_exact.wgsl"
         } else {
             "common/occluders_map.wgsl"
