@@ -15,6 +15,13 @@
 //! boxes receiving the smoke's shadow) reads. The light direction used for the half-angle is the
 //! spotlight's axis; the light buffer itself is the spotlight's perspective map.
 //!
+//! Under a point light the direction runs from the light to the smoke's centroid, and the first
+//! cube face's instance draws the batches and fills every face's light buffer
+//! ([`ParticlePass::light_batch`]), each batch lit from the face its points fall in. Smoke
+//! behind the light along that direction has no front-to-back order from it and is refused
+//! ([`ShadowError::PointLightBehind`]). With the frame sorted along the half-angle
+//! ([`crate::render::SortOrder::HalfAngle`]) it draws in the frame's order and sorts nothing.
+//!
 //! Memory: the light buffer (one R16F channel at the shadow resolution), the eye buffer (RGBA16F
 //! at the frame size) and the particles re-sorted along the half-angle, all in the ledger.
 
