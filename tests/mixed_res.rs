@@ -249,3 +249,31 @@ fn bad_particle_resolutions_and_has_below_full_are_refused_in_one_line() {
     );
     assert!(!png.exists());
 }
+
+#[test]
+fn the_registrys_particle_pass_owners_are_the_techniques_that_draw_it() {
+    // The sweep skips cells below full resolution by the registry's `owns_particle_pass`, at
+    // plan time; the renderer refuses by the technique's `particle_pass()`. They must agree.
+    let gpu = gpu();
+    let mut scene = reduced_plume();
+    scene.output.width_px = 64;
+    scene.output.height_px = 48;
+    let scene = scene.with_particles(50).unwrap();
+    let particles = smokeshadow::sim::simulate(&scene);
+    let target = OffscreenTarget::new(&gpu, 64, 48);
+    let first = technique("none", 1, 64, SplatMode::Point);
+    let mut renderer = Renderer::new(&gpu, 64, 48, OUTPUT_FORMAT, &first).unwrap();
+    let options = RenderOptions {
+        particle_res: ParticleRes::Half,
+        ..RenderOptions::default()
+    };
+    for entry in smokeshadow::shadow::REGISTRY {
+        let config = technique(entry.name, entry.min_channels.max(8), 64, SplatMode::Point);
+        renderer.set_technique(&gpu, &config).unwrap();
+        let refused = matches!(
+            renderer.render(&gpu, &scene, &particles, &options, &target.view),
+            Err(smokeshadow::shadow::ShadowError::ParticleResUnsupported { .. })
+        );
+        assert_eq!(refused, entry.owns_particle_pass, "{}", entry.name);
+    }
+}

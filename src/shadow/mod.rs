@@ -475,7 +475,7 @@ pub struct TechniqueEntry {
     pub uses_budget: bool,
     /// Whether it draws the eye image's particles itself ([`ShadowTechnique::particle_pass`]
     /// is `Some`): such a technique renders them at full resolution only, so the sweep skips
-    /// it at a lower `--particle-res`.
+    /// it at a lower `--particle-res` (`tests/mixed_res.rs` holds the two to agree).
     pub owns_particle_pass: bool,
 }
 
