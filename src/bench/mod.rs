@@ -404,27 +404,28 @@ impl CellBench<'_> {
         if !self.renderer.set_count_fragments(self.gpu, true) {
             return Ok(Vec::new());
         }
-        self.renderer.render(
-            self.gpu,
-            self.scene,
-            self.particles,
-            options,
-            &self.target.view,
-        )?;
+        self.render(options)?;
         let tallies = self.renderer.fragment_counts(self.gpu)?;
         self.renderer.set_count_fragments(self.gpu, false);
         Ok(tallies)
     }
 
-    /// The tone-mapped frame with `options`, read back.
-    fn image(&mut self, options: &RenderOptions) -> anyhow::Result<image::RgbImage> {
+    /// One frame of the cell's particles with `options` into the target.
+    fn render(
+        &mut self,
+        options: &RenderOptions,
+    ) -> Result<crate::render::FrameStats, shadow::ShadowError> {
         self.renderer.render(
             self.gpu,
             self.scene,
             self.particles,
             options,
             &self.target.view,
-        )?;
+        )
+    }
+
+    /// The tone-mapped frame the target holds, read back.
+    fn read_image(&self) -> anyhow::Result<image::RgbImage> {
         let rgba = crate::gpu::read_texture_rgba8(self.gpu, &self.target.texture)?;
         Ok(image::DynamicImage::ImageRgba8(rgba).into_rgb8())
     }
@@ -443,13 +444,7 @@ impl CellBench<'_> {
             ..RenderOptions::default()
         };
         for _ in 0..self.options.warmup {
-            self.renderer.render(
-                self.gpu,
-                self.scene,
-                self.particles,
-                &options,
-                &self.target.view,
-            )?;
+            self.render(&options)?;
             self.gpu.wait_idle()?;
         }
         let mut passes: Vec<(&'static str, Vec<f64>)> = Vec::new();
@@ -457,13 +452,7 @@ impl CellBench<'_> {
             (Vec::new(), Vec::new(), Vec::new(), Vec::new());
         for _ in 0..self.options.frames {
             let start = Instant::now();
-            let stats = self.renderer.render(
-                self.gpu,
-                self.scene,
-                self.particles,
-                &options,
-                &self.target.view,
-            )?;
+            let stats = self.render(&options)?;
             let times = self.renderer.gpu_times(self.gpu)?;
             wall.push(start.elapsed().as_secs_f64() * 1e3);
             sort_times.push(stats.sort_ms);
@@ -480,11 +469,13 @@ impl CellBench<'_> {
         let vs_view_sort = match sort {
             SortOrder::View => None,
             _ => {
-                let shared = self.image(&options)?;
-                let view = self.image(&RenderOptions {
+                // The target holds this order's frame: the counted one, or the last timed one.
+                let shared = self.read_image()?;
+                self.render(&RenderOptions {
                     sort: SortOrder::View,
                     ..options
                 })?;
+                let view = self.read_image()?;
                 let metrics = crate::diff::compare(&view, &shared)?.metrics;
                 Some(crate::sweep::ImageError {
                     flip_mean: metrics.flip_mean,
