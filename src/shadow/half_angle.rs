@@ -383,53 +383,7 @@ impl HalfAngle {
         Ok(batches(instances.len() as u32, self.slices))
     }
 
-    /// Records a light pass drawing `batch` into the light buffer (`clear` first, or add).
-    fn light_pass(
-        &self,
-        encoder: &mut wgpu::CommandEncoder,
-        timer: &mut crate::gpu::GpuTimer,
-        frame_bind_group: &wgpu::BindGroup,
-        instances: &wgpu::Buffer,
-        batch: Option<Range<u32>>,
-        clear: bool,
-    ) {
-        let load = if clear {
-            wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT)
-        } else {
-            wgpu::LoadOp::Load
-        };
-        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some("has.light"),
-            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                view: &self.light_view,
-                depth_slice: None,
-                resolve_target: None,
-                ops: wgpu::Operations {
-                    load,
-                    store: wgpu::StoreOp::Store,
-                },
-            })],
-            depth_stencil_attachment: None,
-            timestamp_writes: timer.pass("shadow"),
-            occlusion_query_set: None,
-            multiview_mask: None,
-        });
-        if let Some(batch) = batch.filter(|b| !b.is_empty()) {
-            timer.count_fragments(
-                &mut pass,
-                "shadow",
-                TargetWrites::of(&[LIGHT_FORMAT]),
-                |pass| {
-                    pass.set_pipeline(&self.light_pipeline);
-                    pass.set_bind_group(0, frame_bind_group, &[]);
-                    pass.set_vertex_buffer(0, instances.slice(..));
-                    pass.draw(0..BILLBOARD_VERTICES, batch);
-                },
-            );
-        }
-    }
-
-    /// [`HalfAngle::light_pass`] into this face's light buffer and every other face's of a
+    /// [`ParticlePass::light_batch`] into this face's light buffer and every other face's of a
     /// point light, each through its own light space.
     fn light_pass_all(
         &self,
@@ -440,7 +394,7 @@ impl HalfAngle {
         batch: Option<Range<u32>>,
         clear: bool,
     ) {
-        self.light_pass(
+        self.light_batch(
             encoder,
             timer,
             frame_bind_group,
@@ -580,7 +534,40 @@ impl ParticlePass for HalfAngle {
         batch: Option<Range<u32>>,
         clear: bool,
     ) {
-        self.light_pass(encoder, timer, frame_bind_group, instances, batch, clear);
+        let load = if clear {
+            wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT)
+        } else {
+            wgpu::LoadOp::Load
+        };
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("has.light"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: &self.light_view,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load,
+                    store: wgpu::StoreOp::Store,
+                },
+            })],
+            depth_stencil_attachment: None,
+            timestamp_writes: timer.pass("shadow"),
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        if let Some(batch) = batch.filter(|b| !b.is_empty()) {
+            timer.count_fragments(
+                &mut pass,
+                "shadow",
+                TargetWrites::of(&[LIGHT_FORMAT]),
+                |pass| {
+                    pass.set_pipeline(&self.light_pipeline);
+                    pass.set_bind_group(0, frame_bind_group, &[]);
+                    pass.set_vertex_buffer(0, instances.slice(..));
+                    pass.draw(0..BILLBOARD_VERTICES, batch);
+                },
+            );
+        }
     }
 
     fn record(
