@@ -100,6 +100,9 @@ pub struct FrameStats {
     pub sorts: u32,
     pub particle_count: u32,
     pub light: LightSpace,
+    /// The direction light travels to the smoke this frame ([`light_direction`]), which the
+    /// half-angle slices against.
+    pub light_direction: Vec3,
 }
 
 /// Pipelines that depend on the technique's lookup shader.
@@ -694,7 +697,7 @@ impl Renderer {
                     particles,
                     camera: &camera,
                     light: &stats.light,
-                    light_axis: light_direction(&scene.light, particles),
+                    light_axis: stats.light_direction,
                     hdr_view: &self.targets.hdr_view,
                     hdr_size: (self.targets.width, self.targets.height),
                     depth_bind_group: &self.targets.depth_bind_group,
@@ -900,11 +903,8 @@ impl Renderer {
         // Back-to-front by depth along the view or the half-angle; ties keep pool order so the
         // result is deterministic. The time covers the keys and the sort
         // (`sort::back_to_front`), not the gather below.
-        let (axis, slicing) = sort::depth_axis(
-            sort,
-            camera.forward,
-            light_direction(&scene.light, particles),
-        );
+        let light_dir = light_direction(&scene.light, particles);
+        let (axis, slicing) = sort::depth_axis(sort, camera.forward, light_dir);
         self.slicing = slicing;
         let sort_start = Instant::now();
         let order = sort::back_to_front(particles, camera.position, axis);
@@ -976,6 +976,7 @@ impl Renderer {
             sorts: 1,
             particle_count,
             light: lights[0],
+            light_direction: light_dir,
         };
         Ok((encoder, stats, camera))
     }
@@ -1029,7 +1030,7 @@ impl Renderer {
                     frame_bind_group: &first.frame_bind_group,
                     particles,
                     light: &stats.light,
-                    light_axis: light_direction(&scene.light, particles),
+                    light_axis: stats.light_direction,
                     camera_forward: CameraMatrices::new(scene, 1, 1).forward,
                     probe,
                     points,
