@@ -32,7 +32,9 @@ struct Frame {
     // The opaque occluders (common/occluders_*.wgsl): x: the depth map's far distance from the
     // light (m), y: its inverse, z: the map's side (texels), w: the number of boxes.
     occluders: vec4<f32>,
-    // x: ground height (m), y: half the ground square's side (m); zw: unused.
+    // x: ground height (m), y: half the ground square's side (m), z: the length below which the
+    // exact occluder test treats a point as on a surface (m, src/frame/occluders.rs: `epsilon_m`);
+    // w: unused.
     ground: vec4<f32>,
 };
 

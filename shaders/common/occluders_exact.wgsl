@@ -11,19 +11,22 @@ struct OccluderBox {
 
 @group(0) @binding(3) var<storage, read> occluder_boxes: array<OccluderBox>;
 
-// Hits this close to the point itself (a point on a lit face, whose segment leaves the box at
-// once) do not count: 1 mm.
-const OCCLUDER_EPSILON_M: f32 = 1e-3;
-
+// Hits this close to the point itself do not count, nor does the ground for a point this close
+// to its plane: `frame.ground.z`, a length that follows the scene's scale (src/frame/occluders.rs,
+// `epsilon_m`: 1e-4 of the farthest smoke's distance from the light, and never under 32 float
+// steps of the light's coordinates). A point on a lit face, whose segment leaves its box at once,
+// and a point on the ground, whose interpolated height rounds to either side of the plane, are
+// then never shadowed by their own surface; `shadow::closed_form::occluder_visibility` mirrors it.
 fn occluder_visibility(p: vec3<f32>) -> f32 {
+    let epsilon_m = frame.ground.z;
     let to_light = frame.light_pos.xyz - p;
     let length_m = length(to_light);
-    let t_min = OCCLUDER_EPSILON_M / max(length_m, 1e-6);
+    let t_min = epsilon_m / max(length_m, 1e-30);
     // The ground square at y = height: it occludes where the segment crosses its plane inside
     // the square (the point and the light on opposite sides).
     let below = p.y - frame.ground.x;
     let light_above = frame.light_pos.y - frame.ground.x;
-    if below * light_above < 0.0 {
+    if abs(below) > epsilon_m && below * light_above < 0.0 {
         let q = p + to_light * (below / (below - light_above));
         if all(abs(q.xz) <= vec2<f32>(frame.ground.y)) {
             return 0.0;

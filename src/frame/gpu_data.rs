@@ -33,7 +33,8 @@ pub struct FrameUniforms {
     pub background: [f32; 4],
     /// The occluders' depth map: far distance (m), 1 / far, side (texels), number of boxes.
     pub occluders: [f32; 4],
-    /// Ground height (m), half the ground's side (m), unused x2.
+    /// Ground height (m), half the ground's side (m), the exact occluder test's epsilon (m,
+    /// [`super::occluders::epsilon_m`]), unused.
     pub ground: [f32; 4],
 }
 

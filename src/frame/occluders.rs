@@ -266,6 +266,19 @@ pub fn clip_from_world(scene: &Scene, view_from_world: Mat4, tan_half_fov: f32) 
     (proj * view_from_world, far_m)
 }
 
+/// The length below which the exact occluder test (`shaders/common/occluders_exact.wgsl` and its
+/// CPU mirror `shadow::closed_form::occluder_visibility`) takes a point to lie on a surface: a hit
+/// closer than this to the point is its own surface, and so is the ground plane for a point this
+/// close to it. It follows the scene's scale: 1e-4 of `smoke_far_m` (the farthest smoke's
+/// distance from the light), so a 1 cm puff and a 1 km cloud are treated alike; and it is never
+/// under 32 float steps (2^-18 relative) of the light's largest coordinate, so smoke far from
+/// the origin, where positions round coarsely, is not shadowed by rounding either.
+pub fn epsilon_m(light_position: Vec3, smoke_far_m: f32) -> f32 {
+    let scale = 1e-4 * smoke_far_m.max(0.0);
+    let rounding = light_position.abs().max_element() * (2.0f32).powi(-18);
+    scale.max(rounding).max(f32::MIN_POSITIVE)
+}
+
 /// Every corner of the ground square and of the boxes.
 fn opaque_corners(scene: &Scene) -> impl Iterator<Item = Vec3> + '_ {
     let g = &scene.ground;

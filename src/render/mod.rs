@@ -1333,7 +1333,12 @@ fn frame_uniforms(
             scene.shadow.occluder_resolution_px as f32,
             scene.boxes.len() as f32,
         ],
-        ground: [scene.ground.height_m, 0.5 * scene.ground.size_m, 0.0, 0.0],
+        ground: [
+            scene.ground.height_m,
+            0.5 * scene.ground.size_m,
+            occluders::epsilon_m(l.position, light.far_m),
+            0.0,
+        ],
     }
 }
 
