@@ -134,9 +134,19 @@ impl LightSpace {
         if !near.is_finite() {
             (near, far) = (1.0, 2.0);
         }
-        let near = near.max(1e-3);
-        let far = far.max(near + 1e-3);
-        let proj = Mat4::perspective_rh(fov, 1.0, 0.05, far.max(1.0) * 2.0);
+        // Every bound is relative to the smoke's own distance from the light, so that a 1 cm
+        // puff and a 1 km cloud are fitted alike: a light inside the smoke starts its depth
+        // range at 1e-4 of the farthest surface instead of at 0.
+        let far = far.max(f32::MIN_POSITIVE);
+        let near = near.max(1e-4 * far);
+        let far = far.max(near * (1.0 + 1e-4));
+        // The projection only clips what the builds rasterise (their depth is radial, computed
+        // in the shaders): no billboard of the smoke may be cut. A light-facing billboard's
+        // corners lie at least `near` from the light, and at a view depth of at least
+        // near · cos(fov/2) (one at the edge of the field of view); half that is the near plane.
+        // They lie within twice the farthest surface (r·√2 beyond a centre), the far plane.
+        let z_near = (0.5 * near * (0.5 * fov).cos()).max(1e-6 * far);
+        let proj = Mat4::perspective_rh(fov, 1.0, z_near, 2.0 * far);
         Self {
             position,
             clip_from_world: proj * view,
