@@ -131,6 +131,10 @@ pub struct Measured {
     pub frame_ms: Timing,
     /// CPU wall time of `render` and reading its timestamps back.
     pub wall_ms: Timing,
+    /// For the reference: the worst |ΔT| of its self-check against the f64 closed form
+    /// (src/render/reference_check.rs; a larger one refuses the cell).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reference_check_worst: Option<f64>,
     /// The build passes' fragment work, counted in one more frame after the timed ones (absent
     /// without pipeline-statistics queries, or for a technique without build passes).
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -466,6 +470,13 @@ impl CellBench<'_> {
             }
         }
         let tallies = self.count_frame(&options)?;
+        // The reference checks itself on the cell's own particles (nothing else measured here).
+        let reference_check = crate::render::reference_check::verify_if_reference(
+            self.renderer,
+            self.gpu,
+            self.scene,
+            self.particles,
+        )?;
         let vs_view_sort = match sort {
             SortOrder::View => None,
             _ => {
@@ -511,6 +522,7 @@ impl CellBench<'_> {
             bound,
             particle_fragments: crate::render::particle_fragments(&tallies),
             vs_view_sort,
+            reference_check_worst: reference_check.map(|c| c.worst_difference),
         })
     }
 }

@@ -73,6 +73,10 @@ struct Report<'a> {
     splat: &'a str,
     light_near_m: f32,
     light_far_m: f32,
+    /// `exact`'s self-check at the frame's shaded points: how many were compared and the worst
+    /// |ΔT| against the f64 closed form (src/render/reference_check.rs).
+    reference_check_points: usize,
+    reference_check_worst: f64,
     at: Sample,
     along_light: Vec<Sample>,
 }
@@ -102,6 +106,7 @@ pub fn run(args: &ProbeArgs, adapter: &AdapterPreference) -> anyhow::Result<()> 
     let channels_used = renderer.technique().channels_used();
     renderer.set_technique(&gpu, &exact)?;
     let t_exact = renderer.probe(&gpu, &scene, &particles, &points)?;
+    let check = crate::render::reference_check::verify(&mut renderer, &gpu, &scene, &particles)?;
 
     let mut samples = points
         .iter()
@@ -131,6 +136,8 @@ pub fn run(args: &ProbeArgs, adapter: &AdapterPreference) -> anyhow::Result<()> 
         splat: technique.params.splat.name(),
         light_near_m: light.near_m,
         light_far_m: light.far_m,
+        reference_check_points: check.points,
+        reference_check_worst: check.worst_difference,
         at,
         along_light: samples.collect(),
     };
@@ -164,6 +171,7 @@ pub fn run(args: &ProbeArgs, adapter: &AdapterPreference) -> anyhow::Result<()> 
             s.closed_form
         )
     };
+    println!("{check}");
     let p = report.at.point;
     println!("T at ({}, {}, {}):", p[0], p[1], p[2]);
     println!("{header}");

@@ -10,6 +10,7 @@ use super::{ParticlesArg, Size, TechniqueArgs};
 use crate::gpu::{AdapterPreference, Gpu};
 use crate::render::{
     OUTPUT_FORMAT, OffscreenTarget, ParticleRes, RenderOptions, Renderer, SortOrder,
+    reference_check,
 };
 use crate::scene::Scene;
 
@@ -149,6 +150,8 @@ pub fn run(args: &RenderArgs, adapter: &AdapterPreference) -> anyhow::Result<()>
     }
     renderer.render(&gpu, &scene, &particles, &options, &target.view)?;
     let image = crate::gpu::read_texture_rgba8(&gpu, &target.texture)?;
+    // The reference checks itself before its image is written (nothing is left on a failure).
+    let check = reference_check::verify_if_reference(&mut renderer, &gpu, &scene, &particles)?;
     crate::output::write_png(&args.output, &image)?;
     if args.exr {
         let path = crate::output::exr_beside(&args.output);
@@ -195,6 +198,9 @@ pub fn run(args: &RenderArgs, adapter: &AdapterPreference) -> anyhow::Result<()>
             res => format!(" at {res} resolution"),
         },
     );
+    if let Some(check) = check {
+        println!("{check}");
+    }
     let faces = renderer.face_counters();
     for (counters, face) in faces
         .iter()

@@ -93,6 +93,8 @@ pub struct CompareReport {
     pub baseline_pairs: Vec<(String, String, PairFiles)>,
     pub exact_image: String,
     pub exact_bytes: u64,
+    /// `exact`'s self-check against the f64 closed form (src/render/reference_check.rs).
+    pub exact_check: Option<crate::render::reference_check::ReferenceCheck>,
     /// Every file written, relative to the output folder.
     pub files: Vec<String>,
 }
@@ -138,6 +140,7 @@ pub fn run(
         &config(crate::shadow::frame_baseline().name, 1),
     )?;
     let target = OffscreenTarget::new(gpu, w, h);
+    let mut check = None;
     let mut render =
         |config: &TechniqueConfig, file: &str| -> anyhow::Result<(image::RgbImage, u32, u64)> {
             renderer.set_technique(gpu, config)?;
@@ -150,6 +153,15 @@ pub fn run(
             )?;
             let rgba = crate::gpu::read_texture_rgba8(gpu, &target.texture)?;
             let rgb = image::DynamicImage::ImageRgba8(rgba).into_rgb8();
+            // The reference checks itself before anything is compared with it.
+            if let Some(c) = crate::render::reference_check::verify_if_reference(
+                &mut renderer,
+                gpu,
+                scene,
+                &particles,
+            )? {
+                check = Some(c);
+            }
             crate::output::write_png_rgb(&out_dir.join(file), &rgb)?;
             let t = renderer.technique();
             Ok((rgb, t.channels_used(), t.memory().total_bytes()))
@@ -226,6 +238,7 @@ pub fn run(
         baseline_pairs,
         exact_image,
         exact_bytes,
+        exact_check: check,
         files,
     };
     write_csv(&report, baseline_budget, &out_dir.join("metrics.csv"))?;
@@ -320,7 +333,7 @@ fn html(report: &CompareReport, options: &CompareOptions, scene: &Scene) -> Stri
     let _ = write!(
         body,
         "<h1>smokeshadow compare: {}</h1>\n<p class=\"muted\">{}x{} frame, {} particles, shadow map {}², {} splat; \
-         reference: <code>exact</code>, the closed form per point ({}). Differences are |a − b| × {} as in the thesis; FLIP maps use the magma scale.</p>\n",
+         reference: <code>exact</code>, the closed form per point ({}; {}). Differences are |a − b| × {} as in the thesis; FLIP maps use the magma scale.</p>\n",
         e(&report.scene),
         scene.output.width_px,
         scene.output.height_px,
@@ -328,6 +341,9 @@ fn html(report: &CompareReport, options: &CompareOptions, scene: &Scene) -> Stri
         scene.shadow.resolution_px,
         options.splat.name(),
         report::bytes(report.exact_bytes),
+        report
+            .exact_check
+            .map_or("not checked".to_owned(), |c| e(&c.to_string())),
         diff::DEFAULT_ENHANCE
     );
 

@@ -18,6 +18,7 @@
 //! the technique or size changes; a frame only uploads uniforms and particles and records passes.
 
 pub mod mixed_res;
+pub mod reference_check;
 pub mod shaded;
 pub mod sort;
 
@@ -993,7 +994,32 @@ impl Renderer {
         particles: &[Particle],
         points: &[Vec3],
     ) -> anyhow::Result<Vec<f32>> {
-        let t = gpu.scoped(|| self.probe_unscoped(gpu, scene, particles, points));
+        self.probe_scoped(gpu, scene, particles, points, false)
+    }
+
+    /// As [`Renderer::probe`], but the light's whole visibility at each point as the lighting
+    /// computes it: T times the opaque occluders' visibility (their filtered depth map, or for
+    /// the reference the exact test). The reference's self-check compares it with the CPU's
+    /// closed form (`reference_check`).
+    pub fn probe_with_occluders(
+        &mut self,
+        gpu: &Gpu,
+        scene: &Scene,
+        particles: &[Particle],
+        points: &[Vec3],
+    ) -> anyhow::Result<Vec<f32>> {
+        self.probe_scoped(gpu, scene, particles, points, true)
+    }
+
+    fn probe_scoped(
+        &mut self,
+        gpu: &Gpu,
+        scene: &Scene,
+        particles: &[Particle],
+        points: &[Vec3],
+        with_occluders: bool,
+    ) -> anyhow::Result<Vec<f32>> {
+        let t = gpu.scoped(|| self.probe_unscoped(gpu, scene, particles, points, with_occluders));
         t.map_err(|r| {
             r.during(format!(
                 "probing {} at {} points",
@@ -1009,6 +1035,7 @@ impl Renderer {
         scene: &Scene,
         particles: &[Particle],
         points: &[Vec3],
+        with_occluders: bool,
     ) -> anyhow::Result<Vec<f32>> {
         // Maps built for this very frame (a render with `reuse_shadow_maps`, or an earlier
         // probe) are probed as they are; a probe leaves them reusable for the next such render.
@@ -1018,6 +1045,7 @@ impl Renderer {
         let probe = self.probe.get_or_insert_with(|| {
             Probe::new(gpu, &self.frame_layout, self.faces[0].technique.as_ref())
         });
+        probe.set_with_occluders(with_occluders);
         let (first, rest) = self
             .faces
             .split_first_mut()

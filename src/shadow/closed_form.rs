@@ -11,10 +11,86 @@
 //! of the chord through sphere i that lies between the light and p. It is exact at any particle
 //! count and needs no shadow map. `exact` evaluates the same sum on the GPU through its tile
 //! lists; `probe` prints both, and the tests hold them to 1e-5 of each other.
+//!
+//! The opaque occluders (ground and boxes) are mirrored too ([`occluder_visibility`]): the light
+//! either reaches a point past them or not, exactly as `shaders/common/occluders_exact.wgsl`
+//! tests it, so [`crate::render::reference_check`] can hold `exact`'s whole lighting to this
+//! module.
 
 use glam::{DVec3, Vec3};
 
+use crate::scene::Scene;
 use crate::sim::Particle;
+
+/// Whether the light reaches a point past the opaque geometry.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Visibility {
+    Lit,
+    Blocked,
+    /// The segment to the light passes within the test's epsilon of an occluder's edge, or the
+    /// point lies within it of a surface's plane: f32 on the GPU and f64 here may decide either
+    /// way, so a check skips the point.
+    KnifeEdge,
+}
+
+/// Visibility of the light at `light` from `p` past `scene`'s ground square and boxes, with the
+/// GPU test's rules (`shaders/common/occluders_exact.wgsl`): a box hit closer than `epsilon_m`
+/// to `p` is `p`'s own surface, and the ground does not shadow a point within `epsilon_m` of
+/// its plane (`epsilon_m` is `crate::frame::occluders::epsilon_m`). The test is decided twice,
+/// once with every occluder grown by a tenth of `epsilon_m` and once shrunk by it (the self-hit
+/// epsilons halved and doubled with them), far more than the GPU's f32 rounding moves an edge:
+/// where the two disagree the point is a [`Visibility::KnifeEdge`].
+pub fn occluder_visibility(scene: &Scene, light: Vec3, p: Vec3, epsilon_m: f32) -> Visibility {
+    let eps = f64::from(epsilon_m);
+    let blocked =
+        |grow: f64| blocked_by_occluders(scene, light.as_dvec3(), p.as_dvec3(), eps, grow);
+    match (blocked(0.1 * eps), blocked(-0.1 * eps)) {
+        (true, true) => Visibility::Blocked,
+        (false, false) => Visibility::Lit,
+        _ => Visibility::KnifeEdge,
+    }
+}
+
+/// The GPU test in f64, every occluder grown by `grow` (shrunk where negative) and the epsilons
+/// scaled to match: the larger occluder comes with the smaller self-hit epsilons.
+fn blocked_by_occluders(scene: &Scene, light: DVec3, p: DVec3, eps: f64, grow: f64) -> bool {
+    let scale = if grow > 0.0 { 0.5 } else { 2.0 };
+    let to_light = light - p;
+    let length = to_light.length();
+    if length <= 0.0 {
+        return false;
+    }
+    let g = &scene.ground;
+    let height = f64::from(g.height_m);
+    let below = p.y - height;
+    let light_above = light.y - height;
+    if below.abs() > eps * scale && below * light_above < 0.0 {
+        let q = p + to_light * (below / (below - light_above));
+        let half = 0.5 * f64::from(g.size_m) + grow;
+        if q.x.abs() <= half && q.z.abs() <= half {
+            return true;
+        }
+    }
+    let t_min = eps * scale / length;
+    scene.boxes.iter().any(|b| {
+        let (c, h) = (b.center.as_dvec3(), 0.5 * b.size.as_dvec3() + DVec3::splat(grow));
+        let (lo, hi) = (c - h, c + h);
+        let (mut enter, mut exit) = (f64::NEG_INFINITY, f64::INFINITY);
+        for axis in 0..3 {
+            let d = to_light[axis];
+            if d.abs() < 1e-300 {
+                if p[axis] < lo[axis] || p[axis] > hi[axis] {
+                    return false;
+                }
+                continue;
+            }
+            let (t0, t1) = ((lo[axis] - p[axis]) / d, (hi[axis] - p[axis]) / d);
+            enter = enter.max(t0.min(t1));
+            exit = exit.min(t0.max(t1));
+        }
+        exit >= enter.max(t_min) && enter <= 1.0
+    })
+}
 
 /// Optical depth from `light` to `p` through `particles` (metres, 1/m; f64 throughout).
 pub fn optical_depth(light: Vec3, p: Vec3, particles: &[Particle]) -> f64 {
@@ -144,5 +220,39 @@ mod tests {
         let tau1 = 1.0 * 2.0;
         let tau2 = 3.0 * (1.0 - d2) * 2.0 * (1.0 - d2 * d2).sqrt();
         close(transmittance(light, p, &particles), (-(tau1 + tau2)).exp());
+    }
+
+    #[test]
+    fn occluders_block_what_they_hide_and_never_their_own_surface() {
+        use crate::scene::BoxShape;
+        let mut scene = Scene::thesis_plume();
+        // A ground height that is no round number, as a bare file's is.
+        scene.ground.height_m = -0.012_345;
+        scene.ground.size_m = 20.0;
+        scene.boxes = vec![BoxShape {
+            center: Vec3::new(0.0, 0.5, 0.0),
+            size: Vec3::ONE,
+            albedo: Vec3::splat(0.5),
+        }];
+        let light = Vec3::new(0.0, 10.0, 0.0);
+        let eps = 1e-3;
+        let v = |p: Vec3| occluder_visibility(&scene, light, p, eps);
+        // Points on the ground's plane, a float step above or below it, are lit.
+        for dy in [0.0, 1e-7, -1e-7] {
+            assert_eq!(v(Vec3::new(3.0, scene.ground.height_m + dy, 2.0)), Visibility::Lit);
+        }
+        // Straight under the box: blocked; on the box's lit top face: lit.
+        assert_eq!(v(Vec3::new(0.1, scene.ground.height_m, 0.2)), Visibility::Blocked);
+        assert_eq!(v(Vec3::new(0.1, 1.0, 0.2)), Visibility::Lit);
+        // A point well below the ground, with the light above: the ground hides it.
+        assert_eq!(v(Vec3::new(3.0, -1.0, 2.0)), Visibility::Blocked);
+        // A ground point whose segment to the light grazes the box's edge x = 0.5 within the
+        // epsilon: either answer is right, so neither is claimed.
+        let h = scene.ground.height_m;
+        // The segment from (x, h, 0) to the light crosses y = 1 at x (10 - 1) / (10 - h).
+        let x_edge = 0.5 * (10.0 - h) / 9.0;
+        assert_eq!(v(Vec3::new(x_edge, h, 0.0)), Visibility::KnifeEdge);
+        assert_eq!(v(Vec3::new(x_edge + 0.01, h, 0.0)), Visibility::Lit);
+        assert_eq!(v(Vec3::new(x_edge - 0.01, h, 0.0)), Visibility::Blocked);
     }
 }

@@ -14,6 +14,9 @@ use crate::shaders;
 pub struct Probe {
     layout: wgpu::BindGroupLayout,
     pipeline: wgpu::ComputePipeline,
+    /// Whether the next probes multiply T by the opaque occluders' visibility, as the lighting
+    /// does ([`Probe::set_with_occluders`]).
+    with_occluders: bool,
 }
 
 /// A recorded probe dispatch whose results can be read once its commands are submitted.
@@ -62,7 +65,17 @@ impl Probe {
             compilation_options: Default::default(),
             cache: None,
         });
-        Self { layout, pipeline }
+        Self {
+            layout,
+            pipeline,
+            with_occluders: false,
+        }
+    }
+
+    /// From now on, evaluate the light's whole visibility at each point (T times the opaque
+    /// occluders' visibility, as the lighting shaders do), or the smoke's T alone (the default).
+    pub fn set_with_occluders(&mut self, on: bool) {
+        self.with_occluders = on;
     }
 
     /// Records the evaluation of T at `points` with each (frame, lookup) bind group pair of
@@ -77,7 +90,8 @@ impl Probe {
     ) -> PendingProbe {
         let device = &gpu.device;
         let count = points.len();
-        let padded: Vec<[f32; 4]> = points.iter().map(|p| p.extend(0.0).to_array()).collect();
+        let w = if self.with_occluders { 1.0 } else { 0.0 };
+        let padded: Vec<[f32; 4]> = points.iter().map(|p| p.extend(w).to_array()).collect();
         let points_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("probe.points"),
             contents: bytemuck::cast_slice(if padded.is_empty() {
@@ -135,9 +149,8 @@ impl PendingProbe {
     }
 }
 
-/// The composed probe shader for a technique.
+/// The composed probe shader for a technique: its lookup and its occluders' visibility, as the
+/// lighting shaders are composed ([`super::TechniqueEntry::frame_imports`]).
 pub fn source(entry: &super::TechniqueEntry) -> String {
-    let lookup =
-        shaders::source(entry.lookup_shader).expect("registered lookup shader is embedded");
-    shaders::compose("shadow/probe.wgsl", &[(shaders::SHADOW_TECHNIQUE, lookup)])
+    shaders::compose("shadow/probe.wgsl", &entry.frame_imports())
 }

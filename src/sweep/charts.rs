@@ -932,6 +932,8 @@ mod tests {
             warmup: 5,
             exact_tiles: 64,
             exact_bytes: 63 << 20,
+            exact_check_points: 400,
+            exact_check_worst: Some(2e-6),
             started: "2026-01-01T00:00:00Z".into(),
             wall_s: 12.5,
             shards: Vec::new(),

@@ -172,6 +172,12 @@ pub struct MeasuredAgainst {
     pub exact_bytes: u64,
     pub exact_tiles: u32,
     pub exact_image_sha256: String,
+    /// `exact`'s self-check against the f64 closed form (src/render/reference_check.rs): the
+    /// shaded points compared and the worst |ΔT| (`None` in cells measured before the check).
+    #[serde(default)]
+    pub exact_check_points: usize,
+    #[serde(default)]
+    pub exact_check_worst: Option<f64>,
     pub machine: Machine,
     /// The shard that measured it (`None`: an unsharded run).
     pub shard: Option<Shard>,
@@ -212,6 +218,12 @@ pub struct SweepMetadata {
     pub exact_tiles: u32,
     /// Bytes `exact` allocated.
     pub exact_bytes: u64,
+    /// `exact`'s self-check over every process that measured cells: the fewest points one
+    /// compared, and the worst |ΔT| against the f64 closed form (`None`: cells from before it).
+    #[serde(default)]
+    pub exact_check_points: usize,
+    #[serde(default)]
+    pub exact_check_worst: Option<f64>,
     /// RFC 3339 (UTC) start of this run, and its wall time in seconds (for results merged
     /// from shards: the earliest shard's start and the sum of the shards' wall times).
     pub started: String,

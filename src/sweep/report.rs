@@ -79,7 +79,7 @@ fn metadata_line(body: &mut String, results: &SweepResults) {
         "<p class=\"muted\">Scene <code>{scene}</code> at {w}x{h}, {particles} particles, seed {seed}; \
          adapter {adapter} ({backend}, driver {driver}); timestamp queries: {ts}; \
          {frames} timed frames after {warmup} warm-up; reference <code>exact</code>: the closed form per point \
-         through {exact_tiles}² light-space tiles ({exact_bytes}); smokeshadow {version}; ran {wall}, started {started}.</p>",
+         through {exact_tiles}² light-space tiles ({exact_bytes}), {check}; smokeshadow {version}; ran {wall}, started {started}.</p>",
         scene = e(&m.scene),
         w = m.width_px,
         h = m.height_px,
@@ -97,6 +97,14 @@ fn metadata_line(body: &mut String, results: &SweepResults) {
         warmup = m.warmup,
         exact_tiles = m.exact_tiles,
         exact_bytes = report::bytes(m.exact_bytes),
+        check = match m.exact_check_worst {
+            Some(worst) => format!(
+                "checked against the f64 closed form at {} shaded points (worst |ΔT| {worst:.1e}, allowed {:.0e})",
+                m.exact_check_points,
+                crate::render::reference_check::TOLERANCE
+            ),
+            None => "not checked against the closed form (cells measured before the check)".into(),
+        },
         version = e(&m.tool_version),
         started = e(&m.started),
     );
@@ -583,6 +591,8 @@ mod tests {
                 warmup: 5,
                 exact_tiles: 64,
                 exact_bytes: 63 << 20,
+                exact_check_points: 400,
+                exact_check_worst: Some(2e-6),
                 started: "2026-01-01T00:00:00Z".into(),
                 wall_s: 75.0,
                 shards: Vec::new(),

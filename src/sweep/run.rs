@@ -391,8 +391,12 @@ impl<'a> Sweeper<'a> {
         }
         let points = shaded_points(scene, &particles, w, h, SHADED_STRIDE_PX);
         let exact_t = renderer.probe(gpu, scene, &particles, &points)?;
+        // No error is measured against a reference that disagrees with the closed form.
+        let check = progress.suspend(|| {
+            crate::render::reference_check::verify(&mut renderer, gpu, scene, &particles)
+        })?;
         progress.finish(format!(
-            "{}: exact reference ({}² light tiles): {} bytes, T at {} shaded points",
+            "{}: exact reference ({}² light tiles): {} bytes, T at {} shaded points; {check}",
             scene.name,
             exact_tiles,
             exact_bytes,
@@ -403,6 +407,8 @@ impl<'a> Sweeper<'a> {
             exact_bytes,
             exact_tiles,
             exact_image_sha256: sha256_hex(exact_image.as_raw()),
+            exact_check_points: check.points,
+            exact_check_worst: Some(check.worst_difference),
             machine: Machine::of(gpu),
             shard: options.shard,
         };
@@ -1173,6 +1179,16 @@ pub(super) fn assemble(
         warmup,
         exact_tiles: exact.1,
         exact_bytes: exact.0,
+        exact_check_points: against
+            .iter()
+            .map(|a| a.exact_check_points)
+            .min()
+            .unwrap_or(0),
+        exact_check_worst: against
+            .iter()
+            .map(|a| a.exact_check_worst)
+            .reduce(|a, b| Some(a?.max(b?)))
+            .flatten(),
         started,
         wall_s,
         shards,
