@@ -365,6 +365,32 @@ fn bad_particle_files_get_one_line_naming_the_element_and_property() {
             "{lines:?}"
         );
     }
+    // Bare files the framing cannot take: one line about the particles, not about a scene
+    // field the user never wrote (a file at 1e30 m once said "light.intensity = inf").
+    for (file, contents, needle) in [
+        (
+            "far.csv",
+            "x,y,z,radius\n1e30,0,0,0.1\n1e30,1,0,0.1\n",
+            "its particles reach 1e30 m from the origin",
+        ),
+        (
+            "speck.csv",
+            "x,y,z,radius\n1e5,0,0,1e-4\n1e5,0,1e-4,1e-4\n",
+            "too small to frame in f32 there",
+        ),
+    ] {
+        let path = dir.join(file);
+        std::fs::write(&path, contents).unwrap();
+        let out = smokeshadow(&["render", path.to_str().unwrap(), "-o", "/dev/null/x.png"]);
+        assert_eq!(out.status.code(), Some(2));
+        let lines = error_lines(&out);
+        assert_eq!(lines.len(), 1, "{lines:#?}");
+        assert!(
+            lines[0].starts_with("error: ") && lines[0].contains(needle) && lines[0].contains(file),
+            "{lines:?}"
+        );
+        assert!(!lines[0].contains("light."), "{lines:?}");
+    }
     // A scene with both a particle file and an emitter is refused.
     let both = format!("{}\n[emitter]\ncount = 10\n", scene_reading("p.ply"));
     let err = Scene::from_toml_str(&both, "both.toml")

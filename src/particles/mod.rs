@@ -457,6 +457,41 @@ pub fn open_scene(arg: Option<&Path>) -> anyhow::Result<Scene> {
     })
 }
 
+/// The farthest a bare file's particles may lie from the origin, metres: the framing scales the
+/// light's intensity with the square of the smoke's size, and f32 coordinates have about a
+/// tenth of a metre of precision out there.
+pub const MAX_FRAMED_COORDINATE_M: f32 = 1e6;
+/// The smallest extent a bare file's smoke may have, as a fraction of its distance from the
+/// origin: 2^-13, about a thousand float steps across, so that its particles' positions, chords
+/// and shadow-map depths are not dominated by rounding.
+pub const MIN_FRAMED_EXTENT_RATIO: f32 = 1.0 / 8192.0;
+
+/// The size (the largest side of the particles' bounds) and the centre of a bare file's smoke,
+/// or why it cannot be framed, named in terms of the particles.
+fn framing_extent(bounds: &Summary) -> Result<(f32, Vec3), String> {
+    if bounds.count == 0 {
+        return Err("it holds no particles to frame".to_owned());
+    }
+    let far = bounds.min.abs().max(bounds.max.abs()).max_element();
+    if !(far <= MAX_FRAMED_COORDINATE_M) {
+        return Err(format!(
+            "its particles reach {far:e} m from the origin (bounds {:?} .. {:?} m): smokeshadow frames particles within {MAX_FRAMED_COORDINATE_M:e} m of it, so move them nearer or change their units",
+            bounds.min.to_array(),
+            bounds.max.to_array()
+        ));
+    }
+    let size = (bounds.max - bounds.min).max_element();
+    let centre = 0.5 * (bounds.min + bounds.max);
+    let from_origin = centre.abs().max_element();
+    if !(size > 0.0 && size >= from_origin * MIN_FRAMED_EXTENT_RATIO) {
+        return Err(format!(
+            "its particles span {size:e} m at {from_origin:e} m from the origin, too small to frame in f32 there (at least 1/{} of the distance): move them nearer the origin",
+            1.0 / MIN_FRAMED_EXTENT_RATIO
+        ));
+    }
+    Ok((size, centre))
+}
+
 /// A scene for a bare particle file (`smokeshadow render smoke.ply`, the viewer's Open): the
 /// thesis scene's lighting, shading and shadow settings, its camera and spotlight turned on the
 /// particles. Both keep the thesis scene's directions and are moved out to frame the particles'
@@ -471,8 +506,7 @@ pub fn scene_for_file(path: &Path) -> Result<Scene, ParticleFileError> {
     };
     let particles = source.particles_at(scene.sim.duration_s)?;
     let bounds = Summary::of(&particles);
-    let centre = 0.5 * (bounds.min + bounds.max);
-    let size = (bounds.max - bounds.min).max_element().max(1e-3);
+    let (size, centre) = framing_extent(&bounds).map_err(|m| ParticleFileError::invalid(path, m))?;
     // The thesis plume's framing: the camera's and light's offsets from its target, for a
     // plume of this size (between the 5 m the plume looks and the 8.1 m its particles' bounds
     // span at t = 8 s: a bare file's bounds are often a tight box, and get some margin).
@@ -490,7 +524,11 @@ pub fn scene_for_file(path: &Path) -> Result<Scene, ParticleFileError> {
     light.position = centre + light_offset;
     light.intensity *= k * k;
     scene.ground.height_m = bounds.min.y;
-    scene.ground.size_m = (scene.ground.size_m * k).max(scene.ground.size_m);
+    // The ground square is centred on the origin: it reaches under smoke far from it too.
+    let reach = 2.0 * (centre.x.abs().max(centre.z.abs()) + size);
+    scene.ground.size_m = (scene.ground.size_m * k)
+        .max(scene.ground.size_m)
+        .max(reach);
     scene.boxes.clear();
     scene.emitters.clear();
     scene.particles = Some(source);
