@@ -21,12 +21,22 @@ const W: u32 = 160;
 const H: u32 = 120;
 
 /// Renders `scene` with `exact` (as the commands do before they check) and runs the check.
-fn check(gpu: &smokeshadow::gpu::Gpu, scene: &Scene, particles: &[Particle]) -> reference_check::ReferenceCheck {
+fn check(
+    gpu: &smokeshadow::gpu::Gpu,
+    scene: &Scene,
+    particles: &[Particle],
+) -> reference_check::ReferenceCheck {
     let config = common::technique("exact", 1, 512, SplatMode::Segment);
     let mut renderer = Renderer::new(gpu, W, H, OUTPUT_FORMAT, &config).unwrap();
     let target = OffscreenTarget::new(gpu, W, H);
     renderer
-        .render(gpu, scene, particles, &RenderOptions::default(), &target.view)
+        .render(
+            gpu,
+            scene,
+            particles,
+            &RenderOptions::default(),
+            &target.view,
+        )
         .unwrap();
     reference_check::verify(&mut renderer, gpu, scene, particles)
         .unwrap_or_else(|e| panic!("{}: {e:#}", scene.name))
@@ -62,18 +72,22 @@ fn exact_agrees_with_the_closed_form_on_every_embedded_scene_and_its_bare_read_b
         assert_eq!(read_back.len(), particles.len());
         let as_file = check(&gpu, &file_scene, &read_back);
         for (what, c) in [("scene", as_scene), ("bare file", as_file)] {
-            assert!(
-                c.worst_difference <= TOLERANCE,
-                "{name} as a {what}: {c}"
-            );
+            assert!(c.worst_difference <= TOLERANCE, "{name} as a {what}: {c}");
             // The check compares a real sample: smoke and lit opaque points.
-            assert!(c.points >= 100, "{name} as a {what}: only {} points", c.points);
+            assert!(
+                c.points >= 100,
+                "{name} as a {what}: only {} points",
+                c.points
+            );
         }
         let opaque = reference_check::check_points(&file_scene, &read_back, W, H)
             .iter()
             .filter(|(_, k)| *k == reference_check::PointKind::Opaque)
             .count();
-        assert!(opaque >= 50, "{name} as a bare file: {opaque} lit ground points");
+        assert!(
+            opaque >= 50,
+            "{name} as a bare file: {opaque} lit ground points"
+        );
     }
 }
 
@@ -161,7 +175,10 @@ fn a_broken_reference_is_refused_in_one_line() {
         .expect_err("T = 1 through the plume is not the closed form");
     let message = format!("{err:#}");
     assert!(!message.contains('\n'), "{message}");
-    assert!(message.contains("disagrees with the f64 closed form"), "{message}");
+    assert!(
+        message.contains("disagrees with the f64 closed form"),
+        "{message}"
+    );
     assert!(message.contains("T = 1.000000 on the GPU"), "{message}");
     // And the commands refuse to go on: the same check passes for exact on the same frame.
     let c = check(&gpu, &scene, &particles);

@@ -506,7 +506,8 @@ pub fn scene_for_file(path: &Path) -> Result<Scene, ParticleFileError> {
     };
     let particles = source.particles_at(scene.sim.duration_s)?;
     let bounds = Summary::of(&particles);
-    let (size, centre) = framing_extent(&bounds).map_err(|m| ParticleFileError::invalid(path, m))?;
+    let (size, centre) =
+        framing_extent(&bounds).map_err(|m| ParticleFileError::invalid(path, m))?;
     // The thesis plume's framing: the camera's and light's offsets from its target, for a
     // plume of this size (between the 5 m the plume looks and the 8.1 m its particles' bounds
     // span at t = 8 s: a bare file's bounds are often a tight box, and get some margin).

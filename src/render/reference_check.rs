@@ -79,11 +79,7 @@ impl std::fmt::Display for ReferenceCheck {
             self.points, self.worst_difference, TOLERANCE
         )?;
         if self.knife_edges > 0 {
-            write!(
-                f,
-                ", {} on an occluder's edge skipped",
-                self.knife_edges
-            )?;
+            write!(f, ", {} on an occluder's edge skipped", self.knife_edges)?;
         }
         Ok(())
     }
@@ -101,7 +97,8 @@ pub fn check_points(
     let axis = (light.target - light.position).normalize_or(Vec3::NEG_Y);
     let cos_cone = light.cone_angle_deg.to_radians().cos();
     let reached = |p: Vec3| {
-        light.kind == LightKind::Point || (p - light.position).normalize_or_zero().dot(axis) >= cos_cone
+        light.kind == LightKind::Point
+            || (p - light.position).normalize_or_zero().dot(axis) >= cos_cone
     };
     let mut out = Vec::new();
     let stride = particles.len().div_ceil(PARTICLE_POINTS).max(1);
@@ -147,9 +144,9 @@ pub fn verify(
         .par_iter()
         .map(|&p| {
             match closed_form::occluder_visibility(scene, scene.light.position, p, epsilon_m) {
-                Visibility::Lit => Some(
-                    (-closed_form::optical_depth(scene.light.position, p, particles)).exp(),
-                ),
+                Visibility::Lit => {
+                    Some((-closed_form::optical_depth(scene.light.position, p, particles)).exp())
+                }
                 Visibility::Blocked => Some(0.0),
                 Visibility::KnifeEdge => None,
             }

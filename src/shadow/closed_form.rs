@@ -73,7 +73,10 @@ fn blocked_by_occluders(scene: &Scene, light: DVec3, p: DVec3, eps: f64, grow: f
     }
     let t_min = eps * scale / length;
     scene.boxes.iter().any(|b| {
-        let (c, h) = (b.center.as_dvec3(), 0.5 * b.size.as_dvec3() + DVec3::splat(grow));
+        let (c, h) = (
+            b.center.as_dvec3(),
+            0.5 * b.size.as_dvec3() + DVec3::splat(grow),
+        );
         let (lo, hi) = (c - h, c + h);
         let (mut enter, mut exit) = (f64::NEG_INFINITY, f64::INFINITY);
         for axis in 0..3 {
@@ -239,10 +242,16 @@ mod tests {
         let v = |p: Vec3| occluder_visibility(&scene, light, p, eps);
         // Points on the ground's plane, a float step above or below it, are lit.
         for dy in [0.0, 1e-7, -1e-7] {
-            assert_eq!(v(Vec3::new(3.0, scene.ground.height_m + dy, 2.0)), Visibility::Lit);
+            assert_eq!(
+                v(Vec3::new(3.0, scene.ground.height_m + dy, 2.0)),
+                Visibility::Lit
+            );
         }
         // Straight under the box: blocked; on the box's lit top face: lit.
-        assert_eq!(v(Vec3::new(0.1, scene.ground.height_m, 0.2)), Visibility::Blocked);
+        assert_eq!(
+            v(Vec3::new(0.1, scene.ground.height_m, 0.2)),
+            Visibility::Blocked
+        );
         assert_eq!(v(Vec3::new(0.1, 1.0, 0.2)), Visibility::Lit);
         // A point well below the ground, with the light above: the ground hides it.
         assert_eq!(v(Vec3::new(3.0, -1.0, 2.0)), Visibility::Blocked);
