@@ -473,7 +473,7 @@ fn framing_extent(bounds: &Summary) -> Result<(f32, Vec3), String> {
         return Err("it holds no particles to frame".to_owned());
     }
     let far = bounds.min.abs().max(bounds.max.abs()).max_element();
-    if !(far <= MAX_FRAMED_COORDINATE_M) {
+    if far.is_nan() || far > MAX_FRAMED_COORDINATE_M {
         return Err(format!(
             "its particles reach {far:e} m from the origin (bounds {:?} .. {:?} m): smokeshadow frames particles within {MAX_FRAMED_COORDINATE_M:e} m of it, so move them nearer or change their units",
             bounds.min.to_array(),
