@@ -1,7 +1,8 @@
 //! GPU tests of the opaque occluders' shadows (src/frame/occluders.rs): the box shadows the
-//! ground and the smoke, the same way under every technique; `exact` tests the box exactly and
-//! the others read the filtered depth map. They run on lavapipe in CI and fail, never skip,
-//! without an adapter.
+//! ground and the smoke, the same way under every technique and both occluder modes (`exact`
+//! always tests the box exactly; the others do so by default, or read the filtered depth map
+//! with `shadow.occluders = "map"`). They run on lavapipe in CI and fail, never skip, without
+//! an adapter.
 
 mod common;
 
@@ -11,7 +12,7 @@ use smokeshadow::render::{
     CameraMatrices, OUTPUT_FORMAT, OffscreenTarget, RenderOptions, Renderer,
 };
 use smokeshadow::scene::{BoxShape, Scene};
-use smokeshadow::shadow::{self, SplatMode, closed_form};
+use smokeshadow::shadow::{self, OccluderMode, SplatMode, closed_form};
 use smokeshadow::sim::{Particle, simulate};
 
 /// How far inside the box's shadow (and outside its silhouette from the camera) a checked point
@@ -42,12 +43,27 @@ fn pixel(cam: &CameraMatrices, p: Vec3) -> Option<(u32, u32)> {
     inside.then_some((px.x as u32, px.y as u32))
 }
 
-/// Renders `scenes` in turn with one renderer of `name` (its pipelines built once) and returns
-/// each frame's HDR pixels at `at`.
-fn hdr_at(name: &str, scenes: &[(&Scene, &[Particle])], at: &[(u32, u32)]) -> Vec<Vec<[f32; 4]>> {
+/// Both ways the lighting can test the occluders.
+const MODES: [OccluderMode; 2] = [OccluderMode::Exact, OccluderMode::Map];
+
+/// A configuration of `name` with the occluders tested in `mode`.
+fn config(name: &str, channels: u32, mode: OccluderMode) -> smokeshadow::render::TechniqueConfig {
+    let mut config = common::technique(name, channels, 512, SplatMode::Segment);
+    config.params.occluders = mode;
+    config
+}
+
+/// Renders `scenes` in turn with one renderer of `name` with the occluders in `mode` (its
+/// pipelines built once) and returns each frame's HDR pixels at `at`.
+fn hdr_at(
+    name: &str,
+    mode: OccluderMode,
+    scenes: &[(&Scene, &[Particle])],
+    at: &[(u32, u32)],
+) -> Vec<Vec<[f32; 4]>> {
     let gpu = gpu();
     let entry = shadow::find(name).unwrap();
-    let config = common::technique(name, entry.min_channels.max(8), 512, SplatMode::Point);
+    let config = config(name, entry.min_channels.max(8), mode);
     let mut renderer = Renderer::new(&gpu, W, H, OUTPUT_FORMAT, &config).unwrap();
     let target = OffscreenTarget::new(&gpu, W, H);
     scenes
@@ -119,23 +135,21 @@ fn the_box_shadows_the_ground_behind_it_under_every_technique() {
     let g = scene.ground.albedo;
     let a = scene.shading.ambient;
     let ambient_only = [g.x * a.x, g.y * a.y, g.z * a.z];
-    for entry in shadow::REGISTRY {
+    for (entry, mode) in shadow::REGISTRY.iter().flat_map(|e| MODES.map(|m| (e, m))) {
         let frames = hdr_at(
             entry.name,
+            mode,
             &[(&scene, &particles), (&no_box, &particles)],
             &points,
         );
+        let name = format!("{} ({} occluders)", entry.name, mode.name());
         for ((&(x, y), with), without) in points.iter().zip(&frames[0]).zip(&frames[1]) {
-            assert!(
-                with[3] < 0.01,
-                "{}: smoke in front of ({x}, {y})",
-                entry.name
-            );
+            assert!(with[3] < 0.01, "{}: smoke in front of ({x}, {y})", name);
             for c in 0..3 {
                 assert!(
                     (with[c] - ambient_only[c]).abs() <= 0.01 * ambient_only[c] + 1e-4,
                     "{}: ground at ({x}, {y}) behind the box has {:?}, not the ambient-only {:?}",
-                    entry.name,
+                    name,
                     with,
                     ambient_only
                 );
@@ -145,7 +159,7 @@ fn the_box_shadows_the_ground_behind_it_under_every_technique() {
             assert!(
                 luminance(*without) > 2.0 * luminance(*with),
                 "{}: ground at ({x}, {y}) is not darker with the box: {} with, {} without",
-                entry.name,
+                name,
                 luminance(*with),
                 luminance(*without)
             );
@@ -202,23 +216,25 @@ fn a_particle_in_the_box_shadow_is_darker_than_the_same_particle_in_the_light() 
     no_box.boxes.clear();
     // Dense enough (optical depth 2 across) that the pixel is mostly the particle's radiance,
     // thin enough that its own shadow leaves it some direct light.
-    for entry in shadow::REGISTRY {
+    for (entry, mode) in shadow::REGISTRY.iter().flat_map(|e| MODES.map(|m| (e, m))) {
         let frames = hdr_at(
             entry.name,
+            mode,
             &[
                 (&scene, std::slice::from_ref(&particle)),
                 (&no_box, std::slice::from_ref(&particle)),
             ],
             &[at],
         );
+        let name = format!("{} ({} occluders)", entry.name, mode.name());
         let (with, without) = (frames[0][0], frames[1][0]);
-        assert!(with[3] > 0.6, "{}: the particle is not drawn", entry.name);
+        assert!(with[3] > 0.6, "{}: the particle is not drawn", name);
         // In the shadow it scatters only the ambient light; in the light its direct light is
         // several times that.
         assert!(
             luminance(with) < 0.5 * luminance(without),
             "{}: the particle in the box's shadow has luminance {} against {} in the light",
-            entry.name,
+            name,
             luminance(with),
             luminance(without)
         );
@@ -230,8 +246,8 @@ fn the_occluder_map_is_its_own_memory_at_the_scene_resolution() {
     let gpu = gpu();
     let mut scene = reduced_plume();
     let particles = simulate(&scene);
-    let config = common::technique("osm", 8, 512, SplatMode::Point);
-    let mut renderer = Renderer::new(&gpu, W, H, OUTPUT_FORMAT, &config).unwrap();
+    let osm_map = config("osm", 8, OccluderMode::Map);
+    let mut renderer = Renderer::new(&gpu, W, H, OUTPUT_FORMAT, &osm_map).unwrap();
     let target = OffscreenTarget::new(&gpu, W, H);
     let technique_bytes = renderer.technique().memory().total_bytes();
     for side in [1024u64, 256] {
@@ -255,11 +271,16 @@ fn the_occluder_map_is_its_own_memory_at_the_scene_resolution() {
         assert_eq!(renderer.technique().memory().total_bytes(), technique_bytes);
         assert_eq!(renderer.occluder_map_px(), Some(side as u32));
     }
-    // The reference tests the boxes exactly: its frame keeps only the boxes (and a 1x1
-    // placeholder for the binding), and switching back brings the map back.
-    for (name, side) in [("exact", None), ("osm", Some(256u64))] {
+    // The reference tests the boxes exactly even when asked for the map, and so does `osm` in
+    // the default mode: their frames keep only the boxes (and a 1x1 placeholder for the
+    // binding); switching back to the map brings it back.
+    for (name, mode, side) in [
+        ("exact", OccluderMode::Map, None),
+        ("osm", OccluderMode::Exact, None),
+        ("osm", OccluderMode::Map, Some(256u64)),
+    ] {
         renderer
-            .set_technique(&gpu, &common::technique(name, 8, 512, SplatMode::Point))
+            .set_technique(&gpu, &config(name, 8, mode))
             .unwrap();
         renderer
             .render(

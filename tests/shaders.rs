@@ -86,7 +86,11 @@ fn every_rust_mirror_matches_nagas_reflection_of_its_wgsl_struct() {
     ]
     .concat();
     // `none`'s lookup and the occluders' map for the frame shaders' virtual imports.
-    let imports = smokeshadow::shadow::frame_baseline().frame_imports();
+    let params = smokeshadow::shadow::TechniqueParams {
+        occluders: smokeshadow::shadow::OccluderMode::Map,
+        ..smokeshadow::shadow::TechniqueParams::new(24, 512)
+    };
+    let imports = smokeshadow::shadow::frame_baseline().frame_imports(&params);
     for m in &mirrors {
         let text = compose(m.wgsl_file, &imports);
         let module = naga::front::wgsl::parse_str(&text)

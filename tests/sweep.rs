@@ -167,7 +167,11 @@ fn resume_runs_only_the_missing_cells_and_ends_with_the_same_table() {
     // An interrupted run: the same sweep, stopped after two of its cells were persisted.
     let stopped = scratch("sweep-stopped");
     ok(&tiny_sweep(&stopped, &[]));
-    for cell in ["osm_8_128_point", "fom_24_128_point", "fom_8_128_point"] {
+    for cell in [
+        "osm_8_128_segment",
+        "fom_24_128_segment",
+        "fom_8_128_segment",
+    ] {
         std::fs::remove_file(stopped.join(format!("cells/{cell}.json"))).unwrap();
     }
     let out = tiny_sweep(&stopped, &["--resume"]);
@@ -689,7 +693,7 @@ fn a_shard_killed_part_way_and_resumed_finishes_the_same() {
         .stderr(std::process::Stdio::null())
         .spawn()
         .unwrap();
-    let first = dir.join("thesis_plume/cells/osm_24_128_point.json");
+    let first = dir.join("thesis_plume/cells/osm_24_128_segment.json");
     let start = std::time::Instant::now();
     while !first.exists() {
         assert!(
@@ -702,7 +706,8 @@ fn a_shard_killed_part_way_and_resumed_finishes_the_same() {
     child.kill().unwrap();
     assert!(!child.wait().unwrap().success());
     assert!(
-        !dir.join("thesis_wind/cells/osm_8_128_point.json").exists(),
+        !dir.join("thesis_wind/cells/osm_8_128_segment.json")
+            .exists(),
         "killed after its last cell"
     );
     let manifest = std::fs::read_to_string(dir.join("shards/1-of-3.json")).unwrap();

@@ -327,6 +327,46 @@ fn error_against_exact_on_the_plume_shrinks_as_the_budget_grows() {
     }
 }
 
+/// On the default settings (the scenes' own, whose splat is the reference's segment model)
+/// every technique the registry marks as converging has an RMS T error against `exact` that
+/// does not rise from 6 to 8 to 16 to 24 channels: on the thesis scene and two gallery scenes
+/// of other shapes (two plumes with a gap between them, a tall column). A rise beyond 1e-4
+/// (the half-float maps' rounding at the 160x120 frame's shaded points) fails.
+#[test]
+fn on_the_default_settings_no_converging_techniques_error_rises_with_its_budget() {
+    let gpu = gpu();
+    let budgets = [6, 8, 16, 24];
+    for name in ["thesis_plume", "two_plumes", "column"] {
+        let mut scene = Scene::embedded(name).unwrap();
+        scene.output.width_px = 160;
+        scene.output.height_px = 120;
+        assert_eq!(
+            scene.shadow.params(24).splat,
+            SplatMode::Segment,
+            "{name}: the default splat is the reference's model"
+        );
+        let particles = smokeshadow::particles::scene_particles(&scene).unwrap();
+        let points = shaded_points(&scene, &particles, 160, 120, 4);
+        let config = |technique: &str, channels: u32| TechniqueConfig {
+            name: technique.to_owned(),
+            params: scene.shadow.params(channels),
+        };
+        let exact = probe_all(&gpu, &scene, &particles, &[config("exact", 1)], &points).remove(0);
+        for entry in smokeshadow::shadow::contenders().filter(|e| e.converges_with_budget) {
+            let configs: Vec<_> = budgets.iter().map(|&b| config(entry.name, b)).collect();
+            let errors: Vec<f64> = probe_all(&gpu, &scene, &particles, &configs, &points)
+                .iter()
+                .map(|t| rms_difference(t, &exact))
+                .collect();
+            assert!(
+                errors.windows(2).all(|w| w[1] <= w[0] + 1e-4),
+                "{name}: {}'s error rises with its budget (6, 8, 16, 24 channels): {errors:?}",
+                entry.name
+            );
+        }
+    }
+}
+
 #[test]
 fn order_independent_maps_do_not_depend_on_the_particle_order() {
     // The renderer sorts the particles back to front for the camera before the build pass, so

@@ -84,9 +84,14 @@ pub struct TechniqueArgs {
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=8192))]
     pub shadow_res: Option<u32>,
     /// How layered techniques place a particle's optical depth along the light ray (default:
-    /// the scene's `shadow.splat`, point unless set).
+    /// the scene's `shadow.splat`: segment, the reference's model, unless set; point is the
+    /// thesis').
     #[arg(long, value_enum)]
     pub splat: Option<SplatMode>,
+    /// How the lighting tests the opaque occluders (default: the scene's `shadow.occluders`):
+    /// exact, as the reference does, or from a filtered depth map, as an engine would.
+    #[arg(long, value_enum)]
+    pub occluders: Option<crate::scene::OccluderMode>,
     #[command(flatten)]
     pub params: ParamArgs,
 }
@@ -102,6 +107,7 @@ impl TechniqueArgs {
         let mut params = TechniqueParams {
             resolution_px: self.shadow_res.unwrap_or(scene.shadow.resolution_px),
             splat: self.splat.unwrap_or(scene.shadow.splat),
+            occluders: self.occluders.unwrap_or(scene.shadow.occluders),
             ..scene.shadow.params(self.channels)
         };
         for (key, value) in &self.params.params {

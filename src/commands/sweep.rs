@@ -46,8 +46,9 @@ pub struct SweepArgs {
     /// Shadow-map resolutions, comma-separated.
     #[arg(long, value_delimiter = ',', default_value = "512")]
     pub shadow_res: Vec<u32>,
-    /// Splat modes, comma-separated (techniques that ignore it run once).
-    #[arg(long, value_delimiter = ',', value_enum, default_value = "point")]
+    /// Splat modes, comma-separated (techniques that ignore it run once): segment, the
+    /// reference's density model, or point, the thesis'.
+    #[arg(long, value_delimiter = ',', value_enum, default_value = "segment")]
     pub splat: Vec<SplatMode>,
     /// Resolutions of the particle pass, comma-separated: 1, 1/2, 1/4 of the frame's per axis,
     /// each its own cell (`has`, which draws its own particle pass, runs at 1 only).

@@ -339,7 +339,7 @@ fn html(report: &CompareReport, options: &CompareOptions, scene: &Scene) -> Stri
         scene.output.height_px,
         crate::particles::count(scene),
         scene.shadow.resolution_px,
-        options.splat.name(),
+        options.splat.label(),
         report::bytes(report.exact_bytes),
         report
             .exact_check

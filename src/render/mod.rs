@@ -279,6 +279,7 @@ impl Renderer {
             &frame_layout,
             &particle_layouts,
             technique_impl.as_ref(),
+            &technique.params,
         );
         let faces = vec![LightFace::new(gpu, &frame_layout, technique_impl)?];
 
@@ -342,6 +343,7 @@ impl Renderer {
             &self.frame_layout,
             &self.particle_layouts,
             techniques[0].as_ref(),
+            &config.params,
         );
         for (face, technique) in self.faces.iter_mut().zip(techniques) {
             face.technique = technique;
@@ -883,8 +885,9 @@ impl Renderer {
 
         let camera = CameraMatrices::new(scene, width, height);
         let lights = LightSpace::faces(&scene.light, particles);
-        let reads_occluder_map =
-            shadow::find(&self.technique_config.name).map_or(true, |e| e.reads_occluder_map());
+        let reads_occluder_map = shadow::find(&self.technique_config.name).map_or(true, |e| {
+            e.reads_occluder_map(&self.technique_config.params)
+        });
         for (face, light) in self.faces.iter_mut().zip(&lights) {
             if face.occluders.prepare(gpu, scene, reads_occluder_map)? {
                 face.frame_bind_group = frame_bind_group(
@@ -1043,7 +1046,12 @@ impl Renderer {
             self.begin_frame(gpu, scene, particles, true, SortOrder::View, None)?;
         self.timer.resolve(&mut encoder);
         let probe = self.probe.get_or_insert_with(|| {
-            Probe::new(gpu, &self.frame_layout, self.faces[0].technique.as_ref())
+            Probe::new(
+                gpu,
+                &self.frame_layout,
+                self.faces[0].technique.as_ref(),
+                &self.technique_config.params,
+            )
         });
         probe.set_with_occluders(with_occluders);
         let (first, rest) = self
@@ -1270,10 +1278,11 @@ impl TechniquePipelines {
         frame_layout: &wgpu::BindGroupLayout,
         particle_layouts: &ParticleLayouts,
         technique: &dyn ShadowTechnique,
+        params: &shadow::TechniqueParams,
     ) -> Self {
         let name = technique.name();
         let entry = shadow::find(name).expect("a live technique is registered");
-        let imports = entry.frame_imports();
+        let imports = entry.frame_imports(params);
         let opaque_module = shaders::module(
             device,
             &format!("opaque[{name}]"),

@@ -19,7 +19,7 @@ use std::path::{Path, PathBuf};
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
-pub use technique::{ParamValue, SplatMode, TechniqueParams};
+pub use technique::{OccluderMode, ParamValue, SplatMode, TechniqueParams};
 pub use validate::LIMITS;
 
 /// The thesis experiment (chapter 4), embedded so the binary runs without any file.
@@ -477,8 +477,14 @@ pub struct ShadowSettings {
     /// multiplied by; its bytes are reported apart from the technique's. Default 1024.
     pub occluder_resolution_px: u32,
     /// Where the layered techniques put a particle's optical depth along the light ray:
-    /// `point` (the thesis, default) or `segment`.
+    /// `segment` (default: over the chord, the reference's own density model) or `point` (the
+    /// thesis' model: at the centre).
     pub splat: SplatMode,
+    /// How the lighting tests the opaque occluders: `exact` (default: the segment to the light
+    /// against the boxes and the ground, as the reference does, so compared images differ only
+    /// in the smoke's shadow) or `map` (a filtered depth map of `occluder_resolution_px`, as an
+    /// engine would; the reference stays exact).
+    pub occluders: OccluderMode,
     /// Technique-specific parameters (`[shadow.params]`, e.g. `dom_layer_ratio = 2` or
     /// `osm_interp = "cubic"`): each key is declared, documented and checked by its technique's
     /// registry entry (`smokeshadow info` lists them); absent keys take the entry's defaults.
@@ -493,6 +499,7 @@ impl ShadowSettings {
             channels,
             resolution_px: self.resolution_px,
             splat: self.splat,
+            occluders: self.occluders,
             values: self.params.clone(),
         }
     }
@@ -654,6 +661,7 @@ impl Default for ShadowSettings {
             resolution_px: defaults.resolution_px,
             occluder_resolution_px: DEFAULT_OCCLUDER_RESOLUTION_PX,
             splat: defaults.splat,
+            occluders: defaults.occluders,
             params: BTreeMap::new(),
         }
     }

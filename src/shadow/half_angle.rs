@@ -304,7 +304,7 @@ impl HalfAngle {
             "has",
             ctx.frame_layout,
             &lookup_layout,
-            &ENTRY.frame_imports(),
+            &ENTRY.frame_imports(params),
             ctx.particle_layouts,
         );
 

@@ -170,7 +170,9 @@ pub enum ShadowError {
     },
 }
 
-pub use crate::scene::technique::{ParamError, ParamSpec, ParamValue, SplatMode, TechniqueParams};
+pub use crate::scene::technique::{
+    OccluderMode, ParamError, ParamSpec, ParamValue, SplatMode, TechniqueParams,
+};
 
 /// Sets `key` to `value` in `params` after checking both against the registry (a choice is
 /// kept by its name, whether given by name or by index).
@@ -480,23 +482,24 @@ pub struct TechniqueEntry {
 }
 
 impl TechniqueEntry {
-    /// Whether its lighting reads the occluders' filtered depth map; the reference tests the
-    /// boxes and the ground exactly instead, so the frame draws no map for it.
-    pub fn reads_occluder_map(&self) -> bool {
-        self.role != Role::Reference
+    /// Whether its lighting reads the occluders' filtered depth map: with `params.occluders`
+    /// = map, and never for the reference, which tests the boxes and the ground exactly (so the
+    /// frame draws no map for it).
+    pub fn reads_occluder_map(&self, params: &TechniqueParams) -> bool {
+        self.role != Role::Reference && params.occluders == crate::scene::OccluderMode::Map
     }
 
-    /// The virtual imports the lighting shaders are composed with for this technique: its
-    /// lookup (`shadow_transmittance`) and the occluders' visibility, read from the filtered
-    /// depth map, or for the reference tested exactly against the boxes and the ground
-    /// (`src/frame/occluders.rs`).
-    pub fn frame_imports(&self) -> [(&'static str, &'static str); 2] {
+    /// The virtual imports the lighting shaders are composed with for this technique with
+    /// `params`: its lookup (`shadow_transmittance`) and the occluders' visibility, tested
+    /// exactly against the boxes and the ground, or read from their filtered depth map
+    /// ([`TechniqueEntry::reads_occluder_map`], `src/frame/occluders.rs`).
+    pub fn frame_imports(&self, params: &TechniqueParams) -> [(&'static str, &'static str); 2] {
         let lookup = crate::shaders::source(self.lookup_shader)
             .expect("registered lookup shader is embedded");
-        let occluders = if !self.reads_occluder_map() {
-            "common/occluders_exact.wgsl"
-        } else {
+        let occluders = if self.reads_occluder_map(params) {
             "common/occluders_map.wgsl"
+        } else {
+            "common/occluders_exact.wgsl"
         };
         let occluders = crate::shaders::source(occluders).expect("occluder shaders are embedded");
         [
@@ -697,14 +700,24 @@ pub fn all_shader_modules() -> Vec<(String, String)> {
     .map(|f| ((*f).to_owned(), compose(f, &[])))
     .collect();
     for entry in REGISTRY {
-        for frame_shader in ["render/opaque.wgsl", "render/particle_lighting.wgsl"] {
+        for occluders in [OccluderMode::Exact, OccluderMode::Map] {
+            let params = TechniqueParams {
+                occluders,
+                ..TechniqueParams::new(24, 512)
+            };
+            let mode = occluders.name();
+            for frame_shader in ["render/opaque.wgsl", "render/particle_lighting.wgsl"] {
+                out.push((
+                    format!("{frame_shader}[{}, {mode} occluders]", entry.name),
+                    compose(frame_shader, &entry.frame_imports(&params)),
+                ));
+            }
             out.push((
-                format!("{frame_shader}[{}]", entry.name),
-                compose(frame_shader, &entry.frame_imports()),
+                format!("probe[{}, {mode} occluders]", entry.name),
+                probe::source(entry, &params),
             ));
         }
         out.extend((entry.extra_shaders)());
-        out.push((format!("probe[{}]", entry.name), probe::source(entry)));
     }
     out
 }

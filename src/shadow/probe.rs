@@ -30,10 +30,15 @@ impl Probe {
         gpu: &Gpu,
         frame_layout: &wgpu::BindGroupLayout,
         technique: &dyn ShadowTechnique,
+        params: &super::TechniqueParams,
     ) -> Self {
         let device = &gpu.device;
         let entry = super::find(technique.name()).expect("a live technique is registered");
-        let module = shaders::module(device, &format!("probe[{}]", entry.name), &source(entry));
+        let module = shaders::module(
+            device,
+            &format!("probe[{}]", entry.name),
+            &source(entry, params),
+        );
         let storage = |binding, read_only| wgpu::BindGroupLayoutEntry {
             binding,
             visibility: wgpu::ShaderStages::COMPUTE,
@@ -151,6 +156,6 @@ impl PendingProbe {
 
 /// The composed probe shader for a technique: its lookup and its occluders' visibility, as the
 /// lighting shaders are composed ([`super::TechniqueEntry::frame_imports`]).
-pub fn source(entry: &super::TechniqueEntry) -> String {
-    shaders::compose("shadow/probe.wgsl", &entry.frame_imports())
+pub fn source(entry: &super::TechniqueEntry, params: &super::TechniqueParams) -> String {
+    shaders::compose("shadow/probe.wgsl", &entry.frame_imports(params))
 }

@@ -683,7 +683,7 @@ fn page(scenes: &[SweepResults], gallery: &Gallery) -> String {
                 e(&c.technique),
                 c.channels,
                 c.shadow_res,
-                c.splat.name(),
+                c.splat.label(),
                 report::bytes(c.bytes),
                 c.frame_ms.median,
                 c.overhead_ratio

@@ -229,7 +229,7 @@ fn table(body: &mut String, results: &SweepResults, variants: &Variants, pareto:
              <td>{}</td><td>{}</td>{}</tr>",
             e(&c.technique),
             c.shadow_res,
-            c.splat.name(),
+            c.splat.label(),
             match c.transient_bytes {
                 0 => report::bytes(c.bytes),
                 t => format!(

@@ -59,7 +59,7 @@ impl Default for SweepOptions {
             techniques: shadow::default_sweep(),
             channels: vec![24, 16, 8, 6],
             shadow_res: vec![512],
-            splats: vec![SplatMode::Point],
+            splats: vec![SplatMode::Segment],
             particle_res: vec![ParticleRes::Full],
             frames: 20,
             warmup: 1,

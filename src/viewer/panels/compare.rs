@@ -5,7 +5,7 @@
 
 use eframe::egui::{self, Color32};
 
-use crate::shadow::{self, ParamValue, SplatMode};
+use crate::shadow::{self, OccluderMode, ParamValue, SplatMode};
 use crate::viewer::controller::{
     CompareMode, Controller, Side, Source, budget_meaning, clamp_channels, comparable_techniques,
 };
@@ -51,8 +51,25 @@ pub fn show(controller: &mut Controller, ui: &mut egui::Ui) {
     });
     ui.horizontal(|ui| {
         ui.label("Splat");
-        ui.radio_value(&mut shadow.splat, SplatMode::Point, "point (thesis)");
-        ui.radio_value(&mut shadow.splat, SplatMode::Segment, "segment");
+        ui.radio_value(
+            &mut shadow.splat,
+            SplatMode::Segment,
+            SplatMode::Segment.label(),
+        );
+        ui.radio_value(
+            &mut shadow.splat,
+            SplatMode::Point,
+            SplatMode::Point.label(),
+        );
+    });
+    ui.horizontal(|ui| {
+        ui.label("Occluders");
+        ui.radio_value(
+            &mut shadow.occluders,
+            OccluderMode::Exact,
+            "exact (as the reference)",
+        );
+        ui.radio_value(&mut shadow.occluders, OccluderMode::Map, "depth map (PCF)");
     });
     // Every technique parameter the registry declares: a choice of buttons for one with named
     // choices, a slider over its range otherwise, and for one whose default is derived per
