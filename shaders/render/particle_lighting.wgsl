@@ -17,7 +17,9 @@ struct ParticleData {
     albedo_density: vec4<f32>,
 };
 
-// Radiance at the points (-,-), (+,-), (-,+), (+,+) along (right, up); w unused.
+// Radiance at the points (-,-), (+,-), (-,+), (+,+) along (right, up); w: the smoke's T there,
+// as this frame's lighting used it (the draw reads rgb; `Renderer::lit_particles` reads w back,
+// so the tests and the sweep measure the T the frame rendered).
 struct ParticleLight {
     radiance: array<vec4<f32>, 4>,
 };
@@ -32,14 +34,15 @@ struct LightRange {
 @group(2) @binding(1) var<storage, read_write> lit_out: array<ParticleLight>;
 @group(2) @binding(2) var<uniform> lit_range: LightRange;
 
-// Single scattering at `p` towards the eye plus ambient, for a particle of albedo `albedo`.
-fn scattered_radiance(p: vec3<f32>, eye: vec3<f32>, albedo: vec3<f32>) -> vec3<f32> {
+// Single scattering at `p` towards the eye plus ambient, for a particle of albedo `albedo`,
+// given the smoke's transmittance `t` from the light to `p`.
+fn scattered_radiance(p: vec3<f32>, eye: vec3<f32>, albedo: vec3<f32>, t: f32) -> vec3<f32> {
     let light_dir = normalize(p - frame.light_pos.xyz);
     let view_dir = normalize(p - eye);
     let phase = hg_phase_4pi(dot(light_dir, -view_dir), frame.light_radiance.w);
     // The opaque geometry's shadow times the smoke's: every technique's T(p) is multiplied by
-    // the same occluder visibility (only `exact` computes it exactly).
-    let direct = spot_irradiance(p) * (occluder_visibility(p) * shadow_transmittance(p)) * phase;
+    // the same occluder visibility.
+    let direct = spot_irradiance(p) * (occluder_visibility(p) * t) * phase;
     // Normalised like a diffuse surface (E/π), so smoke and ground share one exposure: single
     // scattering alone would leave dense smoke far darker than the multiple scattering of real
     // smoke makes it look.
@@ -68,7 +71,8 @@ fn light_particles(@builtin(global_invocation_id) id: vec3<u32>) {
         let sy = select(-1.0, 1.0, (k & 2u) != 0u);
         let p = center + sx * r + sy * u;
         if in_light_face(p) {
-            lit_out[index].radiance[k] = vec4<f32>(scattered_radiance(p, eye, albedo), 0.0);
+            let t = shadow_transmittance(p);
+            lit_out[index].radiance[k] = vec4<f32>(scattered_radiance(p, eye, albedo, t), t);
         }
     }
 }

@@ -12,6 +12,7 @@ use bytemuck::{Pod, Zeroable};
 
 use super::gpu_data::ParticleInstance;
 use super::{DEPTH_FORMAT, HDR_FORMAT};
+use crate::gpu::{Gpu, GpuError};
 use crate::shaders;
 
 /// Premultiplied "over" (thesis Eq. 1.5): C = C_src + (1 - α_src) C_dst, the same for alpha.
@@ -210,7 +211,8 @@ impl LightBuffers {
         let lighting = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some(&format!("{label}.lighting")),
             size: capacity.max(1) * std::mem::size_of::<ParticleLight>() as u64,
-            usage: wgpu::BufferUsages::STORAGE,
+            // COPY_SRC: read back for `read` (tests and the sweep's error at lighting points).
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
             mapped_at_creation: false,
         });
         let ranges = device.create_buffer(&wgpu::BufferDescriptor {
@@ -267,6 +269,42 @@ impl LightBuffers {
     /// Particles this lighting holds.
     pub fn capacity(&self) -> u64 {
         self.capacity
+    }
+
+    /// The lighting of the first `count` particles as the last submitted frame left it (waits
+    /// for the GPU): per particle, its four points' radiance, with the smoke's T in w.
+    pub fn read(&self, gpu: &Gpu, count: usize) -> Result<Vec<ParticleLight>, GpuError> {
+        let count = (count as u64).min(self.capacity);
+        if count == 0 {
+            return Ok(Vec::new());
+        }
+        let size = count * std::mem::size_of::<ParticleLight>() as u64;
+        let bytes = crate::gpu::read_buffer(gpu, &self.lighting, 0, size)?;
+        Ok(bytemuck::pod_collect_to_vec(&bytes))
+    }
+}
+
+/// One particle as the last frame lit it: its sphere and the smoke's T its lighting used at
+/// each of its four lighting points (`render::shaded::particle_lighting_points`' order).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LitParticle {
+    pub center: glam::Vec3,
+    pub radius_m: f32,
+    pub transmittance: [f32; 4],
+}
+
+impl LitParticle {
+    /// Pairs `instances` with the lighting `read` returned for them, in the same order.
+    pub fn of(instances: &[ParticleInstance], lights: &[ParticleLight]) -> Vec<Self> {
+        instances
+            .iter()
+            .zip(lights)
+            .map(|(i, l)| Self {
+                center: glam::Vec3::from_slice(&i.center_radius[..3]),
+                radius_m: i.center_radius[3],
+                transmittance: l.radiance.map(|r| r[3]),
+            })
+            .collect()
     }
 }
 

@@ -47,7 +47,7 @@ use crate::shadow::{
 };
 use crate::sim::Particle;
 use gpu_data::{FrameUniforms, OpaqueVertex, ParticleInstance};
-use particles::{LightBuffers, ParticleLighting};
+use particles::{LightBuffers, LitParticle, ParticleLighting};
 
 /// Per-frame switches.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -997,7 +997,33 @@ impl Renderer {
         particles: &[Particle],
         points: &[Vec3],
     ) -> anyhow::Result<Vec<f32>> {
-        self.probe_scoped(gpu, scene, particles, points, false)
+        self.probe_scoped(gpu, scene, particles, points, None, false)
+    }
+
+    /// As [`Renderer::probe`] at a frame's shaded points, where `owners` names the particle
+    /// whose lighting point each point is (`shaded::point_owners`; `shadow::NO_OWNER` for the
+    /// opaque points): a technique that lights a particle's points together (`has`) then gives
+    /// each the T the frame's lighting used, so the error measured is the error rendered.
+    pub fn probe_shaded(
+        &mut self,
+        gpu: &Gpu,
+        scene: &Scene,
+        particles: &[Particle],
+        points: &[Vec3],
+        owners: &[u32],
+    ) -> anyhow::Result<Vec<f32>> {
+        self.probe_scoped(gpu, scene, particles, points, Some(owners), false)
+    }
+
+    /// Every particle as the last frame's lighting lit it: its sphere and the smoke's T at its
+    /// four lighting points, read back from the lighting buffer (the technique's own for one
+    /// that draws the particles itself). Waits for the GPU.
+    pub fn lit_particles(&mut self, gpu: &Gpu) -> anyhow::Result<Vec<LitParticle>> {
+        if let Some(pass) = self.faces[0].technique.particle_pass() {
+            return Ok(pass.lit_particles(gpu)?);
+        }
+        let lights = self.lights.read(gpu, self.instances.len())?;
+        Ok(LitParticle::of(&self.instances, &lights))
     }
 
     /// As [`Renderer::probe`], but the light's whole visibility at each point as the lighting
@@ -1011,7 +1037,7 @@ impl Renderer {
         particles: &[Particle],
         points: &[Vec3],
     ) -> anyhow::Result<Vec<f32>> {
-        self.probe_scoped(gpu, scene, particles, points, true)
+        self.probe_scoped(gpu, scene, particles, points, None, true)
     }
 
     fn probe_scoped(
@@ -1020,9 +1046,11 @@ impl Renderer {
         scene: &Scene,
         particles: &[Particle],
         points: &[Vec3],
+        owners: Option<&[u32]>,
         with_occluders: bool,
     ) -> anyhow::Result<Vec<f32>> {
-        let t = gpu.scoped(|| self.probe_unscoped(gpu, scene, particles, points, with_occluders));
+        let t = gpu
+            .scoped(|| self.probe_unscoped(gpu, scene, particles, points, owners, with_occluders));
         t.map_err(|r| {
             r.during(format!(
                 "probing {} at {} points",
@@ -1038,6 +1066,7 @@ impl Renderer {
         scene: &Scene,
         particles: &[Particle],
         points: &[Vec3],
+        owners: Option<&[u32]>,
         with_occluders: bool,
     ) -> anyhow::Result<Vec<f32>> {
         // Maps built for this very frame (a render with `reuse_shadow_maps`, or an earlier
@@ -1070,6 +1099,7 @@ impl Renderer {
                     camera_forward: CameraMatrices::new(scene, 1, 1).forward,
                     probe,
                     points,
+                    owners,
                     other_faces: other_faces(rest),
                 },
             )?,

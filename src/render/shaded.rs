@@ -33,6 +33,18 @@ pub fn shaded_points(
     points
 }
 
+/// The owners of [`shaded_points`]' points for [`super::Renderer::probe_shaded`]: particle
+/// `i`'s four lighting points come first, in particle order, then `total - 4 · particles`
+/// opaque points that are no particle's (`shadow::NO_OWNER`).
+pub fn point_owners(particles: usize, total: usize) -> Vec<u32> {
+    (0..total)
+        .map(|j| match j / 4 {
+            i if i < particles => i as u32,
+            _ => crate::shadow::NO_OWNER,
+        })
+        .collect()
+}
+
 /// The four lighting points of every particle seen from `eye`. Mirrors `billboard_frame` in
 /// shaders/common/particle.wgsl.
 pub fn particle_lighting_points(eye: Vec3, particles: &[Particle]) -> Vec<Vec3> {

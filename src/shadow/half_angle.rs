@@ -37,12 +37,12 @@ use super::layered::{
 };
 use super::probe::PendingProbe;
 use super::{
-    BuildInputs, DebugMap, LOOKUP_STAGES, MapKind, MemoryUse, OtherFace, ParticlePass,
+    BuildInputs, DebugMap, LOOKUP_STAGES, MapKind, MemoryUse, NO_OWNER, OtherFace, ParticlePass,
     ParticlePassInputs, ProbeInputs, ProbePass, Role, ShadowError, ShadowTechnique,
     TechniqueContext, TechniqueEntry, TechniqueParams,
 };
 use crate::frame::gpu_data::{BILLBOARD_VERTICES, ParticleInstance};
-use crate::frame::particles::{LightBuffers, ParticleLighting};
+use crate::frame::particles::{LightBuffers, LitParticle, ParticleLighting};
 use crate::frame::{HDR_FORMAT, OVER, ParticleLayouts, ParticlePipelines, UNDER, fullscreen};
 use crate::gpu::{AllocationError, Gpu, MemoryLedger, TargetWrites};
 use crate::shaders;
@@ -179,6 +179,8 @@ pub struct HalfAngle {
     /// Lighting of each batch, computed just before the batch's eye pass.
     lighting: ParticleLighting,
     lights: LightBuffers,
+    /// The instances the last frame lit, in its lighting buffer's order.
+    lit_instances: Vec<ParticleInstance>,
     particle_layouts: ParticleLayouts,
     memory: MemoryLedger,
 }
@@ -350,6 +352,7 @@ impl HalfAngle {
             instance_capacity,
             lighting,
             lights,
+            lit_instances: Vec::new(),
             particle_layouts: ctx.particle_layouts.clone(),
             memory,
         })
@@ -570,6 +573,11 @@ impl ParticlePass for HalfAngle {
         }
     }
 
+    fn lit_particles(&self, gpu: &Gpu) -> Result<Vec<LitParticle>, crate::gpu::GpuError> {
+        let lights = self.lights.read(gpu, self.lit_instances.len())?;
+        Ok(LitParticle::of(&self.lit_instances, &lights))
+    }
+
     fn record(
         &mut self,
         gpu: &Gpu,
@@ -605,6 +613,7 @@ impl ParticlePass for HalfAngle {
             }
         };
         let batches = self.upload_sorted(gpu, &instances)?;
+        self.lit_instances = instances;
         self.ensure_eye_buffer(inputs.hdr_size)?;
         let eye = self.eye.as_ref().expect("eye buffer was just made");
         let pipelines = if slicing.eye_front_to_back {
@@ -782,11 +791,24 @@ impl ProbePass for HalfAngle {
                     .dot(slicing.axis)
             })
             .collect();
-        // Group the points by how many batches lie before them.
+        // Group the points by how many batches lie before them: for a particle's lighting
+        // point, the batches before its particle's (the frame lights a batch's particles, all
+        // four points of each, from the light buffer the batches before it left); for a free
+        // point, those wholly before it along the half-angle axis.
+        let mut batch_of_particle = vec![0usize; inputs.particles.len()];
+        for (k, batch) in batches.iter().enumerate() {
+            for &i in &order[batch.start as usize..batch.end as usize] {
+                batch_of_particle[i as usize] = k;
+            }
+        }
         let mut groups: Vec<Vec<usize>> = vec![Vec::new(); batches.len() + 1];
         for (i, p) in inputs.points.iter().enumerate() {
-            let key = p.dot(slicing.axis);
-            groups[last_keys.partition_point(|&k| k < key)].push(i);
+            let owner = inputs.owners.map_or(NO_OWNER, |o| o[i]);
+            let group = match batch_of_particle.get(owner as usize) {
+                Some(&k) => k,
+                None => last_keys.partition_point(|&k| k < p.dot(slicing.axis)),
+            };
+            groups[group].push(i);
         }
         let mut timer = crate::gpu::GpuTimer::disabled();
         let mut others = inputs.other_faces;

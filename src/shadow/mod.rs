@@ -288,9 +288,17 @@ pub struct ProbeInputs<'a> {
     pub camera_forward: glam::Vec3,
     pub probe: &'a probe::Probe,
     pub points: &'a [glam::Vec3],
+    /// For each point, the index in `particles` of the particle whose lighting point it is
+    /// (`render::shaded::point_owners`), or [`NO_OWNER`]: a technique whose frame lights a
+    /// particle's points together (`has`, batch by batch) gives an owned point the T its
+    /// particle's lighting sees. `None`: every point is free.
+    pub owners: Option<&'a [u32]>,
     /// As [`ParticlePassInputs::other_faces`].
     pub other_faces: Vec<OtherFace<'a>>,
 }
+
+/// The owner of a probed point that is no particle's lighting point ([`ProbeInputs::owners`]).
+pub const NO_OWNER: u32 = u32::MAX;
 
 /// A technique whose transmittance depends on more than its maps after the build pass.
 pub trait ProbePass {
@@ -340,6 +348,12 @@ pub trait ParticlePass {
         batch: Option<std::ops::Range<u32>>,
         clear: bool,
     );
+    /// Every particle as the last frame's lighting lit it (its lighting buffer read back, in
+    /// its own order), so that tests and the sweep see the T the frame rendered.
+    fn lit_particles(
+        &self,
+        gpu: &Gpu,
+    ) -> Result<Vec<crate::frame::particles::LitParticle>, crate::gpu::GpuError>;
 }
 
 /// The interface every shadow technique implements.

@@ -333,8 +333,10 @@ struct Sweeper<'a> {
     particles: Vec<Particle>,
     renderer: Renderer,
     target: OffscreenTarget,
-    /// Points the transmittance error is measured at, and `exact`'s T there.
+    /// Points the transmittance error is measured at, the particle each lights (its owner, for
+    /// `Renderer::probe_shaded`), and `exact`'s T there.
     points: Vec<glam::Vec3>,
+    owners: Vec<u32>,
     exact_t: Vec<f32>,
     exact_image: image::RgbImage,
     /// Recorded in every cell measured here (`none_frame_ms` is NaN until `none` ran).
@@ -390,7 +392,8 @@ impl<'a> Sweeper<'a> {
             crate::output::write_exr(&dir.join(EXACT_HDR_IMAGE), &hdr)?;
         }
         let points = shaded_points(scene, &particles, w, h, SHADED_STRIDE_PX);
-        let exact_t = renderer.probe(gpu, scene, &particles, &points)?;
+        let owners = crate::render::shaded::point_owners(particles.len(), points.len());
+        let exact_t = renderer.probe_shaded(gpu, scene, &particles, &points, &owners)?;
         // No error is measured against a reference that disagrees with the closed form.
         let check = progress.suspend(|| {
             crate::render::reference_check::verify(&mut renderer, gpu, scene, &particles)
@@ -421,6 +424,7 @@ impl<'a> Sweeper<'a> {
             renderer,
             target,
             points,
+            owners,
             exact_t,
             exact_image,
             against,
@@ -507,10 +511,13 @@ impl<'a> Sweeper<'a> {
         let probed = if is_frame_baseline {
             None
         } else {
-            Some(
-                self.renderer
-                    .probe(self.gpu, self.scene, &self.particles, &self.points)?,
-            )
+            Some(self.renderer.probe_shaded(
+                self.gpu,
+                self.scene,
+                &self.particles,
+                &self.points,
+                &self.owners,
+            )?)
         };
         let warm = RenderOptions {
             reuse_shadow_maps: true,
