@@ -896,3 +896,109 @@ fn readme_gnu_parallel_recipe_runs_and_merges_to_the_one_process_tables() {
     run_recipe(&root, &path, &readme_recipe("parallel"));
     same_tables_as_one_process(&root.join("sweep"));
 }
+
+/// A sweep whose answer is known, checked against numbers computed here apart from the sweep:
+/// `dsm` at 24 channels keeps 12 nodes per texel, enough for every texel of the plume within
+/// its tolerance, so it is the closest to `exact`; `dsm` at 6 (3 nodes) is larger than `osm`
+/// at 24 (17 MB of capture and nodes against 3 MB) and far less accurate, so it is off the
+/// Pareto front, while the smallest cell, `osm` at 6, is on it. And every cell's RMS T column
+/// equals the RMS error of the technique's own probe against `exact`'s at the frame's shaded
+/// points, measured in this process by another renderer.
+#[test]
+fn a_sweep_with_a_known_answer_gives_it_and_its_errors_match_an_independent_probe() {
+    use smokeshadow::render::shaded::{point_owners, rms_difference, shaded_points};
+    use smokeshadow::render::{OUTPUT_FORMAT, Renderer, TechniqueConfig};
+
+    let dir = scratch("sweep-known");
+    let out = smokeshadow(&[
+        "sweep",
+        "--size",
+        "160x120",
+        "--techniques",
+        "osm,dsm",
+        "--channels",
+        "24,6",
+        "--shadow-res",
+        "256",
+        "--frames",
+        "1",
+        "--warmup",
+        "0",
+        "-o",
+        dir.to_str().unwrap(),
+    ])
+    .output()
+    .unwrap();
+    ok(&out);
+    let html = std::fs::read_to_string(dir.join("index.html")).unwrap();
+    assert!(
+        html.contains("Closest to <code>exact</code> overall: <b>dsm at 24 channels</b>"),
+        "the answer is not dsm at 24 channels"
+    );
+    let front = html
+        .split("Most accuracy for the memory")
+        .nth(1)
+        .and_then(|s| s.split(" Closest to").next())
+        .unwrap()
+        .to_owned();
+    for on in [
+        "osm at 6 channels",
+        "osm at 24 channels",
+        "dsm at 24 channels",
+    ] {
+        assert!(
+            front.contains(&format!("<b>{on}</b>")),
+            "{on} is not on the front: {front}"
+        );
+    }
+    assert!(
+        !front.contains("<b>dsm at 6 channels</b>"),
+        "dsm at 6 is on the front: {front}"
+    );
+
+    // The RMS T column against an independent probe.
+    let mut scene = smokeshadow::scene::Scene::thesis_plume();
+    scene.output.width_px = 160;
+    scene.output.height_px = 120;
+    scene.shadow.resolution_px = 256;
+    let particles = smokeshadow::particles::scene_particles(&scene).unwrap();
+    let points = shaded_points(
+        &scene,
+        &particles,
+        160,
+        120,
+        smokeshadow::sweep::SHADED_STRIDE_PX,
+    );
+    let owners = point_owners(particles.len(), points.len());
+    let gpu = smokeshadow::gpu::Gpu::new(&smokeshadow::gpu::AdapterPreference::Cpu).unwrap();
+    let config = |name: &str, channels: u32| TechniqueConfig {
+        name: name.to_owned(),
+        params: scene.shadow.params(channels),
+    };
+    let mut renderer = Renderer::new(&gpu, 160, 120, OUTPUT_FORMAT, &config("exact", 1)).unwrap();
+    let mut probe = |c: &TechniqueConfig| {
+        renderer.set_technique(&gpu, c).unwrap();
+        renderer
+            .probe_shaded(&gpu, &scene, &particles, &points, &owners)
+            .unwrap()
+    };
+    let exact = probe(&config("exact", 1));
+    let rows = csv_rows(&dir.join("results.csv"));
+    let mut checked = 0;
+    for row in &rows {
+        let technique = get(row, "technique");
+        if technique == "none" {
+            continue;
+        }
+        let channels: u32 = get(row, "channels").parse().unwrap();
+        let column: f64 = get(row, "rms_transmittance_error").parse().unwrap();
+        let own = rms_difference(&probe(&config(technique, channels)), &exact);
+        // (The CSV writes six decimals.)
+        assert!(
+            (column - own).abs() <= 5e-7 + 1e-6 * own,
+            "{technique} at {channels}: the sweep says RMS T {column}, the probe here {own}"
+        );
+        checked += 1;
+    }
+    assert_eq!(checked, 4);
+}

@@ -27,7 +27,7 @@ use serde::{Deserialize, Serialize};
 use crate::render::ParticleRes;
 use crate::shadow::SplatMode;
 
-pub use run::{CSV_COLUMNS, SweepOptions, SweepOutcome, run, write_results};
+pub use run::{CSV_COLUMNS, SHADED_STRIDE_PX, SweepOptions, SweepOutcome, run, write_results};
 pub use shard::{Shard, ShardManifest, merge};
 
 /// Median, minimum and maximum of a measurement over the timed frames, milliseconds.

@@ -98,7 +98,7 @@ pub fn timed_enough(frame_s: &[f64], elapsed_s: f64, frames: u32, cell_seconds: 
 /// The budget every cell's "own baseline" uses (the thesis' baselines).
 const BASELINE_CHANNELS: u32 = 24;
 /// Pixel stride of the opaque points the transmittance error is measured at.
-const SHADED_STRIDE_PX: u32 = 4;
+pub const SHADED_STRIDE_PX: u32 = 4;
 
 /// One planned cell.
 #[derive(Clone, Debug)]
