@@ -353,7 +353,7 @@ fn errors_against_exact(gpu: &Gpu, scene_name: &str, configs: &[TechniqueConfig]
 }
 
 #[test]
-fn cubic_against_exact_helps_segment_splats_and_not_point_splats() {
+fn cubic_against_exact_helps_segment_splats() {
     // Measured here (RMS T against exact, linear -> cubic, 24/16 channels):
     //   segment splats: osm 0.0117 -> 0.0049, 0.0204 -> 0.0089; dom 0.0072 -> 0.0030,
     //   0.0145 -> 0.0059 (thesis_plume); osm 0.0187 -> 0.0078, 0.0323 -> 0.0159; dom
@@ -363,72 +363,27 @@ fn cubic_against_exact_helps_segment_splats_and_not_point_splats() {
     // follows better than the chords' secants; a point splat makes Ω a staircase whose steps
     // linear interpolation smears over a slice (as the chord density of `exact` does) and the
     // cubic sharpens back into steps. At 8 and 6 channels the sign depends on the scene and
-    // technique (printed, not held). The margins (0.7 and 1.1) leave room for another CPU's
-    // rounding and keep the direction.
+    // technique. Only the segment splats' gain is held (cubic under 0.7 of linear's error):
+    // it is what the cubic is for, on the default model. That the cubic does worse with point
+    // splats is a finding about the thesis' model, stated in the README's table (measured with
+    // `sweep --splat point,segment`), not a property held here: a better point-splat lookup
+    // must not fail a test.
     let gpu = gpu();
+    let splat = SplatMode::Segment;
     for scene in ["thesis_plume", "thesis_wind"] {
-        for splat in [SplatMode::Segment, SplatMode::Point] {
-            for name in ["osm", "dom"] {
-                let configs: Vec<TechniqueConfig> = [24, 16, 8, 6]
-                    .iter()
-                    .flat_map(|&b| {
-                        ["linear", "cubic"]
-                            .map(|i| config(name, b, splat, &[&format!("{name}_interp={i}")]))
-                    })
-                    .collect();
-                let e = errors_against_exact(&gpu, scene, &configs);
-                println!(
-                    "{scene} {name} {splat:?}: RMS T linear/cubic at 24 {:.4}/{:.4}, 16 \
-                     {:.4}/{:.4}, 8 {:.4}/{:.4}, 6 {:.4}/{:.4}",
-                    e[0], e[1], e[2], e[3], e[4], e[5], e[6], e[7]
-                );
-                for (budget, pair) in [24, 16].iter().zip(e.chunks(2)) {
-                    let (linear, cubic) = (pair[0], pair[1]);
-                    let what = format!("{scene} {name}/{budget} {splat:?}: {linear} -> {cubic}");
-                    match splat {
-                        SplatMode::Segment => assert!(cubic < 0.7 * linear, "{what}"),
-                        SplatMode::Point => assert!(cubic > 1.1 * linear, "{what}"),
-                    }
-                }
-            }
-        }
-    }
-}
-
-#[test]
-fn dom_proxy_start_costs_accuracy_at_six_channels() {
-    // Measured here (RMS T against exact at dilation 1 / 1.5 / 2):
-    //   thesis_plume, point splats: 8 ch 0.0549/0.0608/0.0533, 6 ch 0.0679/0.0740/0.0788;
-    //   segment: 8 ch 0.0520/0.0456/0.0433, 6 ch 0.0647/0.0697/0.0657;
-    //   thesis_wind, point: 8 ch 0.0713/0.0924/0.0773, 6 ch 0.0848/0.0942/0.1002;
-    //   segment: 8 ch 0.0680/0.0687/0.0695, 6 ch 0.0790/0.0878/0.0835.
-    // A proxy that starts in front of the smoke spends part of the few layers on empty depth,
-    // so at 6 channels (5 layers) it is worse everywhere, most with point splats (the thesis'
-    // and the default: +16% and +18% at dilation 2), which this holds with margin (8%); at 8
-    // channels the sign depends on the scene and splat. So the default stays 1, the sharp start.
-    let gpu = gpu();
-    for scene in ["thesis_plume", "thesis_wind"] {
-        for splat in [SplatMode::Point, SplatMode::Segment] {
-            let configs: Vec<TechniqueConfig> = [8, 6]
+        for name in ["osm", "dom"] {
+            let configs: Vec<TechniqueConfig> = [24, 16]
                 .iter()
                 .flat_map(|&b| {
-                    ["1", "1.5", "2"]
-                        .map(|d| config("dom", b, splat, &[&format!("dom_start_dilation={d}")]))
+                    ["linear", "cubic"]
+                        .map(|i| config(name, b, splat, &[&format!("{name}_interp={i}")]))
                 })
                 .collect();
             let e = errors_against_exact(&gpu, scene, &configs);
-            println!(
-                "{scene} dom {splat:?}: RMS T at dilation 1/1.5/2: 8 ch {:.4}/{:.4}/{:.4}, 6 ch \
-                 {:.4}/{:.4}/{:.4}",
-                e[0], e[1], e[2], e[3], e[4], e[5]
-            );
-            assert!(e.iter().all(|v| v.is_finite()), "{scene} {splat:?}: {e:?}");
-            if splat == SplatMode::Point {
-                let (sharp, proxy) = (e[3], e[5]);
-                assert!(
-                    proxy > 1.08 * sharp,
-                    "{scene}: dom/6 at dilation 2 {proxy} against sharp {sharp}"
-                );
+            for (budget, pair) in [24, 16].iter().zip(e.chunks(2)) {
+                let (linear, cubic) = (pair[0], pair[1]);
+                let what = format!("{scene} {name}/{budget}: {linear} -> {cubic}");
+                assert!(cubic < 0.7 * linear, "{what}");
             }
         }
     }
