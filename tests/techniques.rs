@@ -632,7 +632,120 @@ fn reported_channels_and_bytes_match_each_techniques_formula() {
                 entry.name,
                 t.memory().entries()
             );
+            // And each formula written out here, apart from the registry's: the channels used
+            // and the bytes the lookup keeps (the transient build scratch is the registry's).
+            let counter = |name: &str| counters.iter().find(|(k, _)| *k == name).map(|c| c.1);
+            let (channels_written, kept) = written_out(
+                entry.name,
+                u64::from(b),
+                u64::from(res),
+                n,
+                pixels,
+                &counter,
+            );
+            assert_eq!(
+                (
+                    u64::from(t.channels_used()),
+                    bytes - t.memory().transient_bytes()
+                ),
+                (channels_written, kept),
+                "{} at {b} channels: (channels, kept bytes) written out here",
+                entry.name
+            );
         }
+    }
+}
+
+/// Each technique's memory written out from what it stores, for `b` channels at `res`² with
+/// `n` particles and `pixels` frame pixels: (channels used, bytes the lookup keeps). Half
+/// floats are 2 bytes and 32-bit floats 4; channels go four to a render target, and the last
+/// target of 1, 2 or 3 channels is R, RG or RGBA (3 channels take a 4-channel target).
+fn written_out(
+    name: &str,
+    b: u64,
+    res: u64,
+    n: u64,
+    pixels: u64,
+    counter: &dyn Fn(&str) -> Option<u64>,
+) -> (u64, u64) {
+    let texels = res * res;
+    let targets = |channels: u64, bytes: u64| {
+        let rest = match channels % 4 {
+            0 => 0,
+            1 => 1,
+            2 => 2,
+            _ => 4,
+        };
+        (channels / 4 * 4 + rest) * bytes
+    };
+    // The layered techniques' uniform (LayeredParams: 13 words and 2 of padding).
+    let layered_uniform = 15 * 4;
+    assert_eq!(layered_uniform, smokeshadow::shadow::layered::PARAMS_BYTES);
+    match name {
+        "none" => (0, 0),
+        // B slices of optical depth, half floats.
+        "osm" => (b, texels * targets(b, 2) + layered_uniform),
+        // A start depth (R16F) and B - 1 layers, half floats.
+        "dom" => (b, texels * (2 + targets(b - 1, 2)) + layered_uniform),
+        // n = (B - 1) / 2 harmonics: a0, a1..an, b1..bn, 32-bit floats.
+        "fom" | "fom_sigma" => {
+            let used = 2 * ((b - 1) / 2) + 1;
+            (used, texels * targets(used, 4) + layered_uniform)
+        }
+        // b0 and 4, 6 or 8 power moments (the most that fit B - 1), 32-bit floats.
+        "msm" => {
+            let moments = match b.max(5) {
+                9.. => 8,
+                7..=8 => 6,
+                _ => 4,
+            };
+            (
+                moments + 1,
+                texels * targets(moments + 1, 4) + layered_uniform,
+            )
+        }
+        // b0 and (Re, Im) of up to 4 trigonometric moments, 32-bit floats.
+        "tmsm" => {
+            let used = 2 * ((b.max(5) - 1) / 2).min(4) + 1;
+            (used, texels * targets(used, 4) + layered_uniform)
+        }
+        // A start depth; front, back and optical depth: half floats, and a 16-byte uniform.
+        "esm" => (1, texels * 2 + 16),
+        "bsm" => (3, texels * 3 * 2 + 16),
+        // A half-float light buffer, the eye buffer (RGBA16F per frame pixel), 96 bytes per
+        // particle of capacity (its sorted instance, 32, and its lighting, 64) for the next
+        // power of two of particles (at least 1024), a 256-byte uniform slot per slice and a
+        // 16-byte uniform.
+        "has" => {
+            let capacity = n.next_power_of_two().max(1024);
+            (b, 16 + texels * 2 + pixels * 8 + 96 * capacity + 256 * b)
+        }
+        // B / 2 nodes (depth, value: two f32) per texel and a 16-byte uniform; the capture's
+        // lists are transient.
+        "dsm" | "avsm" => (2 * (b / 2), 16 + texels * (b / 2) * 8),
+        // A G³ grid of half floats, G = round(cbrt(res² · B)), and its lookup uniform (origin,
+        // steps, extent, occupied: 8 words); the voxelisation's scratch is transient.
+        "volume" => {
+            let g = ((texels * b) as f64).cbrt().round() as u64;
+            (b, g * g * g * 2 + 8 * 4)
+        }
+        // The tile lists: a uniform (a 4x4 matrix and 4 words), per-tile counts (+ 2) and
+        // offsets (+ 1), row sums (+ 1), 4 bytes per list entry and 32 per sphere of capacity.
+        "exact" => {
+            let side = counter("tiles_per_side").unwrap();
+            let tiles = side * side;
+            let uniform = 16 * 4 + 4 * 4;
+            (
+                0,
+                uniform
+                    + (tiles + 2) * 4
+                    + ((tiles + 1) * 4).max(16)
+                    + ((side + 1) * 4).max(16)
+                    + counter("entry_capacity").unwrap() * 4
+                    + counter("sphere_capacity").unwrap() * 32,
+            )
+        }
+        other => panic!("{other}: write its memory formula out here"),
     }
 }
 
