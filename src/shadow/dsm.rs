@@ -10,6 +10,24 @@
 //! The lookup (shaders/shadow/dsm.wgsl) evaluates Ω in each of the four texels around a point,
 //! blends them bilinearly and returns exp(−Ω).
 //!
+//! **Why Ω and not visibility.** Lokovic & Veach store and fit the visibility function V(z) = T
+//! and interpolate it linearly between nodes; this fits optical depth and returns exp(−Ω). The
+//! paper's guarantee is what matters, and it carries over: the fit is the same greedy
+//! piecewise-linear fit with a tolerance, and since |ΔT| = T·|ΔΩ| ≤ |ΔΩ| an ε-fit of Ω is within
+//! ε of T everywhere, so the error bound L&V give in visibility holds as stated. What differs is
+//! inside the smoke: for the particle model the exact Ω(z) of a texel *is* piecewise linear (a
+//! constant extinction along each chord), so the Ω fit reproduces an uncompressed texel exactly,
+//! where a piecewise-linear V would be off by up to 0.3 inside one thick particle (the error
+//! `avsm`, which keeps T linear, shows: README, "The families side by side"). Fitting visibility
+//! would measure the representation's error, not the compression's. (L&V's hair and fur are
+//! opaque surfaces, where V is a step and the distinction vanishes.)
+//!
+//! **Cost.** The capture-and-resolve passes (every fragment appended to its texel's list, then a
+//! sort and a fit per texel in compute) emulate what hardware with fragment-shader interlock
+//! (Intel's PixelSync, Vulkan's `VK_EXT_fragment_shader_interlock`) does in one pass, inserting
+//! and compressing as fragments arrive; WebGPU has no interlock, so the timings of `dsm` and
+//! `avsm` are those of the emulation, an upper bound on an engine's.
+//!
 //! The tolerances are reported honestly: the compression accumulates them and the build reads
 //! them back ([`super::ShadowTechnique::counters`]): `max_tolerance_e6` and
 //! `mean_tolerance_e6` (over the texels with smoke) in millionths of optical depth, `fitted_texels`

@@ -267,6 +267,28 @@ fn table(body: &mut String, results: &SweepResults, variants: &Variants, pareto:
         );
     }
     body.push_str("</table></div>\n");
+    // The deep captures' times are an emulation's: say so once, beside their rows.
+    let emulated: Vec<&str> = crate::shadow::REGISTRY
+        .iter()
+        .filter(|t| t.compresses_captured_lists)
+        .filter(|t| results.cells.iter().any(|c| c.technique == t.name))
+        .map(|t| t.name)
+        .collect();
+    if !emulated.is_empty() {
+        let _ = writeln!(
+            body,
+            "<p class=\"muted\">{}: the shadow and frame times are those of a capture-and-resolve \
+             emulation (every fragment appended to its texel's list, then a sort and a compression \
+             per texel in compute) of what hardware with fragment-shader interlock does in one \
+             pass, inserting as fragments arrive; WebGPU has no interlock, so they bound an \
+             engine's cost from above.</p>",
+            emulated
+                .iter()
+                .map(|n| format!("<code>{n}</code>"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    }
     if variants.several() {
         body.push_str(
             "<p class=\"muted\">FLIP vs own 24 compares with the same technique at 24 channels \
