@@ -309,6 +309,12 @@ fn tally<'r>(ranks: impl Iterator<Item = &'r Rank>) -> Vec<Tally> {
     out
 }
 
+/// The FLIP mean between two renders of one frame by lavapipe on CPUs of different SIMD widths
+/// (±1/255 on a few percent of pixels): 0.0008-0.0010 between this machine's baselines and
+/// another's (baselines/, re-blessed December 2026). Two techniques whose FLIP against `exact`
+/// differ by less than this may swap places on a user's machine, so the advice calls them tied.
+pub const FLIP_SPREAD: f64 = 0.001;
+
 /// Plain-words advice, every figure taken from `ranks` and `ranking`: per scene, the most
 /// accurate technique at each budget and the runner-up; overall, the best median rank at small
 /// (<= [`SMALL_BUDGET_CHANNELS`]) and at large budgets; per scene, the technique that ranks
@@ -328,6 +334,34 @@ pub fn advice(scenes: &[SweepResults], ranks: &[Rank]) -> Vec<String> {
         for b in budgets {
             let at = |rank: u32| here.iter().find(|x| x.channels == b && x.rank == rank);
             let Some(best) = at(1) else { continue };
+            // Those within the machines' spread of the first are tied with it.
+            let tied: Vec<&&Rank> = here
+                .iter()
+                .filter(|x| {
+                    x.channels == b
+                        && x.rank > 1
+                        && x.flip_vs_exact - best.flip_vs_exact < FLIP_SPREAD
+                })
+                .collect();
+            if !tied.is_empty() {
+                let names: Vec<String> = std::iter::once(*best)
+                    .chain(tied.iter().map(|x| **x))
+                    .map(|x| {
+                        format!(
+                            "{} (FLIP {:.4}, {})",
+                            labels.rank(x),
+                            x.flip_vs_exact,
+                            report::bytes(x.bytes)
+                        )
+                    })
+                    .collect();
+                parts.push(format!(
+                    "at {b} channels {} are tied for the most accurate (within the {FLIP_SPREAD} \
+                     FLIP that another machine's rounding moves)",
+                    names.join(", ")
+                ));
+                continue;
+            }
             let mut part = format!(
                 "at {b} channels {} is the most accurate (FLIP {:.4}, {})",
                 labels.rank(best),
@@ -387,6 +421,23 @@ pub fn advice(scenes: &[SweepResults], ranks: &[Rank]) -> Vec<String> {
         if let Some(t) = best {
             let scenes: std::collections::BTreeSet<&str> =
                 in_class.iter().map(|r| r.scene.as_str()).collect();
+            // A best only where no other has the same median rank: else they are tied.
+            let tied: Vec<String> = per
+                .iter()
+                .filter(|o| o.variant != t.variant && median(&o.ranks) == median(&t.ranks))
+                .map(|o| labels.label(&o.variant.technique, o.variant.shadow_res, o.variant.splat))
+                .collect();
+            if !tied.is_empty() {
+                out.push(format!(
+                    "At {class}, no technique has the best median rank alone: {} and {} tie at {} over {} scene{}.",
+                    labels.label(&t.variant.technique, t.variant.shadow_res, t.variant.splat),
+                    tied.join(" and "),
+                    rank_text(median(&t.ranks)),
+                    scenes.len(),
+                    if scenes.len() == 1 { "" } else { "s" },
+                ));
+                continue;
+            }
             let v = &t.variant;
             out.push(format!(
                 "At {class}, {} has the best median rank: {} over {} ranking{} in {} scene{} (its worst: {}, on {}).",
@@ -752,5 +803,65 @@ mod tests {
         );
         assert_eq!(rows[1].worst_scene, "a");
         assert_eq!(median(&[1.0, 2.0]), 1.5);
+    }
+
+    fn scene(name: &str) -> SweepResults {
+        let mut r = crate::sweep::report::tests::results();
+        r.metadata.scene = name.into();
+        r.metadata.description = String::new();
+        r
+    }
+
+    #[test]
+    fn the_advice_names_a_best_only_beyond_the_spread_and_says_which_are_tied() {
+        // Scene a: osm beats fom by far more than the spread; scene b: by less.
+        let mut ranks = vec![
+            rank("a", "osm", 8, 1),
+            rank("a", "fom", 8, 2),
+            rank("b", "osm", 8, 1),
+            rank("b", "fom", 8, 2),
+        ];
+        ranks[2].flip_vs_exact = 0.0100;
+        ranks[3].flip_vs_exact = 0.0100 + 0.5 * FLIP_SPREAD;
+        let advice = advice(&[scene("a"), scene("b")], &ranks);
+        let on = |s: &str| {
+            advice
+                .iter()
+                .find(|l| l.contains(&format!("like {s}:")))
+                .unwrap()
+        };
+        assert!(on("a").contains("osm is the most accurate"), "{advice:?}");
+        assert!(on("b").contains("osm (FLIP 0.0100"), "{advice:?}");
+        assert!(
+            on("b").contains("are tied for the most accurate"),
+            "{advice:?}"
+        );
+        // Across the scenes osm ranks 1 in both: the best alone.
+        assert!(
+            advice
+                .iter()
+                .any(|l| l.contains("osm has the best median rank")),
+            "{advice:?}"
+        );
+        // With the ranks split one each, the median ranks tie and no best is named.
+        let split = [
+            rank("a", "osm", 8, 1),
+            rank("a", "fom", 8, 2),
+            rank("b", "osm", 8, 2),
+            rank("b", "fom", 8, 1),
+        ];
+        let advice = super::advice(&[scene("a"), scene("b")], &split);
+        assert!(
+            advice
+                .iter()
+                .any(|l| l.contains("no technique has the best median rank alone")),
+            "{advice:?}"
+        );
+        assert!(
+            !advice
+                .iter()
+                .any(|l| l.contains("has the best median rank:")),
+            "{advice:?}"
+        );
     }
 }

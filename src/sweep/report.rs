@@ -539,7 +539,7 @@ fn metric(value: Option<f64>) -> String {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::shadow::SplatMode;
     use crate::sweep::{ImageError, SkippedCell, SweepMetadata};
@@ -594,7 +594,8 @@ mod tests {
         }
     }
 
-    fn results() -> SweepResults {
+    /// A small sweep's results (the gallery's tests borrow it).
+    pub(crate) fn results() -> SweepResults {
         SweepResults {
             metadata: SweepMetadata {
                 tool_version: "0.1.0".into(),
