@@ -18,7 +18,7 @@
 //! inside the smoke: for the particle model the exact Ω(z) of a texel *is* piecewise linear (a
 //! constant extinction along each chord), so the Ω fit reproduces an uncompressed texel exactly,
 //! where a piecewise-linear V would be off by up to 0.3 inside one thick particle (the error
-//! `avsm`, which keeps T linear, shows: README, "The families side by side"). Fitting visibility
+//! `avsm`, which keeps T linear, shows: docs/studies.md, "The families side by side"). Fitting visibility
 //! would measure the representation's error, not the compression's. (L&V's hair and fur are
 //! opaque surfaces, where V is a step and the distinction vanishes.)
 //!
