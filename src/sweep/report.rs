@@ -193,9 +193,13 @@ fn table(body: &mut String, results: &SweepResults, variants: &Variants, pareto:
         "<h2>Results</h2>\n<p>Times in milliseconds: the median over the timed frames, under it the minimum and maximum. \
          Overhead: frame time / the frame time without shadows (<code>none</code>). \
          FLIP: mean, 0 = identical. RMS T error: transmittance against <code>exact</code> at \
-         the points the view shades. Highlighted: the Pareto front.</p>\n\
+         the points the view shades. Highlighted: the Pareto front. Channels differ in width \
+         (a half float is 2 bytes, a 32-bit float 4): bytes per texel is what a technique keeps \
+         for the lookup divided by the shadow map's texels, the measure to compare at equal memory \
+         (for <code>has</code> it includes its eye buffer and particle copies, for \
+         <code>volume</code> its grid).</p>\n\
          <div class=\"wide\"><table><tr><th>technique</th><th>channels<br>(used)</th><th>res</th><th>splat</th>\
-         <th>bytes</th><th>shadow<br>ms</th><th>render<br>ms</th><th>sort<br>ms</th><th>frame<br>ms</th>\
+         <th>bytes</th><th>bytes per<br>texel</th><th>shadow<br>ms</th><th>render<br>ms</th><th>sort<br>ms</th><th>frame<br>ms</th>\
          <th>overhead</th><th>FLIP<br>vs own 24</th><th>FLIP<br>vs exact</th><th>RMSE<br>vs exact</th>\
          <th>RMS T<br>error</th>",
     );
@@ -225,7 +229,7 @@ fn table(body: &mut String, results: &SweepResults, variants: &Variants, pareto:
         let _ = writeln!(
             body,
             "<tr{class}><td>{}</td><td>{channels}</td><td>{}</td><td>{}</td><td>{}</td>\
-             <td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td>\
+             <td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td>\
              <td>{}</td><td>{}</td>{}</tr>",
             e(&c.technique),
             c.shadow_res,
@@ -238,6 +242,7 @@ fn table(body: &mut String, results: &SweepResults, variants: &Variants, pareto:
                     report::bytes(t)
                 ),
             },
+            bytes_per_texel(c),
             gpu_time(&c.gpu_shadow_ms),
             if gpu {
                 ms(c.gpu_render_ms.median)
@@ -512,6 +517,19 @@ fn pareto_front(cells: &[CellResult]) -> Vec<bool> {
                 })
         })
         .collect()
+}
+
+/// The bytes a cell keeps for the lookup (its transient build scratch aside) per shadow-map
+/// texel, one decimal; "—" without a map (`none`, `exact`'s lists are no map either).
+fn bytes_per_texel(c: &CellResult) -> String {
+    let kept = c.bytes.saturating_sub(c.transient_bytes);
+    let texels = u64::from(c.shadow_res).pow(2);
+    let has_map =
+        crate::shadow::find(&c.technique).is_ok_and(|t| t.role == crate::shadow::Role::Contender);
+    if kept == 0 || texels == 0 || !has_map {
+        return "—".into();
+    }
+    format!("{:.1}", kept as f64 / texels as f64)
 }
 
 fn ms(value: f64) -> String {
