@@ -795,10 +795,13 @@ impl ProbePass for HalfAngle {
         // point, the batches before its particle's (the frame lights a batch's particles, all
         // four points of each, from the light buffer the batches before it left); for a free
         // point, those wholly before it along the half-angle axis.
-        let mut batch_of_particle = vec![0usize; inputs.particles.len()];
-        for (k, batch) in batches.iter().enumerate() {
-            for &i in &order[batch.start as usize..batch.end as usize] {
-                batch_of_particle[i as usize] = k;
+        // (Only a probe with owners needs each particle's batch: free points go by their key.)
+        let mut batch_of_particle = vec![0usize; inputs.owners.map_or(0, |_| order.len())];
+        if !batch_of_particle.is_empty() {
+            for (k, batch) in batches.iter().enumerate() {
+                for &i in &order[batch.start as usize..batch.end as usize] {
+                    batch_of_particle[i as usize] = k;
+                }
             }
         }
         let mut groups: Vec<Vec<usize>> = vec![Vec::new(); batches.len() + 1];
