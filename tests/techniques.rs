@@ -579,10 +579,37 @@ fn reported_channels_and_bytes_match_each_techniques_formula() {
     let target = smokeshadow::render::OffscreenTarget::new(&gpu, 96, 64);
     let budgets = [1u32, 2, 3, 4, 5, 6, 7, 8, 15, 16, 23, 24, 31, 32];
     for entry in smokeshadow::shadow::REGISTRY {
-        for &b in budgets.iter().filter(|&&b| b >= entry.min_channels) {
-            renderer
-                .set_technique(&gpu, &technique(entry.name, b, res, SplatMode::Point))
+        // Its default settings, and each other precision where a parameter chooses it.
+        let precision = entry.params.iter().find(|p| p.key.ends_with("_precision"));
+        let mut settings = vec![None];
+        if let Some(spec) = precision {
+            let default = spec.default.unwrap() as usize;
+            settings.extend(
+                (0..spec.choices.len())
+                    .filter(|&i| i != default)
+                    .map(|i| Some((spec.key, spec.choices[i]))),
+            );
+        }
+        for (&b, setting) in budgets
+            .iter()
+            .filter(|&&b| b >= entry.min_channels)
+            .flat_map(|b| settings.iter().map(move |s| (b, s)))
+        {
+            let mut config = technique(entry.name, b, res, SplatMode::Point);
+            if let Some((key, choice)) = setting {
+                smokeshadow::shadow::set_param(
+                    &mut config.params,
+                    key,
+                    &smokeshadow::shadow::ParamValue::Choice((*choice).to_owned()),
+                )
                 .unwrap();
+            }
+            let channel_bytes = match setting.map(|s| s.1) {
+                Some("single") => Some(4),
+                Some("half") => Some(2),
+                _ => None,
+            };
+            renderer.set_technique(&gpu, &config).unwrap();
             renderer
                 .render(
                     &gpu,
@@ -599,6 +626,7 @@ fn reported_channels_and_bytes_match_each_techniques_formula() {
             let expected = (entry.memory)(&MemoryCase {
                 channels: b,
                 resolution_px: res,
+                params: &config.params,
                 particles: n,
                 frame_pixels: pixels,
                 counters: &counters,
@@ -614,7 +642,7 @@ fn reported_channels_and_bytes_match_each_techniques_formula() {
             assert_eq!(
                 t.memory().transient_bytes(),
                 expected.transient_bytes,
-                "{} at {b} channels: transient part of the ledger {:?}",
+                "{} at {b} channels ({setting:?}): transient part of the ledger {:?}",
                 entry.name,
                 t.memory().entries()
             );
@@ -622,13 +650,13 @@ fn reported_channels_and_bytes_match_each_techniques_formula() {
             assert_eq!(
                 u64::from(t.channels_used()),
                 channels,
-                "{} at {b} channels",
+                "{} at {b} channels ({setting:?})",
                 entry.name
             );
             assert_eq!(
                 bytes,
                 expected,
-                "{} at {b} channels: ledger {:?}",
+                "{} at {b} channels ({setting:?}): ledger {:?}",
                 entry.name,
                 t.memory().entries()
             );
@@ -641,6 +669,7 @@ fn reported_channels_and_bytes_match_each_techniques_formula() {
                 u64::from(res),
                 n,
                 pixels,
+                channel_bytes,
                 &counter,
             );
             assert_eq!(
@@ -649,7 +678,7 @@ fn reported_channels_and_bytes_match_each_techniques_formula() {
                     bytes - t.memory().transient_bytes()
                 ),
                 (channels_written, kept),
-                "{} at {b} channels: (channels, kept bytes) written out here",
+                "{} at {b} channels ({setting:?}): (channels, kept bytes) written out here",
                 entry.name
             );
         }
@@ -660,12 +689,15 @@ fn reported_channels_and_bytes_match_each_techniques_formula() {
 /// `n` particles and `pixels` frame pixels: (channels used, bytes the lookup keeps). Half
 /// floats are 2 bytes and 32-bit floats 4; channels go four to a render target, and the last
 /// target of 1, 2 or 3 channels is R, RG or RGBA (3 channels take a 4-channel target).
+/// `channel_bytes`: a layered map's channels at a precision set by its parameter (`None`: its
+/// default, written below).
 fn written_out(
     name: &str,
     b: u64,
     res: u64,
     n: u64,
     pixels: u64,
+    channel_bytes: Option<u64>,
     counter: &dyn Fn(&str) -> Option<u64>,
 ) -> (u64, u64) {
     let texels = res * res;
@@ -683,14 +715,23 @@ fn written_out(
     assert_eq!(layered_uniform, smokeshadow::shadow::layered::PARAMS_BYTES);
     match name {
         "none" => (0, 0),
-        // B slices of optical depth, half floats.
-        "osm" => (b, texels * targets(b, 2) + layered_uniform),
-        // A start depth (R16F) and B - 1 layers, half floats.
-        "dom" => (b, texels * (2 + targets(b - 1, 2)) + layered_uniform),
-        // n = (B - 1) / 2 harmonics: a0, a1..an, b1..bn, 32-bit floats.
+        // B slices of optical depth, half floats by default.
+        "osm" => (
+            b,
+            texels * targets(b, channel_bytes.unwrap_or(2)) + layered_uniform,
+        ),
+        // A start depth (R16F) and B - 1 layers, half floats by default.
+        "dom" => (
+            b,
+            texels * (2 + targets(b - 1, channel_bytes.unwrap_or(2))) + layered_uniform,
+        ),
+        // n = (B - 1) / 2 harmonics: a0, a1..an, b1..bn, 32-bit floats by default.
         "fom" | "fom_sigma" => {
             let used = 2 * ((b - 1) / 2) + 1;
-            (used, texels * targets(used, 4) + layered_uniform)
+            (
+                used,
+                texels * targets(used, channel_bytes.unwrap_or(4)) + layered_uniform,
+            )
         }
         // b0 and 4, 6 or 8 power moments (the most that fit B - 1), 32-bit floats.
         "msm" => {

@@ -15,8 +15,20 @@
 //! monotone cubic on the layers' own spacing ([`super::slice_interp`]).
 //! Shaders: `shaders/shadow/dom.wgsl` and `dom_build.wgsl`.
 
-use super::layered::{ChannelPlan, Layered, LayeredSpec, PARAMS_BYTES, Precision, interp_param};
+use super::layered::{
+    ChannelPlan, Layered, LayeredSpec, PARAMS_BYTES, Precision, PrecisionSpec, interp_param,
+    precision_param,
+};
 use super::{MapKind, MemoryUse, ParamSpec, Role, TechniqueEntry, packed_bytes_per_texel};
+
+/// `dom_precision`: half-float layers (the paper's) or single.
+pub const PRECISION: ParamSpec = precision_param(
+    "dom_precision",
+    Precision::Half,
+    "storage of the layers: half floats (2 bytes a layer; the paper's), which hold optical \
+     depths, sums of positive terms, to about 3 significant digits; or single floats (4 bytes). \
+     The start-depth channel stays a half float",
+);
 
 /// `dom_thickness_m`: the depth range the layers cover.
 pub const THICKNESS: ParamSpec = ParamSpec {
@@ -75,7 +87,7 @@ pub const SPEC: LayeredSpec = LayeredSpec {
     start_dilation: Some(&START_DILATION),
     sigma: false,
     moments: None,
-    precision: Precision::Half,
+    precision: PrecisionSpec::Param(&PRECISION),
     channel_name: |c, plan| {
         format!(
             "layer {} of {}: optical depth in front of it",
@@ -95,14 +107,15 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     in_default_sweep: true,
     in_default_compare: true,
     build_reads_back: false,
-    params: &[THICKNESS, LAYER_RATIO, INTERP, START_DILATION],
+    params: &[THICKNESS, LAYER_RATIO, INTERP, START_DILATION, PRECISION],
     order_independent: true,
     converges_with_budget: true,
     compresses_captured_lists: false,
-    // One R16F start-depth channel, B - 1 half-float layers and the uniform parameters.
+    // One R16F start-depth channel, B - 1 layers of `dom_precision` and the uniform parameters.
     memory: |c| MemoryUse {
         channels: c.channels.into(),
-        bytes: c.texels() * (packed_bytes_per_texel(u64::from(c.channels) - 1, 2) + 2)
+        bytes: c.texels()
+            * (packed_bytes_per_texel(u64::from(c.channels) - 1, SPEC.channel_bytes(c.params)) + 2)
             + PARAMS_BYTES,
         transient_bytes: 0,
     },

@@ -6,19 +6,34 @@
 //! its −ln(1 − α)-weighted cos/sin terms (additive, no sort); a segment splat adds them
 //! integrated analytically over its chord. The lookup reconstructs the optical depth with the
 //! thesis' formula and clamps T to [0, 1]. `fom_sigma` damps harmonic k by the Lanczos σ-factor
-//! sinc(k / (n + 1)) to suppress ringing. The coefficients are 32-bit floats: they are sums of
+//! sinc(k / (n + 1)) to suppress ringing. By default the coefficients are 32-bit floats (`fom_precision`): they are sums of
 //! terms of both signs that largely cancel, and in half floats the rounding of the partial sums
 //! made T depend on the order the particles were drawn in by up to 0.2. Shaders: `shaders/shadow/fom.wgsl`, `fom_build.wgsl`.
 
-use super::layered::{ChannelPlan, Layered, LayeredSpec, PARAMS_BYTES, Precision};
-use super::{MapKind, MemoryCase, MemoryUse, Role, TechniqueEntry, packed_bytes_per_texel};
+use super::layered::{
+    ChannelPlan, Layered, LayeredSpec, PARAMS_BYTES, Precision, PrecisionSpec, precision_param,
+};
+use super::{
+    MapKind, MemoryCase, MemoryUse, ParamSpec, Role, TechniqueEntry, packed_bytes_per_texel,
+};
 
-/// 2n + 1 coefficients in 32-bit floats and the parameter uniform.
-fn coefficient_memory(c: &MemoryCase<'_>) -> MemoryUse {
+const PRECISION_DOC: &str = "storage of the coefficients: single floats (4 bytes a channel, \
+    the default) or half floats (2 bytes; Jansen & Bavoil's 16-bit targets). The coefficients are \
+    sums of terms of both signs that largely cancel: in half floats the partial sums' rounding \
+    makes T depend on the order the particles are drawn in (measured: by up to 0.2)";
+
+/// `fom_precision` and `fom_sigma_precision`: single (default) or half-float coefficients.
+pub const PRECISION: ParamSpec = precision_param("fom_precision", Precision::Single, PRECISION_DOC);
+pub const SIGMA_PRECISION: ParamSpec =
+    precision_param("fom_sigma_precision", Precision::Single, PRECISION_DOC);
+
+/// 2n + 1 coefficients of the spec's precision and the parameter uniform.
+fn coefficient_memory(spec: &LayeredSpec, c: &MemoryCase<'_>) -> MemoryUse {
     let used = u64::from(plan(c.channels).used);
     MemoryUse {
         channels: used,
-        bytes: c.texels() * packed_bytes_per_texel(used, 4) + PARAMS_BYTES,
+        bytes: c.texels() * packed_bytes_per_texel(used, spec.channel_bytes(c.params))
+            + PARAMS_BYTES,
         transient_bytes: 0,
     }
 }
@@ -50,7 +65,7 @@ pub const FOM: LayeredSpec = LayeredSpec {
     start_dilation: None,
     sigma: false,
     moments: None,
-    precision: Precision::Float,
+    precision: PrecisionSpec::Param(&PRECISION),
     channel_name: |c, plan| match c {
         0 => "a0 (twice the total optical depth)".to_owned(),
         c if c <= plan.count => format!("a{c} (cosine coefficient)"),
@@ -62,6 +77,7 @@ pub const FOM: LayeredSpec = LayeredSpec {
 pub const FOM_SIGMA: LayeredSpec = LayeredSpec {
     name: "fom_sigma",
     sigma: true,
+    precision: PrecisionSpec::Param(&SIGMA_PRECISION),
     ..FOM
 };
 
@@ -74,11 +90,11 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     in_default_sweep: true,
     in_default_compare: true,
     build_reads_back: false,
-    params: &[],
+    params: &[PRECISION],
     order_independent: true,
     converges_with_budget: true,
     compresses_captured_lists: false,
-    memory: coefficient_memory,
+    memory: |c| coefficient_memory(&FOM, c),
     lookup_shader: "shadow/fom.wgsl",
     extra_shaders: || FOM.all_build_shaders(),
     create: |ctx, params| Ok(Box::new(Layered::new(ctx, &FOM, params)?)),
@@ -96,11 +112,11 @@ pub const SIGMA_ENTRY: TechniqueEntry = TechniqueEntry {
     in_default_sweep: true,
     in_default_compare: true,
     build_reads_back: false,
-    params: &[],
+    params: &[SIGMA_PRECISION],
     order_independent: true,
     converges_with_budget: true,
     compresses_captured_lists: false,
-    memory: coefficient_memory,
+    memory: |c| coefficient_memory(&FOM_SIGMA, c),
     lookup_shader: "shadow/fom.wgsl",
     // Same build shaders as `fom`: the σ-factors apply at lookup.
     extra_shaders: Vec::new,

@@ -64,8 +64,8 @@ pub struct LayeredSpec {
     pub sigma: bool,
     /// The parameters of a moment reconstruction (`msm`, `tmsm`), if the maps hold moments.
     pub moments: Option<MomentParams>,
-    /// Storage precision of the packed channels.
-    pub precision: Precision,
+    /// Storage precision of the packed channels: fixed, or a parameter ([`precision_param`]).
+    pub precision: PrecisionSpec,
     /// What packed channel `c` holds under `plan`, for inspection.
     pub channel_name: fn(u32, &ChannelPlan) -> String,
     /// How the packed channels' values read.
@@ -173,9 +173,9 @@ pub fn target_format(packed: u32, index: u32, precision: Precision) -> wgpu::Tex
         (1, Precision::Half) => F::R16Float,
         (2, Precision::Half) => F::Rg16Float,
         (_, Precision::Half) => F::Rgba16Float,
-        (1, Precision::Float) => F::R32Float,
-        (2, Precision::Float) => F::Rg32Float,
-        (_, Precision::Float) => F::Rgba32Float,
+        (1, Precision::Single) => F::R32Float,
+        (2, Precision::Single) => F::Rg32Float,
+        (_, Precision::Single) => F::Rgba32Float,
     }
 }
 
@@ -187,7 +187,69 @@ pub enum Precision {
     /// 32-bit floats (needs `FLOAT32_BLENDABLE` and `FLOAT32_FILTERABLE`): Fourier coefficients
     /// are sums of terms of both signs that largely cancel, and half floats round the partial
     /// sums so coarsely that the result depends on the order the particles are drawn in.
-    Float,
+    Single,
+}
+
+impl Precision {
+    /// Bytes of one channel.
+    pub const fn bytes(self) -> u64 {
+        match self {
+            Self::Half => 2,
+            Self::Single => 4,
+        }
+    }
+}
+
+/// The choices of a `<technique>_precision` parameter, by index ([`Precision`] in order).
+pub const PRECISION_CHOICES: &[&str] = &["half", "single"];
+
+/// How a layered technique's channel precision is set.
+#[derive(Clone, Copy, Debug)]
+pub enum PrecisionSpec {
+    /// Always this (the moment maps: 32-bit, as the moment-based papers store 6 and 8 moments).
+    Fixed(Precision),
+    /// A `<technique>_precision` parameter ([`precision_param`]): its paper allows either.
+    Param(&'static ParamSpec),
+}
+
+impl LayeredSpec {
+    /// The precision of the packed channels under `params`.
+    pub fn precision(&self, params: &TechniqueParams) -> Precision {
+        match self.precision {
+            PrecisionSpec::Fixed(p) => p,
+            PrecisionSpec::Param(spec) => match params.choice_index(spec) {
+                0 => Precision::Half,
+                _ => Precision::Single,
+            },
+        }
+    }
+
+    /// Bytes of one packed channel under `params` (the memory formulas use it).
+    pub fn channel_bytes(&self, params: &TechniqueParams) -> u64 {
+        self.precision(params).bytes()
+    }
+}
+
+/// A `<technique>_precision` parameter: half or single floats for the packed channels, `default`
+/// unless set; `doc` says what each costs the technique. A channel budget then buys the same
+/// channels at twice or half the bytes; `--bytes-per-texel` compares at equal bytes.
+pub const fn precision_param(
+    key: &'static str,
+    default: Precision,
+    doc: &'static str,
+) -> ParamSpec {
+    ParamSpec {
+        key,
+        unit: "-",
+        doc,
+        min: 0.0,
+        max: (PRECISION_CHOICES.len() - 1) as f32,
+        default: Some(match default {
+            Precision::Half => 0.0,
+            Precision::Single => 1.0,
+        }),
+        choices: PRECISION_CHOICES,
+    }
 }
 
 /// The generated fragment entry point writing one vec4 per target.
@@ -612,11 +674,12 @@ impl Layered {
         let device = &gpu.device;
         let plan = (spec.plan)(params.channels);
         let target_count = plan.packed.div_ceil(4);
+        let precision = spec.precision(params);
         let formats: Vec<_> = (0..target_count)
-            .map(|i| target_format(plan.packed, i, spec.precision))
+            .map(|i| target_format(plan.packed, i, precision))
             .collect();
         let float_features = wgpu::Features::FLOAT32_BLENDABLE | wgpu::Features::FLOAT32_FILTERABLE;
-        if spec.precision == Precision::Float && !gpu.features.contains(float_features) {
+        if precision == Precision::Single && !gpu.features.contains(float_features) {
             return Err(ShadowError::MissingFeature {
                 technique: spec.name,
                 feature: "FLOAT32_BLENDABLE and FLOAT32_FILTERABLE (32-bit float maps)",
@@ -642,7 +705,7 @@ impl Layered {
         let name = spec.name;
         let res = params.resolution_px;
         let mut memory = MemoryLedger::for_device(&gpu.limits);
-        let maps = Maps::new(&mut memory, device, name, plan.packed, spec.precision, res)?;
+        let maps = Maps::new(&mut memory, device, name, plan.packed, precision, res)?;
         let targets = maps.attachments();
         let depth_view = spec
             .depth_channel
@@ -977,8 +1040,8 @@ mod tests {
         assert_eq!(half(5, 1), F::R16Float);
         assert_eq!(half(7, 1), F::Rgba16Float);
         assert_eq!(half(24, 5), F::Rgba16Float);
-        assert_eq!(target_format(23, 5, Precision::Float), F::Rgba32Float);
-        assert_eq!(target_format(5, 1, Precision::Float), F::R32Float);
+        assert_eq!(target_format(23, 5, Precision::Single), F::Rgba32Float);
+        assert_eq!(target_format(5, 1, Precision::Single), F::R32Float);
     }
 
     #[test]

@@ -397,6 +397,9 @@ pub trait ShadowTechnique: Send {
 pub struct MemoryCase<'a> {
     pub channels: u32,
     pub resolution_px: u32,
+    /// The technique's parameters (their `channels` and `resolution_px` are the fields above):
+    /// e.g. a layered map's `<technique>_precision`.
+    pub params: &'a TechniqueParams,
     /// Particles drawn this frame.
     pub particles: u64,
     /// Pixels of the frame.
@@ -441,6 +444,99 @@ pub fn packed_bytes_per_texel(packed: u64, bytes_per_channel: u64) -> u64 {
         _ => 4,
     };
     (packed / 4 * 4 + rest) * bytes_per_channel
+}
+
+/// Slack of a byte budget per texel: the share of a technique's uniforms (16 to 80 bytes) in
+/// its bytes per texel, so that `osm` at 24 half-float slices fits 48 bytes a texel.
+pub const BYTE_BUDGET_SLACK: f64 = 1.0 / 64.0;
+
+/// The bytes a configuration keeps for the lookup (its memory formula, transient build scratch
+/// aside) per texel of its shadow map, for `particles` particles in a frame of `frame_pixels`:
+/// the measure a byte budget per texel (`--bytes-per-texel`) compares at.
+pub fn kept_bytes_per_texel(
+    entry: &TechniqueEntry,
+    params: &TechniqueParams,
+    particles: u64,
+    frame_pixels: u64,
+) -> f64 {
+    let case = MemoryCase {
+        channels: params.channels,
+        resolution_px: params.resolution_px,
+        params,
+        particles,
+        frame_pixels,
+        counters: &[],
+    };
+    let used = (entry.memory)(&case);
+    (used.bytes - used.transient_bytes) as f64 / case.texels().max(1) as f64
+}
+
+/// The configuration a technique takes under a byte budget per shadow-map texel.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ByteFit {
+    /// The channel budget: the largest whose configuration keeps at most the budget (within
+    /// [`BYTE_BUDGET_SLACK`]), lowered to the smallest budget with the same memory (`fom` at
+    /// 12 channels uses 11, so it runs at 11).
+    pub channels: u32,
+    /// The channels that configuration uses (its memory formula's): two budgets with the same
+    /// channels used and bytes are the same configuration.
+    pub channels_used: u64,
+    /// Bytes per texel it keeps there.
+    pub bytes_per_texel: f64,
+}
+
+/// Fits `entry`, with `base`'s parameters (its precision among them), into `budget` bytes per
+/// texel at `base.resolution_px`. `Err`: one line saying why it fits no configuration.
+pub fn fit_bytes_per_texel(
+    entry: &TechniqueEntry,
+    base: &TechniqueParams,
+    budget: u32,
+    particles: u64,
+    frame_pixels: u64,
+) -> Result<ByteFit, String> {
+    let at = |channels: u32| {
+        let params = TechniqueParams {
+            channels,
+            ..base.clone()
+        };
+        kept_bytes_per_texel(entry, &params, particles, frame_pixels)
+    };
+    let allowed = f64::from(budget) + BYTE_BUDGET_SLACK;
+    let Some(largest) = (entry.min_channels..=MAX_CHANNELS)
+        .rev()
+        .find(|&c| at(c) <= allowed)
+    else {
+        return Err(format!(
+            "{} keeps {:.1} bytes a texel at its smallest budget ({}), more than {budget}",
+            entry.name,
+            at(entry.min_channels),
+            (entry.budget_caption)(entry.min_channels)
+        ));
+    };
+    let bytes_per_texel = at(largest);
+    let used = |c: u32| {
+        let params = TechniqueParams {
+            channels: c,
+            ..base.clone()
+        };
+        (entry.memory)(&MemoryCase {
+            channels: c,
+            resolution_px: base.resolution_px,
+            params: &params,
+            particles,
+            frame_pixels,
+            counters: &[],
+        })
+        .channels
+    };
+    let channels = (entry.min_channels..=largest)
+        .find(|&c| at(c) == bytes_per_texel && used(c) == used(largest))
+        .unwrap_or(largest);
+    Ok(ByteFit {
+        channels,
+        channels_used: used(largest),
+        bytes_per_texel,
+    })
 }
 
 /// Builds a technique from the GPU context and its (already range-checked) parameters.
@@ -910,6 +1006,45 @@ mod tests {
                 format!("parameter {key} = \"spline\" is not one of its choices: linear, cubic")
             );
         }
+    }
+
+    #[test]
+    fn byte_budgets_buy_each_technique_the_channels_its_widths_allow() {
+        let fit = |name: &str, budget: u32, precision: Option<&str>| {
+            let entry = find(name).unwrap();
+            let mut params = TechniqueParams::new(8, 512);
+            if let Some(p) = precision {
+                set_param(
+                    &mut params,
+                    &format!("{name}_precision"),
+                    &ParamValue::Choice(p.to_owned()),
+                )
+                .unwrap();
+            }
+            fit_bytes_per_texel(entry, &params, budget, 10_000, 1280 * 720)
+        };
+        let channels = |name, budget, precision| fit(name, budget, precision).unwrap().channels;
+        // Half-float slices: 2 bytes each, so 48 bytes buy 24 (the uniform fits the slack).
+        assert_eq!(channels("osm", 48, None), 24);
+        assert_eq!(channels("osm", 12, None), 6);
+        assert_eq!(channels("osm", 48, Some("single")), 12);
+        // A start depth (2 bytes) and half-float layers: 48 bytes buy the depth and 22 layers
+        // (23 would put their last 3 in a 4-channel target: 50 bytes).
+        assert_eq!(channels("dom", 48, None), 23);
+        // Single-float coefficients, 2n + 1 of them, the last target rounded to R, RG or RGBA:
+        // 48 bytes hold 11 (8 + 3 in an RGBA target), 24 bytes 5 (4 + 1 in an R target).
+        let fom48 = fit("fom", 48, None).unwrap();
+        assert_eq!((fom48.channels, fom48.channels_used), (11, 11));
+        assert_eq!(fom48.bytes_per_texel, 48.0 + 60.0 / 262_144.0);
+        assert_eq!(channels("fom", 24, None), 5);
+        assert_eq!(channels("fom", 48, Some("half")), 23);
+        // Below its smallest configuration (3 coefficients: 16 bytes) it fits nothing, and says so.
+        let err = fit("fom", 12, None).unwrap_err();
+        assert!(err.contains("16.0 bytes") && err.contains("12"), "{err}");
+        // The moment maps stop at 9 channels, whatever the bytes.
+        assert_eq!(fit("msm", 96, None).unwrap().channels_used, 9);
+        // Two 4-byte words per node: 48 bytes hold 6 nodes.
+        assert_eq!(fit("dsm", 48, None).unwrap().channels_used, 12);
     }
 
     #[test]

@@ -22,7 +22,9 @@
 //! Shaders: `shaders/shadow/msm.wgsl`, `tmsm.wgsl` (lookups), `msm_build.wgsl`,
 //! `tmsm_build.wgsl` and the shared `moments.wgsl`.
 
-use super::layered::{ChannelPlan, Layered, LayeredSpec, MomentParams, PARAMS_BYTES, Precision};
+use super::layered::{
+    ChannelPlan, Layered, LayeredSpec, MomentParams, PARAMS_BYTES, Precision, PrecisionSpec,
+};
 use super::{
     MapKind, MemoryCase, MemoryUse, ParamSpec, Role, TechniqueEntry, packed_bytes_per_texel,
 };
@@ -141,7 +143,7 @@ pub const MSM: LayeredSpec = LayeredSpec {
         overestimation: &OVERESTIMATION,
         wrapping_zone: None,
     }),
-    precision: Precision::Float,
+    precision: PrecisionSpec::Fixed(Precision::Single),
     channel_name: |c, _| match c {
         0 => "b0 (the optical depth along the ray)".to_owned(),
         k => format!("b0·E[z^{k}] (power moment {k})"),

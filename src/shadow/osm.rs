@@ -9,11 +9,23 @@
 //! `shaders/shadow/osm.wgsl` (lookup) and `osm_build.wgsl`; the packing and passes are shared
 //! in [`super::layered`].
 
-use super::layered::{ChannelPlan, Layered, LayeredSpec, PARAMS_BYTES, Precision, interp_param};
+use super::layered::{
+    ChannelPlan, Layered, LayeredSpec, PARAMS_BYTES, Precision, PrecisionSpec, interp_param,
+    precision_param,
+};
 use super::{MapKind, MemoryUse, ParamSpec, Role, TechniqueEntry, packed_bytes_per_texel};
 
 /// `osm_interp`: linear or monotone cubic between slice boundaries.
 pub const INTERP: ParamSpec = interp_param("osm_interp");
+
+/// `osm_precision`: half floats (Kim & Neumann's and the thesis' maps) or single.
+pub const PRECISION: ParamSpec = precision_param(
+    "osm_precision",
+    Precision::Half,
+    "storage of the slices: half floats (2 bytes a slice; the thesis' maps), which hold \
+     optical depths, sums of positive terms, to about 3 significant digits; or single floats \
+     (4 bytes), which buy twice the bytes per slice",
+);
 
 pub const SPEC: LayeredSpec = LayeredSpec {
     name: "osm",
@@ -30,7 +42,7 @@ pub const SPEC: LayeredSpec = LayeredSpec {
     start_dilation: None,
     sigma: false,
     moments: None,
-    precision: Precision::Half,
+    precision: PrecisionSpec::Param(&PRECISION),
     channel_name: |c, plan| {
         format!(
             "slice {} of {}: optical depth in front of it",
@@ -50,14 +62,15 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     in_default_sweep: true,
     in_default_compare: true,
     build_reads_back: false,
-    params: &[INTERP],
+    params: &[INTERP, PRECISION],
     order_independent: true,
     converges_with_budget: true,
     compresses_captured_lists: false,
-    // B half-float slices and the uniform parameters.
+    // B slices of `osm_precision` and the uniform parameters.
     memory: |c| MemoryUse {
         channels: c.channels.into(),
-        bytes: c.texels() * packed_bytes_per_texel(c.channels.into(), 2) + PARAMS_BYTES,
+        bytes: c.texels() * packed_bytes_per_texel(c.channels.into(), SPEC.channel_bytes(c.params))
+            + PARAMS_BYTES,
         transient_bytes: 0,
     },
     lookup_shader: "shadow/osm.wgsl",
