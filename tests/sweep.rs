@@ -24,6 +24,9 @@ const TINY: &[&str] = &[
     "128",
     "--warmup",
     "1",
+    // The thesis' channel view alone (byte budgets: their own test below).
+    "--bytes-per-texel",
+    "none",
 ];
 
 /// The tiny sweep into `dir` with `frames` timed frames.
@@ -918,6 +921,8 @@ fn a_sweep_with_a_known_answer_gives_it_and_its_errors_match_an_independent_prob
         "osm,dsm",
         "--channels",
         "24,6",
+        "--bytes-per-texel",
+        "none",
         "--shadow-res",
         "256",
         "--frames",
@@ -1001,4 +1006,123 @@ fn a_sweep_with_a_known_answer_gives_it_and_its_errors_match_an_independent_prob
         checked += 1;
     }
     assert_eq!(checked, 4);
+}
+
+#[test]
+fn byte_budgets_fit_each_technique_by_its_channel_widths_and_the_answer_ranks_at_equal_bytes() {
+    let dir = scratch("sweep-bytes");
+    let out = smokeshadow(&[
+        "sweep",
+        "--size",
+        "160x120",
+        "--techniques",
+        "osm,fom,msm",
+        "--channels",
+        "24",
+        "--bytes-per-texel",
+        "48,16",
+        "--shadow-res",
+        "128",
+        "--frames",
+        "1",
+        "--warmup",
+        "0",
+        "-o",
+        dir.to_str().unwrap(),
+    ])
+    .output()
+    .unwrap();
+    ok(&out);
+    let texels = 128u64 * 128;
+    let uniform = smokeshadow::shadow::layered::PARAMS_BYTES;
+    let rows = csv_rows(&dir.join("results.csv"));
+    let answering = |technique: &str, budget: u32| {
+        rows.iter()
+            .find(|r| {
+                get(r, "technique") == technique
+                    && get(r, "byte_budgets")
+                        .split(';')
+                        .any(|b| b == budget.to_string())
+            })
+            .map(|r| {
+                (
+                    get(r, "channels_used").parse::<u64>().unwrap(),
+                    get(r, "bytes").parse::<u64>().unwrap(),
+                )
+            })
+    };
+    // Written out from the channel widths: osm's slices are half floats (2 bytes); fom's 2n + 1
+    // coefficients and msm's b0 and moments single floats (4), the last target R, RG or RGBA.
+    // 48 bytes: 24 slices; fom 11 coefficients (8 + 3 in an RGBA target; 13 would need 64);
+    // msm its most, 9 channels (36 bytes: 8 moments and b0).
+    assert_eq!(answering("osm", 48), Some((24, texels * 48 + uniform)));
+    assert_eq!(answering("fom", 48), Some((11, texels * 48 + uniform)));
+    assert_eq!(answering("msm", 48), Some((9, texels * 36 + uniform)));
+    // 16 bytes: 8 slices; fom 3 coefficients (an RGBA target); msm none (5 channels: 20 bytes).
+    assert_eq!(answering("osm", 16), Some((8, texels * 16 + uniform)));
+    assert_eq!(answering("fom", 16), Some((3, texels * 16 + uniform)));
+    assert_eq!(answering("msm", 16), None);
+    let results: SweepResults =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("results.json")).unwrap()).unwrap();
+    let skip = results
+        .skipped
+        .iter()
+        .find(|s| s.technique == "msm" && s.bytes_per_texel == Some(16))
+        .expect("msm at 16 bytes is skipped");
+    assert!(skip.reason.contains("20.0 bytes"), "{}", skip.reason);
+    // The 24-channel cells are the channel view's; the cells only a byte budget asked for are
+    // off it (osm at 8, fom at 11 and 3); msm's 24-channel cell answers 48 bytes too.
+    let off_axis: Vec<(&str, u32)> = results
+        .cells
+        .iter()
+        .filter(|c| !c.channel_axis)
+        .map(|c| (c.technique.as_str(), c.channels))
+        .collect();
+    assert_eq!(off_axis, [("osm", 8), ("fom", 11), ("fom", 3)]);
+
+    // The answer at each budget ranks its cells by FLIP against exact, as the CSV has them; the
+    // page and stdout give that order.
+    let html = std::fs::read_to_string(dir.join("index.html")).unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    for budget in [48u32, 16] {
+        let mut at: Vec<(f64, &str, &str)> = rows
+            .iter()
+            .filter(|r| {
+                get(r, "byte_budgets")
+                    .split(';')
+                    .any(|b| b == budget.to_string())
+            })
+            .map(|r| {
+                (
+                    get(r, "flip_vs_exact").parse::<f64>().unwrap(),
+                    get(r, "technique"),
+                    get(r, "channels"),
+                )
+            })
+            .collect();
+        at.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let listed = at
+            .iter()
+            .map(|(flip, t, c)| format!("{t} {c} ({flip:.4})"))
+            .collect::<Vec<_>>()
+            .join(", ");
+        assert!(
+            stdout.contains(&format!(
+                "at {budget} bytes a texel, by FLIP vs exact: {listed}"
+            )),
+            "{stdout}"
+        );
+        let row = &html[html.find(&format!("<tr><td>{budget} bytes</td>")).unwrap()..];
+        let row = &row[..row.find("</tr>").unwrap()];
+        let positions: Vec<usize> = at
+            .iter()
+            .map(|(_, t, c)| row.find(&format!("{t} at {c} channels (")).unwrap())
+            .collect();
+        assert!(positions.is_sorted(), "{row}");
+    }
+    // What a budget cannot buy is said once: msm's 9 channels.
+    assert!(
+        html.contains("<code>msm</code> keeps at most 36.0 bytes a texel"),
+        "{html}"
+    );
 }

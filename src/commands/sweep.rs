@@ -30,7 +30,7 @@ pub struct SweepArgs {
     /// `-o` (no GPU needed); refuses shards of different sweeps, and names missing cells.
     #[arg(long, num_args = 1.., value_name = "DIR",
           conflicts_with_all = ["scene", "scenes", "shard", "resume", "exr", "techniques",
-                                "channels", "shadow_res", "splat", "particle_res", "params", "frames",
+                                "channels", "bytes_per_texel", "shadow_res", "splat", "particle_res", "params", "frames",
                                 "warmup", "cell_seconds", "size", "particles"])]
     pub merge: Option<Vec<PathBuf>>,
     #[command(flatten)]
@@ -43,6 +43,14 @@ pub struct SweepArgs {
     /// (noted in the report).
     #[arg(long, value_delimiter = ',', default_value = "24,16,8,6")]
     pub channels: Vec<u32>,
+    /// Byte budgets per shadow-map texel, comma-separated, or `none`: each technique runs at
+    /// the largest configuration it keeps within each, at its precision (`--param
+    /// osm_precision=single`, ...), and the report's answer compares at these; the channel
+    /// budgets stay the thesis' view. A technique that fits no configuration is skipped with
+    /// the bytes it needs.
+    #[arg(long, value_name = "BYTES,...|none", default_value = "48,24,12",
+          value_parser = parse_byte_budgets)]
+    pub bytes_per_texel: ByteBudgets,
     /// Shadow-map resolutions, comma-separated.
     #[arg(long, value_delimiter = ',', default_value = "512")]
     pub shadow_res: Vec<u32>,
@@ -133,6 +141,7 @@ pub fn run(args: &SweepArgs, adapter: &AdapterPreference) -> anyhow::Result<()> 
     let options = SweepOptions {
         techniques: crate::shadow::expand_all(&args.techniques),
         channels: args.channels.clone(),
+        bytes_per_texel: args.bytes_per_texel.0.clone(),
         shadow_res: args.shadow_res.clone(),
         splats: args.splat.clone(),
         particle_res: args.particle_res.clone(),
@@ -223,11 +232,11 @@ fn print_outcome(outcome: &SweepOutcome, dir: &Path, machine: &str) {
                     println!("- {line}");
                 }
                 println!(
-                    "\nranking per byte across scenes (rank by FLIP vs exact within each scene and budget):"
+                    "\nranking at equal bytes across scenes (rank by FLIP vs exact within each scene and budget):"
                 );
                 println!(
-                    "{:<16} {:>4} {:>12} {:>11} {:<16} {:>7}",
-                    "technique", "ch", "median rank", "worst rank", "worst on", "scenes"
+                    "{:<16} {:>18} {:>12} {:>11} {:<16} {:>7}",
+                    "technique", "budget", "median rank", "worst rank", "worst on", "scenes"
                 );
                 for row in &g.ranking {
                     let mut t = row.technique.clone();
@@ -239,9 +248,9 @@ fn print_outcome(outcome: &SweepOutcome, dir: &Path, machine: &str) {
                         t = format!("{t} {} {}", row.shadow_res, row.splat.name());
                     }
                     println!(
-                        "{:<16} {:>4} {:>12} {:>11} {:<16} {:>7}",
+                        "{:<16} {:>18} {:>12} {:>11} {:<16} {:>7}",
                         t,
-                        row.channels,
+                        row.budget.to_string(),
                         format!("{}", row.median_rank),
                         row.worst_rank,
                         row.worst_scene,
@@ -298,11 +307,63 @@ fn print_table(results: &SweepResults, folder: &Path) {
         );
     }
     for s in &results.skipped {
+        match s.bytes_per_texel {
+            Some(b) => println!("skipped {} at {b} bytes a texel: {}", s.technique, s.reason),
+            None => println!(
+                "skipped {} at {} channels: {}",
+                s.technique, s.channels, s.reason
+            ),
+        }
+    }
+    // The answer at equal bytes, as the report gives it.
+    for b in sweep::report::byte_budgets(results) {
+        let at = sweep::report::at_byte_budget(results, b);
+        let ranked: Vec<String> = at
+            .iter()
+            .map(|c| {
+                format!(
+                    "{} {} ({:.4})",
+                    c.technique,
+                    c.channels,
+                    c.vs_exact.map_or(f64::NAN, |e| e.flip_mean)
+                )
+            })
+            .collect();
         println!(
-            "skipped {} at {} channels: {}",
-            s.technique, s.channels, s.reason
+            "at {b} bytes a texel, by FLIP vs exact: {}",
+            match ranked.is_empty() {
+                true => "no technique fits".to_owned(),
+                false => ranked.join(", "),
+            }
         );
     }
+}
+
+/// `--bytes-per-texel`'s budgets (empty for `none`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ByteBudgets(pub Vec<u32>);
+
+fn parse_byte_budgets(s: &str) -> Result<ByteBudgets, String> {
+    if s.trim() == "none" {
+        return Ok(ByteBudgets(Vec::new()));
+    }
+    let mut out = Vec::new();
+    for part in s.split(',') {
+        match part.trim().parse::<u32>() {
+            Ok(b) if (1..=1024).contains(&b) => {
+                if !out.contains(&b) {
+                    out.push(b);
+                }
+            }
+            _ => {
+                return Err(format!(
+                    "\"{}\" is not a byte budget: give whole bytes per texel, 1..=1024, or none",
+                    part.trim()
+                ));
+            }
+        }
+    }
+    Ok(ByteBudgets(out))
 }
 
 /// Parses `--cell-seconds`: a positive, finite number of seconds.

@@ -882,6 +882,8 @@ mod tests {
         CellResult {
             technique: technique.into(),
             channels,
+            byte_budgets: Vec::new(),
+            channel_axis: true,
             channels_used: channels,
             shadow_res: res,
             splat: SplatMode::Point,
@@ -947,6 +949,7 @@ mod tests {
             skipped: vec![SkippedCell {
                 technique: "fom".into(),
                 channels: 2,
+                bytes_per_texel: None,
                 reason: "below minimum".into(),
             }],
             exact_image: "images/exact.png".into(),

@@ -2,10 +2,11 @@
 //! lives in `DIR/<scene>/` with its own report; this module writes, at `DIR`, what answers
 //! "which technique should I use" across all of them:
 //!
-//! - [`ranks`]: within each scene and channel budget, the contenders ranked by FLIP mean
-//!   against `exact` (ties: fewer bytes first, then registry order). A technique whose result
-//!   does not depend on the budget (measured once) is ranked at every budget it accepts, with
-//!   its one cell. `none` and `exact` are not ranked;
+//! - [`ranks`]: within each scene and byte budget per texel (equal memory; or, for sweeps run
+//!   without byte budgets, each channel budget), the contenders ranked by FLIP mean against
+//!   `exact` (ties: fewer bytes first, then registry order). A technique whose result does not
+//!   depend on the budget (measured once) is ranked at every budget it fits, with its one
+//!   cell. `none` and `exact` are not ranked;
 //! - [`ranking`]: for each technique (and resolution and splat, where the sweep varies them)
 //!   and budget, the median and the worst rank across scenes, sorted by median, then worst;
 //! - where each technique wins (scenes x budgets), and [`advice`]: sentences generated from
@@ -22,19 +23,16 @@ use std::path::Path;
 use anyhow::Context;
 use serde::{Deserialize, Serialize};
 
-use super::{CSV_COLUMNS, CellResult, SweepResults};
+use super::{Budget, CSV_COLUMNS, CellResult, SweepResults};
 use crate::report::{self, escape as e};
 use crate::shadow::{self, SplatMode};
-
-/// Budgets up to this many channels are "small" in the advice.
-pub const SMALL_BUDGET_CHANNELS: u32 = 8;
 
 /// The columns of `ranking.csv`.
 pub const RANKING_COLUMNS: &[&str] = &[
     "technique",
     "shadow_res",
     "splat",
-    "channels",
+    "budget",
     "scenes",
     "median_rank",
     "worst_rank",
@@ -45,6 +43,8 @@ pub const RANKING_COLUMNS: &[&str] = &[
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Rank {
     pub scene: String,
+    pub budget: Budget,
+    /// The channel budget of the cell ranked (the one that fits a byte budget).
     pub channels: u32,
     pub technique: String,
     pub shadow_res: u32,
@@ -63,7 +63,7 @@ pub struct RankingRow {
     pub technique: String,
     pub shadow_res: u32,
     pub splat: SplatMode,
-    pub channels: u32,
+    pub budget: Budget,
     /// Scenes it was ranked in.
     pub scenes: u32,
     pub median_rank: f64,
@@ -113,14 +113,28 @@ pub fn ranks(scenes: &[SweepResults]) -> Vec<Rank> {
             .filter_map(|c| shadow::find(&c.technique).ok().map(|e| (c, e)))
             .filter(|(_, e)| e.role == shadow::Role::Contender)
             .collect();
-        let mut budgets: Vec<u32> = ranked.iter().map(|(c, _)| c.channels).collect();
-        budgets.sort_unstable_by(|a, b| b.cmp(a));
+        // Equal bytes where the sweep asked for byte budgets; else the channel budgets.
+        let mut budgets: Vec<Budget> = ranked
+            .iter()
+            .flat_map(|(c, _)| c.byte_budgets.iter().map(|&b| Budget::BytesPerTexel(b)))
+            .collect();
+        if budgets.is_empty() {
+            budgets = ranked
+                .iter()
+                .map(|(c, _)| Budget::Channels(c.channels))
+                .collect();
+        }
+        budgets.sort_unstable_by_key(|b| b.order());
         budgets.dedup();
         for b in budgets {
             let mut at: Vec<&CellResult> = ranked
                 .iter()
-                .filter(|(c, e)| {
-                    c.channels == b || (!e.uses_budget && shadow::check_channels(e, b).is_ok())
+                .filter(|(c, e)| match b {
+                    Budget::BytesPerTexel(bytes) => c.byte_budgets.contains(&bytes),
+                    Budget::Channels(ch) => {
+                        c.channels == ch
+                            || (!e.uses_budget && shadow::check_channels(e, ch).is_ok())
+                    }
                 })
                 .map(|(c, _)| *c)
                 .collect();
@@ -136,7 +150,8 @@ pub fn ranks(scenes: &[SweepResults]) -> Vec<Rank> {
             for (i, c) in at.iter().enumerate() {
                 out.push(Rank {
                     scene: r.metadata.scene.clone(),
-                    channels: b,
+                    budget: b,
+                    channels: c.channels,
                     technique: c.technique.clone(),
                     shadow_res: c.shadow_res,
                     splat: c.splat,
@@ -167,13 +182,13 @@ fn median(values: &[f64]) -> f64 {
 pub fn ranking(ranks: &[Rank]) -> Vec<RankingRow> {
     let mut rows: Vec<(RankingRow, Vec<f64>)> = Vec::new();
     for r in ranks {
-        let key = (r.technique.as_str(), r.shadow_res, r.splat, r.channels);
+        let key = (r.technique.as_str(), r.shadow_res, r.splat, r.budget);
         let found = rows.iter_mut().find(|(row, _)| {
             (
                 row.technique.as_str(),
                 row.shadow_res,
                 row.splat,
-                row.channels,
+                row.budget,
             ) == key
         });
         match found {
@@ -190,7 +205,7 @@ pub fn ranking(ranks: &[Rank]) -> Vec<RankingRow> {
                     technique: r.technique.clone(),
                     shadow_res: r.shadow_res,
                     splat: r.splat,
-                    channels: r.channels,
+                    budget: r.budget,
                     scenes: 1,
                     median_rank: f64::NAN,
                     worst_rank: r.rank,
@@ -212,7 +227,7 @@ pub fn ranking(ranks: &[Rank]) -> Vec<RankingRow> {
             .total_cmp(&b.median_rank)
             .then(a.worst_rank.cmp(&b.worst_rank))
             .then(registry_index(&a.technique).cmp(&registry_index(&b.technique)))
-            .then(b.channels.cmp(&a.channels))
+            .then(a.budget.order().cmp(&b.budget.order()))
             .then(a.shadow_res.cmp(&b.shadow_res))
             .then(a.splat.name().cmp(b.splat.name()))
     });
@@ -287,7 +302,7 @@ fn tally<'r>(ranks: impl Iterator<Item = &'r Rank>) -> Vec<Tally> {
     let mut out: Vec<Tally> = Vec::new();
     for r in ranks {
         let variant = Variant::of(r);
-        let at = format!("{} at {} channels", r.scene, r.channels);
+        let at = format!("{} at {}", r.scene, r.budget);
         match out.iter_mut().find(|t| t.variant == variant) {
             Some(t) => {
                 t.ranks.push(r.rank as f64);
@@ -317,7 +332,7 @@ pub const FLIP_SPREAD: f64 = 0.001;
 
 /// Plain-words advice, every figure taken from `ranks` and `ranking`: per scene, the most
 /// accurate technique at each budget and the runner-up; overall, the best median rank at small
-/// (<= [`SMALL_BUDGET_CHANNELS`]) and at large budgets; per scene, the technique that ranks
+/// ([`Budget::is_small`]) and at large budgets; per scene, the technique that ranks
 /// worst there.
 pub fn advice(scenes: &[SweepResults], ranks: &[Rank]) -> Vec<String> {
     let labels = Labels::of(ranks);
@@ -328,17 +343,17 @@ pub fn advice(scenes: &[SweepResults], ranks: &[Rank]) -> Vec<String> {
         if here.is_empty() {
             continue;
         }
-        let mut budgets: Vec<u32> = here.iter().map(|x| x.channels).collect();
+        let mut budgets: Vec<Budget> = here.iter().map(|x| x.budget).collect();
         budgets.dedup();
         let mut parts = Vec::new();
         for b in budgets {
-            let at = |rank: u32| here.iter().find(|x| x.channels == b && x.rank == rank);
+            let at = |rank: u32| here.iter().find(|x| x.budget == b && x.rank == rank);
             let Some(best) = at(1) else { continue };
             // Those within the machines' spread of the first are tied with it.
             let tied: Vec<&&Rank> = here
                 .iter()
                 .filter(|x| {
-                    x.channels == b
+                    x.budget == b
                         && x.rank > 1
                         && x.flip_vs_exact - best.flip_vs_exact < FLIP_SPREAD
                 })
@@ -356,14 +371,14 @@ pub fn advice(scenes: &[SweepResults], ranks: &[Rank]) -> Vec<String> {
                     })
                     .collect();
                 parts.push(format!(
-                    "at {b} channels {} are tied for the most accurate (within the {FLIP_SPREAD} \
+                    "at {b} {} are tied for the most accurate (within the {FLIP_SPREAD} \
                      FLIP that another machine's rounding moves)",
                     names.join(", ")
                 ));
                 continue;
             }
             let mut part = format!(
-                "at {b} channels {} is the most accurate (FLIP {:.4}, {})",
+                "at {b} {} is the most accurate (FLIP {:.4}, {})",
                 labels.rank(best),
                 best.flip_vs_exact,
                 report::bytes(best.bytes)
@@ -395,19 +410,20 @@ pub fn advice(scenes: &[SweepResults], ranks: &[Rank]) -> Vec<String> {
     }
 
     // Overall: the best median rank over every (scene, budget) of a budget class.
+    let bytes = ranks
+        .iter()
+        .any(|r| matches!(r.budget, Budget::BytesPerTexel(_)));
+    let (small_class, large_class) = match bytes {
+        true => ("≤ 16 bytes a texel", "> 16 bytes a texel"),
+        false => ("≤ 8 channels", "> 8 channels"),
+    };
     for (class, small) in [
-        (
-            format!("small budgets (≤ {SMALL_BUDGET_CHANNELS} channels)"),
-            true,
-        ),
-        (
-            format!("large budgets (> {SMALL_BUDGET_CHANNELS} channels)"),
-            false,
-        ),
+        (format!("small budgets ({small_class})"), true),
+        (format!("large budgets ({large_class})"), false),
     ] {
         let in_class: Vec<&Rank> = ranks
             .iter()
-            .filter(|r| (r.channels <= SMALL_BUDGET_CHANNELS) == small)
+            .filter(|r| r.budget.is_small() == small)
             .collect();
         let per = tally(in_class.iter().copied());
         let best = per.iter().min_by(|a, b| {
@@ -535,7 +551,7 @@ pub fn write(dir: &Path, scenes: &[SweepResults]) -> anyhow::Result<Gallery> {
             row.technique.clone(),
             row.shadow_res.to_string(),
             row.splat.name().to_owned(),
-            row.channels.to_string(),
+            row.budget.to_string(),
             row.scenes.to_string(),
             format!("{}", row.median_rank),
             row.worst_rank.to_string(),
@@ -630,13 +646,15 @@ fn page(scenes: &[SweepResults], gallery: &Gallery) -> String {
 
     let _ = writeln!(
         body,
-        "<h2>Ranking per byte, all scenes</h2>\n<p>Within each scene and channel budget the \
+        "<h2>Ranking at equal bytes, all scenes</h2>\n<p>Within each scene and byte budget per \
+         shadow-map texel (each technique at the largest configuration it keeps within it, at \
+         its own precision; a sweep without byte budgets: each channel budget) the \
          techniques are ranked by FLIP mean against <code>exact</code> (1 = closest; ties: fewer \
          bytes first). A technique whose result does not depend on the budget is ranked at every \
-         budget with its one cell. Below, each technique and budget with its median and worst \
+         budget it fits with its one cell. Below, each technique and budget with its median and worst \
          rank across the scenes, sorted by median, then worst (also \
          <a href=\"ranking.csv\">ranking.csv</a>).</p>\n<table><tr><th>technique</th>\
-         <th>channels</th><th>median rank</th><th>worst rank</th><th>worst on</th><th>scenes</th></tr>"
+         <th>budget</th><th>median rank</th><th>worst rank</th><th>worst on</th><th>scenes</th></tr>"
     );
     for row in &gallery.ranking {
         let l = labels.label(&row.technique, row.shadow_res, row.splat);
@@ -646,7 +664,7 @@ fn page(scenes: &[SweepResults], gallery: &Gallery) -> String {
             "<tr><td><span class=\"swatch\" style=\"background: rgb({r},{g},{b})\"></span>{}</td>\
              <td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
             e(&l),
-            row.channels,
+            row.budget,
             rank_text(row.median_rank),
             row.worst_rank,
             e(&row.worst_scene),
@@ -656,8 +674,8 @@ fn page(scenes: &[SweepResults], gallery: &Gallery) -> String {
     body.push_str("</table>\n");
 
     // Where each technique wins: scenes x budgets.
-    let mut budgets: Vec<u32> = gallery.ranks.iter().map(|r| r.channels).collect();
-    budgets.sort_unstable_by(|a, b| b.cmp(a));
+    let mut budgets: Vec<Budget> = gallery.ranks.iter().map(|r| r.budget).collect();
+    budgets.sort_unstable_by_key(|b| b.order());
     budgets.dedup();
     body.push_str(
         "<h2>Where each technique wins</h2>\n<p>The rank-1 technique of each scene and budget, \
@@ -665,7 +683,7 @@ fn page(scenes: &[SweepResults], gallery: &Gallery) -> String {
          <div class=\"wide\"><table><tr><th>scene</th>",
     );
     for b in &budgets {
-        let _ = write!(body, "<th>{b} channels</th>");
+        let _ = write!(body, "<th>{b}</th>");
     }
     body.push_str("</tr>\n");
     for r in scenes {
@@ -679,7 +697,7 @@ fn page(scenes: &[SweepResults], gallery: &Gallery) -> String {
             match gallery
                 .ranks
                 .iter()
-                .find(|x| &x.scene == scene && x.channels == b && x.rank == 1)
+                .find(|x| &x.scene == scene && x.budget == b && x.rank == 1)
             {
                 Some(w) => {
                     let l = labels.rank(w);
@@ -718,15 +736,20 @@ fn page(scenes: &[SweepResults], gallery: &Gallery) -> String {
         body.push_str(
             "<div class=\"wide\"><table><tr><th>technique</th><th>channels</th><th>res</th>\
              <th>splat</th><th>bytes</th><th>frame ms</th><th>overhead</th><th>FLIP vs exact</th>\
-             <th>RMS T error</th><th>rank at its budget</th></tr>\n",
+             <th>RMS T error</th><th>ranks at its budgets</th></tr>\n",
         );
         for c in &r.cells {
-            let rank = gallery.ranks.iter().find(|x| {
-                x.scene == m.scene
-                    && x.channels == c.channels
-                    && (x.technique.as_str(), x.shadow_res, x.splat)
-                        == (c.technique.as_str(), c.shadow_res, c.splat)
-            });
+            let ranks: Vec<String> = gallery
+                .ranks
+                .iter()
+                .filter(|x| {
+                    x.scene == m.scene
+                        && x.channels == c.channels
+                        && (x.technique.as_str(), x.shadow_res, x.splat)
+                            == (c.technique.as_str(), c.shadow_res, c.splat)
+                })
+                .map(|x| format!("{} of {} at {}", x.rank, x.of, x.budget))
+                .collect();
             let _ = writeln!(
                 body,
                 "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{:.3}</td>\
@@ -744,7 +767,10 @@ fn page(scenes: &[SweepResults], gallery: &Gallery) -> String {
                     .map_or("—".into(), |x| format!("{:.4}", x.flip_mean)),
                 c.rms_transmittance_error
                     .map_or("—".into(), |x| format!("{x:.4}")),
-                rank.map_or("—".into(), |x| format!("{} of {}", x.rank, x.of)),
+                match ranks.is_empty() {
+                    true => "—".to_owned(),
+                    false => ranks.join("; "),
+                },
             );
         }
         body.push_str("</table></div>\n");
@@ -765,6 +791,7 @@ mod tests {
     fn rank(scene: &str, technique: &str, channels: u32, rank: u32) -> Rank {
         Rank {
             scene: scene.into(),
+            budget: Budget::Channels(channels),
             channels,
             technique: technique.into(),
             shadow_res: 512,
@@ -810,6 +837,61 @@ mod tests {
         r.metadata.scene = name.into();
         r.metadata.description = String::new();
         r
+    }
+
+    #[test]
+    fn cells_with_byte_budgets_are_ranked_at_equal_bytes_not_channels() {
+        // osm at 24 channels and fom at 11 keep 48 bytes a texel; osm at 8 and fom at 3, 16.
+        // fom at 24 channels answers no byte budget, and esm (one cell, whatever the budget)
+        // answers both.
+        let mut r = scene("a");
+        let mut cell = |technique: &str, channels: u32, flip: f64, budgets: &[u32]| {
+            let mut c = r.cells[1].clone();
+            c.technique = technique.into();
+            c.channels = channels;
+            c.vs_exact = Some(crate::sweep::ImageError {
+                flip_mean: flip,
+                rmse: flip,
+            });
+            c.byte_budgets = budgets.to_vec();
+            c
+        };
+        let cells = vec![
+            cell("osm", 24, 0.010, &[48]),
+            cell("osm", 8, 0.030, &[16]),
+            cell("fom", 24, 0.002, &[]),
+            cell("fom", 11, 0.012, &[48]),
+            cell("fom", 3, 0.060, &[16]),
+            cell("esm", 24, 0.050, &[48, 16]),
+        ];
+        r.cells = cells;
+        let ranks = ranks(&[r]);
+        let at = |budget: u32| {
+            let mut v: Vec<(&str, u32, u32)> = ranks
+                .iter()
+                .filter(|x| x.budget == Budget::BytesPerTexel(budget))
+                .map(|x| (x.technique.as_str(), x.channels, x.rank))
+                .collect();
+            v.sort_by_key(|x| x.2);
+            v
+        };
+        assert_eq!(at(48), [("osm", 24, 1), ("fom", 11, 2), ("esm", 24, 3)]);
+        assert_eq!(at(16), [("osm", 8, 1), ("esm", 24, 2), ("fom", 3, 3)]);
+        // No channel budget is ranked where byte budgets were asked for: fom's 24-channel cell,
+        // twice osm's bytes, is in no ranking.
+        assert_eq!(ranks.len(), 6);
+        assert!(
+            ranks
+                .iter()
+                .all(|x| matches!(x.budget, Budget::BytesPerTexel(_)))
+        );
+        let advice = advice(&[scene("a")], &ranks);
+        assert!(
+            advice
+                .iter()
+                .any(|l| l.contains("at 48 bytes a texel osm is the most accurate")),
+            "{advice:?}"
+        );
     }
 
     #[test]

@@ -59,8 +59,17 @@ pub struct ImageError {
 pub struct CellResult {
     /// Registry name; `none` is the frame-time baseline the overhead ratios divide by.
     pub technique: String,
-    /// The channel budget asked for.
+    /// The channel budget asked for (for a cell of a byte budget: the one that fits it).
     pub channels: u32,
+    /// The byte budgets per shadow-map texel (`--bytes-per-texel`) this cell is the
+    /// technique's configuration for ([`crate::shadow::fit_bytes_per_texel`]); empty when it
+    /// answers none (and in cells written before the axis existed).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub byte_budgets: Vec<u32>,
+    /// Whether `channels` is one of the channel budgets asked for (`--channels`): the thesis'
+    /// channel view; a cell only a byte budget asked for is `false`.
+    #[serde(default = "channel_axis_default")]
+    pub channel_axis: bool,
     /// The channels the technique uses under it (e.g. fom: 2n + 1).
     pub channels_used: u32,
     /// Shadow-map resolution (texels per side).
@@ -137,6 +146,47 @@ pub struct CellResult {
     pub measured_against: Option<MeasuredAgainst>,
 }
 
+fn channel_axis_default() -> bool {
+    true
+}
+
+/// What techniques are compared at: a channel budget (the thesis' view) or a byte budget per
+/// shadow-map texel (equal memory, the answer's).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Budget {
+    Channels(u32),
+    BytesPerTexel(u32),
+}
+
+impl Budget {
+    /// Sorts byte budgets before channel budgets, the larger first in each.
+    pub fn order(self) -> (u8, std::cmp::Reverse<u32>) {
+        match self {
+            Self::BytesPerTexel(b) => (0, std::cmp::Reverse(b)),
+            Self::Channels(c) => (1, std::cmp::Reverse(c)),
+        }
+    }
+
+    /// Whether the advice counts it as small: at most 8 channels, or 16 bytes a texel (what
+    /// `osm`'s 8 half-float slices keep).
+    pub fn is_small(self) -> bool {
+        match self {
+            Self::Channels(c) => c <= 8,
+            Self::BytesPerTexel(b) => b <= 16,
+        }
+    }
+}
+
+impl std::fmt::Display for Budget {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Channels(c) => write!(f, "{c} channels"),
+            Self::BytesPerTexel(b) => write!(f, "{b} bytes a texel"),
+        }
+    }
+}
+
 /// The machine a cell was measured on.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Machine {
@@ -188,6 +238,9 @@ pub struct MeasuredAgainst {
 pub struct SkippedCell {
     pub technique: String,
     pub channels: u32,
+    /// The byte budget per texel it was skipped at (`channels` is then 0), if it was one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bytes_per_texel: Option<u32>,
     pub reason: String,
 }
 

@@ -110,9 +110,12 @@ fn metadata_line(body: &mut String, results: &SweepResults) {
     );
 }
 
-/// The one-paragraph answer: the Pareto front and the most accurate cell.
+/// The answer: at each byte budget per texel, the techniques ranked (a best named only beyond
+/// the run-to-run spread of FLIP); what a budget cannot buy a technique; then the Pareto front
+/// and the most accurate cell over every budget.
 fn answer(body: &mut String, results: &SweepResults, variants: &Variants, pareto: &[bool]) {
     body.push_str("<h2>Answer</h2>\n");
+    equal_bytes(body, results, variants);
     let mut front: Vec<&CellResult> = results
         .cells
         .iter()
@@ -152,7 +155,7 @@ fn answer(body: &mut String, results: &SweepResults, variants: &Variants, pareto
         });
     let _ = write!(
         body,
-        "<p>Most accuracy for the memory (the Pareto front: no other cell is both no larger and \
+        "<p>Over every cell: most accuracy for the memory (the Pareto front: no other cell is both no larger and \
          closer to <code>exact</code> by FLIP mean): {}.",
         listed.join("; ")
     );
@@ -166,6 +169,157 @@ fn answer(body: &mut String, results: &SweepResults, variants: &Variants, pareto
         );
     }
     body.push_str("</p>\n");
+}
+
+/// The cells answering byte budget `bytes` (full particle resolution: the budgets compare
+/// shadow techniques), most accurate first (FLIP vs `exact`, then fewer bytes, registry order).
+pub fn at_byte_budget(results: &SweepResults, bytes: u32) -> Vec<&CellResult> {
+    let mut at: Vec<&CellResult> = results
+        .cells
+        .iter()
+        .filter(|c| c.byte_budgets.contains(&bytes) && c.particle_res == ParticleRes::Full)
+        .filter(|c| flip_exact(c).is_finite())
+        .collect();
+    let index = |c: &CellResult| {
+        crate::shadow::REGISTRY
+            .iter()
+            .position(|e| e.name == c.technique)
+    };
+    at.sort_by(|a, b| {
+        flip_exact(a)
+            .total_cmp(&flip_exact(b))
+            .then(a.bytes.cmp(&b.bytes))
+            .then(index(a).cmp(&index(b)))
+    });
+    at
+}
+
+/// The byte budgets the cells answer, largest first.
+pub fn byte_budgets(results: &SweepResults) -> Vec<u32> {
+    let mut budgets: Vec<u32> = results
+        .cells
+        .iter()
+        .flat_map(|c| c.byte_budgets.iter().copied())
+        .collect();
+    budgets.sort_unstable_by(|a, b| b.cmp(a));
+    budgets.dedup();
+    budgets
+}
+
+/// The techniques ranked at each byte budget, and what a budget cannot buy each.
+fn equal_bytes(body: &mut String, results: &SweepResults, variants: &Variants) {
+    let budgets = byte_budgets(results);
+    if budgets.is_empty() {
+        return;
+    }
+    let spread = super::gallery::FLIP_SPREAD;
+    let _ = writeln!(
+        body,
+        "<p>At equal memory: each technique at the largest configuration it keeps within the \
+         byte budget per shadow-map texel, at its own precision (half floats are 2 bytes a \
+         channel, single floats 4), ranked by FLIP mean against <code>exact</code>. A best is \
+         named only when it leads by more than {spread} FLIP, the spread another CPU's rounding \
+         gives; within it the leaders are tied.</p>\n<table><tr><th>budget</th><th>answer</th>\
+         <th>ranked (FLIP vs exact, RMS T error)</th></tr>"
+    );
+    for &b in &budgets {
+        let at = at_byte_budget(results, b);
+        let Some(first) = at.first() else {
+            let _ = writeln!(
+                body,
+                "<tr><td>{b} bytes</td><td>no technique fits</td><td></td></tr>"
+            );
+            continue;
+        };
+        let tied: Vec<&&CellResult> = at
+            .iter()
+            .filter(|c| flip_exact(c) - flip_exact(first) < spread)
+            .collect();
+        let label = |c: &CellResult| e(&variants.cell_label(c));
+        let verdict = if tied.len() == 1 {
+            format!("<b>{}</b>", label(first))
+        } else {
+            format!(
+                "tied: {}",
+                tied.iter()
+                    .map(|c| format!("<b>{}</b>", label(c)))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            )
+        };
+        let ranked = at
+            .iter()
+            .enumerate()
+            .map(|(i, c)| {
+                format!(
+                    "{}. {} ({:.4}, {})",
+                    i + 1,
+                    label(c),
+                    flip_exact(c),
+                    c.rms_transmittance_error
+                        .map_or("—".into(), |t| format!("{t:.4}"))
+                )
+            })
+            .collect::<Vec<_>>()
+            .join("; ");
+        let _ = writeln!(
+            body,
+            "<tr><td>{b} bytes</td><td style=\"text-align: left\">{verdict}</td>\
+             <td style=\"text-align: left; white-space: normal\">{ranked}</td></tr>"
+        );
+    }
+    body.push_str("</table>\n");
+    let notes = budget_limits(results, budgets[0]);
+    if !notes.is_empty() {
+        let _ = writeln!(
+            body,
+            "<p>What a byte budget cannot buy: {}.</p>",
+            notes.join("; ")
+        );
+    }
+}
+
+/// One sentence per technique of the byte cells whose memory stops short of the largest
+/// budget, or barely depends on its channel budget (its registry formula at the default
+/// parameters, the cells' resolution, particles and frame).
+fn budget_limits(results: &SweepResults, largest: u32) -> Vec<String> {
+    let m = &results.metadata;
+    let pixels = u64::from(m.width_px) * u64::from(m.height_px);
+    let mut notes = Vec::new();
+    for entry in crate::shadow::contenders() {
+        let Some(cell) = results
+            .cells
+            .iter()
+            .find(|c| c.technique == entry.name && !c.byte_budgets.is_empty())
+        else {
+            continue;
+        };
+        let kept = |channels: u32| {
+            let params = crate::shadow::TechniqueParams::new(channels, cell.shadow_res);
+            crate::shadow::kept_bytes_per_texel(entry, &params, u64::from(m.particles), pixels)
+        };
+        let (least, most) = (kept(entry.min_channels), kept(crate::shadow::MAX_CHANNELS));
+        let name = format!("<code>{}</code>", entry.name);
+        if most - least < 1.0 && !entry.uses_budget {
+            notes.push(format!(
+                "{name} keeps {most:.1} bytes a texel at any budget, and a larger one buys it \
+                 nothing"
+            ));
+        } else if most - least < 1.0 {
+            notes.push(format!(
+                "{name} keeps {least:.1} to {most:.1} bytes a texel from {} to {}: its budget \
+                 buys it passes (time), not memory, so it runs at its largest wherever it fits",
+                (entry.budget_caption)(entry.min_channels),
+                (entry.budget_caption)(crate::shadow::MAX_CHANNELS),
+            ));
+        } else if most < f64::from(largest) {
+            notes.push(format!(
+                "{name} keeps at most {most:.1} bytes a texel ({}), whatever the budget",
+                (entry.budget_caption)(crate::shadow::MAX_CHANNELS)
+            ));
+        }
+    }
+    notes
 }
 
 fn charts_section(body: &mut String, charts: &[Chart]) {
@@ -198,7 +352,7 @@ fn table(body: &mut String, results: &SweepResults, variants: &Variants, pareto:
          for the lookup divided by the shadow map's texels, the measure to compare at equal memory \
          (for <code>has</code> it includes its eye buffer and particle copies, for \
          <code>volume</code> its grid).</p>\n\
-         <div class=\"wide\"><table><tr><th>technique</th><th>channels<br>(used)</th><th>res</th><th>splat</th>\
+         <div class=\"wide\"><table><tr><th>technique</th><th>channels<br>(used)</th><th>byte<br>budget</th><th>res</th><th>splat</th>\
          <th>bytes</th><th>bytes per<br>texel</th><th>shadow<br>ms</th><th>render<br>ms</th><th>sort<br>ms</th><th>frame<br>ms</th>\
          <th>overhead</th><th>FLIP<br>vs own 24</th><th>FLIP<br>vs exact</th><th>RMSE<br>vs exact</th>\
          <th>RMS T<br>error</th>",
@@ -228,10 +382,14 @@ fn table(body: &mut String, results: &SweepResults, variants: &Variants, pareto:
         };
         let _ = writeln!(
             body,
-            "<tr{class}><td>{}</td><td>{channels}</td><td>{}</td><td>{}</td><td>{}</td>\
+            "<tr{class}><td>{}</td><td>{channels}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td>\
              <td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td>\
              <td>{}</td><td>{}</td>{}</tr>",
             e(&c.technique),
+            match c.byte_budgets.as_slice() {
+                [] => "—".to_owned(),
+                b => b.iter().map(u32::to_string).collect::<Vec<_>>().join(", "),
+            },
             c.shadow_res,
             c.splat.label(),
             match c.transient_bytes {
@@ -307,14 +465,17 @@ fn skipped(body: &mut String, results: &SweepResults) {
         return;
     }
     body.push_str(
-        "<h2>Skipped</h2>\n<table><tr><th>technique</th><th>channels</th><th>reason</th></tr>\n",
+        "<h2>Skipped</h2>\n<table><tr><th>technique</th><th>budget</th><th>reason</th></tr>\n",
     );
     for s in &results.skipped {
         let _ = writeln!(
             body,
             "<tr><td>{}</td><td>{}</td><td style=\"text-align: left; white-space: normal\">{}</td></tr>",
             e(&s.technique),
-            s.channels,
+            match s.bytes_per_texel {
+                Some(b) => format!("{b} bytes a texel"),
+                None => format!("{} channels", s.channels),
+            },
             e(&s.reason)
         );
     }
@@ -580,6 +741,8 @@ pub(crate) mod tests {
         CellResult {
             technique: technique.into(),
             channels,
+            byte_budgets: Vec::new(),
+            channel_axis: true,
             channels_used: if technique == "fom" { 11 } else { channels },
             shadow_res: 512,
             splat: SplatMode::Point,
@@ -649,6 +812,7 @@ pub(crate) mod tests {
             skipped: vec![SkippedCell {
                 technique: "dom".into(),
                 channels: 1,
+                bytes_per_texel: None,
                 reason: "dom needs at least 2 channels".into(),
             }],
             exact_image: "images/exact.png".into(),

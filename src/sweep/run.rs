@@ -29,6 +29,9 @@ use crate::sim::Particle;
 pub struct SweepOptions {
     pub techniques: Vec<String>,
     pub channels: Vec<u32>,
+    /// Byte budgets per shadow-map texel (`--bytes-per-texel`): each technique at the largest
+    /// configuration it keeps within each ([`shadow::fit_bytes_per_texel`]); may be empty.
+    pub bytes_per_texel: Vec<u32>,
     pub shadow_res: Vec<u32>,
     pub splats: Vec<SplatMode>,
     /// Resolutions of the particle pass (`--particle-res`; each its own cell).
@@ -58,6 +61,7 @@ impl Default for SweepOptions {
         Self {
             techniques: shadow::default_sweep(),
             channels: vec![24, 16, 8, 6],
+            bytes_per_texel: DEFAULT_BYTES_PER_TEXEL.to_vec(),
             shadow_res: vec![512],
             splats: vec![SplatMode::Segment],
             particle_res: vec![ParticleRes::Full],
@@ -71,6 +75,10 @@ impl Default for SweepOptions {
         }
     }
 }
+
+/// The default byte budgets per texel: what `osm`'s half-float slices take at 6, 12 and 24
+/// channels, the thesis' range.
+pub const DEFAULT_BYTES_PER_TEXEL: [u32; 3] = [48, 24, 12];
 
 /// Timed frames a cell takes at least, whatever `cell_seconds` says (fewer only when
 /// `frames` asks for fewer, or [`MIN_SLOW_FRAMES`] when each frame outlasts `cell_seconds`).
@@ -106,6 +114,10 @@ struct Plan {
     name: String,
     config: TechniqueConfig,
     particle_res: ParticleRes,
+    /// The byte budgets per texel this cell is the technique's configuration for.
+    byte_budgets: Vec<u32>,
+    /// Whether a channel budget asked for it (else only byte budgets did).
+    channel_axis: bool,
 }
 
 impl Plan {
@@ -125,6 +137,8 @@ impl Plan {
                 params,
             },
             particle_res: ParticleRes::Full,
+            byte_budgets: Vec::new(),
+            channel_axis: true,
         }
     }
 
@@ -200,12 +214,14 @@ fn plan(scene: &Scene, options: &SweepOptions) -> anyhow::Result<(Vec<Plan>, Vec
                 skipped.push(SkippedCell {
                     technique: entry.name.to_owned(),
                     channels: b,
+                    bytes_per_texel: None,
                     reason: err.to_string(),
                 });
             } else if !entry.uses_budget && Some(b) != first_budget(entry, &options.channels) {
                 skipped.push(SkippedCell {
                     technique: entry.name.to_owned(),
                     channels: b,
+                    bytes_per_texel: None,
                     reason: format!(
                         "{} gives the same result at any budget ({}): measured once, at {} channels",
                         entry.name,
@@ -228,6 +244,7 @@ fn plan(scene: &Scene, options: &SweepOptions) -> anyhow::Result<(Vec<Plan>, Vec
                 skipped.push(SkippedCell {
                     technique: entry.name.to_owned(),
                     channels: b,
+                    bytes_per_texel: None,
                     reason: shadow::ShadowError::ParticleResUnsupported {
                         technique: entry.name,
                         res: particle_res.name(),
@@ -255,11 +272,81 @@ fn plan(scene: &Scene, options: &SweepOptions) -> anyhow::Result<(Vec<Plan>, Vec
                                 .push(Plan::new(scene, entry.name, b, res, splat).at(particle_res));
                         }
                     }
+                    for &bytes in &options.bytes_per_texel {
+                        if let Err(reason) = plan_byte_budget(
+                            scene,
+                            entry,
+                            bytes,
+                            (res, splat, particle_res),
+                            &mut cells,
+                        ) {
+                            let first = res == options.shadow_res[0]
+                                && s == 0
+                                && particle_res == options.particle_res[0];
+                            if first {
+                                skipped.push(SkippedCell {
+                                    technique: entry.name.to_owned(),
+                                    channels: 0,
+                                    bytes_per_texel: Some(bytes),
+                                    reason,
+                                });
+                            }
+                        }
+                    }
                 }
             }
         }
     }
     Ok((cells, skipped))
+}
+
+/// Adds `bytes` per texel to the cell of `entry`'s configuration that fits it (the
+/// [`shadow::fit_bytes_per_texel`] at the scene's particles and frame): a cell already planned
+/// with the same channels used (a channel budget's, or another byte budget's) answers it too;
+/// else a new cell, off the channel axis. A technique whose result does not depend on the
+/// budget answers every byte budget it fits with its one cell. `Err`: why it fits none.
+fn plan_byte_budget(
+    scene: &Scene,
+    entry: &'static shadow::TechniqueEntry,
+    bytes: u32,
+    (res, splat, particle_res): (u32, SplatMode, ParticleRes),
+    cells: &mut Vec<Plan>,
+) -> Result<(), String> {
+    let base = Plan::new(scene, entry.name, entry.min_channels, res, splat).at(particle_res);
+    let particles = crate::particles::count(scene) as u64;
+    let pixels = u64::from(scene.output.width_px) * u64::from(scene.output.height_px);
+    let fit = shadow::fit_bytes_per_texel(entry, &base.config.params, bytes, particles, pixels)?;
+    let used = |p: &Plan| {
+        let kept = shadow::kept_bytes_per_texel(entry, &p.config.params, particles, pixels);
+        let params = &p.config.params;
+        let channels = (entry.memory)(&shadow::MemoryCase {
+            channels: params.channels,
+            resolution_px: params.resolution_px,
+            params,
+            particles,
+            frame_pixels: pixels,
+            counters: &[],
+        })
+        .channels;
+        (channels, kept)
+    };
+    let same = cells.iter_mut().find(|p| {
+        p.config.name == entry.name
+            && p.config.params.resolution_px == res
+            && p.config.params.splat == splat
+            && p.particle_res == particle_res
+            && (!entry.uses_budget || used(p) == (fit.channels_used, fit.bytes_per_texel))
+    });
+    match same {
+        Some(p) => p.byte_budgets.push(bytes),
+        None => {
+            let mut p = Plan::new(scene, entry.name, fit.channels, res, splat).at(particle_res);
+            p.byte_budgets.push(bytes);
+            p.channel_axis = false;
+            cells.push(p);
+        }
+    }
+    Ok(())
 }
 
 /// The first of `budgets` that `entry` accepts: where a technique whose result does not depend
@@ -599,6 +686,8 @@ impl<'a> Sweeper<'a> {
         let mut cell = CellResult {
             technique: plan.config.name.clone(),
             channels: plan.config.params.channels,
+            byte_budgets: plan.byte_budgets.clone(),
+            channel_axis: plan.channel_axis,
             channels_used,
             shadow_res: plan.config.params.resolution_px,
             splat: plan.config.params.splat,
@@ -1080,7 +1169,12 @@ pub fn run(
                 Some(cell) => {
                     progress.finish(format!("{}: done earlier, reused", o.plan.name));
                     reused += 1;
-                    cell.clone()
+                    // The budgets it answers are this run's (they do not change what it measured).
+                    CellResult {
+                        byte_budgets: o.plan.byte_budgets.clone(),
+                        channel_axis: o.plan.channel_axis,
+                        ..cell.clone()
+                    }
                 }
                 None => {
                     let sw = sweeper
@@ -1279,6 +1373,7 @@ fn summary(cell: &CellResult) -> String {
 pub const CSV_COLUMNS: &[&str] = &[
     "technique",
     "channels",
+    "byte_budgets",
     "channels_used",
     "shadow_res",
     "splat",
@@ -1330,6 +1425,11 @@ pub(super) fn csv_row(c: &CellResult) -> Vec<String> {
     vec![
         c.technique.clone(),
         c.channels.to_string(),
+        c.byte_budgets
+            .iter()
+            .map(u32::to_string)
+            .collect::<Vec<_>>()
+            .join(";"),
         c.channels_used.to_string(),
         c.shadow_res.to_string(),
         c.splat.name().to_owned(),
