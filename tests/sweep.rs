@@ -503,7 +503,7 @@ fn scenes_sweep_writes_each_scene_and_a_gallery_whose_ranking_follows_from_its_c
         let ranks: Vec<u32> = expected
             .iter()
             .filter(|(_, b, t, _)| {
-                *t == get(row, "technique") && b.to_string() == get(row, "channels")
+                *t == get(row, "technique") && format!("{b} channels") == get(row, "budget")
             })
             .map(|e| e.3)
             .collect();
@@ -941,7 +941,7 @@ fn a_sweep_with_a_known_answer_gives_it_and_its_errors_match_an_independent_prob
         "the answer is not dsm at 24 channels"
     );
     let front = html
-        .split("Most accuracy for the memory")
+        .split("most accuracy for the memory")
         .nth(1)
         .and_then(|s| s.split(" Closest to").next())
         .unwrap()

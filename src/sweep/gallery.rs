@@ -845,7 +845,7 @@ mod tests {
         // fom at 24 channels answers no byte budget, and esm (one cell, whatever the budget)
         // answers both.
         let mut r = scene("a");
-        let mut cell = |technique: &str, channels: u32, flip: f64, budgets: &[u32]| {
+        let cell = |technique: &str, channels: u32, flip: f64, budgets: &[u32]| {
             let mut c = r.cells[1].clone();
             c.technique = technique.into();
             c.channels = channels;

@@ -313,7 +313,7 @@ fn plan_byte_budget(
     cells: &mut Vec<Plan>,
 ) -> Result<(), String> {
     let base = Plan::new(scene, entry.name, entry.min_channels, res, splat).at(particle_res);
-    let particles = crate::particles::count(scene) as u64;
+    let particles = crate::particles::count(scene);
     let pixels = u64::from(scene.output.width_px) * u64::from(scene.output.height_px);
     let fit = shadow::fit_bytes_per_texel(entry, &base.config.params, bytes, particles, pixels)?;
     let used = |p: &Plan| {
