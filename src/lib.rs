@@ -19,4 +19,5 @@ pub mod shaders;
 pub mod shadow;
 pub mod sim;
 pub mod sweep;
+pub mod tune;
 pub mod viewer;

@@ -40,6 +40,10 @@ enum Command {
     /// Sweep techniques x channel budgets x shadow resolutions: time, bytes and error as CSV,
     /// JSON, SVG charts and an HTML report (default: the thesis experiment).
     Sweep(commands::sweep::SweepArgs),
+    /// Choose every technique's parameters by one procedure on training scenes (apart from the
+    /// thesis and gallery scenes), check them on held-out scenes, and write a parameter file
+    /// (`--params FILE`).
+    Tune(commands::tune::TuneArgs),
     /// Check the committed 24-channel baselines against fresh renders, or bless new ones.
     Baseline(commands::baseline::BaselineArgs),
     /// The thesis' accuracy comparison for a scene: images, differences, metrics.csv and an
@@ -107,6 +111,7 @@ fn main() -> ExitCode {
         Command::Sweep(args) => {
             commands::sweep::run(args, &cli.adapter).map(|()| ExitCode::SUCCESS)
         }
+        Command::Tune(args) => commands::tune::run(args, &cli.adapter).map(|()| ExitCode::SUCCESS),
         Command::Compare(args) => {
             commands::compare::run(args, &cli.adapter).map(|()| ExitCode::SUCCESS)
         }

@@ -46,11 +46,13 @@ pub fn run(preference: &AdapterPreference) -> anyhow::Result<()> {
     );
     println!(
         "embedded scenes (any command takes their name for a scene file; * = in the gallery, \
-         scene::GALLERY):"
+         scene::GALLERY; t = training, only `tune` uses it):"
     );
     for (name, _) in crate::scene::EMBEDDED {
         let gallery = if crate::scene::GALLERY.contains(name) {
             '*'
+        } else if crate::scene::TRAINING.contains(name) {
+            't'
         } else {
             ' '
         };
@@ -83,6 +85,13 @@ pub fn run(preference: &AdapterPreference) -> anyhow::Result<()> {
             e.name,
             p.doc.split_whitespace().collect::<Vec<_>>().join(" ")
         );
+    }
+    println!(
+        "--params paper (the papers' values; every other parameter keeps its default, which \
+         `smokeshadow tune` chose):"
+    );
+    for (key, value, source) in crate::tune::PAPER {
+        println!("  {key:<22} {value} ({source})");
     }
     Ok(())
 }

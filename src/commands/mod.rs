@@ -9,6 +9,7 @@ pub mod particles;
 pub mod probe;
 pub mod render;
 pub mod sweep;
+pub mod tune;
 pub mod view;
 
 use std::path::Path;
@@ -50,9 +51,16 @@ pub fn load_scene(arg: Option<&Path>, particles: ParticlesArg) -> anyhow::Result
     })
 }
 
-/// `--param KEY=VALUE`, flattened into every command that renders with technique parameters.
+/// `--params FILE|paper` and `--param KEY=VALUE`, flattened into every command that renders
+/// with technique parameters.
 #[derive(Clone, Debug, Default, clap::Args)]
 pub struct ParamArgs {
+    /// A set of technique parameters over the scene's `[shadow.params]`: a parameter file
+    /// (`[params]` KEY = VALUE, as `smokeshadow tune` writes), or `paper` for the papers'
+    /// values (`smokeshadow info` lists them); `--param` overrides it.
+    #[arg(long = "params", id = "param_set", value_name = "FILE|paper",
+          value_parser = crate::tune::param_set)]
+    pub set: Option<Vec<(String, ParamValue)>>,
     /// A technique parameter, KEY=VALUE (repeatable; over the scene's `[shadow.params]`), e.g.
     /// `--param dom_layer_ratio=2` or `--param osm_interp=cubic`. `smokeshadow info` lists
     /// every key with its range or choices.
@@ -62,10 +70,15 @@ pub struct ParamArgs {
 }
 
 impl ParamArgs {
-    /// Sets the parameters in `scene`'s `[shadow.params]` (already checked by `parse_param`),
-    /// for commands that build every technique they run from the scene's settings.
+    /// The parameters given: the `--params` set's, then each `--param` (all already checked).
+    pub fn all(&self) -> impl Iterator<Item = &(String, ParamValue)> {
+        self.set.iter().flatten().chain(&self.params)
+    }
+
+    /// Sets the parameters in `scene`'s `[shadow.params]`, for commands that build every
+    /// technique they run from the scene's settings.
     pub fn apply(&self, scene: &mut Scene) {
-        for (key, value) in &self.params {
+        for (key, value) in self.all() {
             scene.shadow.params.insert(key.clone(), value.clone());
         }
     }
@@ -110,7 +123,7 @@ impl TechniqueArgs {
             occluders: self.occluders.unwrap_or(scene.shadow.occluders),
             ..scene.shadow.params(self.channels)
         };
-        for (key, value) in &self.params.params {
+        for (key, value) in self.params.all() {
             crate::shadow::set_param(&mut params, key, value)?;
         }
         Ok(crate::render::TechniqueConfig {

@@ -30,7 +30,7 @@ pub struct SweepArgs {
     /// `-o` (no GPU needed); refuses shards of different sweeps, and names missing cells.
     #[arg(long, num_args = 1.., value_name = "DIR",
           conflicts_with_all = ["scene", "scenes", "shard", "resume", "exr", "techniques",
-                                "channels", "bytes_per_texel", "shadow_res", "splat", "particle_res", "params", "frames",
+                                "channels", "bytes_per_texel", "shadow_res", "splat", "particle_res", "params", "param_set", "frames",
                                 "warmup", "cell_seconds", "size", "particles"])]
     pub merge: Option<Vec<PathBuf>>,
     #[command(flatten)]

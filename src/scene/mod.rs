@@ -43,6 +43,14 @@ pub const COLUMN_TOML: &str = include_str!("../../scenes/column.toml");
 /// Gallery: a low, wide layer with the camera inside it (particles containing the eye).
 pub const GROUND_FOG_TOML: &str = include_str!("../../scenes/ground_fog.toml");
 
+/// Training scenes of `smokeshadow tune` ([`TRAINING`]), kept apart from the thesis and the
+/// gallery, on which the answers are given: puffs with gaps along the rays.
+pub const TRAIN_PUFFS_TOML: &str = include_str!("../../scenes/train_puffs.toml");
+/// Training: a wide, faint haze (long, thin paths).
+pub const TRAIN_HAZE_TOML: &str = include_str!("../../scenes/train_haze.toml");
+/// Training: a plume bent by wind, lit from behind.
+pub const TRAIN_BACKLIT_TOML: &str = include_str!("../../scenes/train_backlit.toml");
+
 /// The scenes embedded in the binary, by name.
 pub const EMBEDDED: &[(&str, &str)] = &[
     ("thesis_plume", THESIS_PLUME_TOML),
@@ -54,7 +62,14 @@ pub const EMBEDDED: &[(&str, &str)] = &[
     ("thin_sheet", THIN_SHEET_TOML),
     ("column", COLUMN_TOML),
     ("ground_fog", GROUND_FOG_TOML),
+    ("train_puffs", TRAIN_PUFFS_TOML),
+    ("train_haze", TRAIN_HAZE_TOML),
+    ("train_backlit", TRAIN_BACKLIT_TOML),
 ];
+
+/// The training scenes `smokeshadow tune` chooses the techniques' parameters on: none of them is
+/// a thesis or gallery scene, where the answers are given (`tests/gallery.rs` holds them apart).
+pub const TRAINING: &[&str] = &["train_puffs", "train_haze", "train_backlit"];
 
 /// The gallery: the embedded scenes that `sweep --scenes all` runs, each a different kind of
 /// smoke stressing one failure mode (`scenes/README.md` says what each one tests;

@@ -217,6 +217,9 @@ pub struct ParamSpec {
     /// the name and the index are accepted (`min` 0, `max` the last index). Empty for a numeric
     /// parameter.
     pub choices: &'static [&'static str],
+    /// Whether the technique reads it as a whole number (it rounds): `tune` proposes whole
+    /// numbers for it.
+    pub integer: bool,
 }
 
 impl ParamSpec {

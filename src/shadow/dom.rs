@@ -2,8 +2,8 @@
 //!
 //! One channel holds, per shadow-map texel, the light depth where the smoke starts (a first pass
 //! min-blends each fragment's start depth); the other B - 1 channels are opacity layers that
-//! begin there and so follow the shape of the smoke. Layer spacing is uniform by default
-//! (`dom_layer_ratio` = 1) or geometric. By default the layers of each texel span from its own
+//! begin there and so follow the shape of the smoke. Layer spacing is uniform
+//! (`dom_layer_ratio` = 1) or geometric (1.33 by default, chosen by `smokeshadow tune`). By default the layers of each texel span from its own
 //! start to the far bound of the smoke, so no layer is wasted in front of the smoke and no point
 //! lies beyond the last one; with a fixed `dom_thickness_m`, points beyond the last layer map to
 //! the last layer, as the paper recommends (the smoke farther along the ray is then lost).
@@ -16,8 +16,8 @@
 //! Shaders: `shaders/shadow/dom.wgsl` and `dom_build.wgsl`.
 
 use super::layered::{
-    ChannelPlan, Layered, LayeredSpec, PARAMS_BYTES, Precision, PrecisionSpec, interp_param,
-    precision_param,
+    ChannelPlan, INTERP_CUBIC, Layered, LayeredSpec, PARAMS_BYTES, Precision, PrecisionSpec,
+    interp_param, precision_param,
 };
 use super::{MapKind, MemoryUse, ParamSpec, Role, TechniqueEntry, packed_bytes_per_texel};
 
@@ -40,6 +40,7 @@ pub const THICKNESS: ParamSpec = ParamSpec {
     max: 1e3,
     default: None,
     choices: &[],
+    integer: false,
 };
 
 /// `dom_layer_ratio`: geometric layer spacing.
@@ -50,12 +51,15 @@ pub const LAYER_RATIO: ParamSpec = ParamSpec {
           them towards the lit side where transmittance changes fastest",
     min: 1.0,
     max: 4.0,
-    default: Some(1.0),
+    // chosen by `smokeshadow tune` on the training scenes (docs/tuned_params.toml).
+    default: Some(1.33),
     choices: &[],
+    integer: false,
 };
 
 /// `dom_interp`: linear or monotone cubic between layer boundaries.
-pub const INTERP: ParamSpec = interp_param("dom_interp");
+/// The cubic, chosen by `smokeshadow tune` on the training scenes (docs/tuned_params.toml).
+pub const INTERP: ParamSpec = interp_param("dom_interp", INTERP_CUBIC);
 
 /// `dom_start_dilation`: the start depth from enlarged spheres.
 pub const START_DILATION: ParamSpec = ParamSpec {
@@ -67,8 +71,10 @@ pub const START_DILATION: ParamSpec = ParamSpec {
           or before it",
     min: 1.0,
     max: 4.0,
-    default: Some(1.0),
+    // chosen by `smokeshadow tune` on the training scenes (docs/tuned_params.toml).
+    default: Some(1.02),
     choices: &[],
+    integer: false,
 };
 
 pub const SPEC: LayeredSpec = LayeredSpec {

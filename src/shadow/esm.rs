@@ -22,12 +22,11 @@ pub const EXPONENT: ParamSpec = ParamSpec {
     max: 1000.0,
     default: Some(ESM_DEFAULT_EXPONENT),
     choices: &[],
+    integer: false,
 };
 
-/// Chosen by measurement against `exact`: the RMS transmittance error over the shaded points of
-/// thesis_plume (512² map) is 0.440 at c = 0.3, 0.272 at 1, 0.223 at 2, 0.220 at 3, 0.226 at 5
-/// and 0.234 at 10 per metre.
-const ESM_DEFAULT_EXPONENT: f32 = 3.0;
+/// Chosen by `smokeshadow tune` on the training scenes (docs/tuned_params.toml).
+const ESM_DEFAULT_EXPONENT: f32 = 2.62;
 
 pub const SPEC: LightMapsSpec = LightMapsSpec {
     name: "esm",

@@ -103,8 +103,8 @@ pub const INTERP_CHOICES: &[&str] = &["linear", "cubic"];
 pub const INTERP_CUBIC: usize = 1;
 
 /// The `<technique>_interp` parameter of a slice- or layer-based technique (`osm`, `dom`): how
-/// the lookup interpolates the optical depth between boundaries.
-pub const fn interp_param(key: &'static str) -> ParamSpec {
+/// the lookup interpolates the optical depth between boundaries; `default` is a choice's index.
+pub const fn interp_param(key: &'static str, default: usize) -> ParamSpec {
     ParamSpec {
         key,
         unit: "-",
@@ -115,8 +115,9 @@ pub const fn interp_param(key: &'static str) -> ParamSpec {
               16-24 channels and adds 18-35% with point splats",
         min: 0.0,
         max: (INTERP_CHOICES.len() - 1) as f32,
-        default: Some(0.0),
+        default: Some(default as f32),
         choices: INTERP_CHOICES,
+        integer: false,
     }
 }
 
@@ -249,6 +250,7 @@ pub const fn precision_param(
             Precision::Single => 1.0,
         }),
         choices: PRECISION_CHOICES,
+        integer: false,
     }
 }
 

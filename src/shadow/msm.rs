@@ -38,12 +38,11 @@ pub const BIAS: ParamSpec = ParamSpec {
           smoke over its whole depth range (less accurate)",
     min: 0.0,
     max: 0.5,
-    // Measured (examples/moment_params.rs, thesis_plume, RMS T against exact over the shaded
-    // points, mean over 5/7/9 channels and both splat modes, each with η = 0.4): 5e-3 gives
-    // 0.0366, 5e-4 0.0364, 5e-5 0.0382, 5e-6 0.0393. 5e-3 for the same accuracy and less
-    // amplification of the f32 sums' rounding (tests/moments.rs, order sensitivity).
-    default: Some(5e-3),
+    // chosen by `smokeshadow tune` on the training scenes (docs/tuned_params.toml); the moment-based
+    // OIT papers use 5e-7 to 5e-5 for 4 to 8 single-float moments (`--params paper`).
+    default: Some(2.6e-6),
     choices: &[],
+    integer: false,
 };
 
 /// `msm_overestimation`: η for power moments.
@@ -54,10 +53,10 @@ pub const OVERESTIMATION: ParamSpec = ParamSpec {
           lower bound of the optical depth (light leaks), 1 the upper bound (too dark)",
     min: 0.0,
     max: 1.0,
-    // Measured as for β: 0.4 gives 0.0364 (β = 5e-4); 0.25 gives 0.071, 0.5 0.0376, 0.6 0.039,
-    // 1 0.057; 0, the lower bound, 0.30 (light leaks through every particle's own chord).
-    default: Some(0.4),
+    // chosen by `smokeshadow tune` on the training scenes (docs/tuned_params.toml) (the papers: 0.25).
+    default: Some(0.428),
     choices: &[],
+    integer: false,
 };
 
 /// `tmsm_bias`: β for trigonometric moments.
@@ -66,17 +65,16 @@ pub const TRIG_BIAS: ParamSpec = ParamSpec {
     doc: "how far the trigonometric moments are pulled towards those of a uniform distribution \
           (scaled by 1 − β) before the reconstruction: more keeps the 32-bit arithmetic \
           stable, and blurs the ray's smoke over its whole depth range (less accurate)",
-    // Measured as for `msm_bias`: 5e-4 with η = 0.4 gives 0.0353; 5e-5 0.0381. 5e-3 gives
-    // 0.0336, but between two far-apart puffs on one ray T then rises by 0.19 behind the first
-    // (tests/moments.rs, `degenerate_texels_give_finite_transmittance`), against 0.03 at 5e-4.
-    default: Some(5e-4),
+    // chosen by `smokeshadow tune` on the training scenes (docs/tuned_params.toml).
+    default: Some(4.11e-4),
     ..BIAS
 };
 
 /// `tmsm_overestimation`: η for trigonometric moments.
 pub const TRIG_OVERESTIMATION: ParamSpec = ParamSpec {
     key: "tmsm_overestimation",
-    // Measured as for `msm_overestimation`: 0.4 gives 0.0353 (β = 5e-4), 0.5 0.0356.
+    // chosen by `smokeshadow tune` on the training scenes (docs/tuned_params.toml) (the papers: 0.25).
+    default: Some(0.4),
     ..OVERESTIMATION
 };
 
@@ -88,8 +86,10 @@ pub const WRAPPING_ZONE: ParamSpec = ParamSpec {
           there counts as partly in front (a ramp across it)",
     min: 0.01,
     max: 3.0,
-    default: Some(0.1 * std::f32::consts::PI),
+    // chosen by `smokeshadow tune` on the training scenes (docs/tuned_params.toml) (the papers: 0.1π).
+    default: Some(0.257),
     choices: &[],
+    integer: false,
 };
 
 /// Power moments: N = 4, 6 or 8, the largest that fits B − 1; b0, b1..bN.

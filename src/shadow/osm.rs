@@ -10,13 +10,14 @@
 //! in [`super::layered`].
 
 use super::layered::{
-    ChannelPlan, Layered, LayeredSpec, PARAMS_BYTES, Precision, PrecisionSpec, interp_param,
-    precision_param,
+    ChannelPlan, INTERP_CUBIC, Layered, LayeredSpec, PARAMS_BYTES, Precision, PrecisionSpec,
+    interp_param, precision_param,
 };
 use super::{MapKind, MemoryUse, ParamSpec, Role, TechniqueEntry, packed_bytes_per_texel};
 
 /// `osm_interp`: linear or monotone cubic between slice boundaries.
-pub const INTERP: ParamSpec = interp_param("osm_interp");
+/// The cubic, chosen by `smokeshadow tune` on the training scenes (docs/tuned_params.toml).
+pub const INTERP: ParamSpec = interp_param("osm_interp", INTERP_CUBIC);
 
 /// `osm_precision`: half floats (Kim & Neumann's and the thesis' maps) or single.
 pub const PRECISION: ParamSpec = precision_param(

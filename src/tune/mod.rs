@@ -1,0 +1,596 @@
+//! `smokeshadow tune`: one procedure chooses every technique's registry parameters, on training
+//! scenes kept apart from the scenes the answers are given for (the thesis and the gallery).
+//!
+//! The procedure, the same for every technique that has parameters (the derived ones, whose
+//! default is "derived per frame", stay derived):
+//! - **budgets**: each candidate runs at the largest configuration it keeps within each byte
+//!   budget per texel ([`crate::shadow::fit_bytes_per_texel`]), at the technique's own precision
+//!   ([`free_params`] says why the search leaves it);
+//! - **score**: the mean, over the training scenes and the budgets the starting values fit, of
+//!   the RMS difference of T from `exact` at the points the frame shades (the sweep's RMS T
+//!   column, [`crate::render::Renderer::probe_shaded`]); a candidate that does not fit one of
+//!   those budgets is out;
+//! - **search**: exactly `evaluations` candidates per technique: the starting values (the
+//!   registry defaults, or `--params`), then half the rest drawn uniformly over every
+//!   parameter's declared range (log-uniformly over a range spanning 100x or more, or from 0
+//!   when the default is at most a hundredth of the top; a choice uniformly), then the other
+//!   half perturbing the best so far with a step that shrinks by 0.7 each time; values rounded to 3 significant digits (whole numbers where the technique
+//!   reads them so), so what is written is what was scored. One seeded generator per technique,
+//!   seeded alike, so no technique gets a luckier stream;
+//! - **held out**: the starting and the chosen values are scored again on held-out scenes (by
+//!   default the thesis scene), which the search never saw.
+//!
+//! The output is a parameter file ([`ParamsFile`]) that `--params FILE` reads: `[params]` with
+//! the chosen values, `[tune]` with the command, the scenes, the budgets and every technique's
+//! training and held-out error. `--params paper` names the papers' values instead ([`PAPER`]).
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use anyhow::Context;
+use rand::{Rng, SeedableRng};
+use serde::{Deserialize, Serialize};
+
+use crate::gpu::Gpu;
+use crate::render::shaded::{point_owners, rms_difference, shaded_points};
+use crate::render::{OUTPUT_FORMAT, Renderer, TechniqueConfig};
+use crate::scene::Scene;
+use crate::shadow::{self, ParamSpec, ParamValue, TechniqueEntry, TechniqueParams};
+use crate::sim::Particle;
+
+/// The papers' values, for `--params paper`: (key, value, source). A parameter without a
+/// published value for this use keeps its default, and `smokeshadow info` says which.
+pub const PAPER: &[(&str, f32, &str)] = &[
+    // Münstermann et al. 2018 (moment-based OIT), supplementary: β = 5e-7, 5e-6 and 5e-5 for
+    // 4, 6 and 8 single-float power moments; 8 is what 24 channels hold.
+    (
+        "msm_bias",
+        5e-5,
+        "Münstermann et al. 2018, 8 single-float power moments",
+    ),
+    // The same paper's overestimation η for every moment count.
+    (
+        "msm_overestimation",
+        0.25,
+        "Münstermann et al. 2018 (η = 0.25)",
+    ),
+    (
+        "tmsm_overestimation",
+        0.25,
+        "Münstermann et al. 2018 (η = 0.25)",
+    ),
+    // Its wrapping zone for trigonometric moments: 0.1π.
+    (
+        "tmsm_wrapping_zone_rad",
+        0.1 * std::f32::consts::PI,
+        "Münstermann et al. 2018 (0.1π)",
+    ),
+];
+
+/// A parameter file as `--params FILE` reads it and `tune` writes it.
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ParamsFile {
+    /// How the values were chosen (written by `tune`; ignored when read).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tune: Option<TuneRecord>,
+    /// KEY = VALUE, as a scene's `[shadow.params]`.
+    #[serde(default)]
+    pub params: BTreeMap<String, ParamValue>,
+}
+
+/// What `tune` records beside its values.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TuneRecord {
+    pub command: String,
+    pub training: Vec<String>,
+    pub held_out: Vec<String>,
+    pub bytes_per_texel: Vec<u32>,
+    pub evaluations: u32,
+    pub seed: u64,
+    pub adapter: String,
+    pub tool_version: String,
+    /// Per technique tuned: its errors at the starting and the chosen values.
+    pub techniques: BTreeMap<String, TechniqueRecord>,
+}
+
+/// A technique's RMS T error (mean over scenes and budgets) before and after tuning.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TechniqueRecord {
+    pub start_training: f64,
+    pub chosen_training: f64,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub start_held_out: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub chosen_held_out: Option<f64>,
+}
+
+/// The values of a named set (`paper`) or of a parameter file, checked against the registry,
+/// in the form settings keep. `Err`: one line naming the file and what is wrong.
+pub fn param_set(name: &str) -> Result<Vec<(String, ParamValue)>, String> {
+    if name == "paper" {
+        return Ok(PAPER
+            .iter()
+            .map(|(key, value, _)| ((*key).to_owned(), ParamValue::Number(*value)))
+            .collect());
+    }
+    let path = Path::new(name);
+    let text = std::fs::read_to_string(path).map_err(|err| {
+        format!("--params {name}: cannot read it ({err}); give a parameter file or `paper`")
+    })?;
+    let file: ParamsFile = toml::from_str(&text).map_err(|err| {
+        // toml's message: where, the line with a caret, and what is wrong, on separate lines.
+        let text = err.to_string();
+        let lines: Vec<&str> = text.lines().filter(|l| !l.trim().is_empty()).collect();
+        match (lines.first(), lines.last()) {
+            (Some(first), Some(last)) if first != last => {
+                format!("--params {name}: {}: {}", first.trim(), last.trim())
+            }
+            _ => format!("--params {name}: {}", text.replace('\n', " ")),
+        }
+    })?;
+    file.params
+        .iter()
+        .map(|(key, value)| {
+            let spec = shadow::find_param(key).map_err(|e| format!("--params {name}: {e}"))?;
+            let value = spec
+                .canonical(value)
+                .map_err(|e| format!("--params {name}: {e}"))?;
+            Ok((spec.key.to_owned(), value))
+        })
+        .collect()
+}
+
+/// What the search varies: a technique's parameters that have a default (the derived ones stay
+/// derived), but for a layered map's precision: half floats change what the error does not
+/// measure (`fom`'s T then depends on the draw order), so the precision stays the technique's
+/// own choice, and `--param KEY_precision=...` compares the other in a sweep.
+pub fn free_params(entry: &TechniqueEntry) -> Vec<&'static ParamSpec> {
+    entry
+        .params
+        .iter()
+        .filter(|p| p.default.is_some() && p.choices != shadow::layered::PRECISION_CHOICES)
+        .collect()
+}
+
+/// `x` to 3 significant digits.
+fn round_sig(x: f32) -> f32 {
+    if x == 0.0 || !x.is_finite() {
+        return x;
+    }
+    let digits = 2 - x.abs().log10().floor() as i32;
+    let scale = 10f64.powi(digits);
+    ((f64::from(x) * scale).round() / scale) as f32
+}
+
+/// The range a parameter is searched over on a log scale, if it is: a positive range spanning
+/// 100x or more, or a range from 0 whose default is at most a hundredth of its top (a bias:
+/// then from a millionth of the top).
+fn log_range(spec: &ParamSpec) -> Option<(f32, f32)> {
+    if !spec.choices.is_empty() {
+        return None;
+    }
+    if spec.min > 0.0 && spec.max / spec.min >= 100.0 {
+        return Some((spec.min, spec.max));
+    }
+    let small_default = spec.default.is_some_and(|d| d <= spec.max / 100.0);
+    (spec.min == 0.0 && spec.max > 0.0 && small_default).then_some((spec.max * 1e-6, spec.max))
+}
+
+/// A value as the search proposes it: within the range, whole where the technique rounds, 3
+/// significant digits.
+fn snap(spec: &ParamSpec, x: f32) -> f32 {
+    let x = x.clamp(spec.min, spec.max);
+    let x = if spec.integer || !spec.choices.is_empty() {
+        x.round()
+    } else {
+        round_sig(x)
+    };
+    x.clamp(spec.min, spec.max)
+}
+
+/// A value drawn over the whole range.
+fn draw(spec: &ParamSpec, rng: &mut impl Rng) -> f32 {
+    if !spec.choices.is_empty() {
+        return rng.random_range(0..spec.choices.len()) as f32;
+    }
+    let u: f32 = rng.random();
+    let x = if let Some((lo, hi)) = log_range(spec) {
+        (lo.ln() + u * (hi.ln() - lo.ln())).exp()
+    } else {
+        spec.min + u * (spec.max - spec.min)
+    };
+    snap(spec, x)
+}
+
+/// A standard normal sample (Box–Muller).
+fn normal(rng: &mut impl Rng) -> f32 {
+    let u1: f32 = rng.random::<f32>().max(f32::MIN_POSITIVE);
+    let u2: f32 = rng.random();
+    (-2.0 * u1.ln()).sqrt() * (std::f32::consts::TAU * u2).cos()
+}
+
+/// `x` moved by a step of `scale` (a share of the range, in log space for a log-scaled one); a
+/// choice switches to a random one with probability 1/3.
+fn perturb(spec: &ParamSpec, x: f32, scale: f32, rng: &mut impl Rng) -> f32 {
+    if !spec.choices.is_empty() {
+        return match rng.random_range(0..3) {
+            0 => draw(spec, rng),
+            _ => x,
+        };
+    }
+    let y = if let Some((lo, hi)) = log_range(spec) {
+        // Within the log range: a bias never falls to 0 by a long step.
+        (x.max(lo).ln() + normal(rng) * scale * (hi / lo).ln())
+            .exp()
+            .clamp(lo, hi)
+    } else {
+        x + normal(rng) * scale * (spec.max - spec.min)
+    };
+    snap(spec, y)
+}
+
+/// One scene as the search scores on it: the particles, the shaded points, and `exact`'s T
+/// there (its self-check passed).
+pub struct Case {
+    pub scene: Scene,
+    particles: Vec<Particle>,
+    points: Vec<glam::Vec3>,
+    owners: Vec<u32>,
+    exact_t: Vec<f32>,
+    renderer: Renderer,
+}
+
+impl Case {
+    /// Simulates `scene`, renders `exact` and checks it against the closed form (refusing a
+    /// reference that disagrees), and keeps its T at the shaded points.
+    pub fn new(gpu: &Gpu, scene: Scene) -> anyhow::Result<Self> {
+        let particles = crate::particles::scene_particles(&scene)?;
+        let (w, h) = (scene.output.width_px, scene.output.height_px);
+        let exact = TechniqueConfig {
+            name: shadow::reference().name.to_owned(),
+            params: scene.shadow.params(1),
+        };
+        let mut renderer = Renderer::new(gpu, w, h, OUTPUT_FORMAT, &exact)?;
+        let points = shaded_points(&scene, &particles, w, h, crate::sweep::SHADED_STRIDE_PX);
+        let owners = point_owners(particles.len(), points.len());
+        let exact_t = renderer.probe_shaded(gpu, &scene, &particles, &points, &owners)?;
+        crate::render::reference_check::verify(&mut renderer, gpu, &scene, &particles)?;
+        Ok(Self {
+            scene,
+            particles,
+            points,
+            owners,
+            exact_t,
+            renderer,
+        })
+    }
+
+    /// The technique `entry` with `values` set over the scene's parameters, at the
+    /// configuration that fits `bytes` per texel (`None`: it fits none).
+    fn config(
+        &self,
+        entry: &TechniqueEntry,
+        values: &BTreeMap<String, ParamValue>,
+        bytes: u32,
+    ) -> Option<TechniqueConfig> {
+        let mut params: TechniqueParams = self.scene.shadow.params(entry.min_channels);
+        params.values.extend(values.clone());
+        let particles = self.particles.len() as u64;
+        let pixels = u64::from(self.scene.output.width_px) * u64::from(self.scene.output.height_px);
+        let fit = shadow::fit_bytes_per_texel(entry, &params, bytes, particles, pixels).ok()?;
+        params.channels = fit.channels;
+        Some(TechniqueConfig {
+            name: entry.name.to_owned(),
+            params,
+        })
+    }
+
+    /// RMS T error of `config` against `exact` at the shaded points.
+    fn score(&mut self, gpu: &Gpu, config: &TechniqueConfig) -> anyhow::Result<f64> {
+        self.renderer.set_technique(gpu, config)?;
+        let t = self.renderer.probe_shaded(
+            gpu,
+            &self.scene,
+            &self.particles,
+            &self.points,
+            &self.owners,
+        )?;
+        Ok(rms_difference(&t, &self.exact_t))
+    }
+}
+
+/// What the search is asked to do.
+#[derive(Clone, Debug)]
+pub struct TuneOptions {
+    pub bytes_per_texel: Vec<u32>,
+    /// Candidates scored per technique, the starting values included (at least 1).
+    pub evaluations: u32,
+    pub seed: u64,
+}
+
+/// One technique's search.
+#[derive(Clone, Debug)]
+pub struct Tuned {
+    pub technique: &'static str,
+    /// The values it started from and the ones chosen, for every free parameter.
+    pub start: BTreeMap<String, ParamValue>,
+    pub chosen: BTreeMap<String, ParamValue>,
+    pub start_training: f64,
+    pub chosen_training: f64,
+    pub start_held_out: Option<f64>,
+    pub chosen_held_out: Option<f64>,
+    /// Candidates scored (the options' `evaluations`).
+    pub evaluations: u32,
+}
+
+/// Values as settings keep them: choices by name.
+fn as_values(specs: &[&'static ParamSpec], x: &[f32]) -> BTreeMap<String, ParamValue> {
+    specs
+        .iter()
+        .zip(x)
+        .map(|(spec, &v)| {
+            let value = match spec.choices.is_empty() {
+                true => ParamValue::Number(v),
+                false => ParamValue::Choice(spec.choices[v as usize].to_owned()),
+            };
+            (spec.key.to_owned(), value)
+        })
+        .collect()
+}
+
+/// Training pairs: (index of a [`Case`], bytes per texel).
+type Pairs = Vec<(usize, u32)>;
+
+/// Hears of each candidate: (evaluation, its values, its score, `None` when it does not fit).
+pub type Report<'a> = dyn FnMut(u32, &BTreeMap<String, ParamValue>, Option<f64>) + 'a;
+
+/// The (scene, budget) pairs `values` is scored over, and its mean RMS T error there; `None`
+/// when it does not fit one of `pairs`. With `pairs` `None`, every pair it fits.
+fn mean_error(
+    gpu: &Gpu,
+    cases: &mut [Case],
+    entry: &TechniqueEntry,
+    values: &BTreeMap<String, ParamValue>,
+    budgets: &[u32],
+    pairs: Option<&[(usize, u32)]>,
+) -> anyhow::Result<Option<(f64, Pairs)>> {
+    let all: Vec<(usize, u32)> = (0..cases.len())
+        .flat_map(|i| budgets.iter().map(move |&b| (i, b)))
+        .collect();
+    let want = pairs.unwrap_or(&all);
+    let mut scored = Vec::new();
+    let mut sum = 0.0;
+    for &(i, bytes) in want {
+        match cases[i].config(entry, values, bytes) {
+            Some(config) => {
+                sum += cases[i].score(gpu, &config)?;
+                scored.push((i, bytes));
+            }
+            None if pairs.is_some() => return Ok(None),
+            None => {}
+        }
+    }
+    if scored.is_empty() {
+        return Ok(None);
+    }
+    Ok(Some((sum / scored.len() as f64, scored)))
+}
+
+/// Runs the procedure (the module doc) for `entry` from `start` (every free parameter's value).
+/// `report` hears of each candidate: (evaluation, its values, its score).
+pub fn tune_technique(
+    gpu: &Gpu,
+    entry: &'static TechniqueEntry,
+    start: &TechniqueParams,
+    training: &mut [Case],
+    held_out: &mut [Case],
+    options: &TuneOptions,
+    report: &mut Report<'_>,
+) -> anyhow::Result<Tuned> {
+    let specs = free_params(entry);
+    let x0: Vec<f32> = specs
+        .iter()
+        .map(|s| start.get(s).expect("free parameters have a value"))
+        .collect();
+    let start_values = as_values(&specs, &x0);
+    let Some((start_score, pairs)) = mean_error(
+        gpu,
+        training,
+        entry,
+        &start_values,
+        &options.bytes_per_texel,
+        None,
+    )?
+    else {
+        anyhow::bail!(
+            "tune: {} fits none of the byte budgets {:?} at its starting values",
+            entry.name,
+            options.bytes_per_texel
+        );
+    };
+    report(1, &start_values, Some(start_score));
+    let mut best = (x0.clone(), start_score);
+    let evaluations = options.evaluations.max(1);
+    if !specs.is_empty() {
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(options.seed);
+        let random = (evaluations - 1) / 2;
+        let mut scale = 0.25f32;
+        // A candidate proposed again (a small space of choices) keeps its score: it counts as an
+        // evaluation, as for every technique, but is not rendered twice.
+        let mut seen: Vec<(Vec<f32>, Option<f64>)> = vec![(x0.clone(), Some(start_score))];
+        for k in 2..=evaluations {
+            let x: Vec<f32> = if k - 1 <= random {
+                specs.iter().map(|s| draw(s, &mut rng)).collect()
+            } else {
+                let x = specs
+                    .iter()
+                    .zip(&best.0)
+                    .map(|(s, &v)| perturb(s, v, scale, &mut rng))
+                    .collect();
+                scale *= 0.7;
+                x
+            };
+            let values = as_values(&specs, &x);
+            let score = match seen.iter().find(|(y, _)| *y == x) {
+                Some((_, score)) => *score,
+                None => {
+                    let score = mean_error(
+                        gpu,
+                        training,
+                        entry,
+                        &values,
+                        &options.bytes_per_texel,
+                        Some(&pairs),
+                    )?
+                    .map(|(s, _)| s);
+                    seen.push((x.clone(), score));
+                    score
+                }
+            };
+            report(k, &values, score);
+            if let Some(s) = score
+                && s < best.1
+            {
+                best = (x, s);
+            }
+        }
+    }
+    let chosen = as_values(&specs, &best.0);
+    // Held out: the chosen values over the pairs the starting values fit there.
+    let (start_held_out, chosen_held_out) = match held_out.is_empty() {
+        true => (None, None),
+        false => match mean_error(
+            gpu,
+            held_out,
+            entry,
+            &start_values,
+            &options.bytes_per_texel,
+            None,
+        )? {
+            None => (None, None),
+            Some((start, held_pairs)) => {
+                let chosen = mean_error(
+                    gpu,
+                    held_out,
+                    entry,
+                    &chosen,
+                    &options.bytes_per_texel,
+                    Some(&held_pairs),
+                )?
+                .map(|(s, _)| s);
+                (Some(start), chosen)
+            }
+        },
+    };
+    Ok(Tuned {
+        technique: entry.name,
+        start: start_values,
+        chosen,
+        start_training: start_score,
+        chosen_training: best.1,
+        start_held_out,
+        chosen_held_out,
+        evaluations: if specs.is_empty() { 1 } else { evaluations },
+    })
+}
+
+/// Writes `tuned` as a parameter file at `path`, atomically.
+pub fn write_params_file(path: &Path, record: TuneRecord, tuned: &[Tuned]) -> anyhow::Result<()> {
+    let mut record = record;
+    let mut params = BTreeMap::new();
+    for t in tuned {
+        params.extend(t.chosen.clone());
+        record.techniques.insert(
+            t.technique.to_owned(),
+            TechniqueRecord {
+                start_training: t.start_training,
+                chosen_training: t.chosen_training,
+                start_held_out: t.start_held_out,
+                chosen_held_out: t.chosen_held_out,
+            },
+        );
+    }
+    let file = ParamsFile {
+        tune: Some(record),
+        params,
+    };
+    let text = format!(
+        "# Written by `smokeshadow tune` (src/tune/mod.rs describes the procedure). `--params \
+         FILE` reads [params]; [tune] records how they were chosen: the command, the training and \
+         held-out scenes, and each technique's mean RMS T error against exact there at its \
+         starting values and at the chosen ones.\n{}",
+        toml::to_string(&file).context("cannot encode the parameter file")?
+    );
+    crate::output::write_atomic(path, text.as_bytes())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn proposals_stay_in_range_whole_where_read_whole_and_at_3_digits() {
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(7);
+        for (entry, spec) in shadow::all_params() {
+            if spec.default.is_none() {
+                continue;
+            }
+            for _ in 0..200 {
+                let x = draw(spec, &mut rng);
+                let y = perturb(spec, x, 0.25, &mut rng);
+                for v in [x, y] {
+                    assert!(spec.check(v).is_ok(), "{}: {} {v}", entry.name, spec.key);
+                    if let Some((lo, hi)) = log_range(spec) {
+                        assert!((lo..=hi).contains(&v), "{} {v}", spec.key);
+                    }
+                    if spec.integer || !spec.choices.is_empty() {
+                        assert_eq!(v.fract(), 0.0, "{} {v}", spec.key);
+                    } else {
+                        assert_eq!(round_sig(v), v, "{} {v}", spec.key);
+                    }
+                }
+            }
+        }
+        assert_eq!(round_sig(0.0123456), 0.0123);
+        assert_eq!(round_sig(123.456), 123.0);
+    }
+
+    #[test]
+    fn the_paper_set_is_in_range_and_files_are_checked_against_the_registry() {
+        let paper = param_set("paper").unwrap();
+        assert_eq!(paper.len(), PAPER.len());
+        for (key, value) in &paper {
+            assert!(shadow::find_param(key).unwrap().resolve(value).is_ok());
+        }
+        let dir = std::env::temp_dir().join(format!("smokeshadow-params-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let good = dir.join("good.toml");
+        std::fs::write(&good, "[params]\nosm_interp = \"cubic\"\nmsm_bias = 1e-4\n").unwrap();
+        let set = param_set(good.to_str().unwrap()).unwrap();
+        assert_eq!(
+            set,
+            [
+                ("msm_bias".to_owned(), ParamValue::Number(1e-4)),
+                ("osm_interp".to_owned(), ParamValue::Choice("cubic".into())),
+            ]
+        );
+        for (text, says) in [
+            ("[params]\nmsm_bias = 9.0\n", "out of range"),
+            ("[params]\nfancy = 1\n", "unknown technique parameter"),
+            ("[extra]\nx = 1\n", "unknown field"),
+            ("params = 3", "invalid type"),
+        ] {
+            let bad = dir.join("bad.toml");
+            std::fs::write(&bad, text).unwrap();
+            let err = param_set(bad.to_str().unwrap()).unwrap_err();
+            assert!(
+                err.starts_with("--params ") && err.contains(says) && !err.contains('\n'),
+                "{text}: {err}"
+            );
+        }
+        let err = param_set("/nonexistent/p.toml").unwrap_err();
+        assert!(err.contains("cannot read"), "{err}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}
