@@ -409,7 +409,14 @@ fn build_fragment_counts_are_whole_passes_over_the_cheapest_builds_billboards() 
         particle_res: Default::default(),
         sorts: vec![Default::default()],
     };
-    let results = smokeshadow::bench::run(&gpu, &reduced_plume(), &options).unwrap();
+    // DOM's start from the particles' own spheres (the paper's): its depth pass then draws the
+    // same billboards as its layers (the tuned default enlarges them by 1.02).
+    let mut scene = reduced_plume();
+    scene
+        .shadow
+        .params
+        .insert("dom_start_dilation".into(), 1.0.into());
+    let results = smokeshadow::bench::run(&gpu, &scene, &options).unwrap();
     let count = &results.counts[0];
     let cheapest = count.cheapest.as_ref().unwrap();
     let floor = cheapest.work.unwrap().fragments;

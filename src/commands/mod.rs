@@ -59,8 +59,8 @@ pub struct ParamArgs {
     /// (`[params]` KEY = VALUE, as `smokeshadow tune` writes), or `paper` for the papers'
     /// values (`smokeshadow info` lists them); `--param` overrides it.
     #[arg(long = "params", id = "param_set", value_name = "FILE|paper",
-          value_parser = crate::tune::param_set)]
-    pub set: Option<Vec<(String, ParamValue)>>,
+          value_parser = crate::tune::ParamSet::parse)]
+    pub set: Option<crate::tune::ParamSet>,
     /// A technique parameter, KEY=VALUE (repeatable; over the scene's `[shadow.params]`), e.g.
     /// `--param dom_layer_ratio=2` or `--param osm_interp=cubic`. `smokeshadow info` lists
     /// every key with its range or choices.
@@ -72,7 +72,7 @@ pub struct ParamArgs {
 impl ParamArgs {
     /// The parameters given: the `--params` set's, then each `--param` (all already checked).
     pub fn all(&self) -> impl Iterator<Item = &(String, ParamValue)> {
-        self.set.iter().flatten().chain(&self.params)
+        self.set.iter().flat_map(|s| &s.0).chain(&self.params)
     }
 
     /// Sets the parameters in `scene`'s `[shadow.params]`, for commands that build every

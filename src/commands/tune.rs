@@ -131,20 +131,24 @@ pub fn run(args: &TuneArgs, adapter: &AdapterPreference) -> anyhow::Result<()> {
     let start = std::time::Instant::now();
     let mut tuned = Vec::new();
     for entry in entries {
-        let mut report =
-            |k: u32, values: &BTreeMap<String, shadow::ParamValue>, score: Option<f64>| {
-                eprintln!(
-                    "{} {k}/{}: {} -> {}",
-                    entry.name,
-                    options.evaluations,
-                    values
-                        .iter()
-                        .map(|(k, v)| format!("{k}={}", value_text(v)))
-                        .collect::<Vec<_>>()
-                        .join(" "),
-                    score.map_or("does not fit".to_owned(), |s| format!("{s:.5}"))
-                );
-            };
+        let mut report = |k: u32,
+                          values: &BTreeMap<String, shadow::ParamValue>,
+                          score: Option<f64>| {
+            eprintln!(
+                "{} {k}/{}: {} -> {}",
+                entry.name,
+                options.evaluations,
+                values
+                    .iter()
+                    .map(|(k, v)| format!("{k}={}", value_text(v)))
+                    .collect::<Vec<_>>()
+                    .join(" "),
+                score.map_or(
+                    "out (fits no budget, or unstable under the reversed draw order)".to_owned(),
+                    |s| format!("{s:.5}")
+                )
+            );
+        };
         let t = crate::tune::tune_technique(
             &gpu,
             entry,
@@ -162,7 +166,7 @@ pub fn run(args: &TuneArgs, adapter: &AdapterPreference) -> anyhow::Result<()> {
             t.chosen_training,
             match (t.start_held_out, t.chosen_held_out) {
                 (Some(a), Some(b)) => format!(", held out {a:.5} -> {b:.5}"),
-                (Some(a), None) => format!(", held out {a:.5} -> does not fit"),
+                (Some(a), None) => format!(", held out {a:.5} -> out"),
                 _ => String::new(),
             },
             t.chosen

@@ -944,7 +944,7 @@ mod tests {
         );
         let mut params = TechniqueParams::new(8, 256);
         let ratio = find_param("dom_layer_ratio").unwrap();
-        assert_eq!(params.get(ratio), Some(1.0));
+        assert_eq!(params.get(ratio), ratio.default, "unset: the default");
         set_param(&mut params, "dom_layer_ratio", &3.0.into()).unwrap();
         assert_eq!(params.get(ratio), Some(3.0));
         assert!(set_param(&mut params, "dom_layer_ratio", &0.5.into()).is_err());
@@ -974,7 +974,13 @@ mod tests {
                 assert_eq!((k.as_str(), &v), (key, &cubic), "{text}");
             }
             let mut params = TechniqueParams::new(8, 256);
-            assert_eq!(params.choice_index(spec), 0, "linear by default");
+            assert_eq!(
+                params.choice_index(spec),
+                spec.default.unwrap() as usize,
+                "unset: the default"
+            );
+            set_param(&mut params, key, &0.0.into()).unwrap();
+            assert_eq!(params.values[key], ParamValue::Choice("linear".into()));
             set_param(&mut params, key, &1.0.into()).unwrap();
             assert_eq!(params.values[key], cubic);
             assert_eq!(
