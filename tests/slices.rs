@@ -214,12 +214,18 @@ fn cubic_is_linear_where_optical_depth_is_linear_in_depth() {
     let particles = [sphere::particle()];
     let (points, analytic) = sphere_axis();
     for (name, channels) in [("osm", 24), ("osm", 8), ("dom", 24), ("dom", 6)] {
+        // `dom` on uniform layers from the sphere itself (the tuned defaults space them
+        // geometrically and start them from a 1.02x sphere: the geometric case is below).
         let with = |interp: &str| {
             config(
                 name,
                 channels,
                 SplatMode::Segment,
-                &[&format!("{name}_interp={interp}")],
+                &[
+                    &format!("{name}_interp={interp}"),
+                    "dom_layer_ratio=1",
+                    "dom_start_dilation=1",
+                ],
             )
         };
         let results = probe_all(
