@@ -54,6 +54,7 @@ pub struct Rank {
     /// How many were ranked there.
     pub of: u32,
     pub flip_vs_exact: f64,
+    /// The bytes it keeps for the lookup (its transient build scratch aside).
     pub bytes: u64,
 }
 
@@ -93,6 +94,12 @@ fn registry_index(name: &str) -> usize {
         .iter()
         .position(|e| e.name == name)
         .unwrap_or(usize::MAX)
+}
+
+/// The bytes a cell keeps for the lookup: its transient build scratch aside (a deep capture's
+/// lists, the volume's voxelisation), as the byte budgets count them.
+fn kept(c: &CellResult) -> u64 {
+    c.bytes.saturating_sub(c.transient_bytes)
 }
 
 fn flip(c: &CellResult) -> f64 {
@@ -141,7 +148,7 @@ pub fn ranks(scenes: &[SweepResults]) -> Vec<Rank> {
             at.sort_by(|x, y| {
                 flip(x)
                     .total_cmp(&flip(y))
-                    .then(x.bytes.cmp(&y.bytes))
+                    .then(kept(x).cmp(&kept(y)))
                     .then(registry_index(&x.technique).cmp(&registry_index(&y.technique)))
                     .then(x.shadow_res.cmp(&y.shadow_res))
                     .then(x.splat.name().cmp(y.splat.name()))
@@ -158,7 +165,7 @@ pub fn ranks(scenes: &[SweepResults]) -> Vec<Rank> {
                     rank: i as u32 + 1,
                     of,
                     flip_vs_exact: flip(c),
-                    bytes: c.bytes,
+                    bytes: kept(c),
                 });
             }
         }
@@ -366,7 +373,7 @@ pub fn advice(scenes: &[SweepResults], ranks: &[Rank]) -> Vec<String> {
                             "{} (FLIP {:.4}, {})",
                             labels.rank(x),
                             x.flip_vs_exact,
-                            report::bytes(x.bytes)
+                            format!("{} kept", report::bytes(x.bytes))
                         )
                     })
                     .collect();
@@ -381,7 +388,7 @@ pub fn advice(scenes: &[SweepResults], ranks: &[Rank]) -> Vec<String> {
                 "at {b} {} is the most accurate (FLIP {:.4}, {})",
                 labels.rank(best),
                 best.flip_vs_exact,
-                report::bytes(best.bytes)
+                format!("{} kept", report::bytes(best.bytes))
             );
             if let Some(second) = at(2) {
                 let _ = write!(
@@ -389,7 +396,7 @@ pub fn advice(scenes: &[SweepResults], ranks: &[Rank]) -> Vec<String> {
                     ", then {} (FLIP {:.4}, {}",
                     labels.rank(second),
                     second.flip_vs_exact,
-                    report::bytes(second.bytes)
+                    format!("{} kept", report::bytes(second.bytes))
                 );
                 if best.bytes > 0 && second.bytes != best.bytes {
                     let _ = write!(
@@ -707,7 +714,7 @@ fn page(scenes: &[SweepResults], gallery: &Gallery) -> String {
                         "<td class=\"win\" style=\"background: rgba({cr},{cg},{cb},0.25)\"><b>{}</b>FLIP {:.4} · {}</td>",
                         e(&l),
                         w.flip_vs_exact,
-                        report::bytes(w.bytes)
+                        format!("{} kept", report::bytes(w.bytes))
                     );
                 }
                 None => body.push_str("<td>—</td>"),
