@@ -370,10 +370,10 @@ pub fn advice(scenes: &[SweepResults], ranks: &[Rank]) -> Vec<String> {
                     .chain(tied.iter().map(|x| **x))
                     .map(|x| {
                         format!(
-                            "{} (FLIP {:.4}, {})",
+                            "{} (FLIP {:.4}, {} kept)",
                             labels.rank(x),
                             x.flip_vs_exact,
-                            format!("{} kept", report::bytes(x.bytes))
+                            report::bytes(x.bytes)
                         )
                     })
                     .collect();
@@ -385,18 +385,18 @@ pub fn advice(scenes: &[SweepResults], ranks: &[Rank]) -> Vec<String> {
                 continue;
             }
             let mut part = format!(
-                "at {b} {} is the most accurate (FLIP {:.4}, {})",
+                "at {b} {} is the most accurate (FLIP {:.4}, {} kept)",
                 labels.rank(best),
                 best.flip_vs_exact,
-                format!("{} kept", report::bytes(best.bytes))
+                report::bytes(best.bytes)
             );
             if let Some(second) = at(2) {
                 let _ = write!(
                     part,
-                    ", then {} (FLIP {:.4}, {}",
+                    ", then {} (FLIP {:.4}, {} kept",
                     labels.rank(second),
                     second.flip_vs_exact,
-                    format!("{} kept", report::bytes(second.bytes))
+                    report::bytes(second.bytes)
                 );
                 if best.bytes > 0 && second.bytes != best.bytes {
                     let _ = write!(
@@ -711,10 +711,10 @@ fn page(scenes: &[SweepResults], gallery: &Gallery) -> String {
                     let (cr, cg, cb) = colour(&l);
                     let _ = write!(
                         body,
-                        "<td class=\"win\" style=\"background: rgba({cr},{cg},{cb},0.25)\"><b>{}</b>FLIP {:.4} · {}</td>",
+                        "<td class=\"win\" style=\"background: rgba({cr},{cg},{cb},0.25)\"><b>{}</b>FLIP {:.4} · {} kept</td>",
                         e(&l),
                         w.flip_vs_exact,
-                        format!("{} kept", report::bytes(w.bytes))
+                        report::bytes(w.bytes)
                     );
                 }
                 None => body.push_str("<td>—</td>"),
