@@ -636,8 +636,6 @@ fn reported_channels_and_bytes_match_each_techniques_formula() {
             // The formula each technique documents in its registry entry.
             let counters = t.counters();
             let expected = (entry.memory)(&MemoryCase {
-                channels: b,
-                resolution_px: res,
                 params: &config.params,
                 particles: n,
                 frame_pixels: pixels,

@@ -346,8 +346,6 @@ fn a_grid_built_in_slabs_equals_the_grid_built_whole() {
         let counters = technique.counters();
         let expected = (smokeshadow::shadow::find("volume").unwrap().memory)(
             &smokeshadow::shadow::MemoryCase {
-                channels: 8,
-                resolution_px: 512,
                 params: &config.params,
                 particles: particles.len() as u64,
                 frame_pixels: 64 * 48,

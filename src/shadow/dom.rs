@@ -119,9 +119,10 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     compresses_captured_lists: false,
     // One R16F start-depth channel, B - 1 layers of `dom_precision` and the uniform parameters.
     memory: |c| MemoryUse {
-        channels: c.channels.into(),
+        channels: c.channels().into(),
         bytes: c.texels()
-            * (packed_bytes_per_texel(u64::from(c.channels) - 1, SPEC.channel_bytes(c.params)) + 2)
+            * (packed_bytes_per_texel(u64::from(c.channels()) - 1, SPEC.channel_bytes(c.params))
+                + 2)
             + PARAMS_BYTES,
         transient_bytes: 0,
     },

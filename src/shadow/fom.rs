@@ -29,7 +29,7 @@ pub const SIGMA_PRECISION: ParamSpec =
 
 /// 2n + 1 coefficients of the spec's precision and the parameter uniform.
 fn coefficient_memory(spec: &LayeredSpec, c: &MemoryCase<'_>) -> MemoryUse {
-    let used = u64::from(plan(c.channels).used);
+    let used = u64::from(plan(c.channels()).used);
     MemoryUse {
         channels: used,
         bytes: c.texels() * packed_bytes_per_texel(used, spec.channel_bytes(c.params))

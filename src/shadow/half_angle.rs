@@ -67,12 +67,12 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     memory: |c| {
         let capacity = c.particles.next_power_of_two().max(1024);
         MemoryUse {
-            channels: c.channels.into(),
+            channels: c.channels().into(),
             bytes: 16
                 + c.texels() * 2
                 + c.frame_pixels * 8
                 + 96 * capacity
-                + 256 * u64::from(c.channels),
+                + 256 * u64::from(c.channels()),
             transient_bytes: 0,
         }
     },

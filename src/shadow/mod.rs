@@ -395,10 +395,8 @@ pub trait ShadowTechnique: Send {
 
 /// What a technique's memory depends on.
 pub struct MemoryCase<'a> {
-    pub channels: u32,
-    pub resolution_px: u32,
-    /// The technique's parameters (their `channels` and `resolution_px` are the fields above):
-    /// e.g. a layered map's `<technique>_precision`.
+    /// The technique's parameters: its channel budget and resolution, and technique-specific
+    /// ones such as a layered map's `<technique>_precision`.
     pub params: &'a TechniqueParams,
     /// Particles drawn this frame.
     pub particles: u64,
@@ -409,9 +407,19 @@ pub struct MemoryCase<'a> {
 }
 
 impl MemoryCase<'_> {
+    /// The channel budget.
+    pub fn channels(&self) -> u32 {
+        self.params.channels
+    }
+
+    /// The shadow map's resolution (texels per side).
+    pub fn resolution_px(&self) -> u32 {
+        self.params.resolution_px
+    }
+
     /// Texels of one shadow map.
     pub fn texels(&self) -> u64 {
-        u64::from(self.resolution_px) * u64::from(self.resolution_px)
+        u64::from(self.resolution_px()) * u64::from(self.resolution_px())
     }
 
     /// A counter by name (0 when absent).
@@ -450,6 +458,23 @@ pub fn packed_bytes_per_texel(packed: u64, bytes_per_channel: u64) -> u64 {
 /// its bytes per texel, so that `osm` at 24 half-float slices fits 48 bytes a texel.
 pub const BYTE_BUDGET_SLACK: f64 = 1.0 / 64.0;
 
+/// What `entry`'s memory formula gives for `params` before any frame (no counters: list
+/// capacities, which only transient scratch depends on, read as 0), for `particles` particles in
+/// a frame of `frame_pixels`.
+pub fn planned_memory(
+    entry: &TechniqueEntry,
+    params: &TechniqueParams,
+    particles: u64,
+    frame_pixels: u64,
+) -> MemoryUse {
+    (entry.memory)(&MemoryCase {
+        params,
+        particles,
+        frame_pixels,
+        counters: &[],
+    })
+}
+
 /// The bytes a configuration keeps for the lookup (its memory formula, transient build scratch
 /// aside) per texel of its shadow map, for `particles` particles in a frame of `frame_pixels`:
 /// the measure a byte budget per texel (`--bytes-per-texel`) compares at.
@@ -459,16 +484,9 @@ pub fn kept_bytes_per_texel(
     particles: u64,
     frame_pixels: u64,
 ) -> f64 {
-    let case = MemoryCase {
-        channels: params.channels,
-        resolution_px: params.resolution_px,
-        params,
-        particles,
-        frame_pixels,
-        counters: &[],
-    };
-    let used = (entry.memory)(&case);
-    (used.bytes - used.transient_bytes) as f64 / case.texels().max(1) as f64
+    let used = planned_memory(entry, params, particles, frame_pixels);
+    let texels = u64::from(params.resolution_px).pow(2).max(1);
+    (used.bytes - used.transient_bytes) as f64 / texels as f64
 }
 
 /// The configuration a technique takes under a byte budget per shadow-map texel.
@@ -494,48 +512,37 @@ pub fn fit_bytes_per_texel(
     particles: u64,
     frame_pixels: u64,
 ) -> Result<ByteFit, String> {
+    // (channels used, bytes kept per texel) at a channel budget.
     let at = |channels: u32| {
         let params = TechniqueParams {
             channels,
             ..base.clone()
         };
-        kept_bytes_per_texel(entry, &params, particles, frame_pixels)
+        (
+            planned_memory(entry, &params, particles, frame_pixels).channels,
+            kept_bytes_per_texel(entry, &params, particles, frame_pixels),
+        )
     };
     let allowed = f64::from(budget) + BYTE_BUDGET_SLACK;
     let Some(largest) = (entry.min_channels..=MAX_CHANNELS)
         .rev()
-        .find(|&c| at(c) <= allowed)
+        .find(|&c| at(c).1 <= allowed)
     else {
         return Err(format!(
             "{} keeps {:.1} bytes a texel at its smallest budget ({}), more than {budget}",
             entry.name,
-            at(entry.min_channels),
+            at(entry.min_channels).1,
             (entry.budget_caption)(entry.min_channels)
         ));
     };
-    let bytes_per_texel = at(largest);
-    let used = |c: u32| {
-        let params = TechniqueParams {
-            channels: c,
-            ..base.clone()
-        };
-        (entry.memory)(&MemoryCase {
-            channels: c,
-            resolution_px: base.resolution_px,
-            params: &params,
-            particles,
-            frame_pixels,
-            counters: &[],
-        })
-        .channels
-    };
+    let fitted = at(largest);
     let channels = (entry.min_channels..=largest)
-        .find(|&c| at(c) == bytes_per_texel && used(c) == used(largest))
+        .find(|&c| at(c) == fitted)
         .unwrap_or(largest);
     Ok(ByteFit {
         channels,
-        channels_used: used(largest),
-        bytes_per_texel,
+        channels_used: fitted.0,
+        bytes_per_texel: fitted.1,
     })
 }
 

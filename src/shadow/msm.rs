@@ -119,7 +119,7 @@ fn trig_plan(channels: u32) -> ChannelPlan {
 /// The used channels in 32-bit floats and the parameter uniform.
 fn memory(plan: fn(u32) -> ChannelPlan) -> impl Fn(&MemoryCase<'_>) -> MemoryUse {
     move |c| {
-        let used = u64::from(plan(c.channels.max(5)).used);
+        let used = u64::from(plan(c.channels().max(5)).used);
         MemoryUse {
             channels: used,
             bytes: c.texels() * packed_bytes_per_texel(used, 4) + PARAMS_BYTES,

@@ -69,8 +69,9 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     compresses_captured_lists: false,
     // B slices of `osm_precision` and the uniform parameters.
     memory: |c| MemoryUse {
-        channels: c.channels.into(),
-        bytes: c.texels() * packed_bytes_per_texel(c.channels.into(), SPEC.channel_bytes(c.params))
+        channels: c.channels().into(),
+        bytes: c.texels()
+            * packed_bytes_per_texel(c.channels().into(), SPEC.channel_bytes(c.params))
             + PARAMS_BYTES,
         transient_bytes: 0,
     },

@@ -212,14 +212,14 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     // transient: per slab a 64-byte uniform, the u32 scratch and the padded f16 staging of one
     // slab, and 32 bytes per job of capacity.
     memory: |c| {
-        let g = u64::from(grid_side(c.resolution_px, c.channels));
+        let g = u64::from(grid_side(c.resolution_px(), c.channels()));
         let depth = c.counter("slab_depth").max(1);
         let transient = g.div_ceil(depth) * BUILD_BYTES
             + g * g * depth * 4
             + depth * g * staging_pitch(g as u32)
             + c.counter("job_capacity") * JOB_BYTES;
         MemoryUse {
-            channels: c.channels.into(),
+            channels: c.channels().into(),
             bytes: g * g * g * 2 + LOOKUP_BYTES + transient,
             transient_bytes: transient,
         }

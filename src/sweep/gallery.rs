@@ -23,7 +23,7 @@ use std::path::Path;
 use anyhow::Context;
 use serde::{Deserialize, Serialize};
 
-use super::{Budget, CSV_COLUMNS, CellResult, SweepResults};
+use super::{Budget, CSV_COLUMNS, CellResult, SweepResults, registry_index};
 use crate::report::{self, escape as e};
 use crate::shadow::{self, SplatMode};
 
@@ -89,19 +89,6 @@ pub struct GalleryResults {
     pub gallery: Gallery,
 }
 
-fn registry_index(name: &str) -> usize {
-    shadow::REGISTRY
-        .iter()
-        .position(|e| e.name == name)
-        .unwrap_or(usize::MAX)
-}
-
-/// The bytes a cell keeps for the lookup: its transient build scratch aside (a deep capture's
-/// lists, the volume's voxelisation), as the byte budgets count them.
-fn kept(c: &CellResult) -> u64 {
-    c.bytes.saturating_sub(c.transient_bytes)
-}
-
 fn flip(c: &CellResult) -> f64 {
     c.vs_exact.map_or(f64::NAN, |x| x.flip_mean)
 }
@@ -148,7 +135,7 @@ pub fn ranks(scenes: &[SweepResults]) -> Vec<Rank> {
             at.sort_by(|x, y| {
                 flip(x)
                     .total_cmp(&flip(y))
-                    .then(kept(x).cmp(&kept(y)))
+                    .then(x.kept_bytes().cmp(&y.kept_bytes()))
                     .then(registry_index(&x.technique).cmp(&registry_index(&y.technique)))
                     .then(x.shadow_res.cmp(&y.shadow_res))
                     .then(x.splat.name().cmp(y.splat.name()))
@@ -165,7 +152,7 @@ pub fn ranks(scenes: &[SweepResults]) -> Vec<Rank> {
                     rank: i as u32 + 1,
                     of,
                     flip_vs_exact: flip(c),
-                    bytes: kept(c),
+                    bytes: c.kept_bytes(),
                 });
             }
         }

@@ -146,6 +146,23 @@ pub struct CellResult {
     pub measured_against: Option<MeasuredAgainst>,
 }
 
+impl CellResult {
+    /// The bytes it keeps for the lookup: its transient build scratch aside (a deep capture's
+    /// lists, the volume's voxelisation), as the byte budgets count them.
+    pub fn kept_bytes(&self) -> u64 {
+        self.bytes.saturating_sub(self.transient_bytes)
+    }
+}
+
+/// Position of a technique in the registry (reports list and break ties in its order); past
+/// the end for a name it does not hold.
+pub(crate) fn registry_index(name: &str) -> usize {
+    crate::shadow::REGISTRY
+        .iter()
+        .position(|e| e.name == name)
+        .unwrap_or(usize::MAX)
+}
+
 fn channel_axis_default() -> bool {
     true
 }

@@ -172,7 +172,8 @@ fn answer(body: &mut String, results: &SweepResults, variants: &Variants, pareto
 }
 
 /// The cells answering byte budget `bytes` (full particle resolution: the budgets compare
-/// shadow techniques), most accurate first (FLIP vs `exact`, then fewer bytes, registry order).
+/// shadow techniques), most accurate first (FLIP vs `exact`, then fewer bytes kept, registry
+/// order), as the gallery ranks them.
 pub fn at_byte_budget(results: &SweepResults, bytes: u32) -> Vec<&CellResult> {
     let mut at: Vec<&CellResult> = results
         .cells
@@ -180,16 +181,11 @@ pub fn at_byte_budget(results: &SweepResults, bytes: u32) -> Vec<&CellResult> {
         .filter(|c| c.byte_budgets.contains(&bytes) && c.particle_res == ParticleRes::Full)
         .filter(|c| flip_exact(c).is_finite())
         .collect();
-    let index = |c: &CellResult| {
-        crate::shadow::REGISTRY
-            .iter()
-            .position(|e| e.name == c.technique)
-    };
     at.sort_by(|a, b| {
         flip_exact(a)
             .total_cmp(&flip_exact(b))
-            .then(a.bytes.cmp(&b.bytes))
-            .then(index(a).cmp(&index(b)))
+            .then(a.kept_bytes().cmp(&b.kept_bytes()))
+            .then(super::registry_index(&a.technique).cmp(&super::registry_index(&b.technique)))
     });
     at
 }
@@ -683,7 +679,7 @@ fn pareto_front(cells: &[CellResult]) -> Vec<bool> {
 /// The bytes a cell keeps for the lookup (its transient build scratch aside) per shadow-map
 /// texel, one decimal; "—" without a map (`none`, `exact`'s lists are no map either).
 fn bytes_per_texel(c: &CellResult) -> String {
-    let kept = c.bytes.saturating_sub(c.transient_bytes);
+    let kept = c.kept_bytes();
     let texels = u64::from(c.shadow_res).pow(2);
     let has_map =
         crate::shadow::find(&c.technique).is_ok_and(|t| t.role == crate::shadow::Role::Contender);

@@ -317,18 +317,11 @@ fn plan_byte_budget(
     let pixels = u64::from(scene.output.width_px) * u64::from(scene.output.height_px);
     let fit = shadow::fit_bytes_per_texel(entry, &base.config.params, bytes, particles, pixels)?;
     let used = |p: &Plan| {
-        let kept = shadow::kept_bytes_per_texel(entry, &p.config.params, particles, pixels);
         let params = &p.config.params;
-        let channels = (entry.memory)(&shadow::MemoryCase {
-            channels: params.channels,
-            resolution_px: params.resolution_px,
-            params,
-            particles,
-            frame_pixels: pixels,
-            counters: &[],
-        })
-        .channels;
-        (channels, kept)
+        (
+            shadow::planned_memory(entry, params, particles, pixels).channels,
+            shadow::kept_bytes_per_texel(entry, params, particles, pixels),
+        )
     };
     let same = cells.iter_mut().find(|p| {
         p.config.name == entry.name
