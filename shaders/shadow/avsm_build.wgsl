@@ -1,12 +1,14 @@
 // `avsm` build: adaptive volumetric shadow maps (Salvi, Vidimče, Lauritzen & Lefohn 2010) as a
 // resolve over the deep capture (shaders/shadow/deep_capture.wgsl). WebGPU has no fragment
 // shader interlock, so instead of inserting fragments as they are rasterised, one invocation per
-// texel inserts its captured segments in their sorted order (z0, z1, optical depth), which makes
-// the result independent of the draw order. A segment adds an entry node at z0 (T of the curve
-// there) and an exit node at z1; T is linear inside it, so the nodes behind its entry are
-// multiplied by its ramp, 1 at z0 to e^-optical_depth at z1 and beyond. While the curve has more
-// than N = deep.nodes_per_texel nodes, the interior node whose removal loses the least area
-// under it (the triangle with its neighbours) goes; the first and last nodes stay.
+// texel inserts its captured segments in the order the capture's resolve left them: by draw
+// index (`avsm_insert = draw`, the paper's streaming insertion, serialised in primitive order as
+// an interlock would) or by (z0, z1, optical depth) (`sorted`, independent of the draw order).
+// A segment adds an entry node at z0 (T of the curve there) and an exit node at z1; T is linear
+// inside it, so the nodes behind its entry are multiplied by its ramp, 1 at z0 to
+// e^-optical_depth at z1 and beyond. While the curve has more than N = deep.nodes_per_texel
+// nodes, the interior node whose removal loses the least area under it (the triangle with its
+// neighbours) goes; the first and last nodes stay.
 // Keep `DeepParams` in sync with src/shadow/deep_nodes.rs. The CPU mirror is
 // src/shadow/deep_compress.rs.
 #import shadow/deep_capture_lists.wgsl

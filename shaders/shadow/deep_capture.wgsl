@@ -6,13 +6,16 @@
 // 2. scan_rows, scan_total, scan_write (shaders/shadow/grid_scan.wgsl, shared with `exact`):
 //    exclusive prefix sum of the counts -> list offsets (offsets[res²] = total).
 // 3. fs_fill: every fragment of the current band of rows writes its segment (z0, z1, optical
-//    depth) into its texel's list (counts, cleared, serve as cursors).
+//    depth, draw index) into its texel's list (counts, cleared, serve as cursors).
 // 4. resolve (heap_build, heap_extract, copy_ends, the two heap passes again, merge_nodes): per
 //    texel of the band, sort the segments by (z0, z1, optical depth), sort their ends by (depth,
 //    slope), and merge both into the nodes (z, Ω(z)) of the piecewise-linear optical depth:
 //    between events Ω grows by the sum of the slopes (optical depth per metre) of the segments
 //    open there. The keys are total, so the lists, and everything computed from them, do not
-//    depend on the order the fragments arrived in.
+//    depend on the order the fragments arrived in. An owner that needs only the segments runs
+//    the first two passes: by depth, or with SORT_BY_DRAW by draw index, which puts each
+//    texel's list back in the order the particles were drawn, whatever order the fill's atomics
+//    wrote it in.
 #import shadow/layered_build.wgsl
 #import shadow/deep_capture_lists.wgsl
 #import shadow/grid_scan.wgsl
@@ -38,6 +41,7 @@ fn fragment_segment(in: BuildVertexOut) -> Segment {
     out.z0 = chord.t_mid - w;
     out.z1 = chord.t_mid + w;
     out.optical_depth = chord_extinction(in.density, chord.d, in.center_radius.w) * 2.0 * chord.half_width;
+    out.draw_index = in.draw_index;
     return out;
 }
 
@@ -85,35 +89,50 @@ fn segment_slope(s: Segment) -> f32 {
 }
 
 // Which list a heapsort pipeline sorts: the texel's segments (false), or their ends in the upper
-// half of its nodes (true). Set per pipeline (src/shadow/deep_capture.rs, RESOLVE_PHASES).
+// half of its nodes (true). Set per pipeline (src/shadow/deep_capture.rs, `Resolve`).
 override SORT_ENDS: bool = false;
+// Whether the segments are sorted by draw index alone rather than by depth.
+override SORT_BY_DRAW: bool = false;
 
-// The sort keys, in lexicographic order: a segment's (z0, z1, optical depth), an end's (depth,
-// slope, 0). Both orders are total, so the sorted lists do not depend on the order the fragments
-// arrived in (segments equal in all three are interchangeable).
-fn key_before(a: vec3<f32>, b: vec3<f32>) -> bool {
-    if a.x != b.x {
-        return a.x < b.x;
+// A sorted element: a segment (z0, z1, optical depth) and its draw index, or an end (depth,
+// slope, 0) and 0. (The index stays a u32: its bits as a float would be a denormal, which a GPU
+// may flush.)
+struct HeapItem {
+    key: vec3<f32>,
+    draw_index: u32,
+};
+
+fn key_before(a: HeapItem, b: HeapItem) -> bool {
+    if SORT_BY_DRAW {
+        return a.draw_index < b.draw_index;
     }
-    if a.y != b.y {
-        return a.y < b.y;
+    // Lexicographic (z0, z1, optical depth), then the draw index: a total order, so the sorted
+    // lists do not depend on the order the fragments arrived in.
+    if a.key.x != b.key.x {
+        return a.key.x < b.key.x;
     }
-    return a.z < b.z;
+    if a.key.y != b.key.y {
+        return a.key.y < b.key.y;
+    }
+    if a.key.z != b.key.z {
+        return a.key.z < b.key.z;
+    }
+    return a.draw_index < b.draw_index;
 }
 
-fn heap_key(i: u32) -> vec3<f32> {
+fn heap_key(i: u32) -> HeapItem {
     if SORT_ENDS {
-        return vec3<f32>(nodes[i], 0.0);
+        return HeapItem(vec3<f32>(nodes[i], 0.0), 0u);
     }
     let s = segments[i];
-    return vec3<f32>(s.z0, s.z1, s.optical_depth);
+    return HeapItem(vec3<f32>(s.z0, s.z1, s.optical_depth), s.draw_index);
 }
 
-fn set_heap_key(i: u32, key: vec3<f32>) {
+fn set_heap_key(i: u32, item: HeapItem) {
     if SORT_ENDS {
-        nodes[i] = key.xy;
+        nodes[i] = item.key.xy;
     } else {
-        segments[i] = Segment(key.x, key.y, key.z);
+        segments[i] = Segment(item.key.x, item.key.y, item.key.z, item.draw_index);
     }
 }
 

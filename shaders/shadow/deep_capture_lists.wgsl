@@ -1,10 +1,12 @@
 // The per-texel segment lists of a deep capture (src/shadow/deep_capture.rs), as its own passes
 // and the compression passes that read them declare them in group 1. Texel i's segments are
-// segments[offsets[i] .. offsets[i + 1]) and, once resolved, its nodes (z, Ω(z)) of the
-// piecewise-linear optical depth are nodes[2·offsets[i] .. 2·offsets[i + 1]); after the resolve
-// pass the segments are sorted by (z0, z1, optical depth). The lists hold one band of rows at a
-// time (rows [row_begin, row_end), whose first segment is offsets' band_base), so every index
-// into them is relative to band_base, and the per-texel passes cover the band's rows only. Every
+// segments[offsets[i] .. offsets[i + 1]). After the resolve the segments are sorted by (z0, z1,
+// optical depth) and, for `dsm`, merged into the nodes (z, Ω(z)) of the piecewise-linear optical
+// depth, nodes[2·offsets[i] .. 2·offsets[i + 1]); or, for an owner that inserts them in draw
+// order (`avsm`'s default), sorted by draw index alone (the resolve's `SORT_BY_DRAW`). The lists
+// hold one band of rows at a time (rows [row_begin, row_end), whose first segment is offsets'
+// band_base), so every index into them is relative to band_base, and the per-texel passes cover
+// the band's rows only. Every
 // binding is read_write because the capture's bind group layout is shared by all of its passes.
 // Keep `CaptureParams` in sync with src/shadow/deep_capture.rs.
 
@@ -36,6 +38,10 @@ struct Segment {
     z1: f32,
     // Optical depth of the whole chord: τ(1 - d/r)·2w.
     optical_depth: f32,
+    // The particle's draw index (its instance): the order its fragment reaches the texel in an
+    // engine's one-pass insertion. A particle has at most one fragment per texel, so it is a
+    // total key of a texel's list.
+    draw_index: u32,
 };
 
 @group(1) @binding(0) var<uniform> capture: CaptureParams;

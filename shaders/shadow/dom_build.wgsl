@@ -11,8 +11,12 @@
 // sphere itself): the MIN of the enlarged spheres' entries is a smoother proxy of the smoke's
 // front that starts at or before it wherever there is smoke.
 @vertex
-fn vs_depth(@builtin(vertex_index) vi: u32, particle: ParticleIn) -> BuildVertexOut {
-    return build_vertex(vi, particle, particle.center_radius.w * layered.dom_start_dilation);
+fn vs_depth(
+    @builtin(vertex_index) vi: u32,
+    @builtin(instance_index) instance: u32,
+    particle: ParticleIn,
+) -> BuildVertexOut {
+    return build_vertex(vi, instance, particle, particle.center_radius.w * layered.dom_start_dilation);
 }
 
 @fragment

@@ -17,11 +17,16 @@ struct BuildVertexOut {
     @location(2) @interpolate(flat) density: f32,
     // The particle centre's normalised depth (point splat).
     @location(3) @interpolate(flat) center_depth: f32,
+    // The particle's instance index: the order the pass draws it in (the eye's back-to-front
+    // order), which a rasteriser with fragment-shader interlock would keep per texel.
+    @location(4) @interpolate(flat) draw_index: u32,
 };
 
-// Corner `vi` of the light-facing billboard of a sphere of `radius` around the particle's centre.
-fn build_vertex(vi: u32, particle: ParticleIn, radius: f32) -> BuildVertexOut {
+// Corner `vi` of the light-facing billboard of a sphere of `radius` around the centre of particle
+// `instance`.
+fn build_vertex(vi: u32, instance: u32, particle: ParticleIn, radius: f32) -> BuildVertexOut {
     var out: BuildVertexOut;
+    out.draw_index = instance;
     let center = particle.center_radius.xyz;
     let bb = billboard_frame(center, radius, frame.light_pos.xyz);
     let world = billboard_corner(center, radius, bb, quad_corner(vi));
@@ -34,8 +39,12 @@ fn build_vertex(vi: u32, particle: ParticleIn, radius: f32) -> BuildVertexOut {
 }
 
 @vertex
-fn vs_build(@builtin(vertex_index) vi: u32, particle: ParticleIn) -> BuildVertexOut {
-    return build_vertex(vi, particle, particle.center_radius.w);
+fn vs_build(
+    @builtin(vertex_index) vi: u32,
+    @builtin(instance_index) instance: u32,
+    particle: ParticleIn,
+) -> BuildVertexOut {
+    return build_vertex(vi, instance, particle, particle.center_radius.w);
 }
 
 // A fragment's contribution: optical depth spread uniformly over normalised depths [z0, z1]

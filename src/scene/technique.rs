@@ -220,6 +220,10 @@ pub struct ParamSpec {
     /// Whether the technique reads it as a whole number (it rounds): `tune` proposes whole
     /// numbers for it.
     pub integer: bool,
+    /// Whether `tune` searches it. False for a setting that chooses what is measured rather
+    /// than a knob of the same algorithm: a storage precision (it sets the bytes), or `avsm`'s
+    /// insertion order (its `sorted` is not what a one-pass engine can do).
+    pub tuned: bool,
 }
 
 impl ParamSpec {

@@ -1,15 +1,30 @@
 //! `avsm`: adaptive volumetric shadow maps (Salvi, Vidimče, Lauritzen & Lefohn, EGSR 2010).
 //!
-//! Every texel keeps N = floor(B / 2) nodes (depth, T) of its transmittance curve. The paper
-//! inserts fragments as they are rasterised, serialised per pixel by a fragment shader
-//! interlock; WebGPU has none, so this builds it as capture then resolve: the deep capture
-//! (`deep_capture.rs`) stores every texel's segments, and one compute invocation per texel
-//! (shaders/shadow/avsm_build.wgsl) inserts them **in their sorted order** (z0, z1, optical
-//! depth), so the result does not depend on the draw order, where the paper's does. Each
-//! segment adds an entry and an exit node with T linear between them (nodes behind the entry
-//! are multiplied by its ramp, 1 at entry to e^−optical_depth at the exit and beyond); while the
-//! curve holds more than N nodes, the interior node whose removal loses the least area under it
-//! goes (the first and last nodes stay).
+//! Every texel keeps N = floor(B / 2) nodes (depth, T) of its transmittance curve. Each
+//! particle's fragment (its chord through the texel's ray) inserts an entry and an exit node with
+//! T linear between them (nodes behind the entry are multiplied by its ramp, 1 at entry to
+//! e^−optical_depth at the exit and beyond); while the curve holds more than N nodes, the
+//! interior node whose removal loses the least area under it goes (the first and last nodes
+//! stay).
+//!
+//! **Insertion order** (`avsm_insert`). The paper streams: fragments are inserted as they are
+//! rasterised, serialised per pixel in primitive order by a fragment shader interlock, so the
+//! curve depends on the order the particles are drawn in (here the eye's back-to-front order,
+//! which the renderer sorts before the light pass). That is the default, `draw`, and what an
+//! engine ships. `sorted` inserts each texel's fragments front to back by depth instead, so the
+//! result does not depend on the draw order; it reads like the ideal case but measures no
+//! better: draw order is as close to `exact` or closer on every scene tried (docs/studies.md,
+//! "Streaming avsm"), since inserted front to back every new node's T is read off the tail of an
+//! already compressed curve. The registry holds `avsm` order dependent (`order_independent:
+//! false`), as its default is.
+//!
+//! WebGPU has no interlock, so both are built as capture then resolve: the deep capture
+//! (`deep_capture.rs`) stores every texel's segments with their particle's draw index, its
+//! resolve sorts each list by draw index (or by depth), and one compute invocation per texel
+//! (shaders/shadow/avsm_build.wgsl) inserts them in that order. The capture-and-resolve passes
+//! emulate what hardware with fragment-shader interlock (Intel's PixelSync, Vulkan's
+//! `VK_EXT_fragment_shader_interlock`) does in one pass as fragments arrive, so `avsm`'s timings
+//! are those of the emulation, an upper bound on an engine's.
 //!
 //! The lookup (shaders/shadow/avsm.wgsl) is linear in T between the bracketing nodes, 1 in front
 //! of the first, the last node's T behind the last, blended bilinearly over four texels. Linear T
@@ -20,8 +35,37 @@
 //! Memory: the nodes (texels × N × 8 bytes) and a 16-byte uniform; the capture's lists are
 //! transient (allocated, counted, and reported apart).
 
+use super::deep_capture::Resolve;
 use super::deep_nodes::{DeepNodes, DeepNodesSpec, nodes_per_texel};
-use super::{Role, TechniqueEntry};
+use super::{ParamSpec, Role, TechniqueEntry, TechniqueParams};
+
+/// `avsm_insert`'s choices, by index.
+pub const INSERT_CHOICES: &[&str] = &["draw", "sorted"];
+
+/// `avsm_insert`: the order each texel's fragments are inserted in.
+pub const INSERT: ParamSpec = ParamSpec {
+    key: "avsm_insert",
+    unit: "-",
+    doc: "the order each texel's fragments are inserted in: draw (the paper's streaming \
+          insertion, in the order the particles are drawn: the eye's back-to-front order; T \
+          depends on that order), or sorted (front to back by depth: independent of the draw \
+          order, what engines cannot do in one pass, and no more accurate on any scene \
+          measured)",
+    min: 0.0,
+    max: (INSERT_CHOICES.len() - 1) as f32,
+    default: Some(0.0),
+    choices: INSERT_CHOICES,
+    integer: false,
+    tuned: false,
+};
+
+/// The capture's resolve `avsm_insert` asks for.
+fn resolve(params: &TechniqueParams) -> Resolve {
+    match params.choice_index(&INSERT) {
+        0 => Resolve::SegmentsByDraw,
+        _ => Resolve::SegmentsByDepth,
+    }
+}
 
 pub const SPEC: DeepNodesSpec = DeepNodesSpec {
     name: "avsm",
@@ -30,6 +74,7 @@ pub const SPEC: DeepNodesSpec = DeepNodesSpec {
     stats_words: 0,
     stats_counters: |_| Vec::new(),
     rounds,
+    resolve,
 };
 
 /// Loop iterations one segment's insertion and removals take at most (`ITERATIONS_PER_SEGMENT`
@@ -44,8 +89,8 @@ fn rounds(max_list: u32, loop_budget: u32) -> u32 {
 
 pub const ENTRY: TechniqueEntry = TechniqueEntry {
     name: SPEC.name,
-    description: "adaptive volumetric shadow map: B/2 nodes of T per texel, sorted segments \
-                  inserted, least-area node removed (Salvi et al.)",
+    description: "adaptive volumetric shadow map: B/2 nodes of T per texel, fragments \
+                  inserted in draw order (or sorted), least-area node removed (Salvi et al.)",
     role: Role::Contender,
     budget_caption: |b| format!("{} nodes per texel", nodes_per_texel(b)),
     min_channels: 4,
@@ -55,8 +100,8 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     in_default_sweep: false,
     in_default_compare: true,
     build_reads_back: true,
-    params: &[],
-    order_independent: true,
+    params: &[INSERT],
+    order_independent: false,
     converges_with_budget: true,
     compresses_captured_lists: true,
     memory: |c| SPEC.memory(c),

@@ -5,9 +5,12 @@
 //!
 //! Four passes, all in shaders/shadow/deep_capture.wgsl: a count raster pass over the
 //! light-space billboards (atomic count per texel), a prefix scan into list offsets, a fill pass
-//! writing each fragment's segment (z0, z1, optical depth) into its texel's list, and the resolve's
-//! compute passes sorting each list by (z0, z1, optical depth) — a total key, so the lists do not
-//! depend on the order the fragments arrived in — and merging it into nodes. The counts are read
+//! writing each fragment's segment (z0, z1, optical depth, draw index) into its texel's list, and
+//! the resolve's compute passes, as the owner asks ([`Resolve`]): sorting each list by (z0, z1,
+//! optical depth, draw index) — a total key, so the lists do not depend on the order the
+//! fragments arrived in — and merging it into nodes (`dsm`); sorting it by depth only (`avsm`
+//! sorted); or sorting it by draw index (`avsm` streaming), which restores the order the
+//! particles were drawn in, the order an engine's interlocked fragment shader would see them. The counts are read
 //! back before the fill so the lists can grow to hold the frame (a CPU–GPU sync per build).
 //! A compression pass then binds [`DeepCapture::layout`] as its group 1
 //! (shaders/shadow/deep_capture_lists.wgsl declares it) and reads the sorted segments or nodes.
@@ -74,9 +77,9 @@ pub fn layouts() -> Vec<crate::gpu::MirrorLayout> {
     )]
 }
 
-/// Bytes per stored segment (z0, z1, optical depth) and per segment's share of the resolved
-/// nodes (2 per segment, (z, Ω) each).
-pub const SEGMENT_BYTES: u64 = 12;
+/// Bytes per stored segment (z0, z1, optical depth, draw index) and per segment's share of the
+/// resolved nodes (2 per segment, (z, Ω) each).
+pub const SEGMENT_BYTES: u64 = 16;
 pub const NODE_BYTES_PER_SEGMENT: u64 = 16;
 /// The loop budget where the adapter sets none ([`Gpu::loop_budget`]): no limit worth splitting
 /// for.
@@ -106,8 +109,8 @@ const INITIAL_CAPACITY: u32 = 1 << 16;
 const DUMMY_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R8Unorm;
 
 /// The bytes a capture at `resolution_px` with lists for `segment_capacity` segments allocates:
-/// a 32-byte uniform, the 64 KiB round uniform, counts, offsets (+1 for the total), row sums (+1), an R8 raster target,
-/// and 12 + 16 bytes of segment and node storage per segment.
+/// a 32-byte uniform, the 64 KiB round uniform, counts, offsets (+1 for the total), row sums
+/// (+1), an R8 raster target, and 16 + 16 bytes of segment and node storage per segment.
 pub fn bytes(resolution_px: u32, segment_capacity: u64) -> u64 {
     let texels = u64::from(resolution_px) * u64::from(resolution_px);
     std::mem::size_of::<CaptureParams>() as u64
@@ -119,9 +122,11 @@ pub fn bytes(resolution_px: u32, segment_capacity: u64) -> u64 {
         + segment_capacity * (SEGMENT_BYTES + NODE_BYTES_PER_SEGMENT)
 }
 
-/// The most segments one band may hold: its nodes (the larger list) fit one storage binding.
+/// The most segments one band may hold: its nodes and its segments (16 bytes a segment each) fit
+/// one storage binding.
 fn max_band_segments(gpu: &Gpu) -> u32 {
-    let limit = gpu.limits.max_storage_buffer_binding_size / NODE_BYTES_PER_SEGMENT;
+    let limit =
+        gpu.limits.max_storage_buffer_binding_size / SEGMENT_BYTES.max(NODE_BYTES_PER_SEGMENT);
     u32::try_from(limit).unwrap_or(u32::MAX)
 }
 
@@ -173,16 +178,40 @@ enum ResolvePhase {
     Single,
 }
 
-/// The resolve's phases in order: entry point, kind, and whether the heap passes sort the ends
-/// (the shader's `SORT_ENDS`) rather than the segments.
-const RESOLVE_PHASES: [(&str, ResolvePhase, bool); 6] = [
-    ("heap_build", ResolvePhase::Heap(true), false),
-    ("heap_extract", ResolvePhase::Heap(false), false),
-    ("copy_ends", ResolvePhase::Single, false),
-    ("heap_build", ResolvePhase::Heap(true), true),
-    ("heap_extract", ResolvePhase::Heap(false), true),
-    ("merge_nodes", ResolvePhase::Single, false),
-];
+/// What the resolve leaves in the lists for the owner's pass.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Resolve {
+    /// Segments sorted by depth and merged into the nodes (z, Ω(z)) of the texel's optical
+    /// depth (`dsm`).
+    Nodes,
+    /// Segments sorted by (z0, z1, optical depth) only (`avsm`'s sorted insertion).
+    SegmentsByDepth,
+    /// Segments in the order their particles were drawn (`avsm`'s streaming insertion).
+    SegmentsByDraw,
+}
+
+impl Resolve {
+    /// The phases in order: entry point, kind, and whether the heap passes sort the ends (the
+    /// shader's `SORT_ENDS`) rather than the segments.
+    fn phases(self) -> &'static [(&'static str, ResolvePhase, bool)] {
+        const SORT: [(&str, ResolvePhase, bool); 2] = [
+            ("heap_build", ResolvePhase::Heap(true), false),
+            ("heap_extract", ResolvePhase::Heap(false), false),
+        ];
+        const NODES: [(&str, ResolvePhase, bool); 6] = [
+            SORT[0],
+            SORT[1],
+            ("copy_ends", ResolvePhase::Single, false),
+            ("heap_build", ResolvePhase::Heap(true), true),
+            ("heap_extract", ResolvePhase::Heap(false), true),
+            ("merge_nodes", ResolvePhase::Single, false),
+        ];
+        match self {
+            Resolve::Nodes => &NODES,
+            Resolve::SegmentsByDepth | Resolve::SegmentsByDraw => &SORT,
+        }
+    }
+}
 
 /// Bytes between round indices in the round uniform: WebGPU's largest uniform offset alignment,
 /// so every adapter accepts it.
@@ -339,6 +368,7 @@ impl DeepCapture {
         frame_layout: &wgpu::BindGroupLayout,
         name: &'static str,
         resolution_px: u32,
+        resolve: Resolve,
         memory: &mut MemoryLedger,
     ) -> Result<Self, ShadowError> {
         let device = &gpu.device;
@@ -441,15 +471,16 @@ impl DeepCapture {
             })
         };
         let compute = |entry: &str| pipeline(entry, &compute_layout, &[]);
-        let resolve = RESOLVE_PHASES
+        let by_draw = f64::from(u8::from(resolve == Resolve::SegmentsByDraw));
+        let resolve = resolve
+            .phases()
             .iter()
             .map(|&(entry, phase, sort_ends)| {
-                let constants: &[(&str, f64)] = if sort_ends {
-                    &[("SORT_ENDS", 1.0)]
-                } else {
-                    &[]
-                };
-                (phase, pipeline(entry, &round_layout, constants))
+                let constants = [
+                    ("SORT_ENDS", f64::from(u8::from(sort_ends))),
+                    ("SORT_BY_DRAW", by_draw),
+                ];
+                (phase, pipeline(entry, &round_layout, &constants))
             })
             .collect();
         let lists = Lists::new(

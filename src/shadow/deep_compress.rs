@@ -5,8 +5,8 @@
 //!   nodes (z, Ω(z)) of the piecewise-linear optical depth;
 //! - [`greedy_fit`] and [`dsm_compress`]: `dsm`'s error-bounded greedy fit (Lokovic & Veach
 //!   2000) and the per-texel bisection of its tolerance (shaders/shadow/dsm_build.wgsl);
-//! - [`AvsmCurve`] and [`avsm_compress`]: `avsm`'s sorted insertion and least-area removal
-//!   (Salvi et al. 2010; shaders/shadow/avsm_build.wgsl);
+//! - [`AvsmCurve`] and [`avsm_compress`]: `avsm`'s insertion (in draw order or sorted, as its
+//!   list comes) and least-area removal (Salvi et al. 2010; shaders/shadow/avsm_build.wgsl);
 //! - [`evaluate`]: one texel's lookup (shaders/shadow/deep_nodes.wgsl).
 
 /// A node of a texel's function: a light depth (m) and the value there (Ω or T).
@@ -256,11 +256,12 @@ impl AvsmCurve {
     }
 }
 
-/// `avsm`'s curve of one texel under `limit` (≥ 2) nodes: `sorted` inserted in order, the
-/// least-area interior node removed after each while there are more than `limit`.
-pub fn avsm_compress(sorted: &[Segment], limit: usize) -> Vec<Node> {
+/// `avsm`'s curve of one texel under `limit` (≥ 2) nodes: `segments` inserted in the order
+/// given (draw order, or sorted by depth), the least-area interior node removed after each while
+/// there are more than `limit`.
+pub fn avsm_compress(segments: &[Segment], limit: usize) -> Vec<Node> {
     let mut curve = AvsmCurve::default();
-    for &s in sorted {
+    for &s in segments {
         curve.insert_segment(s);
         while curve.nodes.len() > limit {
             curve.remove_least_area();
@@ -423,23 +424,71 @@ mod tests {
         assert_eq!(avsm_compress(&sorted, 4).len(), 4);
     }
 
+    /// The insertion orders `avsm` may see: sorted by depth, reversed, and a deterministic
+    /// shuffle (a draw order unrelated to depth).
+    fn insertion_orders(sorted: &[Segment], seed: u32) -> [Vec<Segment>; 3] {
+        let reversed: Vec<_> = sorted.iter().rev().copied().collect();
+        let mut shuffled = sorted.to_vec();
+        let mut state = seed ^ 0x9e37_79b9;
+        for i in (1..shuffled.len()).rev() {
+            state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            shuffled.swap(i, (state >> 8) as usize % (i + 1));
+        }
+        [sorted.to_vec(), reversed, shuffled]
+    }
+
     #[test]
-    fn avsm_keeps_its_ends_and_the_budget() {
+    fn avsm_keeps_its_ends_and_the_budget_in_any_insertion_order() {
         for seed in 0..20 {
-            let segments = random_segments(seed, 40);
-            let total: f32 = segments.iter().map(|s| s.optical_depth).sum();
-            let last_exit = segments.iter().map(|s| s.z1).fold(f32::MIN, f32::max);
-            for limit in [2, 3, 8, 16] {
-                let curve = avsm_compress(&segments, limit);
-                assert_eq!(curve.len(), limit);
-                assert_eq!(curve[0], Node::new(segments[0].z0, 1.0));
-                let last = curve[limit - 1];
-                // The last node is the deepest exit, with the whole ray's transmittance.
-                assert_eq!(last.z, last_exit);
-                assert!((last.value - (-total).exp()).abs() < 1e-4, "seed {seed}");
-                assert!(curve.windows(2).all(|w| w[0].z <= w[1].z));
-                assert!(curve.windows(2).all(|w| w[0].value >= w[1].value - 1e-6));
+            let sorted = random_segments(seed, 40);
+            let total: f32 = sorted.iter().map(|s| s.optical_depth).sum();
+            let last_exit = sorted.iter().map(|s| s.z1).fold(f32::MIN, f32::max);
+            for (order, segments) in insertion_orders(&sorted, seed).iter().enumerate() {
+                for limit in [2, 3, 8, 16] {
+                    let curve = avsm_compress(segments, limit);
+                    assert_eq!(curve.len(), limit);
+                    // The first node is the nearest entry, where T is still 1.
+                    assert_eq!(curve[0], Node::new(sorted[0].z0, 1.0), "order {order}");
+                    let last = curve[limit - 1];
+                    // The last node is the deepest exit, with the whole ray's transmittance.
+                    assert_eq!(last.z, last_exit);
+                    assert!(
+                        (last.value - (-total).exp()).abs() < 1e-4,
+                        "seed {seed}, order {order}"
+                    );
+                    assert!(curve.windows(2).all(|w| w[0].z <= w[1].z));
+                    assert!(curve.windows(2).all(|w| w[0].value >= w[1].value - 1e-6));
+                }
             }
         }
+    }
+
+    #[test]
+    fn avsm_without_removals_does_not_depend_on_the_order_of_disjoint_segments() {
+        // Disjoint segments: every entry and exit lands on a flat part of the curve (or beyond
+        // it), where the linear T is exact, so with room for every node the order of insertion
+        // changes nothing but rounding. Streaming `avsm` differs from sorted only through what
+        // its removals drop, and through overlaps.
+        let sorted: Vec<_> = (0..12)
+            .map(|i| {
+                let z0 = 1.0 + i as f32;
+                Segment::new(z0, z0 + 0.5, 0.1 + 0.05 * i as f32)
+            })
+            .collect();
+        let reference = avsm_compress(&sorted, 2 * sorted.len());
+        assert_eq!(reference.len(), 2 * sorted.len());
+        for segments in insertion_orders(&sorted, 7) {
+            let curve = avsm_compress(&segments, 2 * sorted.len());
+            for (a, b) in curve.iter().zip(&reference) {
+                assert_eq!(a.z, b.z);
+                assert!((a.value - b.value).abs() < 1e-6, "{curve:?}");
+            }
+        }
+        // Under a budget the order matters: the removals see different curves.
+        let compressed: Vec<_> = insertion_orders(&sorted, 7)
+            .iter()
+            .map(|segments| avsm_compress(segments, 6))
+            .collect();
+        assert!(compressed.iter().any(|c| c != &compressed[0]));
     }
 }

@@ -17,7 +17,7 @@
 
 use bytemuck::{Pod, Zeroable};
 
-use super::deep_capture::{BandPass, DeepCapture};
+use super::deep_capture::{BandPass, DeepCapture, Resolve};
 use super::layered::uniform_entry;
 use super::{
     BuildInputs, LOOKUP_STAGES, MemoryCase, MemoryUse, ShadowError, ShadowTechnique,
@@ -72,6 +72,8 @@ pub struct DeepNodesSpec {
     /// may loop `loop_budget` times (see `deep_capture`'s module doc; the shader splits its work
     /// by the same arithmetic).
     pub rounds: fn(max_list: u32, loop_budget: u32) -> u32,
+    /// What the capture's resolve leaves for the compression under these parameters.
+    pub resolve: fn(&TechniqueParams) -> Resolve,
 }
 
 impl DeepNodesSpec {
@@ -164,7 +166,14 @@ impl DeepNodes {
             ),
         )?;
         // Build scratch: the capture and the statistics.
-        let capture = DeepCapture::new(gpu, ctx.frame_layout, spec.name, res, &mut memory)?;
+        let capture = DeepCapture::new(
+            gpu,
+            ctx.frame_layout,
+            spec.name,
+            res,
+            (spec.resolve)(params),
+            &mut memory,
+        )?;
         let stats = match spec.stats_words {
             0 => None,
             _ => Some(memory.buffer_transient(

@@ -41,6 +41,7 @@ pub const THICKNESS: ParamSpec = ParamSpec {
     default: None,
     choices: &[],
     integer: false,
+    tuned: true,
 };
 
 /// `dom_layer_ratio`: geometric layer spacing.
@@ -55,6 +56,7 @@ pub const LAYER_RATIO: ParamSpec = ParamSpec {
     default: Some(1.33),
     choices: &[],
     integer: false,
+    tuned: true,
 };
 
 /// `dom_interp`: linear or monotone cubic between layer boundaries.
@@ -75,6 +77,7 @@ pub const START_DILATION: ParamSpec = ParamSpec {
     default: Some(1.02),
     choices: &[],
     integer: false,
+    tuned: true,
 };
 
 pub const SPEC: LayeredSpec = LayeredSpec {

@@ -36,6 +36,7 @@
 //! Memory: the nodes (texels × N × 8 bytes) and a 16-byte uniform; the capture's lists and the
 //! statistics are transient (allocated, counted, and reported apart).
 
+use super::deep_capture::Resolve;
 use super::deep_nodes::{DeepNodes, DeepNodesSpec, nodes_per_texel};
 use super::{Role, TechniqueEntry};
 
@@ -49,6 +50,7 @@ pub const SPEC: DeepNodesSpec = DeepNodesSpec {
     stats_words: 5,
     stats_counters: tolerance_counters,
     rounds,
+    resolve: |_| Resolve::Nodes,
 };
 
 /// Steps of the per-texel search, one greedy fit each (shaders/shadow/dsm_build.wgsl): the fit

@@ -23,6 +23,7 @@ pub const EXPONENT: ParamSpec = ParamSpec {
     default: Some(ESM_DEFAULT_EXPONENT),
     choices: &[],
     integer: false,
+    tuned: true,
 };
 
 /// Chosen by `smokeshadow tune` on the training scenes (docs/tuned_params.toml).

@@ -118,6 +118,7 @@ pub const fn interp_param(key: &'static str, default: usize) -> ParamSpec {
         default: Some(default as f32),
         choices: INTERP_CHOICES,
         integer: false,
+        tuned: true,
     }
 }
 
@@ -251,6 +252,8 @@ pub const fn precision_param(
         }),
         choices: PRECISION_CHOICES,
         integer: false,
+        // What is stored, not a knob of the algorithm: it sets the bytes a texel costs.
+        tuned: false,
     }
 }
 

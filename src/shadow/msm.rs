@@ -43,6 +43,7 @@ pub const BIAS: ParamSpec = ParamSpec {
     default: Some(2.6e-6),
     choices: &[],
     integer: false,
+    tuned: true,
 };
 
 /// `msm_overestimation`: η for power moments.
@@ -57,6 +58,7 @@ pub const OVERESTIMATION: ParamSpec = ParamSpec {
     default: Some(0.428),
     choices: &[],
     integer: false,
+    tuned: true,
 };
 
 /// `tmsm_bias`: β for trigonometric moments.
@@ -90,6 +92,7 @@ pub const WRAPPING_ZONE: ParamSpec = ParamSpec {
     default: Some(0.257),
     choices: &[],
     integer: false,
+    tuned: true,
 };
 
 /// Power moments: N = 4, 6 or 8, the largest that fits B − 1; b0, b1..bN.

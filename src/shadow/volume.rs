@@ -111,6 +111,7 @@ pub const STEPS: ParamSpec = ParamSpec {
     default: Some(DEFAULT_STEPS as f32),
     choices: &[],
     integer: true,
+    tuned: true,
 };
 
 /// `volume_light_aligned`: which field the grid holds.
@@ -127,6 +128,7 @@ pub const LIGHT_ALIGNED: ParamSpec = ParamSpec {
     default: Some(1.0),
     choices: &["no", "yes"],
     integer: false,
+    tuned: true,
 };
 
 /// The default K, chosen by `smokeshadow tune` on the training scenes (docs/tuned_params.toml).

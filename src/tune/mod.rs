@@ -164,14 +164,15 @@ pub fn param_set(name: &str) -> Result<Vec<(String, ParamValue)>, String> {
 }
 
 /// What the search varies: a technique's parameters that have a default (the derived ones stay
-/// derived), but for a layered map's precision: half floats change what the error does not
-/// measure (`fom`'s T then depends on the draw order), so the precision stays the technique's
-/// own choice, and `--param KEY_precision=...` compares the other in a sweep.
+/// derived) and that the registry marks `tuned`. Not a layered map's precision: half floats
+/// change what the error does not measure (the bytes; `fom`'s T then depends on the draw
+/// order), so it stays the technique's own choice, and `--param KEY_precision=...` compares the
+/// other in a sweep. Not `avsm_insert`: its `sorted` is not what a one-pass engine can do.
 pub fn free_params(entry: &TechniqueEntry) -> Vec<&'static ParamSpec> {
     entry
         .params
         .iter()
-        .filter(|p| p.default.is_some() && p.choices != shadow::layered::PRECISION_CHOICES)
+        .filter(|p| p.default.is_some() && p.tuned)
         .collect()
 }
 
