@@ -242,6 +242,7 @@ pub fn run(
         files,
     };
     write_csv(&report, baseline_budget, &out_dir.join("metrics.csv"))?;
+    report::write_studies(out_dir)?;
     crate::output::write_atomic(
         &out_dir.join("index.html"),
         html(&report, options, scene).as_bytes(),
@@ -346,6 +347,7 @@ fn html(report: &CompareReport, options: &CompareOptions, scene: &Scene) -> Stri
             .map_or("not checked".to_owned(), |c| e(&c.to_string())),
         diff::DEFAULT_ENHANCE
     );
+    body.push_str(&report::studies_paragraph());
 
     // Which technique is most accurate for a given memory: FLIP mean against exact.
     body.push_str("<h2>Most accurate per budget</h2>\n<p>FLIP mean against <code>exact</code> (lower is better) and the memory each technique allocated. The best in each row is highlighted.</p>\n<table><tr><th>channels</th>");
@@ -600,7 +602,9 @@ pub fn referenced_paths(html: &str) -> Vec<PathBuf> {
         while let Some(i) = rest.find(attr) {
             rest = &rest[i + attr.len()..];
             if let Some(end) = rest.find('"') {
-                out.push(PathBuf::from(&rest[..end]));
+                // A link to a section names the file before its '#'.
+                let link = &rest[..end];
+                out.push(PathBuf::from(link.split('#').next().unwrap_or(link)));
                 rest = &rest[end..];
             }
         }

@@ -563,6 +563,7 @@ pub fn write(dir: &Path, scenes: &[SweepResults]) -> anyhow::Result<Gallery> {
         &dir.join("results.json"),
         serde_json::to_string_pretty(&results)?.as_bytes(),
     )?;
+    report::write_studies(dir)?;
     crate::output::write_atomic(
         &dir.join(super::report::INDEX_HTML),
         page(scenes, &gallery).as_bytes(),
@@ -710,6 +711,7 @@ fn page(scenes: &[SweepResults], gallery: &Gallery) -> String {
         body.push_str("</tr>\n");
     }
     body.push_str("</table></div>\n");
+    body.push_str(&report::studies_paragraph());
 
     body.push_str("<h2>Scenes</h2>\n");
     for r in scenes {

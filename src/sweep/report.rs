@@ -26,6 +26,7 @@ pub const INDEX_HTML: &str = "index.html";
 /// `dir` (see [`super::charts::write_charts`]). Every link is relative to `dir`.
 pub fn write_html(results: &SweepResults, charts: &[Chart], dir: &Path) -> anyhow::Result<()> {
     let html = page(results, charts);
+    report::write_studies(dir)?;
     crate::output::write_atomic(&dir.join(INDEX_HTML), html.as_bytes())
 }
 
@@ -116,6 +117,7 @@ fn metadata_line(body: &mut String, results: &SweepResults) {
 fn answer(body: &mut String, results: &SweepResults, variants: &Variants, pareto: &[bool]) {
     body.push_str("<h2>Answer</h2>\n");
     equal_bytes(body, results, variants);
+    body.push_str(&report::studies_paragraph());
     let mut front: Vec<&CellResult> = results
         .cells
         .iter()
@@ -446,6 +448,23 @@ fn table(body: &mut String, results: &SweepResults, variants: &Variants, pareto:
                 .map(|n| format!("<code>{n}</code>"))
                 .collect::<Vec<_>>()
                 .join(", ")
+        );
+    }
+    // The techniques whose T depends on the order the particles are drawn (`has` draws them
+    // in its own slices, which follow the view by design).
+    let order_dependent: Vec<String> = crate::shadow::REGISTRY
+        .iter()
+        .filter(|t| !t.order_independent && !t.owns_particle_pass)
+        .filter(|t| results.cells.iter().any(|c| c.technique == t.name))
+        .map(|t| format!("<code>{}</code>", t.name))
+        .collect();
+    if !order_dependent.is_empty() {
+        let _ = writeln!(
+            body,
+            "<p class=\"muted\">{}: T depends on the order the particles are drawn (the eye's \
+             back-to-front sort; see each technique's parameters and notes), so a view from \
+             elsewhere gives other numbers for the same smoke.</p>",
+            order_dependent.join(", ")
         );
     }
     if variants.several() {
