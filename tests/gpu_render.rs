@@ -454,3 +454,67 @@ fn build_fragment_counts_are_whole_passes_over_the_cheapest_builds_billboards() 
     let has = work("has");
     assert_eq!((has.fragments, has.channel_writes), (2 * floor, 2 * floor));
 }
+
+#[test]
+fn every_techniques_gpu_timestamps_agree_with_the_clock() {
+    // The frame the sweep and bench report (GPU passes from timestamps, plus the CPU sort)
+    // against the clock around the same render call (until its GPU work is done and the
+    // timestamps are read): within CLOCK_TOLERANCE, the bound the commands warn beyond. Work
+    // outside every timed pass (a submission the timer does not see, a dispatch lavapipe runs
+    // outside its pass's pair) shows in every frame; other tests' load on a shared machine only
+    // adds wall time, at random, so the frame that agrees best of two is the one held to it.
+    let gpu = gpu();
+    let scene = reduced_plume();
+    let particles = simulate(&scene);
+    let res = scene.shadow.resolution_px;
+    let target = smokeshadow::render::OffscreenTarget::new(&gpu, W, H);
+    let first = technique("none", 1, res, SplatMode::Segment);
+    let mut renderer =
+        smokeshadow::render::Renderer::new(&gpu, W, H, smokeshadow::render::OUTPUT_FORMAT, &first)
+            .unwrap();
+    let options = RenderOptions::default();
+    for entry in smokeshadow::shadow::REGISTRY {
+        let config = technique(
+            entry.name,
+            entry.min_channels.max(16),
+            res,
+            SplatMode::Segment,
+        );
+        renderer.set_technique(&gpu, &config).unwrap();
+        // A warm-up frame: Mesa compiles its shaders.
+        renderer
+            .render(&gpu, &scene, &particles, &options, &target.view)
+            .unwrap();
+        gpu.wait_idle().unwrap();
+        let mut frames = Vec::new();
+        for _ in 0..2 {
+            let start = std::time::Instant::now();
+            let stats = renderer
+                .render(&gpu, &scene, &particles, &options, &target.view)
+                .unwrap();
+            let times = renderer.gpu_times(&gpu).unwrap();
+            let wall_ms = start.elapsed().as_secs_f64() * 1e3;
+            assert!(times.total_ms() > 0.0, "{}: no timestamps", entry.name);
+            frames.push((times.total_ms() + stats.sort_ms, wall_ms));
+        }
+        let (frame_ms, wall_ms) = frames
+            .iter()
+            .copied()
+            .min_by(|a, b| {
+                ((a.0 - a.1) / a.1)
+                    .abs()
+                    .total_cmp(&((b.0 - b.1) / b.1).abs())
+            })
+            .unwrap();
+        println!(
+            "{}: frame {frame_ms:.1} ms, wall {wall_ms:.1} ms",
+            entry.name
+        );
+        assert_eq!(
+            smokeshadow::gpu::clock_warning(entry.name, frame_ms, wall_ms),
+            None,
+            "{}: {frames:?}",
+            entry.name
+        );
+    }
+}

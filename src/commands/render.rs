@@ -307,7 +307,19 @@ fn bench(
         &format!("cpu sort ({} x {})", options.sort, sorts),
         &mut sort,
     );
+    // The frame as the sweep counts it (GPU passes + CPU sort) against the clock.
+    let frame: Vec<f64> = gpu_total.iter().zip(&sort).map(|(g, s)| g + s).collect();
+    let (frame_median, wall_median) = (
+        Summary::of(&mut frame.clone()).median,
+        Summary::of(&mut wall.clone()).median,
+    );
     row("wall frame", &mut wall);
+    if gpu.has_timestamps() {
+        let what = format!("{} frames", t.name());
+        if let Some(warning) = crate::gpu::clock_warning(&what, frame_median, wall_median) {
+            println!("  {warning}");
+        }
+    }
     if let Some(n) = particle_fragments {
         println!(
             "  particle fragments     {n} (fragment shader invocations of the particle pass at {} resolution)",

@@ -273,7 +273,7 @@ fn print_table(results: &SweepResults, folder: &Path) {
         folder.join("index.html").display()
     );
     println!(
-        "{:<10} {:>4} {:>5} {:>8} {:>5} {:>11} {:>11} {:>10} {:>9} {:>9} {:>11} {:>9}",
+        "{:<10} {:>4} {:>5} {:>8} {:>5} {:>11} {:>11} {:>10} {:>10} {:>9} {:>9} {:>11} {:>9}",
         "technique",
         "ch",
         "res",
@@ -282,6 +282,7 @@ fn print_table(results: &SweepResults, folder: &Path) {
         "bytes",
         "transient",
         "frame ms",
+        "wall ms",
         "overhead",
         "FLIP own",
         "FLIP exact",
@@ -290,7 +291,7 @@ fn print_table(results: &SweepResults, folder: &Path) {
     let opt = |v: Option<f64>| v.map_or("-".to_owned(), |v| format!("{v:.4}"));
     for c in &results.cells {
         println!(
-            "{:<10} {:>4} {:>5} {:>8} {:>5} {:>11} {:>11} {:>10.2} {:>9} {:>9} {:>11} {:>9}",
+            "{:<10} {:>4} {:>5} {:>8} {:>5} {:>11} {:>11} {:>10.2} {:>10.2} {:>9} {:>9} {:>11} {:>9}",
             c.technique,
             c.channels,
             c.shadow_res,
@@ -299,12 +300,22 @@ fn print_table(results: &SweepResults, folder: &Path) {
             c.bytes,
             c.transient_bytes,
             c.frame_ms.median,
+            c.wall_ms.median,
             c.overhead_ratio
                 .map_or("-".to_owned(), |r| format!("{r:.2}x")),
             opt(c.vs_own_24.map(|e| e.flip_mean)),
             opt(c.vs_exact.map(|e| e.flip_mean)),
             opt(c.rms_transmittance_error),
         );
+        let what = format!("{} at {} channels", c.technique, c.channels);
+        if let Some(warning) = results
+            .metadata
+            .timestamp_queries
+            .then(|| crate::gpu::clock_warning(&what, c.frame_ms.median, c.wall_ms.median))
+            .flatten()
+        {
+            println!("  {warning}");
+        }
     }
     for s in &results.skipped {
         match s.bytes_per_texel {
