@@ -1,0 +1,98 @@
+#!/usr/bin/env bash
+# smokeshadow on a hardware GPU: build in release, run the test suite's GPU-independent checks on
+# the hardware adapter, and bench every technique at 2.5k, 65k and 1M particles on it, writing
+# every table under one folder (README, "On a real GPU").
+#
+#   scripts/gpu-check.sh [-o DIR] [--counts N,N,...] [--tests NAME,...|none] [--cpu]
+#
+# It picks the adapter `smokeshadow info --adapter auto` selects (hardware first) and names it to
+# the tests (SMOKESHADOW_TEST_ADAPTER) and to bench (--adapter), so both run on the same one.
+# When that adapter is a CPU (lavapipe) it says so and stops with exit status 3: lavapipe's
+# numbers are the README's already. `--cpu` runs everything on lavapipe anyway (to test this
+# script; it then defaults to 2,500 particles only, since a million takes lavapipe minutes a
+# frame).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+out=gpu-check
+counts=""
+cpu=0
+# The checks that hold on any adapter: closed forms, convergence, probe = render, bounds. Not
+# the baselines and the viewer's snapshot (blessed on lavapipe, pixel for pixel), nor the tests
+# that drive the binary on lavapipe by name (sweep, cli, compare, gallery, tune).
+tests="reference,techniques,gpu_render,probe_render,occluders,point_light,moments,slices,volume,mixed_res,shared_sort,particles,scaling"
+
+while [ $# -gt 0 ]; do
+    case "$1" in
+    -o) out="$2"; shift 2 ;;
+    --counts) counts="$2"; shift 2 ;;
+    --tests) tests="$2"; shift 2 ;;
+    --cpu) cpu=1; shift ;;
+    -h | --help) sed -n '2,13p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    *) echo "gpu-check: unknown argument '$1' (see --help)" >&2; exit 2 ;;
+    esac
+done
+
+start=$(date +%s)
+echo "gpu-check: building in release"
+cargo build --release --quiet
+bin=target/release/smokeshadow
+
+mkdir -p "$out"
+"$bin" info --adapter auto >"$out/info.txt"
+selected=$(sed -n 's/^selected (auto): //p' "$out/info.txt")
+if [ -z "$selected" ]; then
+    echo "gpu-check: no GPU adapter at all (see $out/info.txt); install a Vulkan driver" >&2
+    exit 3
+fi
+# "NAME (TYPE, BACKEND, driver ...)": the name is what precedes the device-type group (a name may
+# hold parentheses itself: "llvmpipe (LLVM 15.0.6, 256 bits)").
+name=$(sed -E 's/ \((Cpu|DiscreteGpu|IntegratedGpu|VirtualGpu|Other), .*$//' <<<"$selected")
+case "$selected" in
+*"(Cpu,"*)
+    if [ "$cpu" = 0 ]; then
+        echo "gpu-check: no hardware GPU adapter: auto selects the CPU adapter $name." >&2
+        echo "gpu-check: these checks are for a real GPU; run with --cpu to exercise the script on lavapipe." >&2
+        exit 3
+    fi
+    echo "gpu-check: no hardware GPU adapter; running on the CPU adapter $name as asked (--cpu):"
+    echo "gpu-check: these are lavapipe's numbers, not a GPU's"
+    counts=${counts:-2500}
+    ;;
+*)
+    echo "gpu-check: hardware adapter: $selected"
+    counts=${counts:-2500,65536,1000000}
+    ;;
+esac
+echo "adapter: $selected" >"$out/adapter.txt"
+
+status=0
+if [ "$tests" != none ]; then
+    echo "gpu-check: GPU-independent tests ($tests) on $name"
+    args=()
+    IFS=, read -ra names <<<"$tests"
+    for t in "${names[@]}"; do args+=(--test "$t"); done
+    if SMOKESHADOW_TEST_ADAPTER="$name" cargo test --release --no-fail-fast "${args[@]}" \
+        >"$out/tests.txt" 2>&1; then
+        echo "gpu-check: tests passed ($out/tests.txt)"
+    else
+        status=1
+        echo "gpu-check: tests FAILED on $name: see $out/tests.txt" >&2
+    fi
+    grep -E '^test result|FAILED|panicked' "$out/tests.txt" >"$out/tests-summary.txt" || true
+fi
+
+echo "gpu-check: bench of every technique at $counts particles on $name"
+if "$bin" bench --adapter "$name" --particles-list "$counts" -o "$out/bench" \
+    >"$out/bench.txt" 2>&1; then
+    echo "gpu-check: bench tables in $out/bench.txt, $out/bench/bench.csv"
+else
+    status=1
+    echo "gpu-check: bench failed: see $out/bench.txt" >&2
+fi
+if grep -q '^  warning:' "$out/bench.txt"; then
+    echo "gpu-check: GPU and wall times disagree for some rows (warning lines in $out/bench.txt)"
+fi
+
+echo "gpu-check: done in $(($(date +%s) - start)) s, everything under $out/ (status $status)"
+exit $status
