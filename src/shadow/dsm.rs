@@ -40,8 +40,11 @@ use super::deep_capture::Resolve;
 use super::deep_nodes::{DeepNodes, DeepNodesSpec, nodes_per_texel};
 use super::{Role, TechniqueEntry};
 
-/// Bisection steps of the per-texel tolerance: ε is found to Ω_max / 2^20.
-pub const BISECTION_STEPS: u32 = 20;
+/// Bisection steps of the per-texel tolerance: ε is found to Ω_max / 2^12 (0.1% of the ray's
+/// optical depth; the mean ε is a few percent of it at 24 channels). 20 steps, as before, cost
+/// the thesis frame 18% more (2.29 s against 1.89 s on lavapipe) for images within FLIP 0.0006
+/// and an error against `exact` within 1e-4 (FLIP 0.0023 against 0.0024 at 24 channels).
+pub const BISECTION_STEPS: u32 = 12;
 
 pub const SPEC: DeepNodesSpec = DeepNodesSpec {
     name: "dsm",
