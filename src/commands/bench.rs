@@ -188,12 +188,8 @@ fn print_table(results: &BenchResults) {
                 )),
             }
             println!("{row}");
-            // Without timestamp queries the GPU total is 0: nothing to compare.
-            if let Some(m) = cell
-                .measured
-                .as_ref()
-                .filter(|m| m.gpu_total_ms.median > 0.0)
-            {
+            // Without timestamp queries there is no GPU time to compare.
+            if let Some(m) = cell.measured.as_ref().filter(|_| results.gpu_timestamps) {
                 let what = format!("{} at {} particles", cell.label(), count.particles);
                 if let Some(warning) =
                     crate::gpu::clock_warning(&what, m.frame_ms.median, m.wall_ms.median)

@@ -308,10 +308,10 @@ fn bench(
         &mut sort,
     );
     // The frame as the sweep counts it (GPU passes + CPU sort) against the clock.
-    let frame: Vec<f64> = gpu_total.iter().zip(&sort).map(|(g, s)| g + s).collect();
+    let mut frame: Vec<f64> = gpu_total.iter().zip(&sort).map(|(g, s)| g + s).collect();
     let (frame_median, wall_median) = (
-        Summary::of(&mut frame.clone()).median,
-        Summary::of(&mut wall.clone()).median,
+        Summary::of(&mut frame).median,
+        Summary::of(&mut wall).median,
     );
     row("wall frame", &mut wall);
     if gpu.has_timestamps() {

@@ -10,8 +10,9 @@
 //! optical depth, draw index) — a total key, so the lists do not depend on the order the
 //! fragments arrived in — and merging it into nodes (`dsm`); sorting it by depth only (`avsm`
 //! sorted); or sorting it by draw index (`avsm` streaming), which restores the order the
-//! particles were drawn in, the order an engine's interlocked fragment shader would see them. The counts are read
-//! back before the fill so the lists can grow to hold the frame (a CPU–GPU sync per build).
+//! particles were drawn in, the order an engine's interlocked fragment shader would see them.
+//! The counts are read back before the fill so the lists can grow to hold the frame (a CPU–GPU
+//! sync per build).
 //! A compression pass then binds [`DeepCapture::layout`] as its group 1
 //! (shaders/shadow/deep_capture_lists.wgsl declares it) and reads the sorted segments or nodes.
 //!

@@ -484,9 +484,24 @@ pub fn kept_bytes_per_texel(
     particles: u64,
     frame_pixels: u64,
 ) -> f64 {
+    planned_use(entry, params, particles, frame_pixels).1
+}
+
+/// The channels a configuration uses and the bytes it keeps per texel
+/// ([`kept_bytes_per_texel`]), from one evaluation of its memory formula: what tells two
+/// configurations apart under a byte budget.
+pub fn planned_use(
+    entry: &TechniqueEntry,
+    params: &TechniqueParams,
+    particles: u64,
+    frame_pixels: u64,
+) -> (u64, f64) {
     let used = planned_memory(entry, params, particles, frame_pixels);
     let texels = u64::from(params.resolution_px).pow(2).max(1);
-    (used.bytes - used.transient_bytes) as f64 / texels as f64
+    (
+        used.channels,
+        (used.bytes - used.transient_bytes) as f64 / texels as f64,
+    )
 }
 
 /// The configuration a technique takes under a byte budget per shadow-map texel.
@@ -518,10 +533,7 @@ pub fn fit_bytes_per_texel(
             channels,
             ..base.clone()
         };
-        (
-            planned_memory(entry, &params, particles, frame_pixels).channels,
-            kept_bytes_per_texel(entry, &params, particles, frame_pixels),
-        )
+        planned_use(entry, &params, particles, frame_pixels)
     };
     let allowed = f64::from(budget) + BYTE_BUDGET_SLACK;
     let Some(largest) = (entry.min_channels..=MAX_CHANNELS)

@@ -316,13 +316,7 @@ fn plan_byte_budget(
     let particles = crate::particles::count(scene);
     let pixels = u64::from(scene.output.width_px) * u64::from(scene.output.height_px);
     let fit = shadow::fit_bytes_per_texel(entry, &base.config.params, bytes, particles, pixels)?;
-    let used = |p: &Plan| {
-        let params = &p.config.params;
-        (
-            shadow::planned_memory(entry, params, particles, pixels).channels,
-            shadow::kept_bytes_per_texel(entry, params, particles, pixels),
-        )
-    };
+    let used = |p: &Plan| shadow::planned_use(entry, &p.config.params, particles, pixels);
     let same = cells.iter_mut().find(|p| {
         p.config.name == entry.name
             && p.config.params.resolution_px == res
