@@ -830,7 +830,11 @@ fn written_out(
         // 16-byte uniform.
         "has" => {
             let capacity = n.next_power_of_two().max(1024);
-            (b, 16 + texels * 2 + pixels * 8 + 96 * capacity + 256 * b)
+            // ... and a 16-byte placeholder for the lighting order it does not use.
+            (
+                b,
+                16 + 16 + texels * 2 + pixels * 8 + 96 * capacity + 256 * b,
+            )
         }
         // B / 2 nodes (depth, value: two f32) per texel and a 16-byte uniform; the capture's
         // lists are transient.

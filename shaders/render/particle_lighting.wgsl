@@ -24,15 +24,19 @@ struct ParticleLight {
     radiance: array<vec4<f32>, 4>,
 };
 
-// The particles [start, start + count) of the instance buffer to light.
+// The particles [start, start + count) of the instance buffer to light; when `ordered` is not
+// 0, invocation i lights particle lit_order[start + i] instead of start + i (the technique's
+// lighting order, a permutation of the range: `ShadowTechnique::lighting_order`).
 struct LightRange {
     start: u32,
     count: u32,
+    ordered: u32,
 };
 
 @group(2) @binding(0) var<storage, read> lit_particles: array<ParticleData>;
 @group(2) @binding(1) var<storage, read_write> lit_out: array<ParticleLight>;
 @group(2) @binding(2) var<uniform> lit_range: LightRange;
+@group(2) @binding(3) var<storage, read> lit_order: array<u32>;
 
 // Single scattering at `p` towards the eye plus ambient, for a particle of albedo `albedo`,
 // given the smoke's transmittance `t` from the light to `p`.
@@ -54,7 +58,11 @@ fn light_particles(@builtin(global_invocation_id) id: vec3<u32>) {
     if id.x >= lit_range.count {
         return;
     }
-    let index = lit_range.start + id.x;
+    let slot = lit_range.start + id.x;
+    var index = slot;
+    if lit_range.ordered != 0u {
+        index = lit_order[slot];
+    }
     let particle = lit_particles[index];
     let center = particle.center_radius.xyz;
     let radius = particle.center_radius.w;

@@ -24,19 +24,22 @@ struct ExactParams {
     capacity: u32,
 };
 
-// A particle as the renderer's instance buffer holds it (`ParticleInstance`).
-struct Sphere {
-    // xyz: centre (m); w: radius (m).
-    center_radius: vec4<f32>,
-    // rgb: albedo; w: extinction τ (1/m).
-    albedo_density: vec4<f32>,
-};
-
 @group(1) @binding(0) var<uniform> exact: ExactParams;
 @group(1) @binding(1) var<storage, read> exact_offsets: array<u32>;
-// Particle indices, per tile.
-@group(1) @binding(2) var<storage, read> exact_entries: array<u32>;
-@group(1) @binding(3) var<storage, read> exact_spheres: array<Sphere>;
+// Particle indices, per tile: entry i at texel (i % 2^EXACT_ROW_BITS, i / 2^EXACT_ROW_BITS).
+// Textures, not storage buffers: llvmpipe fetches texels for the lanes of a SIMD group in one
+// gather, where it loads a storage buffer's words lane by lane (src/shadow/exact.rs).
+@group(1) @binding(2) var exact_entries: texture_2d<u32>;
+// A particle as the renderer's instance buffer holds it (`ParticleInstance`): particle i's
+// centre and radius (m) at texel 2i, its albedo and extinction τ (1/m) at 2i + 1.
+@group(1) @binding(3) var exact_spheres: texture_2d<f32>;
+
+// Texels per row of the entry and sphere textures (EXACT_ROW_TEXELS in src/shadow/exact.rs).
+const EXACT_ROW_BITS: u32 = 12u;
+
+fn exact_texel(i: u32) -> vec2<u32> {
+    return vec2<u32>(i & ((1u << EXACT_ROW_BITS) - 1u), i >> EXACT_ROW_BITS);
+}
 
 // Fixed-point units per unit of optical depth, and the largest optical depth a sum holds.
 const EXACT_UNITS: f32 = 67108864.0;
@@ -74,9 +77,11 @@ fn exact_optical_depth(p: vec3<f32>) -> f32 {
     var sum = 0u;
     let end = exact_offsets[tile + 1];
     for (var i = exact_offsets[tile]; i < end; i++) {
-        let sphere = exact_spheres[exact_entries[i]];
-        let r = sphere.center_radius.w;
-        let oc = sphere.center_radius.xyz - origin;
+        let j = 2u * textureLoad(exact_entries, exact_texel(i), 0).x;
+        let center_radius = textureLoad(exact_spheres, exact_texel(j), 0);
+        let density = textureLoad(exact_spheres, exact_texel(j + 1u), 0).w;
+        let r = center_radius.w;
+        let oc = center_radius.xyz - origin;
         let t_mid = dot(oc, dir);
         // The perpendicular offset, not |oc|² - t², which cancels catastrophically.
         let d2 = dot(oc - dir * t_mid, oc - dir * t_mid);
@@ -85,7 +90,7 @@ fn exact_optical_depth(p: vec3<f32>) -> f32 {
         }
         let half = sqrt(r * r - d2);
         let inside = max(min(t_mid + half, length_m) - max(t_mid - half, 0.0), 0.0);
-        let term = sphere.albedo_density.w * (1.0 - sqrt(d2) / r) * inside;
+        let term = density * (1.0 - sqrt(d2) / r) * inside;
         let units = u32(round(min(term, EXACT_MAX_OPTICAL_DEPTH) * EXACT_UNITS));
         sum = select(sum + units, 0xffffffffu, sum > 0xffffffffu - units);
     }

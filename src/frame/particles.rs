@@ -44,6 +44,8 @@ pub struct ParticleLight {
 struct LightRange {
     start: u32,
     count: u32,
+    /// Not 0: light the range in the order [`LightBuffers::write_order`] wrote.
+    ordered: u32,
 }
 
 /// The WGSL structs mirrored here.
@@ -59,7 +61,7 @@ pub fn layouts() -> Vec<crate::gpu::MirrorLayout> {
             LightRange,
             "render/particle_lighting.wgsl",
             "LightRange",
-            [start, count]
+            [start, count, ordered]
         ),
     ]
 }
@@ -73,7 +75,8 @@ const RANGE_STRIDE: u64 = 256;
 pub struct ParticleLayouts {
     /// The lighting as the draw pipelines read it (group 1, vertex stage).
     pub read: wgpu::BindGroupLayout,
-    /// Instances, lighting and the range uniform as the lighting pass uses them (group 2).
+    /// Instances, lighting, the range uniform and the lighting order as the lighting pass uses
+    /// them (group 2).
     pub io: wgpu::BindGroupLayout,
 }
 
@@ -102,6 +105,7 @@ impl ParticleLayouts {
                     },
                     count: None,
                 },
+                storage(3, compute, true),
             ],
         });
         Self { read, io }
@@ -145,8 +149,15 @@ impl ParticleLighting {
         Self { pipeline }
     }
 
-    /// Writes `ranges` (at most the buffers' batch capacity) for the next submission.
-    pub fn set_ranges(&self, queue: &wgpu::Queue, buffers: &LightBuffers, ranges: &[Range<u32>]) {
+    /// Writes `ranges` (at most the buffers' batch capacity) for the next submission, to be lit
+    /// in the order [`LightBuffers::write_order`] wrote when `ordered`.
+    pub fn set_ranges(
+        &self,
+        queue: &wgpu::Queue,
+        buffers: &LightBuffers,
+        ranges: &[Range<u32>],
+        ordered: bool,
+    ) {
         assert!(
             ranges.len() <= buffers.max_batches as usize,
             "more batches than allocated"
@@ -154,10 +165,13 @@ impl ParticleLighting {
         let mut bytes = vec![0u8; ranges.len() * RANGE_STRIDE as usize];
         for (i, r) in ranges.iter().enumerate() {
             let at = i * RANGE_STRIDE as usize;
-            bytes[at..at + 8].copy_from_slice(bytemuck::bytes_of(&LightRange {
+            let range = LightRange {
                 start: r.start,
                 count: r.end - r.start,
-            }));
+                ordered: u32::from(ordered),
+            };
+            let range = bytemuck::bytes_of(&range);
+            bytes[at..at + range.len()].copy_from_slice(range);
         }
         if !bytes.is_empty() {
             queue.write_buffer(&buffers.ranges, 0, &bytes);
@@ -187,25 +201,31 @@ impl ParticleLighting {
     }
 }
 
-/// The lighting buffer for one instance buffer, and the ranges uniform.
+/// The lighting buffer for one instance buffer, the ranges uniform, and the order to light the
+/// particles in.
 pub struct LightBuffers {
     capacity: u64,
     max_batches: u32,
     lighting: wgpu::Buffer,
     ranges: wgpu::Buffer,
+    /// Instance indices, 4 bytes a particle of capacity.
+    order: wgpu::Buffer,
     /// The lighting as the draw pipelines read it (group 1).
     pub read_bind_group: wgpu::BindGroup,
     io_bind_group: wgpu::BindGroup,
 }
 
 impl LightBuffers {
-    /// Lighting for `capacity` particles of `instances`, in up to `max_batches` ranges.
+    /// Lighting for `capacity` particles of `instances`, in up to `max_batches` ranges; in a
+    /// technique's order ([`LightBuffers::write_order`]) when `ordered` (otherwise the order
+    /// binding is a 16-byte placeholder).
     pub fn new(
         device: &wgpu::Device,
         layouts: &ParticleLayouts,
         instances: &wgpu::Buffer,
         capacity: u64,
         max_batches: u32,
+        ordered: bool,
         label: &str,
     ) -> Self {
         let lighting = device.create_buffer(&wgpu::BufferDescriptor {
@@ -219,6 +239,12 @@ impl LightBuffers {
             label: Some(&format!("{label}.light_ranges")),
             size: u64::from(max_batches.max(1)) * RANGE_STRIDE,
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let order = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(&format!("{label}.light_order")),
+            size: if ordered { capacity.max(4) * 4 } else { 16 },
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
         let read_bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -249,6 +275,10 @@ impl LightBuffers {
                         size: wgpu::BufferSize::new(std::mem::size_of::<LightRange>() as u64),
                     }),
                 },
+                wgpu::BindGroupEntry {
+                    binding: 3,
+                    resource: order.as_entire_binding(),
+                },
             ],
         });
         Self {
@@ -256,14 +286,27 @@ impl LightBuffers {
             max_batches,
             lighting,
             ranges,
+            order,
             read_bind_group,
             io_bind_group,
         }
     }
 
-    /// Bytes allocated (lighting and ranges).
+    /// Bytes allocated (lighting, ranges and order).
     pub fn bytes(&self) -> u64 {
-        self.lighting.size() + self.ranges.size()
+        self.lighting.size() + self.ranges.size() + self.order.size()
+    }
+
+    /// Writes the order a range set `ordered` lights its particles in: `order[i]` is the
+    /// instance the lighting of slot i lights (at most the capacity).
+    pub fn write_order(&self, queue: &wgpu::Queue, order: &[u32]) {
+        assert!(
+            order.len() as u64 * 4 <= self.order.size(),
+            "order beyond the order buffer"
+        );
+        if !order.is_empty() {
+            queue.write_buffer(&self.order, 0, bytemuck::cast_slice(order));
+        }
     }
 
     /// Particles this lighting holds.

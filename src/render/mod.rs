@@ -291,6 +291,7 @@ impl Renderer {
             &particles,
             particle_capacity,
             1,
+            true,
             "particles",
         );
         Ok(Self {
@@ -624,9 +625,23 @@ impl Renderer {
         if self.faces[0].technique.particle_pass().is_none() {
             // Each particle's lighting, once, with the technique's T (part of rendering them);
             // a point light's faces each light the points in their face.
+            // In the technique's order when it has one for these particles (the first face's:
+            // the order only speeds the lighting up, whichever face's it is).
             let lighting = &self.pipelines.lighting;
             let everything = 0..particle_count;
-            lighting.set_ranges(&gpu.queue, &self.lights, std::slice::from_ref(&everything));
+            let order = self.faces[0]
+                .technique
+                .lighting_order()
+                .filter(|order| order.len() == particle_count as usize);
+            if let Some(order) = order {
+                self.lights.write_order(&gpu.queue, order);
+            }
+            lighting.set_ranges(
+                &gpu.queue,
+                &self.lights,
+                std::slice::from_ref(&everything),
+                order.is_some(),
+            );
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("particles.lighting"),
                 timestamp_writes: self.timer.compute_pass("particles"),
@@ -1149,6 +1164,7 @@ impl Renderer {
                 &self.particles,
                 self.particle_capacity,
                 1,
+                true,
                 "particles",
             );
         }

@@ -28,15 +28,25 @@
 //! footprint would take more than 60,000 iterations (a particle beside the light covers the
 //! whole image: 240² tiles at most).
 //!
+//! **Textures, and the order the particles are lit in.** The lists and the spheres are textures
+//! ([`ROW_TEXELS`] texels a row), fetched with `textureLoad`, not storage buffers: llvmpipe
+//! loads a storage buffer's words one SIMD lane at a time and fetches texels for all its lanes
+//! in one gather, and the walk is nothing but such loads (at 65,536 particles the walk with
+//! storage buffers took 14.0 s, with textures 5.0 s). And the technique hands the renderer a
+//! lighting order ([`ShadowTechnique::lighting_order`]): the particles by the light-space tile
+//! of their centres (a Morton order of their light-view position), so that the lanes lit
+//! together walk the same or neighbouring lists (5.0 s -> 2.1 s). Neither changes a sum.
+//!
 //! Memory grows with particles × tiles covered, not with a map resolution: the grid is sized so
 //! that a typical particle spans about four tiles across, and when the lists would exceed the
-//! adapter's storage-binding limit the grid is halved until they fit (coarser tiles, longer
-//! lists, the same result). The entries are counted first in a submission of their own and read
-//! back (a CPU–GPU sync: this is the reference, not a contender).
+//! adapter's largest texture the grid is halved until they fit (coarser tiles, longer lists,
+//! the same result). The entries are counted first in a submission of their own and read back
+//! (a CPU–GPU sync: this is the reference, not a contender).
 //!
 //! The budget and the shadow resolution do not apply: `channels_used` reports 0.
 
 use bytemuck::{Pod, Zeroable};
+use rayon::prelude::*;
 
 use super::layered::uniform_entry;
 use super::{
@@ -64,8 +74,8 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     // The uniform, the per-tile counts and offsets (+1 for the total), the row sums (+1), 4
     // bytes per list entry of capacity, and per particle of capacity its sphere (32 bytes: the
     // lists index this copy, so a frame that reuses them after the renderer re-sorted its
-    // instances still reads the spheres they were built from). Nothing is reported as
-    // transient: the counts are scratch, but small.
+    // instances still reads the spheres they were built from). Both capacities fill whole
+    // texture rows. Nothing is reported as transient: the counts are scratch, but small.
     memory: |c| {
         let side = c.counter("tiles_per_side");
         let tiles = side * side;
@@ -125,12 +135,17 @@ pub fn layouts() -> Vec<crate::gpu::MirrorLayout> {
         .collect()
 }
 
-/// Bytes per list entry: the particle's index.
+/// Bytes per list entry: the particle's index (an `R32Uint` texel).
 const ENTRY_BYTES: u64 = 4;
+/// Texels per row of the entry and sphere textures: 2^`EXACT_ROW_BITS` in the shaders, so an
+/// index splits into a texel with a mask and a shift. Capacities are whole rows.
+const ROW_TEXELS: u32 = 4096;
+/// The fewest spheres the sphere texture holds (one row: two texels a sphere).
+const MIN_SPHERES: u32 = ROW_TEXELS / 2;
 /// Lookups one particle-lighting invocation makes: on an adapter with a loop budget
 /// ([`Gpu::loop_budget`]) the longest tile list may be a quarter of it (15,000 on llvmpipe).
 const LOOKUPS_PER_INVOCATION: u32 = 4;
-/// Bytes per sphere (one `ParticleInstance`).
+/// Bytes per sphere (one `ParticleInstance`, two `Rgba32Float` texels).
 const SPHERE_BYTES: u64 = std::mem::size_of::<crate::frame::gpu_data::ParticleInstance>() as u64;
 /// Bounds on the tiles per side (the scan of the row sums is one invocation over the rows).
 const MIN_TILES: u32 = 8;
@@ -162,11 +177,15 @@ struct Grid {
 pub struct Exact {
     params_buffer: wgpu::Buffer,
     grid: Grid,
-    entries: wgpu::Buffer,
+    /// The lists' particle indices (`R32Uint`, [`ROW_TEXELS`] a row), and the entries it holds.
+    entries: wgpu::Texture,
     capacity: u32,
-    /// The spheres the lists index (a copy of the instances), and the particles it holds.
-    spheres: wgpu::Buffer,
+    /// The spheres the lists index (a copy of the instances, `Rgba32Float`, two texels a
+    /// sphere), and the particles it holds.
+    spheres: wgpu::Texture,
     sphere_capacity: u32,
+    /// The instances in the order the lighting pass should light them (by light-space tile).
+    lighting_order: Vec<u32>,
     /// The longest tile list last frame.
     max_list: u32,
     /// The adapter's loop budget, which bounds the lists and the footprints.
@@ -182,6 +201,130 @@ pub struct Exact {
     memory: MemoryLedger,
     /// Entries stored last frame.
     last_entries: u32,
+}
+
+/// A texture of `texels` (a multiple of [`ROW_TEXELS`]) texels of `format`, [`ROW_TEXELS`] a
+/// row.
+fn row_texture(
+    memory: &mut MemoryLedger,
+    device: &wgpu::Device,
+    label: &str,
+    format: wgpu::TextureFormat,
+    usage: wgpu::TextureUsages,
+    texels: u64,
+) -> Result<wgpu::Texture, AllocationError> {
+    memory.forget(label);
+    let rows = texels.div_ceil(u64::from(ROW_TEXELS)).max(1);
+    memory.texture(
+        device,
+        &wgpu::TextureDescriptor {
+            label: Some(label),
+            size: wgpu::Extent3d {
+                width: ROW_TEXELS,
+                height: u32::try_from(rows).unwrap_or(u32::MAX),
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format,
+            usage,
+            view_formats: &[],
+        },
+    )
+}
+
+fn entry_texture(
+    memory: &mut MemoryLedger,
+    device: &wgpu::Device,
+    capacity: u32,
+) -> Result<wgpu::Texture, AllocationError> {
+    row_texture(
+        memory,
+        device,
+        "exact.entries",
+        wgpu::TextureFormat::R32Uint,
+        wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::TEXTURE_BINDING,
+        u64::from(capacity),
+    )
+}
+
+fn sphere_texture(
+    memory: &mut MemoryLedger,
+    device: &wgpu::Device,
+    capacity: u32,
+) -> Result<wgpu::Texture, AllocationError> {
+    row_texture(
+        memory,
+        device,
+        "exact.spheres",
+        wgpu::TextureFormat::Rgba32Float,
+        wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        2 * u64::from(capacity),
+    )
+}
+
+/// A layout entry for a texture read with `textureLoad`.
+fn texture_entry(
+    binding: u32,
+    visibility: wgpu::ShaderStages,
+    sample_type: wgpu::TextureSampleType,
+) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility,
+        ty: wgpu::BindingType::Texture {
+            sample_type,
+            view_dimension: wgpu::TextureViewDimension::D2,
+            multisampled: false,
+        },
+        count: None,
+    }
+}
+
+fn texture_binding(binding: u32, view: &wgpu::TextureView) -> wgpu::BindGroupEntry<'_> {
+    wgpu::BindGroupEntry {
+        binding,
+        resource: wgpu::BindingResource::TextureView(view),
+    }
+}
+
+/// The instances in a Morton order of their centres' light-view position (1024² cells over the
+/// light's image plane), so that consecutive particles sit in the same or neighbouring tiles.
+fn lighting_order(
+    light: &super::LightSpace,
+    instances: &[crate::frame::gpu_data::ParticleInstance],
+) -> Vec<u32> {
+    const CELLS: f32 = 1024.0;
+    let key = |instance: &crate::frame::gpu_data::ParticleInstance| {
+        let [x, y, z, _] = instance.center_radius;
+        let view = light
+            .view_from_world
+            .transform_point3(glam::Vec3::new(x, y, z));
+        let ndc = glam::Vec2::new(view.x, view.y) / ((-view.z).max(1e-6) * light.tan_half_fov);
+        let cell =
+            ((ndc * 0.5 + 0.5) * CELLS).clamp(glam::Vec2::ZERO, glam::Vec2::splat(CELLS - 1.0));
+        morton(cell.x as u32, cell.y as u32)
+    };
+    let mut keyed: Vec<(u32, u32)> = instances
+        .par_iter()
+        .enumerate()
+        .map(|(i, instance)| (key(instance), i as u32))
+        .collect();
+    radsort::sort_by_key(&mut keyed, |&(k, _)| k);
+    keyed.into_iter().map(|(_, i)| i).collect()
+}
+
+/// `x` and `y` (below 2^16) with their bits interleaved, x in the even bits.
+fn morton(x: u32, y: u32) -> u32 {
+    fn spread(v: u32) -> u32 {
+        let mut v = v & 0xffff;
+        v = (v | (v << 8)) & 0x00ff_00ff;
+        v = (v | (v << 4)) & 0x0f0f_0f0f;
+        v = (v | (v << 2)) & 0x3333_3333;
+        (v | (v << 1)) & 0x5555_5555
+    }
+    spread(x) | (spread(y) << 1)
 }
 
 fn storage_buffer(
@@ -225,30 +368,30 @@ impl Exact {
             },
         )?;
         let grid = Grid::new(&mut memory, device, MIN_TILES)?;
-        let sphere_capacity = 1024u32;
-        let spheres = storage_buffer(
-            &mut memory,
-            device,
-            "exact.spheres",
-            u64::from(sphere_capacity) * SPHERE_BYTES,
-        )?;
+        let sphere_capacity = MIN_SPHERES;
+        let spheres = sphere_texture(&mut memory, device, sphere_capacity)?;
         let capacity = 1u32 << 16;
-        let entries = storage_buffer(
-            &mut memory,
-            device,
-            "exact.entries",
-            u64::from(capacity) * ENTRY_BYTES,
-        )?;
+        let entries = entry_texture(&mut memory, device, capacity)?;
 
         let compute = wgpu::ShaderStages::COMPUTE;
+        let unfilterable = wgpu::TextureSampleType::Float { filterable: false };
         let build_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("exact.build.layout"),
             entries: &[
                 uniform_entry(0, compute),
                 storage_entry(1, compute, false),
                 storage_entry(2, compute, false),
-                storage_entry(3, compute, false),
-                storage_entry(4, compute, true),
+                wgpu::BindGroupLayoutEntry {
+                    binding: 3,
+                    visibility: compute,
+                    ty: wgpu::BindingType::StorageTexture {
+                        access: wgpu::StorageTextureAccess::WriteOnly,
+                        format: wgpu::TextureFormat::R32Uint,
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                    },
+                    count: None,
+                },
+                texture_entry(4, compute, unfilterable),
                 storage_entry(6, compute, false),
             ],
         });
@@ -257,8 +400,8 @@ impl Exact {
             entries: &[
                 uniform_entry(0, LOOKUP_STAGES),
                 storage_entry(1, LOOKUP_STAGES, true),
-                storage_entry(2, LOOKUP_STAGES, true),
-                storage_entry(3, LOOKUP_STAGES, true),
+                texture_entry(2, LOOKUP_STAGES, wgpu::TextureSampleType::Uint),
+                texture_entry(3, LOOKUP_STAGES, unfilterable),
             ],
         });
         let module = shaders::module(
@@ -284,7 +427,8 @@ impl Exact {
         let lookup_bind_group = lookup_bind_group(
             device,
             &lookup_layout,
-            [&params_buffer, &grid.offsets, &entries, &spheres],
+            [&params_buffer, &grid.offsets],
+            [&entries, &spheres],
         );
         Ok(Self {
             count: pipeline("count"),
@@ -298,6 +442,7 @@ impl Exact {
             capacity,
             spheres,
             sphere_capacity,
+            lighting_order: Vec::new(),
             max_list: 0,
             loop_budget: ctx.gpu.loop_budget(),
             build_layout,
@@ -323,6 +468,8 @@ impl Exact {
     }
 
     fn build_bind_group(&self, device: &wgpu::Device) -> wgpu::BindGroup {
+        let entries = self.entries.create_view(&Default::default());
+        let spheres = self.spheres.create_view(&Default::default());
         device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("exact.build.bind_group"),
             layout: &self.build_layout,
@@ -330,8 +477,8 @@ impl Exact {
                 bind_entry(0, &self.params_buffer),
                 bind_entry(1, &self.grid.counts),
                 bind_entry(2, &self.grid.offsets),
-                bind_entry(3, &self.entries),
-                bind_entry(4, &self.spheres),
+                texture_binding(3, &entries),
+                texture_binding(4, &spheres),
                 bind_entry(6, &self.grid.row_sums),
             ],
         })
@@ -414,18 +561,42 @@ impl Exact {
         gpu: &Gpu,
         instances: &[crate::frame::gpu_data::ParticleInstance],
     ) -> Result<(), ShadowError> {
-        let needed = (instances.len() as u32).max(1);
+        let needed = instances.len() as u32;
         if needed > self.sphere_capacity {
-            self.sphere_capacity = needed.next_power_of_two();
-            self.spheres = storage_buffer(
-                &mut self.memory,
-                &gpu.device,
-                "exact.spheres",
-                u64::from(self.sphere_capacity) * SPHERE_BYTES,
-            )?;
+            // A power of two of at least one row: whole rows.
+            self.sphere_capacity = needed.next_power_of_two().max(MIN_SPHERES);
+            self.spheres = sphere_texture(&mut self.memory, &gpu.device, self.sphere_capacity)?;
         }
-        gpu.queue
-            .write_buffer(&self.spheres, 0, bytemuck::cast_slice(instances));
+        // Whole rows: the last one padded with zeros (spheres no list indexes).
+        let row_bytes = u64::from(ROW_TEXELS) * 16;
+        let bytes: &[u8] = bytemuck::cast_slice(instances);
+        let rows = (bytes.len() as u64).div_ceil(row_bytes);
+        if rows == 0 {
+            return Ok(());
+        }
+        let mut padded;
+        let data = if bytes.len() as u64 == rows * row_bytes {
+            bytes
+        } else {
+            padded = Vec::with_capacity((rows * row_bytes) as usize);
+            padded.extend_from_slice(bytes);
+            padded.resize((rows * row_bytes) as usize, 0);
+            &padded[..]
+        };
+        gpu.queue.write_texture(
+            self.spheres.as_image_copy(),
+            data,
+            wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(row_bytes as u32),
+                rows_per_image: None,
+            },
+            wgpu::Extent3d {
+                width: ROW_TEXELS,
+                height: rows as u32,
+                depth_or_array_layers: 1,
+            },
+        );
         Ok(())
     }
 }
@@ -433,16 +604,19 @@ impl Exact {
 fn lookup_bind_group(
     device: &wgpu::Device,
     layout: &wgpu::BindGroupLayout,
-    [params, offsets, entries, spheres]: [&wgpu::Buffer; 4],
+    [params, offsets]: [&wgpu::Buffer; 2],
+    [entries, spheres]: [&wgpu::Texture; 2],
 ) -> wgpu::BindGroup {
+    let entries = entries.create_view(&Default::default());
+    let spheres = spheres.create_view(&Default::default());
     device.create_bind_group(&wgpu::BindGroupDescriptor {
         label: Some("exact.lookup.bind_group"),
         layout,
         entries: &[
             bind_entry(0, params),
             bind_entry(1, offsets),
-            bind_entry(2, entries),
-            bind_entry(3, spheres),
+            texture_binding(2, &entries),
+            texture_binding(3, &spheres),
         ],
     })
 }
@@ -477,11 +651,18 @@ impl ShadowTechnique for Exact {
         ]
     }
 
+    fn lighting_order(&self) -> Option<&[u32]> {
+        Some(&self.lighting_order)
+    }
+
     fn build(&mut self, gpu: &Gpu, mut inputs: BuildInputs<'_>) -> Result<(), ShadowError> {
         let device = &gpu.device;
-        let limit = gpu.limits.max_storage_buffer_binding_size;
-        let fits = |entries: u64| entries * ENTRY_BYTES <= limit;
+        // The entries one texture holds: whole rows, as many as the adapter allows.
+        let max_entries = u64::from(ROW_TEXELS) * u64::from(gpu.limits.max_texture_dimension_2d);
+        let limit = max_entries * ENTRY_BYTES;
+        let fits = |entries: u64| entries <= max_entries;
         self.upload_spheres(gpu, inputs.instances)?;
+        self.lighting_order = lighting_order(inputs.light, inputs.instances);
 
         // Count at the grid this frame's particles ask for, halving it while the lists would not
         // fit one binding or, on llvmpipe, while some particle's footprint covers more tiles
@@ -526,18 +707,15 @@ impl ShadowTechnique for Exact {
             }
         }
         if total > u64::from(self.capacity) {
-            // Headroom so that a slowly changing scene does not reallocate every frame.
-            let mut capacity = (total + total / 4).max(1 << 16);
+            // Headroom so that a slowly changing scene does not reallocate every frame; whole
+            // texture rows.
+            let whole_rows = |n: u64| n.next_multiple_of(u64::from(ROW_TEXELS));
+            let mut capacity = whole_rows((total + total / 4).max(1 << 16));
             if !fits(capacity) {
-                capacity = total;
+                capacity = whole_rows(total);
             }
             self.capacity = capacity as u32;
-            self.entries = storage_buffer(
-                &mut self.memory,
-                device,
-                "exact.entries",
-                capacity * ENTRY_BYTES,
-            )?;
+            self.entries = entry_texture(&mut self.memory, device, self.capacity)?;
         }
         self.last_entries = total as u32;
         self.write_params(gpu, inputs.light, inputs.particle_count);
@@ -545,12 +723,8 @@ impl ShadowTechnique for Exact {
         self.lookup_bind_group = lookup_bind_group(
             device,
             &self.lookup_layout,
-            [
-                &self.params_buffer,
-                &self.grid.offsets,
-                &self.entries,
-                &self.spheres,
-            ],
+            [&self.params_buffer, &self.grid.offsets],
+            [&self.entries, &self.spheres],
         );
 
         // The counts, cleared, become the fill's cursors.
@@ -583,6 +757,51 @@ mod tests {
             mean_dist_m,
             face: None,
         }
+    }
+
+    #[test]
+    fn morton_interleaves_x_into_the_even_bits() {
+        assert_eq!(morton(0, 0), 0);
+        assert_eq!(morton(1, 0), 1);
+        assert_eq!(morton(0, 1), 2);
+        assert_eq!(morton(3, 3), 15);
+        assert_eq!(morton(0b1010, 0b0101), 0b0110_0110);
+        assert_eq!(morton(1023, 1023), (1 << 20) - 1);
+    }
+
+    #[test]
+    fn the_lighting_order_is_a_permutation_that_keeps_light_space_neighbours_together() {
+        use crate::frame::gpu_data::ParticleInstance;
+        use rand::SeedableRng;
+        use rand::seq::SliceRandom;
+        // A light at the origin looking down -z (tan 0.5): particles on a 16x16 grid of its
+        // image plane at z = -10 (0.6 m apart), in a shuffled order.
+        let light = light(0.1, 10.0);
+        let mut cells: Vec<(f32, f32)> = (0..256)
+            .map(|i| ((i % 16) as f32, (i / 16) as f32))
+            .collect();
+        cells.shuffle(&mut rand_pcg::Pcg64::seed_from_u64(1));
+        let instances: Vec<ParticleInstance> = cells
+            .iter()
+            .map(|&(x, y)| ParticleInstance {
+                center_radius: [(x - 7.5) * 0.6, (y - 7.5) * 0.6, -10.0, 0.1],
+                albedo_density: [1.0; 4],
+            })
+            .collect();
+        let order = lighting_order(&light, &instances);
+        let mut sorted = order.clone();
+        sorted.sort_unstable();
+        assert_eq!(sorted, (0..256).collect::<Vec<u32>>());
+        // The path through the grid in that order, in grid steps: a Morton curve's is under
+        // twice the 255 of a perfect walk (397 here); the shuffled order's is about 2,100.
+        let path = |order: &mut dyn Iterator<Item = usize>| {
+            let points: Vec<glam::Vec2> = order.map(|i| glam::Vec2::from(cells[i])).collect();
+            points.windows(2).map(|w| w[0].distance(w[1])).sum::<f32>()
+        };
+        let ordered = path(&mut order.iter().map(|&i| i as usize));
+        let shuffled = path(&mut (0..256));
+        assert!(ordered < 2.0 * 255.0, "{ordered}");
+        assert!(shuffled > 4.0 * ordered, "{shuffled} vs {ordered}");
     }
 
     #[test]

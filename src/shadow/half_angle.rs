@@ -63,12 +63,14 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     compresses_captured_lists: false,
     // R16F light buffer, RGBA16F eye buffer, the re-sorted instances (32 bytes each, capacity a
     // power of two from 1024), their lighting (64 bytes each), one 256-byte lighting range per
-    // slice and a 16-byte uniform.
+    // slice, a 16-byte uniform and the lighting order's 16-byte placeholder (has lights its
+    // batches in their own order).
     memory: |c| {
         let capacity = c.particles.next_power_of_two().max(1024);
         MemoryUse {
             channels: c.channels().into(),
             bytes: 16
+                + 16
                 + c.texels() * 2
                 + c.frame_pixels * 8
                 + 96 * capacity
@@ -213,7 +215,7 @@ fn light_buffers(
     capacity: u64,
     slices: u32,
 ) -> LightBuffers {
-    let lights = LightBuffers::new(device, layouts, instances, capacity, slices, "has");
+    let lights = LightBuffers::new(device, layouts, instances, capacity, slices, false, "has");
     memory.forget("has.lighting");
     memory.record("has.lighting", lights.bytes());
     lights
@@ -622,7 +624,8 @@ impl ParticlePass for HalfAngle {
             &self.eye_over
         };
         let encoder = inputs.encoder;
-        self.lighting.set_ranges(&gpu.queue, &self.lights, &batches);
+        self.lighting
+            .set_ranges(&gpu.queue, &self.lights, &batches, false);
         // The light buffers start empty; the eye buffer is cleared by the first eye pass.
         let mut others = inputs.other_faces;
         self.light_pass_all(

@@ -79,8 +79,8 @@ pub enum ShadowError {
         allowed_bytes: u32,
     },
     #[error(
-        "exact's tile lists for {particles} particles need {bytes} bytes even as one tile, but \
-         the adapter binds at most {limit} bytes per buffer"
+        "exact's tile lists for {particles} particles need {bytes} bytes even at its coarsest \
+         grid, but the adapter's largest texture holds {limit} bytes of them"
     )]
     TileListsTooLarge {
         particles: u32,
@@ -381,6 +381,13 @@ pub trait ShadowTechnique: Send {
     /// slicing: it depends on which slice the point falls in). `None`, the default: the probe
     /// dispatches `shadow_transmittance` with [`ShadowTechnique::bind_group`].
     fn probe_pass(&mut self) -> Option<&mut dyn ProbePass> {
+        None
+    }
+    /// The order the lighting pass should light the last built frame's particles in: a
+    /// permutation of the instance indices, or `None` (the default: instance order). Only speed
+    /// depends on it, never a value: each particle's lighting is its own. `exact` orders them by
+    /// light-space tile, so that the particles lit together walk the same tile lists.
+    fn lighting_order(&self) -> Option<&[u32]> {
         None
     }
     /// Technique-specific counts from the last frame, for reports (e.g. `exact`'s segments).
