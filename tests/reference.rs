@@ -184,3 +184,64 @@ fn a_broken_reference_is_refused_in_one_line() {
     let c = check(&gpu, &scene, &particles);
     assert!(c.worst_difference <= TOLERANCE, "{c}");
 }
+
+/// Dense smoke is not refused: 16,000 spheres of 0.5 m whose centres lie within 0.2 m of one
+/// point, so every one of them covers the tiles at the cluster's centre and one tile list holds
+/// all 16,000 (beyond the 15,000 that four lookups per lighting invocation allowed on
+/// llvmpipe; each invocation now lights one point). `exact` renders it and stays within 1e-4
+/// of the f64 closed form at the shaded points.
+#[test]
+fn a_tile_list_of_sixteen_thousand_spheres_is_walked_whole() {
+    use rand::{Rng, SeedableRng};
+    let gpu = common::gpu();
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(16_000);
+    let cluster: Vec<Particle> = (0..16_000)
+        .map(|_| {
+            let offset = loop {
+                let v = Vec3::new(
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                );
+                if v.length_squared() <= 1.0 {
+                    break v * 0.2;
+                }
+            };
+            Particle {
+                position: Vec3::new(0.0, 1.5, 0.0) + offset,
+                velocity: Vec3::ZERO,
+                age_s: 1.0,
+                radius_m: 0.5,
+                // About 1.6 of optical depth through the middle: T well inside (0, 1).
+                density_per_m: 2e-4,
+                albedo: Vec3::splat(0.8),
+            }
+        })
+        .collect();
+    let dir = common::scratch("reference-dense");
+    let scene = bare(&dir, "dense", &cluster);
+    let particles = particles::scene_particles(&scene).unwrap();
+    let config = common::technique("exact", 1, 512, SplatMode::Segment);
+    let mut renderer = Renderer::new(&gpu, W, H, OUTPUT_FORMAT, &config).unwrap();
+    let target = OffscreenTarget::new(&gpu, W, H);
+    renderer
+        .render(
+            &gpu,
+            &scene,
+            &particles,
+            &RenderOptions::default(),
+            &target.view,
+        )
+        .unwrap_or_else(|e| panic!("dense cluster refused: {e}"));
+    let longest = renderer
+        .technique()
+        .counters()
+        .into_iter()
+        .find(|(name, _)| *name == "max_tile_list")
+        .unwrap()
+        .1;
+    assert!(longest >= 15_001, "longest tile list {longest}");
+    let c = reference_check::verify(&mut renderer, &gpu, &scene, &particles).unwrap();
+    assert!(c.points >= 100, "only {} points", c.points);
+    assert!(c.worst_difference <= 1e-4, "{c}");
+}

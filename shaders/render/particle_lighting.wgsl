@@ -53,12 +53,24 @@ fn scattered_radiance(p: vec3<f32>, eye: vec3<f32>, albedo: vec3<f32>, t: f32) -
     return albedo * (direct / PI + frame.ambient.rgb);
 }
 
-@compute @workgroup_size(64)
+// Invocations per workgroup: four per particle, one per lighting point (LIGHTING_WORKGROUP in
+// src/frame/particles.rs).
+const LIGHTING_WORKGROUP: u32 = 256u;
+
+// One lighting point per invocation, four invocations per particle (adjacent, so that a
+// particle's points are lit by neighbouring lanes): each invocation makes one lookup, so a
+// lookup that loops (`exact`'s walk over a tile list) may take the whole of llvmpipe's loop
+// budget, and the lookup is compiled once, not inlined four times (llvmpipe compiles this
+// shader in up to seconds for the moment maps otherwise). A point light's six faces each light
+// the points in their own face (`in_light_face`).
+@compute @workgroup_size(LIGHTING_WORKGROUP)
 fn light_particles(@builtin(global_invocation_id) id: vec3<u32>) {
-    if id.x >= lit_range.count {
+    let k = id.x & 3u;
+    let local = id.x >> 2u;
+    if local >= lit_range.count {
         return;
     }
-    let slot = lit_range.start + id.x;
+    let slot = lit_range.start + local;
     var index = slot;
     if lit_range.ordered != 0u {
         index = lit_order[slot];
@@ -70,17 +82,12 @@ fn light_particles(@builtin(global_invocation_id) id: vec3<u32>) {
     let bb = billboard_frame(center, radius, eye);
     let r = bb.right * (radius * SHADE_OFFSET);
     let u = bb.up * (radius * SHADE_OFFSET);
-    let albedo = particle.albedo_density.rgb;
-    // A loop, not four calls: the technique's lookup is then compiled once, not inlined four
-    // times (llvmpipe compiles this shader in up to seconds for the moment maps otherwise).
-    // A point light's six faces each light the points in their own face (`in_light_face`).
-    for (var k = 0u; k < 4u; k++) {
-        let sx = select(-1.0, 1.0, (k & 1u) != 0u);
-        let sy = select(-1.0, 1.0, (k & 2u) != 0u);
-        let p = center + sx * r + sy * u;
-        if in_light_face(p) {
-            let t = shadow_transmittance(p);
-            lit_out[index].radiance[k] = vec4<f32>(scattered_radiance(p, eye, albedo, t), t);
-        }
+    let sx = select(-1.0, 1.0, (k & 1u) != 0u);
+    let sy = select(-1.0, 1.0, (k & 2u) != 0u);
+    let p = center + sx * r + sy * u;
+    if in_light_face(p) {
+        let t = shadow_transmittance(p);
+        let albedo = particle.albedo_density.rgb;
+        lit_out[index].radiance[k] = vec4<f32>(scattered_radiance(p, eye, albedo, t), t);
     }
 }

@@ -19,9 +19,9 @@
 //! iterations of an invocation group, all its loops together — and the unsorted tails made
 //! the early exit skip spheres in front of the point.)
 //!
-//! **The loop limit.** The same limit bounds the walk: the particle lighting pass does four
-//! lookups per invocation, so on llvmpipe the longest list must stay under a quarter of its
-//! loop budget ([`Gpu::loop_budget`]), 15,000 entries. The build reads the per-tile counts back,
+//! **The loop limit.** The same limit bounds the walk: each invocation of the particle lighting
+//! pass, the opaque pass and the probe makes one lookup, so on llvmpipe the longest list must
+//! stay within its loop budget ([`Gpu::loop_budget`]), 60,000 entries. The build reads the per-tile counts back,
 //! and a frame whose longest list is beyond it is refused ([`ShadowError::TileListTooLong`]) rather than summed
 //! short. The counter `max_tile_list` reports it on every adapter. The count and the fill loop
 //! over each particle's footprint, so on llvmpipe the grid is also halved while the largest
@@ -142,9 +142,6 @@ const ENTRY_BYTES: u64 = 4;
 const ROW_TEXELS: u32 = 4096;
 /// The fewest spheres the sphere texture holds (one row: two texels a sphere).
 const MIN_SPHERES: u32 = ROW_TEXELS / 2;
-/// Lookups one particle-lighting invocation makes: on an adapter with a loop budget
-/// ([`Gpu::loop_budget`]) the longest tile list may be a quarter of it (15,000 on llvmpipe).
-const LOOKUPS_PER_INVOCATION: u32 = 4;
 /// Bytes per sphere (one `ParticleInstance`, two `Rgba32Float` texels).
 const SPHERE_BYTES: u64 = std::mem::size_of::<crate::frame::gpu_data::ParticleInstance>() as u64;
 /// Bounds on the tiles per side (the scan of the row sums is one invocation over the rows).
@@ -695,16 +692,17 @@ impl ShadowTechnique for Exact {
             }
             tiles = (tiles / 2).max(MIN_TILES);
         };
-        if let Some(budget) = self.loop_budget {
-            let limit = budget / LOOKUPS_PER_INVOCATION;
-            if self.max_list > limit {
-                return Err(ShadowError::TileListTooLong {
-                    particles: inputs.particle_count,
-                    tiles: self.grid.tiles,
-                    longest: self.max_list,
-                    limit,
-                });
-            }
+        // One lookup per invocation (particle lighting, opaque pass, probe): a list may take
+        // the whole loop budget.
+        if let Some(limit) = self.loop_budget
+            && self.max_list > limit
+        {
+            return Err(ShadowError::TileListTooLong {
+                particles: inputs.particle_count,
+                tiles: self.grid.tiles,
+                longest: self.max_list,
+                limit,
+            });
         }
         if total > u64::from(self.capacity) {
             // Headroom so that a slowly changing scene does not reallocate every frame; whole
