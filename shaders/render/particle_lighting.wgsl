@@ -53,20 +53,24 @@ fn scattered_radiance(p: vec3<f32>, eye: vec3<f32>, albedo: vec3<f32>, t: f32) -
     return albedo * (direct / PI + frame.ambient.rgb);
 }
 
-// Invocations per workgroup: four per particle, one per lighting point (LIGHTING_WORKGROUP in
-// src/frame/particles.rs).
-const LIGHTING_WORKGROUP: u32 = 256u;
+// Particles per workgroup: each workgroup lights 64 particles with 256 invocations, one per
+// lighting point (PARTICLES_PER_WORKGROUP in src/frame/particles.rs).
+const PARTICLES_PER_WORKGROUP: u32 = 64u;
 
-// One lighting point per invocation, four invocations per particle (adjacent, so that a
-// particle's points are lit by neighbouring lanes): each invocation makes one lookup, so a
-// lookup that loops (`exact`'s walk over a tile list) may take the whole of llvmpipe's loop
-// budget, and the lookup is compiled once, not inlined four times (llvmpipe compiles this
-// shader in up to seconds for the moment maps otherwise). A point light's six faces each light
-// the points in their own face (`in_light_face`).
-@compute @workgroup_size(LIGHTING_WORKGROUP)
-fn light_particles(@builtin(global_invocation_id) id: vec3<u32>) {
-    let k = id.x & 3u;
-    let local = id.x >> 2u;
+// One lighting point per invocation: each invocation makes one lookup, so a lookup that loops
+// (`exact`'s walk over a tile list) may take the whole of llvmpipe's loop budget, and the
+// lookup is compiled once, not inlined four times (llvmpipe compiles this shader in up to
+// seconds for the moment maps otherwise). Invocation i of a workgroup lights point i / 64 of
+// its particle i % 64, so that neighbouring lanes light the same point of neighbouring
+// particles (in a technique's lighting order, neighbours in light space). A point light's six
+// faces each light the points in their own face (`in_light_face`).
+@compute @workgroup_size(256)
+fn light_particles(
+    @builtin(workgroup_id) group: vec3<u32>,
+    @builtin(local_invocation_index) lane: u32,
+) {
+    let k = lane / PARTICLES_PER_WORKGROUP;
+    let local = group.x * PARTICLES_PER_WORKGROUP + lane % PARTICLES_PER_WORKGROUP;
     if local >= lit_range.count {
         return;
     }

@@ -66,13 +66,12 @@ pub fn layouts() -> Vec<crate::gpu::MirrorLayout> {
     ]
 }
 
-/// The lighting pass's invocations per particle: one per lighting point, so that each makes one
-/// lookup (and a looping lookup may take llvmpipe's whole loop budget: `shadow::exact`).
-pub const INVOCATIONS_PER_PARTICLE: u64 = 4;
-/// Its workgroup size (`LIGHTING_WORKGROUP` in shaders/render/particle_lighting.wgsl): 256, so
-/// that 4,000,000 particles' 16,000,000 invocations need 62,500 workgroups, within the 65,535 a
-/// dispatch may have.
-const LIGHTING_WORKGROUP: u64 = 256;
+/// Particles one workgroup of the lighting pass lights (`PARTICLES_PER_WORKGROUP` in
+/// shaders/render/particle_lighting.wgsl), with an invocation per lighting point (256), so that
+/// each invocation makes one lookup and a looping lookup may take llvmpipe's whole loop budget
+/// (`shadow::exact`). 4,000,000 particles need 62,500 workgroups, within the 65,535 of a
+/// dispatch.
+const PARTICLES_PER_WORKGROUP: u32 = 64;
 
 /// Uniform offsets must be multiples of this (the WebGPU minimum, which every adapter meets).
 const RANGE_STRIDE: u64 = 256;
@@ -205,8 +204,7 @@ impl ParticleLighting {
         pass.set_bind_group(1, lookup_bind_group, &[]);
         let offset = (u64::from(batch) * RANGE_STRIDE) as u32;
         pass.set_bind_group(2, &buffers.io_bind_group, &[offset]);
-        let invocations = u64::from(count) * INVOCATIONS_PER_PARTICLE;
-        pass.dispatch_workgroups(invocations.div_ceil(LIGHTING_WORKGROUP) as u32, 1, 1);
+        pass.dispatch_workgroups(count.div_ceil(PARTICLES_PER_WORKGROUP), 1, 1);
     }
 }
 
