@@ -21,9 +21,10 @@
 //!
 //! **The loop limit.** The same limit bounds the walk: each invocation of the particle lighting
 //! pass, the opaque pass and the probe makes one lookup, so on llvmpipe the longest list must
-//! stay within its loop budget ([`Gpu::loop_budget`]), 60,000 entries. The build reads the per-tile counts back,
-//! and a frame whose longest list is beyond it is refused ([`ShadowError::TileListTooLong`]) rather than summed
-//! short. The counter `max_tile_list` reports it on every adapter. The count and the fill loop
+//! stay within its loop budget ([`Gpu::loop_budget`]), 60,000 entries. The build reads the
+//! per-tile counts back, and a frame whose longest list is beyond it is refused
+//! ([`ShadowError::TileListTooLong`]) rather than summed short. The counter `max_tile_list`
+//! reports it on every adapter. The count and the fill loop
 //! over each particle's footprint, so on llvmpipe the grid is also halved while the largest
 //! footprint would take more than 60,000 iterations (a particle beside the light covers the
 //! whole image: 240² tiles at most).
