@@ -20,12 +20,9 @@ use smokeshadow::sim::Particle;
 const W: u32 = 160;
 const H: u32 = 120;
 
-/// Renders `scene` with `exact` (as the commands do before they check) and runs the check.
-fn check(
-    gpu: &smokeshadow::gpu::Gpu,
-    scene: &Scene,
-    particles: &[Particle],
-) -> reference_check::ReferenceCheck {
+/// A renderer that has rendered a frame of `scene` with `exact` (as the commands do before they
+/// check).
+fn render_exact(gpu: &smokeshadow::gpu::Gpu, scene: &Scene, particles: &[Particle]) -> Renderer {
     let config = common::technique("exact", 1, 512, SplatMode::Segment);
     let mut renderer = Renderer::new(gpu, W, H, OUTPUT_FORMAT, &config).unwrap();
     let target = OffscreenTarget::new(gpu, W, H);
@@ -37,7 +34,17 @@ fn check(
             &RenderOptions::default(),
             &target.view,
         )
-        .unwrap();
+        .unwrap_or_else(|e| panic!("{}: {e}", scene.name));
+    renderer
+}
+
+/// Renders `scene` with `exact` and runs the check.
+fn check(
+    gpu: &smokeshadow::gpu::Gpu,
+    scene: &Scene,
+    particles: &[Particle],
+) -> reference_check::ReferenceCheck {
+    let mut renderer = render_exact(gpu, scene, particles);
     reference_check::verify(&mut renderer, gpu, scene, particles)
         .unwrap_or_else(|e| panic!("{}: {e:#}", scene.name))
 }
@@ -221,18 +228,7 @@ fn a_tile_list_of_sixteen_thousand_spheres_is_walked_whole() {
     let dir = common::scratch("reference-dense");
     let scene = bare(&dir, "dense", &cluster);
     let particles = particles::scene_particles(&scene).unwrap();
-    let config = common::technique("exact", 1, 512, SplatMode::Segment);
-    let mut renderer = Renderer::new(&gpu, W, H, OUTPUT_FORMAT, &config).unwrap();
-    let target = OffscreenTarget::new(&gpu, W, H);
-    renderer
-        .render(
-            &gpu,
-            &scene,
-            &particles,
-            &RenderOptions::default(),
-            &target.view,
-        )
-        .unwrap_or_else(|e| panic!("dense cluster refused: {e}"));
+    let mut renderer = render_exact(&gpu, &scene, &particles);
     let longest = renderer
         .technique()
         .counters()

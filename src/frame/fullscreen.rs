@@ -4,16 +4,11 @@
 /// An unfilterable 2D float texture at `binding`, read by the fragment stage (texels are
 /// loaded, not sampled).
 pub fn texture_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
+    crate::gpu::texture_entry(
         binding,
-        visibility: wgpu::ShaderStages::FRAGMENT,
-        ty: wgpu::BindingType::Texture {
-            sample_type: wgpu::TextureSampleType::Float { filterable: false },
-            view_dimension: wgpu::TextureViewDimension::D2,
-            multisampled: false,
-        },
-        count: None,
-    }
+        wgpu::ShaderStages::FRAGMENT,
+        wgpu::TextureSampleType::Float { filterable: false },
+    )
 }
 
 /// A layout with one [`texture_entry`] at binding 0.

@@ -56,6 +56,7 @@ use super::{
 };
 use crate::gpu::{
     AllocationError, Gpu, MemoryLedger, bind_entry, read_buffer, storage_descriptor, storage_entry,
+    texture_entry,
 };
 use crate::shaders;
 
@@ -260,24 +261,6 @@ fn sphere_texture(
         wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
         2 * u64::from(capacity),
     )
-}
-
-/// A layout entry for a texture read with `textureLoad`.
-fn texture_entry(
-    binding: u32,
-    visibility: wgpu::ShaderStages,
-    sample_type: wgpu::TextureSampleType,
-) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility,
-        ty: wgpu::BindingType::Texture {
-            sample_type,
-            view_dimension: wgpu::TextureViewDimension::D2,
-            multisampled: false,
-        },
-        count: None,
-    }
 }
 
 fn texture_binding(binding: u32, view: &wgpu::TextureView) -> wgpu::BindGroupEntry<'_> {

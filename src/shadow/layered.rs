@@ -426,16 +426,11 @@ pub(crate) fn texture_entry(
     binding: u32,
     visibility: wgpu::ShaderStages,
 ) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
+    crate::gpu::texture_entry(
         binding,
         visibility,
-        ty: wgpu::BindingType::Texture {
-            sample_type: wgpu::TextureSampleType::Float { filterable: true },
-            view_dimension: wgpu::TextureViewDimension::D2,
-            multisampled: false,
-        },
-        count: None,
-    }
+        wgpu::TextureSampleType::Float { filterable: true },
+    )
 }
 
 /// A square shadow-map texture of `layers` layers, recorded in `memory`.
