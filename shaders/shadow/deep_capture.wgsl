@@ -7,15 +7,16 @@
 //    exclusive prefix sum of the counts -> list offsets (offsets[res²] = total).
 // 3. fs_fill: every fragment of the current band of rows writes its segment (z0, z1, optical
 //    depth, draw index) into its texel's list (counts, cleared, serve as cursors).
-// 4. resolve (heap_build, heap_extract, copy_ends, the two heap passes again, merge_nodes): per
-//    texel of the band, sort the segments by (z0, z1, optical depth), sort their ends by (depth,
-//    slope), and merge both into the nodes (z, Ω(z)) of the piecewise-linear optical depth:
-//    between events Ω grows by the sum of the slopes (optical depth per metre) of the segments
-//    open there. The keys are total, so the lists, and everything computed from them, do not
-//    depend on the order the fragments arrived in. An owner that needs only the segments runs
-//    the first two passes: by depth, or with SORT_BY_DRAW by draw index, which puts each
-//    texel's list back in the order the particles were drawn, whatever order the fill's atomics
-//    wrote it in.
+// 4. resolve (split_ends, heap_build, heap_extract, the two heap passes again, merge_nodes):
+//    per texel of the band, split the segments into starts (z0, slope) and ends (z1, slope),
+//    sort each by (depth, slope), and merge both into the nodes (z, Ω(z)) of the
+//    piecewise-linear optical depth: between events Ω grows by the sum of the slopes (optical
+//    depth per metre) of the segments open there. The keys are total over what is sorted, so
+//    the nodes do not depend on the order the fragments arrived in. An owner that needs the
+//    segments themselves has them heapsorted whole: by (z0, z1, optical depth, draw index), or
+//    with SORT_BY_DRAW by draw index (after an insertion sort that is all it takes where the
+//    rasteriser keeps the draw order), which puts each texel's list back in the order the
+//    particles were drawn, whatever order the fill's atomics wrote it in.
 #import shadow/layered_build.wgsl
 #import shadow/deep_capture_lists.wgsl
 #import shadow/grid_scan.wgsl
@@ -88,15 +89,20 @@ fn segment_slope(s: Segment) -> f32 {
     return s.optical_depth / (s.z1 - s.z0);
 }
 
-// Which list a heapsort pipeline sorts: the texel's segments (false), or their ends in the upper
-// half of its nodes (true). Set per pipeline (src/shadow/deep_capture.rs, `Resolve`).
-override SORT_ENDS: bool = false;
+// Which list a sort pipeline sorts (set per pipeline: src/shadow/deep_capture.rs, `Resolve`):
+// the texel's segments whole, their starts (z0, slope), which `split_ends` leaves in each
+// segment's first two words, or their ends (z1, slope), which it copies to the upper half of the
+// texel's nodes.
+const LIST_SEGMENTS: u32 = 0u;
+const LIST_STARTS: u32 = 1u;
+const LIST_ENDS: u32 = 2u;
+override SORT_LIST: u32 = LIST_SEGMENTS;
 // Whether the segments are sorted by draw index alone rather than by depth.
 override SORT_BY_DRAW: bool = false;
 
-// A sorted element: a segment (z0, z1, optical depth) and its draw index, or an end (depth,
-// slope, 0) and 0. (The index stays a u32: its bits as a float would be a denormal, which a GPU
-// may flush.)
+// A sorted element: a segment (z0, z1, optical depth) and its draw index, or a start or an end
+// (depth, slope, 0) and 0. (The index stays a u32: its bits as a float would be a denormal,
+// which a GPU may flush.)
 struct HeapItem {
     key: vec3<f32>,
     draw_index: u32,
@@ -120,25 +126,34 @@ fn key_before(a: HeapItem, b: HeapItem) -> bool {
     return a.draw_index < b.draw_index;
 }
 
+// (A start loads and stores two words, not the segment's four: llvmpipe moves a storage
+// buffer's words one lane at a time, and those moves are most of a sort's cost.)
 fn heap_key(i: u32) -> HeapItem {
-    if SORT_ENDS {
+    if SORT_LIST == LIST_ENDS {
         return HeapItem(vec3<f32>(nodes[i], 0.0), 0u);
+    }
+    if SORT_LIST == LIST_STARTS {
+        return HeapItem(vec3<f32>(segments[i].z0, segments[i].z1, 0.0), 0u);
     }
     let s = segments[i];
     return HeapItem(vec3<f32>(s.z0, s.z1, s.optical_depth), s.draw_index);
 }
 
 fn set_heap_key(i: u32, item: HeapItem) {
-    if SORT_ENDS {
+    if SORT_LIST == LIST_ENDS {
         nodes[i] = item.key.xy;
+    } else if SORT_LIST == LIST_STARTS {
+        segments[i].z0 = item.key.x;
+        segments[i].z1 = item.key.y;
     } else {
         segments[i] = Segment(item.key.x, item.key.y, item.key.z, item.draw_index);
     }
 }
 
-// Where the sorted list starts: the segments at `first`, the ends after the texel's n nodes.
+// Where the sorted list starts: the segments (or starts) at `first`, the ends after the
+// texel's n nodes.
 fn heap_base(list: TexelList) -> u32 {
-    if SORT_ENDS {
+    if SORT_LIST == LIST_ENDS {
         return 2u * list.first + list.count;
     }
     return list.first;
@@ -171,13 +186,16 @@ fn sift(base: u32, root_in: u32, n: u32) {
     set_heap_key(base + root, value);
 }
 
-// The resolve, in phases (a dispatch each, or several: rounds), per texel of the band: heapsort
-// its segments (build the heap, then move the largest to the end), copy their ends with the
-// slope each one closes into the upper half of its nodes and heapsort them (the same two entry
-// points, with SORT_ENDS set), then merge both into the nodes. O(n log n) whatever the order the fragments
-// arrived in. The heapsorts' sifts are split into rounds of `sifts_per_round()` each, so that no
-// dispatch loops past `capture.loop_budget` (src/shadow/deep_capture.rs mirrors the arithmetic);
-// a texel whose sort is done returns at once.
+// The resolve, in phases (a dispatch each, or several: rounds), per texel of the band. `dsm`'s
+// (Resolve::Nodes): split each segment into its start (z0, slope), kept in place, and its end
+// (z1, slope), copied into the upper half of its nodes; heapsort the starts (build the heap, then
+// move the largest to the end); heapsort the ends (the same two entry points, SORT_LIST set);
+// merge both into the nodes. Only the starts and ends are sorted, two words each: a start's or
+// an end's items are equal when their keys are, so the order is total over what is sorted. `avsm`'s: heapsort the whole
+// segments (by depth, or by draw index after `insertion_sort`). O(n log n) whatever the order the
+// fragments arrived in. The heapsorts' sifts are split into rounds of `sifts_per_round()` each,
+// so that no dispatch loops past `capture.loop_budget` (src/shadow/deep_capture.rs mirrors the
+// arithmetic); a texel whose sort is done returns at once.
 
 // Sifts per round of a heapsort: each sift takes at most log2(n) + 1 iterations.
 fn sifts_per_round() -> u32 {
@@ -221,10 +239,19 @@ fn band_list(id: vec3<u32>) -> TexelList {
     return texel_list(index);
 }
 
+// The list a heap pass sorts: the band texel's, unless `insertion_sort` has sorted it already.
+fn heap_list(id: vec3<u32>) -> TexelList {
+    var list = band_list(id);
+    if SORT_BY_DRAW && list.count > 0u && atomicLoad(&counts[band_texel(id)]) == SORTED {
+        list.count = 0u;
+    }
+    return list;
+}
+
 // The heap build: this round's starts, each sifted down.
 @compute @workgroup_size(8, 8)
 fn heap_build(@builtin(global_invocation_id) id: vec3<u32>) {
-    let list = band_list(id);
+    let list = heap_list(id);
     let base = heap_base(list);
     let r = build_range(list.count);
     for (var start = r.x; start > r.y; start--) {
@@ -235,7 +262,7 @@ fn heap_build(@builtin(global_invocation_id) id: vec3<u32>) {
 // The extraction: this round's ends, each taking the heap's largest before the heap shrinks.
 @compute @workgroup_size(8, 8)
 fn heap_extract(@builtin(global_invocation_id) id: vec3<u32>) {
-    let list = band_list(id);
+    let list = heap_list(id);
     let base = heap_base(list);
     let r = extract_range(list.count);
     for (var end = r.x; end > r.y; end--) {
@@ -246,14 +273,72 @@ fn heap_extract(@builtin(global_invocation_id) id: vec3<u32>) {
     }
 }
 
-// The ends go to the upper half of the texel's nodes.
+// The draw-order resolve's first pass. The fill's atomics hand out a texel's slots in the order
+// its fragments arrive, and where the rasteriser keeps the draw order per pixel (llvmpipe does:
+// one thread shades a tile's primitives in order) that is the order the sort wants: an insertion
+// sort then reads each segment once. It gives up after n/4 moves (the list, still a permutation
+// of itself, is left to the heapsort); a list it sorts is marked SORTED in `counts` (the fill's
+// cursors, unused from here on), and the heap passes skip it. At most n + 2·(n/4) + 1 loop
+// iterations, within the loop budget for any list the capture accepts (n <= budget/2 - 2).
+const SORTED: u32 = 0xffffffffu;
+
 @compute @workgroup_size(8, 8)
-fn copy_ends(@builtin(global_invocation_id) id: vec3<u32>) {
+fn insertion_sort(@builtin(global_invocation_id) id: vec3<u32>) {
+    let index = band_texel(id);
+    if index == NO_TEXEL {
+        return;
+    }
+    let list = texel_list(index);
+    var sorted = true;
+    var moves = list.count / 4u;
+    if list.count >= 2u {
+        // The largest of the sorted prefix: a segment not before it stays where it is.
+        var last = heap_key(list.first);
+        for (var i = 1u; i < list.count; i++) {
+            let v = heap_key(list.first + i);
+            if !key_before(v, last) {
+                last = v;
+                continue;
+            }
+            var j = i;
+            loop {
+                if j == 0u {
+                    break;
+                }
+                let prev = heap_key(list.first + j - 1u);
+                if !key_before(v, prev) {
+                    break;
+                }
+                if moves == 0u {
+                    sorted = false;
+                    break;
+                }
+                set_heap_key(list.first + j, prev);
+                j--;
+                moves--;
+            }
+            set_heap_key(list.first + j, v);
+            if !sorted {
+                break;
+            }
+        }
+    }
+    if sorted {
+        atomicStore(&counts[index], SORTED);
+    }
+}
+
+// Splits each segment of the texel: its end (z1, slope) to the upper half of its nodes, its
+// start (z0, slope) in its first two words.
+@compute @workgroup_size(8, 8)
+fn split_ends(@builtin(global_invocation_id) id: vec3<u32>) {
     let list = band_list(id);
     let ends = 2u * list.first + list.count;
     for (var i = 0u; i < list.count; i++) {
         let s = segments[list.first + i];
-        nodes[ends + i] = vec2<f32>(s.z1, segment_slope(s));
+        let slope = segment_slope(s);
+        nodes[ends + i] = vec2<f32>(s.z1, slope);
+        segments[list.first + i].z1 = slope;
     }
 }
 
@@ -277,9 +362,9 @@ fn merge_nodes(@builtin(global_invocation_id) id: vec3<u32>) {
         var z: f32;
         var delta: f32;
         if i < n && (j >= n || segments[first + i].z0 <= nodes[ends + j].x) {
-            let s = segments[first + i];
-            z = s.z0;
-            delta = segment_slope(s);
+            // A start: (z0, slope) since `split_ends`.
+            z = segments[first + i].z0;
+            delta = segments[first + i].z1;
             i++;
         } else {
             let e = nodes[ends + j];

@@ -191,25 +191,39 @@ pub enum Resolve {
     SegmentsByDraw,
 }
 
+/// Which list a resolve's sort pass sorts (the shader's `SORT_LIST`).
+#[derive(Clone, Copy, Debug)]
+enum SortList {
+    Segments = 0,
+    Starts = 1,
+    Ends = 2,
+}
+
 impl Resolve {
-    /// The phases in order: entry point, kind, and whether the heap passes sort the ends (the
-    /// shader's `SORT_ENDS`) rather than the segments.
-    fn phases(self) -> &'static [(&'static str, ResolvePhase, bool)] {
-        const SORT: [(&str, ResolvePhase, bool); 2] = [
-            ("heap_build", ResolvePhase::Heap(true), false),
-            ("heap_extract", ResolvePhase::Heap(false), false),
+    /// The phases in order: entry point, kind, and the list its sort passes sort.
+    fn phases(self) -> &'static [(&'static str, ResolvePhase, SortList)] {
+        use SortList::*;
+        const BY_DEPTH: [(&str, ResolvePhase, SortList); 2] = [
+            ("heap_build", ResolvePhase::Heap(true), Segments),
+            ("heap_extract", ResolvePhase::Heap(false), Segments),
         ];
-        const NODES: [(&str, ResolvePhase, bool); 6] = [
-            SORT[0],
-            SORT[1],
-            ("copy_ends", ResolvePhase::Single, false),
-            ("heap_build", ResolvePhase::Heap(true), true),
-            ("heap_extract", ResolvePhase::Heap(false), true),
-            ("merge_nodes", ResolvePhase::Single, false),
+        const BY_DRAW: [(&str, ResolvePhase, SortList); 3] = [
+            ("insertion_sort", ResolvePhase::Single, Segments),
+            BY_DEPTH[0],
+            BY_DEPTH[1],
+        ];
+        const NODES: [(&str, ResolvePhase, SortList); 6] = [
+            ("split_ends", ResolvePhase::Single, Segments),
+            ("heap_build", ResolvePhase::Heap(true), Starts),
+            ("heap_extract", ResolvePhase::Heap(false), Starts),
+            ("heap_build", ResolvePhase::Heap(true), Ends),
+            ("heap_extract", ResolvePhase::Heap(false), Ends),
+            ("merge_nodes", ResolvePhase::Single, Segments),
         ];
         match self {
             Resolve::Nodes => &NODES,
-            Resolve::SegmentsByDepth | Resolve::SegmentsByDraw => &SORT,
+            Resolve::SegmentsByDepth => &BY_DEPTH,
+            Resolve::SegmentsByDraw => &BY_DRAW,
         }
     }
 }
@@ -476,9 +490,9 @@ impl DeepCapture {
         let resolve = resolve
             .phases()
             .iter()
-            .map(|&(entry, phase, sort_ends)| {
+            .map(|&(entry, phase, list)| {
                 let constants = [
-                    ("SORT_ENDS", f64::from(u8::from(sort_ends))),
+                    ("SORT_LIST", f64::from(list as u8)),
                     ("SORT_BY_DRAW", by_draw),
                 ];
                 (phase, pipeline(entry, &round_layout, &constants))
