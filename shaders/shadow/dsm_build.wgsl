@@ -110,18 +110,18 @@ fn greedy_fit(base: u32, n: u32, eps: f32, limit: u32, write: bool, out: u32) ->
 }
 
 // The search for ε in steps of one greedy fit each, run in rounds (see src/shadow/deep_capture.rs):
-// step 0 fits at ε = 0 (and the texel is done when that fits); steps 1..=DOUBLINGS check ε =
-// hi and double it while the fit does not fit, a guard against rounding only, since a fit within
-// Ω_max is one flat segment; the next `deep.bisection_steps` steps bisect [lo, hi]; the last
-// writes the fit at ε = hi. Between rounds the search's state lives in the texel's first segment
-// (the compression reads only the nodes): (lo, hi, mode).
-const DOUBLINGS: u32 = 8u;
-const MODE_DOUBLING: f32 = 0.0;
+// step 0 fits at ε = 0 (and the texel is done when that fits); the next `deep.bisection_steps`
+// steps bisect [lo, hi] = [0, Ω_max]; the last writes the fit at ε = hi. ε = Ω_max needs no fit
+// to know it fits: Ω rises from 0 at the first node to Ω_max at the last, so every node's
+// feasible slopes from the first, [(Ω - ε)/dz, (Ω + ε)/dz], hold 0 (Ω - ε <= 0 <= Ω + ε holds
+// in floats too), and the fit is one segment, 2 nodes, within any budget the technique accepts
+// (at least 4 channels: N >= 2). Between rounds the search's state lives in the texel's first
+// segment (the compression reads only the nodes): (lo, hi, mode).
 const MODE_BISECT: f32 = 1.0;
 const MODE_EXACT: f32 = 2.0;
 
 fn total_steps() -> u32 {
-    return 2u + DOUBLINGS + deep.bisection_steps;
+    return 2u + deep.bisection_steps;
 }
 
 // Greedy fits per round: each loops at most 2n times; the last step adds N-long loops. Keep in
@@ -191,7 +191,7 @@ fn compress(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     var lo = 0.0;
     var hi = nodes[base + n - 1u].y;
-    var mode = MODE_DOUBLING;
+    var mode = MODE_BISECT;
     if first_step > 0u {
         let state = segments[list.first];
         lo = state.z0;
@@ -207,17 +207,6 @@ fn compress(@builtin(global_invocation_id) id: vec3<u32>) {
             if greedy_fit(base, n, 0.0, limit, false, out) <= limit {
                 mode = MODE_EXACT;
                 hi = 0.0;
-            }
-        } else if step <= DOUBLINGS {
-            if mode == MODE_DOUBLING {
-                if greedy_fit(base, n, hi, limit, false, out) > limit {
-                    hi = 2.0 * hi + 1e-6;
-                } else {
-                    mode = MODE_BISECT;
-                }
-                if step == DOUBLINGS {
-                    mode = MODE_BISECT;
-                }
             }
         } else if step + 1u < total {
             if mode == MODE_BISECT {

@@ -57,8 +57,8 @@ pub const SPEC: DeepNodesSpec = DeepNodesSpec {
 };
 
 /// Steps of the per-texel search, one greedy fit each (shaders/shadow/dsm_build.wgsl): the fit
-/// at ε = 0, 8 doublings, the bisection, the final fit.
-const SEARCH_STEPS: u32 = 2 + 8 + BISECTION_STEPS;
+/// at ε = 0, the bisection, the final fit.
+const SEARCH_STEPS: u32 = 2 + BISECTION_STEPS;
 
 /// Rounds of the compression: a greedy fit over 2n nodes loops at most 2n times, so a round
 /// takes `loop_budget / (2 max_list + 20)` steps (`fits_per_round` in the shader).
