@@ -13,10 +13,10 @@
 //    piecewise-linear optical depth: between events Ω grows by the sum of the slopes (optical
 //    depth per metre) of the segments open there. The keys are total over what is sorted, so
 //    the nodes do not depend on the order the fragments arrived in. An owner that needs the
-//    segments themselves has them heapsorted whole: by (z0, z1, optical depth, draw index), or
-//    with SORT_BY_DRAW by draw index (after an insertion sort that is all it takes where the
-//    rasteriser keeps the draw order), which puts each texel's list back in the order the
-//    particles were drawn, whatever order the fill's atomics wrote it in.
+//    segments themselves has them sorted whole (an insertion sort that gives up early, then a
+//    heapsort of the lists it left): by (z0, z1, optical depth, draw index), or with
+//    SORT_BY_DRAW by draw index, which puts each texel's list back in the order the particles
+//    were drawn, whatever order the fill's atomics wrote it in.
 #import shadow/layered_build.wgsl
 #import shadow/deep_capture_lists.wgsl
 #import shadow/grid_scan.wgsl
@@ -186,16 +186,17 @@ fn sift(base: u32, root_in: u32, n: u32) {
     set_heap_key(base + root, value);
 }
 
-// The resolve, in phases (a dispatch each, or several: rounds), per texel of the band. `dsm`'s
-// (Resolve::Nodes): split each segment into its start (z0, slope), kept in place, and its end
-// (z1, slope), copied into the upper half of its nodes; heapsort the starts (build the heap, then
-// move the largest to the end); heapsort the ends (the same two entry points, SORT_LIST set);
-// merge both into the nodes. Only the starts and ends are sorted, two words each: a start's or
-// an end's items are equal when their keys are, so the order is total over what is sorted. `avsm`'s: heapsort the whole
-// segments (by depth, or by draw index after `insertion_sort`). O(n log n) whatever the order the
-// fragments arrived in. The heapsorts' sifts are split into rounds of `sifts_per_round()` each,
-// so that no dispatch loops past `capture.loop_budget` (src/shadow/deep_capture.rs mirrors the
-// arithmetic); a texel whose sort is done returns at once.
+// The resolve, in phases (a dispatch each, or several: rounds), per texel of the band.
+// `dsm`'s (Resolve::Nodes): split each segment into its start (z0, slope), kept in place, and
+// its end (z1, slope), copied into the upper half of its nodes; heapsort the starts (build the
+// heap, then move the largest to the end); heapsort the ends (the same two entry points,
+// SORT_LIST set); merge both into the nodes. Only the starts and ends are sorted, two words
+// each: two starts (or ends) with equal keys are equal, so the order is total over what is
+// sorted. `avsm`'s: sort the whole segments (by depth or by draw index) with `insertion_sort`,
+// then heapsort what it left. O(n log n) whatever the order the fragments arrived in. The
+// heapsorts' sifts are split into rounds of `sifts_per_round()` each, so that no dispatch loops
+// past `capture.loop_budget` (src/shadow/deep_capture.rs mirrors the arithmetic); a texel whose
+// sort is done returns at once.
 
 // Sifts per round of a heapsort: each sift takes at most log2(n) + 1 iterations.
 fn sifts_per_round() -> u32 {
@@ -242,7 +243,8 @@ fn band_list(id: vec3<u32>) -> TexelList {
 // The list a heap pass sorts: the band texel's, unless `insertion_sort` has sorted it already.
 fn heap_list(id: vec3<u32>) -> TexelList {
     var list = band_list(id);
-    if SORT_BY_DRAW && list.count > 0u && atomicLoad(&counts[band_texel(id)]) == SORTED {
+    // (`dsm`'s lists are never marked: a cursor holds a list's length.)
+    if list.count > 0u && atomicLoad(&counts[band_texel(id)]) == SORTED {
         list.count = 0u;
     }
     return list;
@@ -273,13 +275,14 @@ fn heap_extract(@builtin(global_invocation_id) id: vec3<u32>) {
     }
 }
 
-// The draw-order resolve's first pass. The fill's atomics hand out a texel's slots in the order
-// its fragments arrive, and where the rasteriser keeps the draw order per pixel (llvmpipe does:
-// one thread shades a tile's primitives in order) that is the order the sort wants: an insertion
-// sort then reads each segment once. It gives up after n/4 moves (the list, still a permutation
-// of itself, is left to the heapsort); a list it sorts is marked SORTED in `counts` (the fill's
-// cursors, unused from here on), and the heap passes skip it. At most n + 2·(n/4) + 1 loop
-// iterations, within the loop budget for any list the capture accepts (n <= budget/2 - 2).
+// The first pass of a whole-segment resolve. The fill's atomics hand out a texel's slots in the
+// order its fragments arrive, and where the rasteriser keeps the draw order per pixel (llvmpipe
+// does: one thread shades a tile's primitives in order) that is the order the draw-order resolve
+// wants: an insertion sort then reads each segment once. It gives up after n/4 moves (the list,
+// still a permutation of itself, is left to the heapsort, as most lists of the by-depth resolve
+// are); a list it sorts is marked SORTED in `counts` (the fill's cursors, unused from here on),
+// and the heap passes skip it. At most n + 2·(n/4) + 1 loop iterations, within the loop budget
+// for any list the capture accepts (n <= budget/2 - 2).
 const SORTED: u32 = 0xffffffffu;
 
 @compute @workgroup_size(8, 8)

@@ -203,14 +203,12 @@ impl Resolve {
     /// The phases in order: entry point, kind, and the list its sort passes sort.
     fn phases(self) -> &'static [(&'static str, ResolvePhase, SortList)] {
         use SortList::*;
-        const BY_DEPTH: [(&str, ResolvePhase, SortList); 2] = [
+        // Whole segments: an insertion sort that gives up early, then the heapsort for the
+        // lists it left.
+        const SEGMENTS: [(&str, ResolvePhase, SortList); 3] = [
+            ("insertion_sort", ResolvePhase::Single, Segments),
             ("heap_build", ResolvePhase::Heap(true), Segments),
             ("heap_extract", ResolvePhase::Heap(false), Segments),
-        ];
-        const BY_DRAW: [(&str, ResolvePhase, SortList); 3] = [
-            ("insertion_sort", ResolvePhase::Single, Segments),
-            BY_DEPTH[0],
-            BY_DEPTH[1],
         ];
         const NODES: [(&str, ResolvePhase, SortList); 6] = [
             ("split_ends", ResolvePhase::Single, Segments),
@@ -222,8 +220,7 @@ impl Resolve {
         ];
         match self {
             Resolve::Nodes => &NODES,
-            Resolve::SegmentsByDepth => &BY_DEPTH,
-            Resolve::SegmentsByDraw => &BY_DRAW,
+            Resolve::SegmentsByDepth | Resolve::SegmentsByDraw => &SEGMENTS,
         }
     }
 }
