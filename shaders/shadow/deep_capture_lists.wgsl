@@ -1,12 +1,12 @@
 // The per-texel segment lists of a deep capture (src/shadow/deep_capture.rs), as its own passes
 // and the compression passes that read them declare them in group 1. Texel i's segments are
-// segments[offsets[i] .. offsets[i + 1]). After the resolve the segments are sorted by (z0, z1,
-// optical depth) and, for `dsm`, merged into the nodes (z, Ω(z)) of the piecewise-linear optical
-// depth, nodes[2·offsets[i] .. 2·offsets[i + 1]); or, for an owner that inserts them in draw
-// order (`avsm`'s default), sorted by draw index alone (the resolve's `SORT_BY_DRAW`). The lists
-// hold one band of rows at a time (rows [row_begin, row_end), whose first segment is offsets'
-// band_base), so every index into them is relative to band_base, and the per-texel passes cover
-// the band's rows only. Every
+// segments[offsets[i] .. offsets[i + 1]). After the resolve, for `dsm`, its nodes (z, Ω(z)) of
+// the piecewise-linear optical depth are nodes[2·offsets[i] .. 2·offsets[i + 1]) (and the same
+// in `node_texels`), while its segments hold only their sorted starts; for `avsm` the segments
+// are sorted by (z0, z1, optical depth), or by draw index alone for its default insertion in
+// draw order (the resolve's `SORT_BY_DRAW`). The lists hold one band of rows at a time (rows
+// [row_begin, row_end), whose first segment is offsets' band_base), so every index into them
+// is relative to band_base, and the per-texel passes cover the band's rows only. Every storage
 // binding is read_write because the capture's bind group layout is shared by all of its passes.
 // Keep `CaptureParams` in sync with src/shadow/deep_capture.rs.
 
@@ -48,7 +48,16 @@ struct Segment {
 @group(1) @binding(2) var<storage, read_write> offsets: array<u32>;
 @group(1) @binding(3) var<storage, read_write> segments: array<Segment>;
 @group(1) @binding(4) var<storage, read_write> nodes: array<vec2<f32>>;
+// The nodes again, as a texture for an owner that reads them (`dsm`'s search, which reads every
+// node once per greedy fit): node i at texel (i % 4096, i / 4096), copied from `nodes` after the
+// resolve (NODE_ROW_TEXELS in src/shadow/deep_capture.rs). llvmpipe fetches texels for the
+// lanes of a SIMD group in one gather, where it loads a storage buffer's words lane by lane.
+@group(1) @binding(6) var node_texels: texture_2d<f32>;
 @group(3) @binding(0) var<uniform> pass_round: Round;
+
+fn node_texel(i: u32) -> vec2<f32> {
+    return textureLoad(node_texels, vec2<u32>(i & 4095u, i >> 12u), 0).xy;
+}
 
 // One texel's list: segments [first, first + count), nodes [2·first, 2·first + 2·count).
 struct TexelList {

@@ -42,7 +42,7 @@ fn close_segment(origin: vec2<f32>, last: vec2<f32>, lo: f32, hi: f32, eps: f32)
 // Greedy fit of nodes[base .. base + n) within ±eps. Returns the number of vertices, stopping as
 // soon as it passes `limit`; with `write` it stores them at out_nodes[out ..] (at most `limit`).
 fn greedy_fit(base: u32, n: u32, eps: f32, limit: u32, write: bool, out: u32) -> u32 {
-    var origin = nodes[base];
+    var origin = node_texel(base);
     var count = 1u;
     if write {
         out_nodes[out] = origin;
@@ -57,7 +57,7 @@ fn greedy_fit(base: u32, n: u32, eps: f32, limit: u32, write: bool, out: u32) ->
         if i >= n {
             break;
         }
-        let p = nodes[base + i];
+        let p = node_texel(base + i);
         let dz = p.x - origin.x;
         var new_lo = lo;
         var new_hi = hi;

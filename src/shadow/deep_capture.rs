@@ -104,6 +104,66 @@ fn heap_rounds(max_list: u32, loop_budget: u32) -> (u32, u32) {
         max_list.saturating_sub(1).div_ceil(c).max(1),
     )
 }
+/// Texels per row of the node texture (`node_texel` in shaders/shadow/deep_capture_lists.wgsl).
+const NODE_ROW_TEXELS: u32 = 4096;
+/// A node (z, Ω) as a texel.
+const NODE_TEXEL_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rg32Float;
+const NODE_TEXEL_BYTES: u64 = 8;
+
+/// The node texture's size for lists of `capacity` segments: 2 x capacity texels in rows of
+/// [`NODE_ROW_TEXELS`] when `node_texels`, else 1x1.
+fn node_texels_size(capacity: u32, node_texels: bool) -> (u32, u32) {
+    match node_texels {
+        true => (
+            NODE_ROW_TEXELS,
+            (2 * capacity).div_ceil(NODE_ROW_TEXELS).max(1),
+        ),
+        false => (1, 1),
+    }
+}
+
+/// Copies the first 2 x `segments` nodes of `nodes` into `texture`: the whole rows, then what
+/// is left in a partial one (so the buffer needs no padding to whole rows).
+fn copy_node_texels(
+    encoder: &mut wgpu::CommandEncoder,
+    nodes: &wgpu::Buffer,
+    texture: &wgpu::Texture,
+    segments: u32,
+) {
+    let count = 2 * segments;
+    let (rows, rest) = (count / NODE_ROW_TEXELS, count % NODE_ROW_TEXELS);
+    let row_bytes = u64::from(NODE_ROW_TEXELS) * NODE_TEXEL_BYTES;
+    for (first_row, height, width) in [(0, rows, NODE_ROW_TEXELS), (rows, 1, rest)] {
+        if height == 0 || width == 0 {
+            continue;
+        }
+        encoder.copy_buffer_to_texture(
+            wgpu::TexelCopyBufferInfo {
+                buffer: nodes,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: u64::from(first_row) * row_bytes,
+                    bytes_per_row: Some(row_bytes as u32),
+                    rows_per_image: None,
+                },
+            },
+            wgpu::TexelCopyTextureInfo {
+                texture,
+                mip_level: 0,
+                origin: wgpu::Origin3d {
+                    x: 0,
+                    y: first_row,
+                    z: 0,
+                },
+                aspect: wgpu::TextureAspect::All,
+            },
+            wgpu::Extent3d {
+                width,
+                height,
+                depth_or_array_layers: 1,
+            },
+        );
+    }
+}
 /// Segments the lists hold before the first frame asks for more.
 const INITIAL_CAPACITY: u32 = 1 << 16;
 /// Format of the dummy colour target the list passes rasterise into (nothing is written).
@@ -111,9 +171,13 @@ const DUMMY_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R8Unorm;
 
 /// The bytes a capture at `resolution_px` with lists for `segment_capacity` segments allocates:
 /// a 32-byte uniform, the 64 KiB round uniform, counts, offsets (+1 for the total), row sums
-/// (+1), an R8 raster target, and 16 + 16 bytes of segment and node storage per segment.
-pub fn bytes(resolution_px: u32, segment_capacity: u64) -> u64 {
+/// (+1), an R8 raster target, 16 + 16 bytes of segment and node storage per segment, and the
+/// node texture: 2 x capacity texels of 8 bytes in whole rows of 4,096 for a resolve whose
+/// owner reads them (`node_texels`, `dsm`), else one texel.
+pub fn bytes(resolution_px: u32, segment_capacity: u64, node_texels: bool) -> u64 {
     let texels = u64::from(resolution_px) * u64::from(resolution_px);
+    let capacity = u32::try_from(segment_capacity).unwrap_or(u32::MAX);
+    let (width, height) = node_texels_size(capacity, node_texels);
     std::mem::size_of::<CaptureParams>() as u64
         + u64::from(MAX_ROUNDS * ROUND_STRIDE)
         + texels * 4
@@ -121,6 +185,7 @@ pub fn bytes(resolution_px: u32, segment_capacity: u64) -> u64 {
         + (u64::from(resolution_px) + 1) * 4
         + texels
         + segment_capacity * (SEGMENT_BYTES + NODE_BYTES_PER_SEGMENT)
+        + u64::from(width) * u64::from(height) * NODE_TEXEL_BYTES
 }
 
 /// The most segments one band may hold: its nodes and its segments (16 bytes a segment each) fit
@@ -136,7 +201,10 @@ struct Lists {
     capacity: u32,
     /// Held with the bind group that uses them (the ledger records their sizes).
     _segments: wgpu::Buffer,
-    _nodes: wgpu::Buffer,
+    nodes: wgpu::Buffer,
+    /// The nodes as a texture for the owner's compression, when it reads them (`dsm`): a copy
+    /// of the nodes buffer's first 2 x segments texels, [`NODE_ROW_TEXELS`] a row (else 1x1).
+    node_texels: Option<wgpu::Texture>,
     bind_group: wgpu::BindGroup,
 }
 
@@ -200,6 +268,14 @@ enum SortList {
 }
 
 impl Resolve {
+    /// Whether the owner's compression reads the nodes, as a texture (`node_texel` in
+    /// shaders/shadow/deep_capture_lists.wgsl): llvmpipe fetches a texture's texels for all the
+    /// lanes of a SIMD group in one gather, where it loads a storage buffer's words lane by
+    /// lane, and `dsm`'s search reads every node once per greedy fit.
+    pub fn node_texels(self) -> bool {
+        self == Resolve::Nodes
+    }
+
     /// The phases in order: entry point, kind, and the list its sort passes sort.
     fn phases(self) -> &'static [(&'static str, ResolvePhase, SortList)] {
         use SortList::*;
@@ -432,6 +508,11 @@ impl DeepCapture {
                 storage_entry(3, raster_and_compute, false),
                 storage_entry(4, wgpu::ShaderStages::COMPUTE, false),
                 storage_entry(5, wgpu::ShaderStages::COMPUTE, false),
+                crate::gpu::texture_entry(
+                    6,
+                    wgpu::ShaderStages::COMPUTE,
+                    wgpu::TextureSampleType::Float { filterable: false },
+                ),
             ],
         });
         let module = shaders::module(
@@ -484,6 +565,7 @@ impl DeepCapture {
         };
         let compute = |entry: &str| pipeline(entry, &compute_layout, &[]);
         let by_draw = f64::from(u8::from(resolve == Resolve::SegmentsByDraw));
+        let node_texels = resolve.node_texels();
         let resolve = resolve
             .phases()
             .iter()
@@ -502,6 +584,7 @@ impl DeepCapture {
             &layout,
             [&params_buffer, &counts, &offsets, &row_sums],
             INITIAL_CAPACITY.min(max_band_segments(gpu)),
+            node_texels,
         )?;
         let capture = Self {
             name,
@@ -751,6 +834,9 @@ impl DeepCapture {
             pass.set_bind_group(1, &self.lists.bind_group, &[]);
             self.rounds.dispatch(&mut pass, rounds, groups);
         }
+        if let Some(texture) = &self.lists.node_texels {
+            copy_node_texels(encoder, &self.lists.nodes, texture, band.segments);
+        }
     }
 
     /// Reallocates the lists for at least `total` segments, with headroom so that a slowly
@@ -781,6 +867,7 @@ impl DeepCapture {
             &self.layout,
             fixed,
             capacity,
+            self.lists.node_texels.is_some(),
         )?;
         Ok(())
     }
@@ -826,8 +913,9 @@ impl DeepCapture {
 }
 
 impl Lists {
-    /// Allocates (transient) list buffers for `capacity` segments and the bind group over them
-    /// and the fixed buffers `[params, counts, offsets, row_sums]`.
+    /// Allocates (transient) list buffers for `capacity` segments, the node texture (with room
+    /// for their nodes when `node_texels`, else 1x1), and the bind group over them and the fixed
+    /// buffers `[params, counts, offsets, row_sums]`.
     fn new(
         device: &wgpu::Device,
         memory: &mut MemoryLedger,
@@ -835,14 +923,17 @@ impl Lists {
         layout: &wgpu::BindGroupLayout,
         fixed: [&wgpu::Buffer; 4],
         capacity: u32,
+        node_texels: bool,
     ) -> Result<Self, AllocationError> {
         let [params, counts, offsets, row_sums] = fixed;
-        let (segments_label, nodes_label) = (
+        let (segments_label, nodes_label, texels_label) = (
             format!("{name}.capture.segments"),
             format!("{name}.capture.nodes"),
+            format!("{name}.capture.node_texels"),
         );
         memory.forget(&segments_label);
         memory.forget(&nodes_label);
+        memory.forget(&texels_label);
         let segments = memory.buffer_transient(
             device,
             &storage_descriptor(&segments_label, u64::from(capacity) * SEGMENT_BYTES),
@@ -851,6 +942,25 @@ impl Lists {
             device,
             &storage_descriptor(&nodes_label, u64::from(capacity) * NODE_BYTES_PER_SEGMENT),
         )?;
+        let (width, height) = node_texels_size(capacity, node_texels);
+        let texture = memory.texture_transient(
+            device,
+            &wgpu::TextureDescriptor {
+                label: Some(&texels_label),
+                size: wgpu::Extent3d {
+                    width,
+                    height,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format: NODE_TEXEL_FORMAT,
+                usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+                view_formats: &[],
+            },
+        )?;
+        let node_view = texture.create_view(&wgpu::TextureViewDescriptor::default());
         let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some(&format!("{name}.capture.bind_group")),
             layout,
@@ -861,12 +971,17 @@ impl Lists {
                 bind_entry(3, &segments),
                 bind_entry(4, &nodes),
                 bind_entry(5, row_sums),
+                wgpu::BindGroupEntry {
+                    binding: 6,
+                    resource: wgpu::BindingResource::TextureView(&node_view),
+                },
             ],
         });
         Ok(Self {
             capacity,
             _segments: segments,
-            _nodes: nodes,
+            nodes,
+            node_texels: node_texels.then_some(texture),
             bind_group,
         })
     }

@@ -104,9 +104,11 @@ impl DeepNodesSpec {
     /// the `segment_capacity` counter says) and the statistics words.
     pub fn memory(&self, c: &MemoryCase<'_>) -> MemoryUse {
         let nodes = u64::from(nodes_per_texel(c.channels()));
-        let transient =
-            super::deep_capture::bytes(c.resolution_px(), c.counter("segment_capacity"))
-                + self.stats_bytes();
+        let transient = super::deep_capture::bytes(
+            c.resolution_px(),
+            c.counter("segment_capacity"),
+            (self.resolve)(c.params).node_texels(),
+        ) + self.stats_bytes();
         MemoryUse {
             channels: 2 * nodes,
             bytes: 16 + c.texels() * nodes * NODE_BYTES + transient,
