@@ -189,11 +189,12 @@ pub fn bytes(resolution_px: u32, segment_capacity: u64, node_texels: bool) -> u6
 }
 
 /// The most segments one band may hold: its nodes and its segments (16 bytes a segment each) fit
-/// one storage binding.
+/// one storage binding, and its nodes (two a segment) the node texture's rows.
 fn max_band_segments(gpu: &Gpu) -> u32 {
-    let limit =
+    let binding =
         gpu.limits.max_storage_buffer_binding_size / SEGMENT_BYTES.max(NODE_BYTES_PER_SEGMENT);
-    u32::try_from(limit).unwrap_or(u32::MAX)
+    let texture = u64::from(gpu.limits.max_texture_dimension_2d) * u64::from(NODE_ROW_TEXELS) / 2;
+    u32::try_from(binding.min(texture)).unwrap_or(u32::MAX)
 }
 
 /// Buffers sized by the segment capacity, and the bind group over all the capture's buffers.
