@@ -94,9 +94,10 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     role: Role::Contender,
     budget_caption: |b| format!("{} nodes per texel", nodes_per_texel(b)),
     min_channels: 4,
-    // Not in the default sweep: on lavapipe the 8 cells of dsm and avsm take 240 s together,
-    // against 63 s for the whole default sweep without them (the capture alone costs what
-    // `exact` does). The default comparison grows from 82 s to about 112 s with both.
+    // Not in the default sweep: on lavapipe the 10 cells of dsm and avsm on thesis_plume take
+    // about 50 s together (`sweep --techniques dsm,avsm`: 52 s with `none` and the reference;
+    // 240 s for 8 cells before their resolve and search got faster, docs/studies.md), most of
+    // what the default sweep costs without them.
     in_default_sweep: false,
     in_default_compare: true,
     build_reads_back: true,
