@@ -5,7 +5,11 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 fn main() {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("shaders");
+    // Read when the script runs, not baked in when it is compiled: a target folder shared by two
+    // checkouts reuses one compiled script, which must read the shaders of the checkout it runs
+    // for.
+    let root = PathBuf::from(std::env::var_os("CARGO_MANIFEST_DIR").expect("cargo sets it"))
+        .join("shaders");
     println!("cargo:rerun-if-changed=shaders");
     let mut files = Vec::new();
     collect(&root, &mut files);
