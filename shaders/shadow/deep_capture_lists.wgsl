@@ -10,6 +10,8 @@
 // binding is read_write because the capture's bind group layout is shared by all of its passes.
 // Keep `CaptureParams` in sync with src/shadow/deep_capture.rs.
 
+#import common/rows.wgsl
+
 struct CaptureParams {
     // Shadow-map resolution (texels per side).
     resolution: u32,
@@ -48,15 +50,14 @@ struct Segment {
 @group(1) @binding(2) var<storage, read_write> offsets: array<u32>;
 @group(1) @binding(3) var<storage, read_write> segments: array<Segment>;
 @group(1) @binding(4) var<storage, read_write> nodes: array<vec2<f32>>;
-// The nodes again, as a texture for an owner that reads them (`dsm`'s search, which reads every
-// node once per greedy fit): node i at texel (i % 4096, i / 4096), copied from `nodes` after the
-// resolve (NODE_ROW_TEXELS in src/shadow/deep_capture.rs). llvmpipe fetches texels for the
-// lanes of a SIMD group in one gather, where it loads a storage buffer's words lane by lane.
+// The nodes again, as a row texture (shaders/common/rows.wgsl) for an owner that reads them
+// (`dsm`'s search, which reads every node once per greedy fit): node i at texel row_texel(i),
+// copied from `nodes` after the resolve (src/shadow/deep_capture.rs).
 @group(1) @binding(6) var node_texels: texture_2d<f32>;
 @group(3) @binding(0) var<uniform> pass_round: Round;
 
 fn node_texel(i: u32) -> vec2<f32> {
-    return textureLoad(node_texels, vec2<u32>(i & 4095u, i >> 12u), 0).xy;
+    return textureLoad(node_texels, row_texel(i), 0).xy;
 }
 
 // One texel's list: segments [first, first + count), nodes [2·first, 2·first + 2·count).

@@ -12,6 +12,7 @@
 // sum beyond 64 (T < 1.7e-28) saturates. Keep `ExactParams` in sync with src/shadow/exact.rs
 // and exact_build.wgsl, and the arithmetic with src/shadow/closed_form.rs.
 #import common/lighting.wgsl
+#import common/rows.wgsl
 
 struct ExactParams {
     // The light's view matrix (it looks down -z) and tan of half its field of view.
@@ -26,20 +27,13 @@ struct ExactParams {
 
 @group(1) @binding(0) var<uniform> exact: ExactParams;
 @group(1) @binding(1) var<storage, read> exact_offsets: array<u32>;
-// Particle indices, per tile: entry i at texel (i % 2^EXACT_ROW_BITS, i / 2^EXACT_ROW_BITS).
+// Particle indices, per tile: entry i at texel row_texel(i) (shaders/common/rows.wgsl).
 // Textures, not storage buffers: llvmpipe fetches texels for the lanes of a SIMD group in one
 // gather, where it loads a storage buffer's words lane by lane (src/shadow/exact.rs).
 @group(1) @binding(2) var exact_entries: texture_2d<u32>;
 // A particle as the renderer's instance buffer holds it (`ParticleInstance`): particle i's
 // centre and radius (m) at texel 2i, its albedo and extinction τ (1/m) at 2i + 1.
 @group(1) @binding(3) var exact_spheres: texture_2d<f32>;
-
-// Texels per row of the entry and sphere textures (EXACT_ROW_TEXELS in src/shadow/exact.rs).
-const EXACT_ROW_BITS: u32 = 12u;
-
-fn exact_texel(i: u32) -> vec2<u32> {
-    return vec2<u32>(i & ((1u << EXACT_ROW_BITS) - 1u), i >> EXACT_ROW_BITS);
-}
 
 // Fixed-point units per unit of optical depth, and the largest optical depth a sum holds.
 const EXACT_UNITS: f32 = 67108864.0;
@@ -77,9 +71,9 @@ fn exact_optical_depth(p: vec3<f32>) -> f32 {
     var sum = 0u;
     let end = exact_offsets[tile + 1];
     for (var i = exact_offsets[tile]; i < end; i++) {
-        let j = 2u * textureLoad(exact_entries, exact_texel(i), 0).x;
-        let center_radius = textureLoad(exact_spheres, exact_texel(j), 0);
-        let density = textureLoad(exact_spheres, exact_texel(j + 1u), 0).w;
+        let j = 2u * textureLoad(exact_entries, row_texel(i), 0).x;
+        let center_radius = textureLoad(exact_spheres, row_texel(j), 0);
+        let density = textureLoad(exact_spheres, row_texel(j + 1u), 0).w;
         let r = center_radius.w;
         let oc = center_radius.xyz - origin;
         let t_mid = dot(oc, dir);

@@ -6,9 +6,11 @@
 // 3. fill: each particle writes its index into the lists of its tiles (the counts, cleared,
 //    serve as cursors). The order within a list is the order the atomics ran in: the lookup's
 //    fixed-point sum does not depend on it.
-// The lists and the spheres are textures, EXACT_ROW texels a row (src/shadow/exact.rs says why).
+// The lists and the spheres are row textures (shaders/common/rows.wgsl; src/shadow/exact.rs says
+// why).
 // Keep `ExactParams` in sync with src/shadow/exact.rs and exact.wgsl.
 #import shadow/grid_scan.wgsl
+#import common/rows.wgsl
 
 struct ExactParams {
     view_from_world: mat4x4<f32>,
@@ -21,18 +23,11 @@ struct ExactParams {
 @group(1) @binding(0) var<uniform> exact: ExactParams;
 @group(1) @binding(1) var<storage, read_write> counts: array<atomic<u32>>;
 @group(1) @binding(2) var<storage, read_write> offsets: array<u32>;
-// Particle indices, per tile: entry i at texel (i % EXACT_ROW, i / EXACT_ROW).
+// Particle indices, per tile: entry i at texel row_texel(i).
 @group(1) @binding(3) var entries: texture_storage_2d<r32uint, write>;
 // Particle i's centre and radius at texel 2i, its albedo and extinction at 2i + 1.
 @group(1) @binding(4) var spheres: texture_2d<f32>;
 @group(1) @binding(6) var<storage, read_write> row_sums: array<u32>;
-
-// Texels per row of the entry and sphere textures (EXACT_ROW_TEXELS in src/shadow/exact.rs).
-const EXACT_ROW_BITS: u32 = 12u;
-
-fn texel(i: u32) -> vec2<u32> {
-    return vec2<u32>(i & ((1u << EXACT_ROW_BITS) - 1u), i >> EXACT_ROW_BITS);
-}
 
 const HALF_PI: f32 = 1.5707963;
 
@@ -80,8 +75,8 @@ struct Footprint {
 
 fn footprint(index: u32) -> Footprint {
     var out: Footprint;
-    let center_radius = textureLoad(spheres, texel(2u * index), 0);
-    let density = textureLoad(spheres, texel(2u * index + 1u), 0).w;
+    let center_radius = textureLoad(spheres, row_texel(2u * index), 0);
+    let density = textureLoad(spheres, row_texel(2u * index + 1u), 0).w;
     let r = center_radius.w;
     let view = (exact.view_from_world * vec4<f32>(center_radius.xyz, 1.0)).xyz;
     out.x = axis_tiles(view.x, view.z, r, false);
@@ -129,7 +124,7 @@ fn fill(@builtin(global_invocation_id) id: vec3<u32>) {
             let tile = y * n + x;
             let slot = offsets[tile] + atomicAdd(&counts[tile], 1u);
             if slot < exact.capacity {
-                textureStore(entries, texel(slot), vec4<u32>(id.x));
+                textureStore(entries, row_texel(slot), vec4<u32>(id.x));
             }
         }
     }

@@ -394,6 +394,53 @@ pub fn storage_descriptor(label: &str, size: u64) -> wgpu::BufferDescriptor<'_> 
     }
 }
 
+/// Texels per row of a texture that holds a linear array: element i at texel (i % ROW_TEXELS,
+/// i / ROW_TEXELS), `row_texel` in shaders/common/rows.wgsl (2^12, so an index splits with a
+/// mask and a shift). llvmpipe fetches a texture's texels for the lanes of a SIMD group in one
+/// gather, where it loads a storage buffer's words lane by lane: arrays a hot loop reads go
+/// there (`exact`'s lists and spheres, `dsm`'s capture nodes).
+pub const ROW_TEXELS: u32 = 4096;
+
+/// Width and height of a row texture for `texels` elements: rows of [`ROW_TEXELS`], the one row
+/// narrower when there are fewer, at least 1x1.
+pub fn row_texture_size(texels: u64) -> (u32, u32) {
+    let width = texels.clamp(1, u64::from(ROW_TEXELS)) as u32;
+    let rows = texels.div_ceil(u64::from(ROW_TEXELS)).max(1);
+    (width, u32::try_from(rows).unwrap_or(u32::MAX))
+}
+
+/// The descriptor of a row texture (see [`ROW_TEXELS`]) for `texels` elements of `format`.
+pub fn row_texture_descriptor<'a>(
+    label: &'a str,
+    format: wgpu::TextureFormat,
+    usage: wgpu::TextureUsages,
+    texels: u64,
+) -> wgpu::TextureDescriptor<'a> {
+    let (width, height) = row_texture_size(texels);
+    wgpu::TextureDescriptor {
+        label: Some(label),
+        size: wgpu::Extent3d {
+            width,
+            height,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage,
+        view_formats: &[],
+    }
+}
+
+/// A bind-group entry for a texture `view`.
+pub fn texture_binding(binding: u32, view: &wgpu::TextureView) -> wgpu::BindGroupEntry<'_> {
+    wgpu::BindGroupEntry {
+        binding,
+        resource: wgpu::BindingResource::TextureView(view),
+    }
+}
+
 /// A bind-group entry for all of `buffer`.
 pub fn bind_entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
     wgpu::BindGroupEntry {

@@ -41,8 +41,8 @@ use bytemuck::{Pod, Zeroable};
 use super::ShadowError;
 use super::layered::{billboard_pipeline, cleared_attachment, draw_particles, uniform_entry};
 use crate::gpu::{
-    AllocationError, Gpu, GpuTimer, MemoryLedger, bind_entry, read_buffer, storage_descriptor,
-    storage_entry,
+    AllocationError, Gpu, GpuTimer, MemoryLedger, ROW_TEXELS, bind_entry, read_buffer,
+    row_texture_descriptor, row_texture_size, storage_descriptor, storage_entry, texture_binding,
 };
 use crate::shaders;
 
@@ -104,21 +104,16 @@ fn heap_rounds(max_list: u32, loop_budget: u32) -> (u32, u32) {
         max_list.saturating_sub(1).div_ceil(c).max(1),
     )
 }
-/// Texels per row of the node texture (`node_texel` in shaders/shadow/deep_capture_lists.wgsl).
-const NODE_ROW_TEXELS: u32 = 4096;
-/// A node (z, Ω) as a texel.
+/// A node (z, Ω) as a texel of the node texture, a row texture ([`ROW_TEXELS`] a row).
 const NODE_TEXEL_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rg32Float;
 const NODE_TEXEL_BYTES: u64 = 8;
 
-/// The node texture's size for lists of `capacity` segments: 2 x capacity texels in rows of
-/// [`NODE_ROW_TEXELS`] when `node_texels`, else 1x1.
-fn node_texels_size(capacity: u32, node_texels: bool) -> (u32, u32) {
+/// The node texture's texels for lists of `capacity` segments: two a segment when
+/// `node_texels`, else one (a placeholder for the binding).
+fn node_texel_count(capacity: u64, node_texels: bool) -> u64 {
     match node_texels {
-        true => (
-            NODE_ROW_TEXELS,
-            (2 * capacity).div_ceil(NODE_ROW_TEXELS).max(1),
-        ),
-        false => (1, 1),
+        true => 2 * capacity,
+        false => 1,
     }
 }
 
@@ -131,9 +126,9 @@ fn copy_node_texels(
     segments: u32,
 ) {
     let count = 2 * segments;
-    let (rows, rest) = (count / NODE_ROW_TEXELS, count % NODE_ROW_TEXELS);
-    let row_bytes = u64::from(NODE_ROW_TEXELS) * NODE_TEXEL_BYTES;
-    for (first_row, height, width) in [(0, rows, NODE_ROW_TEXELS), (rows, 1, rest)] {
+    let (rows, rest) = (count / ROW_TEXELS, count % ROW_TEXELS);
+    let row_bytes = u64::from(ROW_TEXELS) * NODE_TEXEL_BYTES;
+    for (first_row, height, width) in [(0, rows, ROW_TEXELS), (rows, 1, rest)] {
         if height == 0 || width == 0 {
             continue;
         }
@@ -172,12 +167,11 @@ const DUMMY_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R8Unorm;
 /// The bytes a capture at `resolution_px` with lists for `segment_capacity` segments allocates:
 /// a 32-byte uniform, the 64 KiB round uniform, counts, offsets (+1 for the total), row sums
 /// (+1), an R8 raster target, 16 + 16 bytes of segment and node storage per segment, and the
-/// node texture: 2 x capacity texels of 8 bytes in whole rows of 4,096 for a resolve whose
-/// owner reads them (`node_texels`, `dsm`), else one texel.
+/// node texture: a row texture of 2 x capacity texels of 8 bytes for a resolve whose owner
+/// reads them (`node_texels`, `dsm`), else one texel.
 pub fn bytes(resolution_px: u32, segment_capacity: u64, node_texels: bool) -> u64 {
     let texels = u64::from(resolution_px) * u64::from(resolution_px);
-    let capacity = u32::try_from(segment_capacity).unwrap_or(u32::MAX);
-    let (width, height) = node_texels_size(capacity, node_texels);
+    let (width, height) = row_texture_size(node_texel_count(segment_capacity, node_texels));
     std::mem::size_of::<CaptureParams>() as u64
         + u64::from(MAX_ROUNDS * ROUND_STRIDE)
         + texels * 4
@@ -193,7 +187,7 @@ pub fn bytes(resolution_px: u32, segment_capacity: u64, node_texels: bool) -> u6
 fn max_band_segments(gpu: &Gpu) -> u32 {
     let binding =
         gpu.limits.max_storage_buffer_binding_size / SEGMENT_BYTES.max(NODE_BYTES_PER_SEGMENT);
-    let texture = u64::from(gpu.limits.max_texture_dimension_2d) * u64::from(NODE_ROW_TEXELS) / 2;
+    let texture = u64::from(gpu.limits.max_texture_dimension_2d) * u64::from(ROW_TEXELS) / 2;
     u32::try_from(binding.min(texture)).unwrap_or(u32::MAX)
 }
 
@@ -204,7 +198,7 @@ struct Lists {
     _segments: wgpu::Buffer,
     nodes: wgpu::Buffer,
     /// The nodes as a texture for the owner's compression, when it reads them (`dsm`): a copy
-    /// of the nodes buffer's first 2 x segments texels, [`NODE_ROW_TEXELS`] a row (else 1x1).
+    /// of the nodes buffer's first 2 x segments texels, a row texture (else a 1x1 placeholder).
     node_texels: Option<wgpu::Texture>,
     bind_group: wgpu::BindGroup,
 }
@@ -943,23 +937,14 @@ impl Lists {
             device,
             &storage_descriptor(&nodes_label, u64::from(capacity) * NODE_BYTES_PER_SEGMENT),
         )?;
-        let (width, height) = node_texels_size(capacity, node_texels);
         let texture = memory.texture_transient(
             device,
-            &wgpu::TextureDescriptor {
-                label: Some(&texels_label),
-                size: wgpu::Extent3d {
-                    width,
-                    height,
-                    depth_or_array_layers: 1,
-                },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format: NODE_TEXEL_FORMAT,
-                usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-                view_formats: &[],
-            },
+            &row_texture_descriptor(
+                &texels_label,
+                NODE_TEXEL_FORMAT,
+                wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+                node_texel_count(u64::from(capacity), node_texels),
+            ),
         )?;
         let node_view = texture.create_view(&wgpu::TextureViewDescriptor::default());
         let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -972,10 +957,7 @@ impl Lists {
                 bind_entry(3, &segments),
                 bind_entry(4, &nodes),
                 bind_entry(5, row_sums),
-                wgpu::BindGroupEntry {
-                    binding: 6,
-                    resource: wgpu::BindingResource::TextureView(&node_view),
-                },
+                texture_binding(6, &node_view),
             ],
         });
         Ok(Self {

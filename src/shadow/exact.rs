@@ -55,8 +55,8 @@ use super::{
     TechniqueEntry, TechniqueParams,
 };
 use crate::gpu::{
-    AllocationError, Gpu, MemoryLedger, bind_entry, read_buffer, storage_descriptor, storage_entry,
-    texture_entry,
+    AllocationError, Gpu, MemoryLedger, ROW_TEXELS, bind_entry, read_buffer,
+    row_texture_descriptor, storage_descriptor, storage_entry, texture_binding, texture_entry,
 };
 use crate::shaders;
 
@@ -139,10 +139,8 @@ pub fn layouts() -> Vec<crate::gpu::MirrorLayout> {
 
 /// Bytes per list entry: the particle's index (an `R32Uint` texel).
 const ENTRY_BYTES: u64 = 4;
-/// Texels per row of the entry and sphere textures: 2^`EXACT_ROW_BITS` in the shaders, so an
-/// index splits into a texel with a mask and a shift. Capacities are whole rows.
-const ROW_TEXELS: u32 = 4096;
-/// The fewest spheres the sphere texture holds (one row: two texels a sphere).
+/// The fewest spheres the sphere texture holds (one row: two texels a sphere). The entry and
+/// sphere textures are row textures ([`ROW_TEXELS`] a row); their capacities are whole rows.
 const MIN_SPHERES: u32 = ROW_TEXELS / 2;
 /// Bytes per sphere (one `ParticleInstance`, two `Rgba32Float` texels).
 const SPHERE_BYTES: u64 = std::mem::size_of::<crate::frame::gpu_data::ParticleInstance>() as u64;
@@ -202,8 +200,7 @@ pub struct Exact {
     last_entries: u32,
 }
 
-/// A texture of `texels` (a multiple of [`ROW_TEXELS`]) texels of `format`, [`ROW_TEXELS`] a
-/// row.
+/// A row texture (see [`ROW_TEXELS`]) of `texels` (a multiple of it) texels of `format`.
 fn row_texture(
     memory: &mut MemoryLedger,
     device: &wgpu::Device,
@@ -213,23 +210,9 @@ fn row_texture(
     texels: u64,
 ) -> Result<wgpu::Texture, AllocationError> {
     memory.forget(label);
-    let rows = texels.div_ceil(u64::from(ROW_TEXELS)).max(1);
     memory.texture(
         device,
-        &wgpu::TextureDescriptor {
-            label: Some(label),
-            size: wgpu::Extent3d {
-                width: ROW_TEXELS,
-                height: u32::try_from(rows).unwrap_or(u32::MAX),
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format,
-            usage,
-            view_formats: &[],
-        },
+        &row_texture_descriptor(label, format, usage, texels),
     )
 }
 
@@ -261,13 +244,6 @@ fn sphere_texture(
         wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
         2 * u64::from(capacity),
     )
-}
-
-fn texture_binding(binding: u32, view: &wgpu::TextureView) -> wgpu::BindGroupEntry<'_> {
-    wgpu::BindGroupEntry {
-        binding,
-        resource: wgpu::BindingResource::TextureView(view),
-    }
 }
 
 /// The instances in a Morton order of their centres' light-view position (1024² cells over the
