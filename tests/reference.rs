@@ -241,3 +241,76 @@ fn a_tile_list_of_sixteen_thousand_spheres_is_walked_whole() {
     assert!(c.points >= 100, "only {} points", c.points);
     assert!(c.worst_difference <= 1e-4, "{c}");
 }
+
+/// A list beyond llvmpipe's loop budget is walked whole: 100,000 spheres of 0.5 m whose centres
+/// lie within 0.2 m of one point all cover the tiles at the cluster's centre, so one list holds
+/// 100,000 entries, beyond the 65,535 loop iterations one invocation may take (the walk takes
+/// eight entries an iteration). `exact`'s T along the light ray through the cluster (before it,
+/// inside it, beyond it, and off its axis) stays within 1e-4 of the f64 closed form.
+#[test]
+fn a_tile_list_beyond_the_loop_budget_is_walked_whole() {
+    use rand::{Rng, SeedableRng};
+    let gpu = common::gpu();
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(100_000);
+    let center = Vec3::new(0.0, 1.5, 0.0);
+    let cluster: Vec<Particle> = (0..100_000)
+        .map(|_| {
+            let offset = loop {
+                let v = Vec3::new(
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                );
+                if v.length_squared() <= 1.0 {
+                    break v * 0.2;
+                }
+            };
+            Particle {
+                position: center + offset,
+                velocity: Vec3::ZERO,
+                age_s: 1.0,
+                radius_m: 0.5,
+                // About 1.6 of optical depth through the middle, as the 16,000 spheres above.
+                density_per_m: 2e-4 * 0.16,
+                albedo: Vec3::splat(0.8),
+            }
+        })
+        .collect();
+    let dir = common::scratch("reference-beyond-budget");
+    let scene = bare(&dir, "beyond", &cluster);
+    let particles = particles::scene_particles(&scene).unwrap();
+    let config = common::technique("exact", 1, 512, SplatMode::Segment);
+    let mut renderer = Renderer::new(&gpu, W, H, OUTPUT_FORMAT, &config).unwrap();
+    let light = scene.light.position;
+    let side = (center - light).cross(Vec3::Y).normalize_or(Vec3::X);
+    let points: Vec<Vec3> = (0..=40)
+        .flat_map(|i| {
+            let along = light + (center - light) * (0.6 + 0.02 * i as f32);
+            [
+                along,
+                along + side * 0.05,
+                along - Vec3::Y.cross(side) * 0.1,
+            ]
+        })
+        .collect();
+    let gpu_t = renderer.probe(&gpu, &scene, &particles, &points).unwrap();
+    let longest = renderer
+        .technique()
+        .counters()
+        .into_iter()
+        .find(|(name, _)| *name == "max_tile_list")
+        .unwrap()
+        .1;
+    assert!(longest > 65_535, "longest tile list {longest}");
+    let mut darkest = 1.0f32;
+    for (p, t) in points.iter().zip(&gpu_t) {
+        let cpu = smokeshadow::shadow::closed_form::transmittance(light, *p, &particles);
+        darkest = darkest.min(cpu);
+        assert!(
+            (t - cpu).abs() <= 1e-4,
+            "at {p}: exact {t}, closed form {cpu}"
+        );
+    }
+    // The ray crosses the cluster: the points beyond it are in its shadow.
+    assert!(darkest < 0.5, "darkest T {darkest}");
+}

@@ -845,12 +845,14 @@ fn written_out(
             let g = ((texels * b) as f64).cbrt().round() as u64;
             (b, g * g * g * 2 + 8 * 4)
         }
-        // The tile lists: a uniform (a 4x4 matrix and 4 words), per-tile counts (+ 2) and
-        // offsets (+ 1), row sums (+ 1), 4 bytes per list entry and 32 per sphere of capacity.
+        // The tile lists: a uniform (a 4x4 matrix and 8 words), per-tile counts (+ 2) and
+        // offsets (+ 1), row sums (+ 1), 4 bytes per list entry and 32 per sphere of capacity,
+        // and per slice (32) its lowest distance (4 bytes) and its fill range (a uniform
+        // offset alignment).
         "exact" => {
             let side = counter("tiles_per_side").unwrap();
             let tiles = side * side;
-            let uniform = 16 * 4 + 4 * 4;
+            let uniform = 16 * 4 + 8 * 4;
             (
                 0,
                 uniform
@@ -858,7 +860,8 @@ fn written_out(
                     + ((tiles + 1) * 4).max(16)
                     + ((side + 1) * 4).max(16)
                     + counter("entry_capacity").unwrap() * 4
-                    + counter("sphere_capacity").unwrap() * 32,
+                    + counter("sphere_capacity").unwrap() * 32
+                    + 32 * (4 + counter("slice_stride").unwrap()),
             )
         }
         other => panic!("{other}: write its memory formula out here"),

@@ -23,6 +23,8 @@ struct ExactParams {
     // Particles binned this frame, and entries the list buffer can hold.
     particle_count: u32,
     capacity: u32,
+    // Spheres per slice of the light-distance order.
+    slice_size: u32,
 };
 
 @group(1) @binding(0) var<uniform> exact: ExactParams;
@@ -34,10 +36,16 @@ struct ExactParams {
 // A particle as the renderer's instance buffer holds it (`ParticleInstance`): particle i's
 // centre and radius (m) at texel 2i, its albedo and extinction τ (1/m) at 2i + 1.
 @group(1) @binding(3) var exact_spheres: texture_2d<f32>;
+// The spheres are uploaded by their nearest distance from the light, |c - light| - r, and their
+// indices cut into slices of `slice_size`: the lowest distance in each slice (m, rounded down).
+@group(1) @binding(4) var<storage, read> exact_slice_near: array<f32>;
 
-// Fixed-point units per unit of optical depth, and the largest optical depth a sum holds.
+// Fixed-point units per unit of optical depth; the optical depth a sum saturates at (T there is
+// exp(-12) = 6.1e-6: what is lost beyond it changes T by less than that); entries per loop
+// iteration of the walk. Keep them in sync with src/shadow/exact.rs and closed_form.rs.
 const EXACT_UNITS: f32 = 67108864.0;
-const EXACT_MAX_OPTICAL_DEPTH: f32 = 63.0;
+const EXACT_CUT: f32 = 12.0;
+const EXACT_UNROLL: u32 = 8u;
 
 // The tile a light-view point falls in, or -1 outside the light's image plane.
 fn exact_tile(view: vec3<f32>) -> i32 {
@@ -54,7 +62,38 @@ fn exact_tile(view: vec3<f32>) -> i32 {
     return tile.y * n + tile.x;
 }
 
-// Optical depth from the light to `p` through the spheres of p's tile.
+// Sphere `index`'s term of the optical depth along the segment from `origin` along `dir` over
+// `length_m`, in fixed-point units (at most EXACT_CUT's).
+fn exact_units(index: u32, origin: vec3<f32>, dir: vec3<f32>, length_m: f32) -> u32 {
+    let center_radius = textureLoad(exact_spheres, row_texel(2u * index), 0);
+    let density = textureLoad(exact_spheres, row_texel(2u * index + 1u), 0).w;
+    let r = center_radius.w;
+    let oc = center_radius.xyz - origin;
+    let t_mid = dot(oc, dir);
+    // The perpendicular offset, not |oc|² - t², which cancels catastrophically.
+    let d2 = dot(oc - dir * t_mid, oc - dir * t_mid);
+    if d2 >= r * r {
+        return 0u;
+    }
+    let half = sqrt(r * r - d2);
+    let inside = max(min(t_mid + half, length_m) - max(t_mid - half, 0.0), 0.0);
+    let term = density * (1.0 - sqrt(d2) / r) * inside;
+    return u32(round(min(term, EXACT_CUT) * EXACT_UNITS));
+}
+
+fn exact_entry(i: u32) -> u32 {
+    return textureLoad(exact_entries, row_texel(i), 0).x;
+}
+
+// Optical depth from the light to `p` through the spheres of p's tile, saturated at EXACT_CUT.
+// - The saturation is order-free: the terms are not negative, so the clamped running sum is
+//   min(partial sum, cut) at every step and the result min(τ, cut) whatever the list's order.
+//   The walk stops once the cut is reached.
+// - A list holds its spheres slice by slice of the light-distance order (src/shadow/exact.rs):
+//   once an entry's slice starts beyond p, no sphere after it reaches the segment, and the walk
+//   stops there (each sphere it skips adds exactly 0).
+// - The walk takes EXACT_UNROLL entries per loop iteration: llvmpipe counts iterations, not
+//   entries, so a list may hold EXACT_UNROLL times its loop budget.
 fn exact_optical_depth(p: vec3<f32>) -> f32 {
     let view = (exact.view_from_world * vec4<f32>(p, 1.0)).xyz;
     let tile = exact_tile(view);
@@ -68,25 +107,36 @@ fn exact_optical_depth(p: vec3<f32>) -> f32 {
         return 0.0;
     }
     let dir = to_p / length_m;
+    let cut = u32(EXACT_CUT * EXACT_UNITS);
     var sum = 0u;
+    var i = exact_offsets[tile];
     let end = exact_offsets[tile + 1];
-    for (var i = exact_offsets[tile]; i < end; i++) {
-        let j = 2u * textureLoad(exact_entries, row_texel(i), 0).x;
-        let center_radius = textureLoad(exact_spheres, row_texel(j), 0);
-        let density = textureLoad(exact_spheres, row_texel(j + 1u), 0).w;
-        let r = center_radius.w;
-        let oc = center_radius.xyz - origin;
-        let t_mid = dot(oc, dir);
-        // The perpendicular offset, not |oc|² - t², which cancels catastrophically.
-        let d2 = dot(oc - dir * t_mid, oc - dir * t_mid);
-        if d2 >= r * r {
-            continue;
+    // Whole groups of EXACT_UNROLL (8) entries, then the rest one at a time.
+    while i + EXACT_UNROLL <= end && sum < cut {
+        let a = exact_entry(i);
+        if exact_slice_near[a / exact.slice_size] > length_m {
+            return f32(sum) / EXACT_UNITS;
         }
-        let half = sqrt(r * r - d2);
-        let inside = max(min(t_mid + half, length_m) - max(t_mid - half, 0.0), 0.0);
-        let term = density * (1.0 - sqrt(d2) / r) * inside;
-        let units = u32(round(min(term, EXACT_MAX_OPTICAL_DEPTH) * EXACT_UNITS));
-        sum = select(sum + units, 0xffffffffu, sum > 0xffffffffu - units);
+        let b = exact_entry(i + 1u);
+        let c = exact_entry(i + 2u);
+        let d = exact_entry(i + 3u);
+        let e = exact_entry(i + 4u);
+        let f = exact_entry(i + 5u);
+        let g = exact_entry(i + 6u);
+        let h = exact_entry(i + 7u);
+        sum = min(sum + exact_units(a, origin, dir, length_m), cut);
+        sum = min(sum + exact_units(b, origin, dir, length_m), cut);
+        sum = min(sum + exact_units(c, origin, dir, length_m), cut);
+        sum = min(sum + exact_units(d, origin, dir, length_m), cut);
+        sum = min(sum + exact_units(e, origin, dir, length_m), cut);
+        sum = min(sum + exact_units(f, origin, dir, length_m), cut);
+        sum = min(sum + exact_units(g, origin, dir, length_m), cut);
+        sum = min(sum + exact_units(h, origin, dir, length_m), cut);
+        i += EXACT_UNROLL;
+    }
+    while i < end && sum < cut {
+        sum = min(sum + exact_units(exact_entry(i), origin, dir, length_m), cut);
+        i++;
     }
     return f32(sum) / EXACT_UNITS;
 }

@@ -3,9 +3,11 @@
 //    the largest footprint's width and height in tiles go after the counts (atomic max).
 // 2. scan_rows, scan_total, scan_write (shaders/shadow/grid_scan.wgsl): exclusive prefix sum of
 //    the counts -> list offsets (offsets[tiles²] = total).
-// 3. fill: each particle writes its index into the lists of its tiles (the counts, cleared,
-//    serve as cursors). The order within a list is the order the atomics ran in: the lookup's
-//    fixed-point sum does not depend on it.
+// 3. fill, once per slice of the spheres (they are uploaded in order of their nearest distance
+//    from the light, src/shadow/exact.rs): each particle of the slice writes its index into the
+//    lists of its tiles (the counts, cleared, serve as cursors). The dispatches run in slice
+//    order, so a list holds its spheres slice by slice; within a slice the order is the order
+//    the atomics ran in, which the lookup's fixed-point sum does not depend on.
 // The lists and the spheres are row textures (shaders/common/rows.wgsl; src/shadow/exact.rs says
 // why).
 // Keep `ExactParams` in sync with src/shadow/exact.rs and exact.wgsl.
@@ -18,6 +20,7 @@ struct ExactParams {
     tiles: u32,
     particle_count: u32,
     capacity: u32,
+    slice_size: u32,
 };
 
 @group(1) @binding(0) var<uniform> exact: ExactParams;
@@ -28,6 +31,12 @@ struct ExactParams {
 // Particle i's centre and radius at texel 2i, its albedo and extinction at 2i + 1.
 @group(1) @binding(4) var spheres: texture_2d<f32>;
 @group(1) @binding(6) var<storage, read_write> row_sums: array<u32>;
+// The fill's slice: spheres [first, first + count) (a dynamic offset per dispatch).
+struct FillSlice {
+    first: u32,
+    count: u32,
+};
+@group(1) @binding(7) var<uniform> fill_slice: FillSlice;
 
 const HALF_PI: f32 = 1.5707963;
 
@@ -114,17 +123,18 @@ fn scan_side() -> u32 {
 
 @compute @workgroup_size(64)
 fn fill(@builtin(global_invocation_id) id: vec3<u32>) {
-    if id.x >= exact.particle_count {
+    if id.x >= fill_slice.count {
         return;
     }
-    let f = footprint(id.x);
+    let index = fill_slice.first + id.x;
+    let f = footprint(index);
     let n = i32(exact.tiles);
     for (var y = f.y.x; y <= f.y.y; y++) {
         for (var x = f.x.x; x <= f.x.y; x++) {
             let tile = y * n + x;
             let slot = offsets[tile] + atomicAdd(&counts[tile], 1u);
             if slot < exact.capacity {
-                textureStore(entries, row_texel(slot), vec4<u32>(id.x));
+                textureStore(entries, row_texel(slot), vec4<u32>(index));
             }
         }
     }

@@ -255,6 +255,31 @@ impl GpuTimer {
         })
     }
 
+    /// One timed pass for a run of compute passes (one dispatch each, that must see each
+    /// other's writes): [`Self::span_writes`] gives the run's first pass the start and its last
+    /// the end.
+    pub fn compute_span(&mut self, name: &'static str) -> Option<u32> {
+        self.allocate(name)
+    }
+
+    /// Timestamp writes for a pass of a run from [`Self::compute_span`].
+    pub fn span_writes(
+        &self,
+        span: Option<u32>,
+        first: bool,
+        last: bool,
+    ) -> Option<wgpu::ComputePassTimestampWrites<'_>> {
+        let index = span?;
+        if !first && !last {
+            return None;
+        }
+        Some(wgpu::ComputePassTimestampWrites {
+            query_set: self.query_set.as_ref()?,
+            beginning_of_pass_write_index: first.then_some(index * 2),
+            end_of_pass_write_index: last.then_some(index * 2 + 1),
+        })
+    }
+
     fn allocate(&mut self, name: &'static str) -> Option<u32> {
         self.query_set.as_ref()?;
         let index = self.names.len() as u32;

@@ -140,18 +140,19 @@ pub fn verify(
     let gpu_t = renderer.probe_with_occluders(gpu, scene, particles, &positions)?;
     let far_m = LightSpace::faces(&scene.light, particles)[0].far_m;
     let epsilon_m = occluders::epsilon_m(scene.light.position, far_m);
-    let cpu_t: Vec<Option<f64>> = positions
-        .par_iter()
-        .map(|&p| {
-            match closed_form::occluder_visibility(scene, scene.light.position, p, epsilon_m) {
-                Visibility::Lit => {
-                    Some((-closed_form::optical_depth(scene.light.position, p, particles)).exp())
+    let cpu_t: Vec<Option<f64>> =
+        positions
+            .par_iter()
+            .map(|&p| {
+                match closed_form::occluder_visibility(scene, scene.light.position, p, epsilon_m) {
+                    Visibility::Lit => Some(closed_form::transmittance_of(
+                        closed_form::optical_depth(scene.light.position, p, particles),
+                    )),
+                    Visibility::Blocked => Some(0.0),
+                    Visibility::KnifeEdge => None,
                 }
-                Visibility::Blocked => Some(0.0),
-                Visibility::KnifeEdge => None,
-            }
-        })
-        .collect();
+            })
+            .collect();
     let check = compare(&points, &gpu_t, &cpu_t);
     match check.worst {
         Some(w) if check.worst_difference > TOLERANCE => Err(anyhow::anyhow!(
