@@ -6,12 +6,13 @@
 // 2. scan_rows, scan_total, scan_write (shaders/shadow/grid_scan.wgsl, shared with `exact`):
 //    exclusive prefix sum of the counts -> list offsets (offsets[res²] = total).
 // 3. fs_fill: every fragment of the current band of rows writes its segment (z0, z1, optical
-//    depth, draw index) into its texel's list (counts, cleared, serve as cursors).
-// 4. resolve (split_ends, heap_build, heap_extract, the two heap passes again, merge_nodes):
-//    per texel of the band, split the segments into starts (z0, slope) and ends (z1, slope),
-//    sort each by (depth, slope), and merge both into the nodes (z, Ω(z)) of the
-//    piecewise-linear optical depth: between events Ω grows by the sum of the slopes (optical
-//    depth per metre) of the segments open there. The keys are total over what is sorted, so
+//    depth, draw index) into its texel's list (counts, cleared, serve as cursors); for `dsm`,
+//    fs_fill_split writes its start (z0, slope) and its end (z1, slope) to the sort keys (two
+//    read-write storage textures) instead.
+// 4. resolve (heap_build, heap_extract, the two heap passes again, merge_nodes): per texel of
+//    the band, `dsm`'s sorts the starts and the ends each by (depth, slope), and merges both
+//    into the nodes (z, Ω(z)) of the piecewise-linear optical depth: between events Ω grows by
+//    the sum of the slopes (optical depth per metre) of the segments open there. The keys are total over what is sorted, so
 //    the nodes do not depend on the order the fragments arrived in. An owner that needs the
 //    segments themselves has them sorted whole (an insertion sort that gives up early, then a
 //    heapsort of the lists it left): by (z0, z1, optical depth, draw index), or with
@@ -23,6 +24,22 @@
 
 @group(1) @binding(1) var<storage, read_write> counts: array<atomic<u32>>;
 @group(1) @binding(5) var<storage, read_write> row_sums: array<u32>;
+// `dsm`'s sort keys, in the nodes' index space: a texel's starts (z0, slope) at [2·first,
+// 2·first + n), its ends (z1, slope) at [2·first + n, 2·first + 2n); depths in one texture,
+// slopes in the other (src/shadow/deep_capture.rs, SORT_KEY_FORMAT, says why textures).
+@group(1) @binding(7) var sort_depths: texture_storage_2d<r32float, read_write>;
+@group(1) @binding(8) var sort_slopes: texture_storage_2d<r32float, read_write>;
+
+fn sort_key(i: u32) -> vec2<f32> {
+    let texel = row_texel(i);
+    return vec2<f32>(textureLoad(sort_depths, texel).x, textureLoad(sort_slopes, texel).x);
+}
+
+fn set_sort_key(i: u32, key: vec2<f32>) {
+    let texel = row_texel(i);
+    textureStore(sort_depths, texel, vec4<f32>(key.x));
+    textureStore(sort_slopes, texel, vec4<f32>(key.y));
+}
 
 // Shortest chord kept, metres: shorter ones (grazing rays) are widened to this so that every
 // segment has a finite slope; their optical depth τ(1 - d/r)·2w is vanishingly small anyway.
@@ -61,21 +78,56 @@ fn fs_count(in: BuildVertexOut) -> @location(0) vec4<f32> {
     return vec4<f32>(0.0);
 }
 
+// The band texel of a fill fragment and its slot in the lists, or NO_TEXEL (the fragment is
+// then discarded) for a fragment that misses its sphere or lies outside the band.
+struct FillSlot {
+    index: u32,
+    slot: u32,
+};
+
+fn fill_slot(in: BuildVertexOut, segment: Segment) -> FillSlot {
+    var out = FillSlot(NO_TEXEL, 0u);
+    // The pass's scissor keeps to the band's rows; this makes sure of it.
+    let row = u32(in.clip.y);
+    if segment.optical_depth < 0.0 || row < capture.row_begin || row >= capture.row_end {
+        return out;
+    }
+    out.index = texel_index(in.clip);
+    out.slot = offsets[out.index] - capture.band_base + atomicAdd(&counts[out.index], 1u);
+    return out;
+}
+
 @fragment
 fn fs_fill(in: BuildVertexOut) -> @location(0) vec4<f32> {
     let segment = fragment_segment(in);
-    if segment.optical_depth < 0.0 {
+    let at = fill_slot(in, segment);
+    if at.index == NO_TEXEL {
         discard;
     }
-    // The pass's scissor keeps to the band's rows; this makes sure of it.
-    let row = u32(in.clip.y);
-    if row < capture.row_begin || row >= capture.row_end {
+    if at.slot < capture.capacity {
+        segments[at.slot] = segment;
+    }
+    return vec4<f32>(0.0);
+}
+
+// The fill of a resolve into nodes (`dsm`'s): each segment goes straight to the sort keys,
+// split into its start (z0, slope) and its end (z1, slope) (the end's place needs the texel's
+// count: the offsets give it); nothing reads the segments. (A compute pass that split the
+// stored segments instead cost 50-150 ms more of `dsm`'s frame on the thesis scene.)
+@fragment
+fn fs_fill_split(in: BuildVertexOut) -> @location(0) vec4<f32> {
+    let segment = fragment_segment(in);
+    let at = fill_slot(in, segment);
+    if at.index == NO_TEXEL {
         discard;
     }
-    let index = texel_index(in.clip);
-    let slot = offsets[index] - capture.band_base + atomicAdd(&counts[index], 1u);
-    if slot < capture.capacity {
-        segments[slot] = segment;
+    let first = offsets[at.index] - capture.band_base;
+    let count = offsets[at.index + 1u] - offsets[at.index];
+    if first + count <= capture.capacity {
+        let slope = segment_slope(segment);
+        let i = at.slot - first;
+        set_sort_key(2u * first + i, vec2<f32>(segment.z0, slope));
+        set_sort_key(2u * first + count + i, vec2<f32>(segment.z1, slope));
     }
     return vec4<f32>(0.0);
 }
@@ -90,9 +142,8 @@ fn segment_slope(s: Segment) -> f32 {
 }
 
 // Which list a sort pipeline sorts (set per pipeline: src/shadow/deep_capture.rs, `Resolve`):
-// the texel's segments whole, their starts (z0, slope), which `split_ends` leaves in each
-// segment's first two words, or their ends (z1, slope), which it copies to the upper half of the
-// texel's nodes.
+// the texel's segments whole, or its starts or its ends, which `fs_fill_split` writes to the
+// sort keys.
 const LIST_SEGMENTS: u32 = 0u;
 const LIST_STARTS: u32 = 1u;
 const LIST_ENDS: u32 = 2u;
@@ -126,35 +177,33 @@ fn key_before(a: HeapItem, b: HeapItem) -> bool {
     return a.draw_index < b.draw_index;
 }
 
-// (A start loads and stores two words, not the segment's four: llvmpipe moves a storage
-// buffer's words one lane at a time, and those moves are most of a sort's cost.)
+// (A start or an end is two words in the sort keys' textures, not a segment's four in a
+// storage buffer: llvmpipe moves a storage buffer's words one lane at a time, and those moves
+// are most of a sort's cost.)
 fn heap_key(i: u32) -> HeapItem {
-    if SORT_LIST == LIST_ENDS {
-        return HeapItem(vec3<f32>(nodes[i], 0.0), 0u);
-    }
-    if SORT_LIST == LIST_STARTS {
-        return HeapItem(vec3<f32>(segments[i].z0, segments[i].z1, 0.0), 0u);
+    if SORT_LIST != LIST_SEGMENTS {
+        return HeapItem(vec3<f32>(sort_key(i), 0.0), 0u);
     }
     let s = segments[i];
     return HeapItem(vec3<f32>(s.z0, s.z1, s.optical_depth), s.draw_index);
 }
 
 fn set_heap_key(i: u32, item: HeapItem) {
-    if SORT_LIST == LIST_ENDS {
-        nodes[i] = item.key.xy;
-    } else if SORT_LIST == LIST_STARTS {
-        segments[i].z0 = item.key.x;
-        segments[i].z1 = item.key.y;
+    if SORT_LIST != LIST_SEGMENTS {
+        set_sort_key(i, item.key.xy);
     } else {
         segments[i] = Segment(item.key.x, item.key.y, item.key.z, item.draw_index);
     }
 }
 
-// Where the sorted list starts: the segments (or starts) at `first`, the ends after the
-// texel's n nodes.
+// Where the sorted list starts: the segments at `first`; the starts at 2·first and the ends
+// after them in the sort keys.
 fn heap_base(list: TexelList) -> u32 {
     if SORT_LIST == LIST_ENDS {
         return 2u * list.first + list.count;
+    }
+    if SORT_LIST == LIST_STARTS {
+        return 2u * list.first;
     }
     return list.first;
 }
@@ -187,8 +236,8 @@ fn sift(base: u32, root_in: u32, n: u32) {
 }
 
 // The resolve, in phases (a dispatch each, or several: rounds), per texel of the band.
-// `dsm`'s (Resolve::Nodes): split each segment into its start (z0, slope), kept in place, and
-// its end (z1, slope), copied into the upper half of its nodes; heapsort the starts (build the
+// `dsm`'s (Resolve::Nodes), whose fill wrote each segment's start (z0, slope) and end (z1,
+// slope) to the sort keys: heapsort the starts (build the
 // heap, then move the largest to the end); heapsort the ends (the same two entry points,
 // SORT_LIST set); merge both into the nodes. Only the starts and ends are sorted, two words
 // each: two starts (or ends) with equal keys are equal, so the order is total over what is
@@ -331,22 +380,8 @@ fn insertion_sort(@builtin(global_invocation_id) id: vec3<u32>) {
     }
 }
 
-// Splits each segment of the texel: its end (z1, slope) to the upper half of its nodes, its
-// start (z0, slope) in its first two words.
-@compute @workgroup_size(8, 8)
-fn split_ends(@builtin(global_invocation_id) id: vec3<u32>) {
-    let list = band_list(id);
-    let ends = 2u * list.first + list.count;
-    for (var i = 0u; i < list.count; i++) {
-        let s = segments[list.first + i];
-        let slope = segment_slope(s);
-        nodes[ends + i] = vec2<f32>(s.z1, slope);
-        segments[list.first + i].z1 = slope;
-    }
-}
-
-// Merges the sorted starts and ends into nodes [2·first, 2·first + 2n). Writing node k = i + j
-// never overtakes the unread ends (k <= n + j), so the merge works in place.
+// Merges the sorted starts and ends (the sort keys) into nodes [2·first, 2·first + 2n). The
+// next start and the next end are held, each loaded once.
 @compute @workgroup_size(8, 8)
 fn merge_nodes(@builtin(global_invocation_id) id: vec3<u32>) {
     let list = band_list(id);
@@ -355,29 +390,36 @@ fn merge_nodes(@builtin(global_invocation_id) id: vec3<u32>) {
     if n == 0u {
         return;
     }
-    let ends = 2u * first + n;
+    let starts = 2u * first;
+    let ends = starts + n;
     var i = 0u;
     var j = 0u;
     var omega = 0.0;
     var slope = 0.0;
-    var z_prev = segments[first].z0;
+    var start = sort_key(starts);
+    var end = sort_key(ends);
+    var z_prev = start.x;
     for (var k = 0u; k < 2u * n; k++) {
         var z: f32;
         var delta: f32;
-        if i < n && (j >= n || segments[first + i].z0 <= nodes[ends + j].x) {
-            // A start: (z0, slope) since `split_ends`.
-            z = segments[first + i].z0;
-            delta = segments[first + i].z1;
+        if i < n && (j >= n || start.x <= end.x) {
+            z = start.x;
+            delta = start.y;
             i++;
+            if i < n {
+                start = sort_key(starts + i);
+            }
         } else {
-            let e = nodes[ends + j];
-            z = e.x;
-            delta = -e.y;
+            z = end.x;
+            delta = -end.y;
             j++;
+            if j < n {
+                end = sort_key(ends + j);
+            }
         }
         omega += slope * (z - z_prev);
         slope = max(slope + delta, 0.0);
         z_prev = z;
-        nodes[2u * first + k] = vec2<f32>(z, omega);
+        nodes[starts + k] = vec2<f32>(z, omega);
     }
 }

@@ -116,7 +116,7 @@ fn greedy_fit(base: u32, n: u32, eps: f32, limit: u32, write: bool, out: u32) ->
 // feasible slopes from the first, [(Ω - ε)/dz, (Ω + ε)/dz], hold 0 (Ω - ε <= 0 <= Ω + ε holds
 // in floats too), and the fit is one segment, 2 nodes, within any budget the technique accepts
 // (at least 4 channels: N >= 2). Between rounds the search's state lives in the texel's first
-// segment (the compression reads only the nodes): (lo, hi, mode).
+// two nodes of the capture's buffer (the search reads the node texture): (lo, hi), (mode, 0).
 const MODE_BISECT: f32 = 1.0;
 const MODE_EXACT: f32 = 2.0;
 
@@ -192,11 +192,13 @@ fn compress(@builtin(global_invocation_id) id: vec3<u32>) {
     var lo = 0.0;
     var hi = nodes[base + n - 1u].y;
     var mode = MODE_BISECT;
+    // Between rounds the search's state waits in the texel's first nodes of the capture's
+    // buffer (the search reads their copy, `node_texels`): (lo, hi), then (mode, 0).
     if first_step > 0u {
-        let state = segments[list.first];
-        lo = state.z0;
-        hi = state.z1;
-        mode = state.optical_depth;
+        let bounds = nodes[base];
+        lo = bounds.x;
+        hi = bounds.y;
+        mode = nodes[base + 1u].x;
     }
     for (var k = 0u; k < per_round; k++) {
         let step = first_step + k;
@@ -221,9 +223,6 @@ fn compress(@builtin(global_invocation_id) id: vec3<u32>) {
             finish(base, n, hi, limit, out);
         }
     }
-    var state: Segment;
-    state.z0 = lo;
-    state.z1 = hi;
-    state.optical_depth = mode;
-    segments[list.first] = state;
+    nodes[base] = vec2<f32>(lo, hi);
+    nodes[base + 1u] = vec2<f32>(mode, 0.0);
 }

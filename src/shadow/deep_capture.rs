@@ -107,6 +107,14 @@ fn heap_rounds(max_list: u32, loop_budget: u32) -> (u32, u32) {
 /// A node (z, Ω) as a texel of the node texture, a row texture ([`ROW_TEXELS`] a row).
 const NODE_TEXEL_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rg32Float;
 const NODE_TEXEL_BYTES: u64 = 8;
+/// The sort keys of a resolve into nodes (`dsm`'s starts and ends): their depths and their
+/// slopes, two read-write storage textures of one `R32Float` a key (WebGPU allows read-write
+/// storage textures of 32-bit single-channel formats only), in the nodes' index space, row
+/// textures like the node texture. llvmpipe moves a storage texture's texels for all the lanes
+/// of a SIMD group at once and a storage buffer's words lane by lane: heapsorting 16,384 lists
+/// of 128 keys took 260 ms in a buffer and 110 ms in two such textures.
+const SORT_KEY_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Float;
+const SORT_KEY_BYTES: u64 = 4;
 
 /// The node texture's texels for lists of `capacity` segments: two a segment when
 /// `node_texels`, else one (a placeholder for the binding).
@@ -114,6 +122,20 @@ fn node_texel_count(capacity: u64, node_texels: bool) -> u64 {
     match node_texels {
         true => 2 * capacity,
         false => 1,
+    }
+}
+
+/// A read-write storage texture of sort keys at `binding` ([`SORT_KEY_FORMAT`]).
+fn sort_key_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::FRAGMENT | wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::StorageTexture {
+            access: wgpu::StorageTextureAccess::ReadWrite,
+            format: SORT_KEY_FORMAT,
+            view_dimension: wgpu::TextureViewDimension::D2,
+        },
+        count: None,
     }
 }
 
@@ -178,8 +200,19 @@ pub fn bytes(resolution_px: u32, segment_capacity: u64, node_texels: bool) -> u6
         + (texels + 1) * 4
         + (u64::from(resolution_px) + 1) * 4
         + texels
-        + segment_capacity * (SEGMENT_BYTES + NODE_BYTES_PER_SEGMENT)
-        + u64::from(width) * u64::from(height) * NODE_TEXEL_BYTES
+        + segment_buffer_bytes(segment_capacity, node_texels)
+        + segment_capacity * NODE_BYTES_PER_SEGMENT
+        + u64::from(width) * u64::from(height) * (NODE_TEXEL_BYTES + 2 * SORT_KEY_BYTES)
+}
+
+/// The segments buffer's bytes: [`SEGMENT_BYTES`] a segment of capacity, or for a resolve into
+/// nodes (`node_texels`: `dsm`'s, whose fill writes each segment's start and end to the sort
+/// keys and stores no segment) one segment, a placeholder for the binding.
+fn segment_buffer_bytes(segment_capacity: u64, node_texels: bool) -> u64 {
+    match node_texels {
+        true => SEGMENT_BYTES,
+        false => segment_capacity * SEGMENT_BYTES,
+    }
 }
 
 /// The most segments one band may hold: its nodes and its segments (16 bytes a segment each) fit
@@ -200,6 +233,9 @@ struct Lists {
     /// The nodes as a texture for the owner's compression, when it reads them (`dsm`): a copy
     /// of the nodes buffer's first 2 x segments texels, a row texture (else a 1x1 placeholder).
     node_texels: Option<wgpu::Texture>,
+    /// The sort keys' depths and slopes (see [`SORT_KEY_FORMAT`]; 1x1 placeholders unless
+    /// `node_texels`), held with the bind group.
+    _sort_keys: [wgpu::Texture; 2],
     bind_group: wgpu::BindGroup,
 }
 
@@ -271,6 +307,14 @@ impl Resolve {
         self == Resolve::Nodes
     }
 
+    /// The fill's entry point: `dsm`'s writes each segment's start and end to the sort keys.
+    fn fill_entry(self) -> &'static str {
+        match self {
+            Resolve::Nodes => "fs_fill_split",
+            Resolve::SegmentsByDepth | Resolve::SegmentsByDraw => "fs_fill",
+        }
+    }
+
     /// The phases in order: entry point, kind, and the list its sort passes sort.
     fn phases(self) -> &'static [(&'static str, ResolvePhase, SortList)] {
         use SortList::*;
@@ -281,8 +325,8 @@ impl Resolve {
             ("heap_build", ResolvePhase::Heap(true), Segments),
             ("heap_extract", ResolvePhase::Heap(false), Segments),
         ];
-        const NODES: [(&str, ResolvePhase, SortList); 6] = [
-            ("split_ends", ResolvePhase::Single, Segments),
+        // The fill wrote the starts and the ends (`fs_fill_split`).
+        const NODES: [(&str, ResolvePhase, SortList); 5] = [
             ("heap_build", ResolvePhase::Heap(true), Starts),
             ("heap_extract", ResolvePhase::Heap(false), Starts),
             ("heap_build", ResolvePhase::Heap(true), Ends),
@@ -508,6 +552,8 @@ impl DeepCapture {
                     wgpu::ShaderStages::COMPUTE,
                     wgpu::TextureSampleType::Float { filterable: false },
                 ),
+                sort_key_entry(7),
+                sort_key_entry(8),
             ],
         });
         let module = shaders::module(
@@ -528,7 +574,7 @@ impl DeepCapture {
             )
         };
         let count_pipeline = raster("count", "fs_count");
-        let fill_pipeline = raster("fill", "fs_fill");
+        let fill_pipeline = raster("fill", resolve.fill_entry());
         let compute_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some(&label("compute.pipeline_layout")),
             bind_group_layouts: &groups,
@@ -926,12 +972,22 @@ impl Lists {
             format!("{name}.capture.nodes"),
             format!("{name}.capture.node_texels"),
         );
+        let key_labels = [
+            format!("{name}.capture.sort_depths"),
+            format!("{name}.capture.sort_slopes"),
+        ];
         memory.forget(&segments_label);
         memory.forget(&nodes_label);
         memory.forget(&texels_label);
+        for label in &key_labels {
+            memory.forget(label);
+        }
         let segments = memory.buffer_transient(
             device,
-            &storage_descriptor(&segments_label, u64::from(capacity) * SEGMENT_BYTES),
+            &storage_descriptor(
+                &segments_label,
+                segment_buffer_bytes(u64::from(capacity), node_texels),
+            ),
         )?;
         let nodes = memory.buffer_transient(
             device,
@@ -947,6 +1003,21 @@ impl Lists {
             ),
         )?;
         let node_view = texture.create_view(&wgpu::TextureViewDescriptor::default());
+        let mut key_texture = |label: &str| {
+            memory.texture_transient(
+                device,
+                &row_texture_descriptor(
+                    label,
+                    SORT_KEY_FORMAT,
+                    wgpu::TextureUsages::STORAGE_BINDING,
+                    node_texel_count(u64::from(capacity), node_texels),
+                ),
+            )
+        };
+        let sort_keys = [key_texture(&key_labels[0])?, key_texture(&key_labels[1])?];
+        let key_views = sort_keys
+            .each_ref()
+            .map(|t| t.create_view(&wgpu::TextureViewDescriptor::default()));
         let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some(&format!("{name}.capture.bind_group")),
             layout,
@@ -958,6 +1029,8 @@ impl Lists {
                 bind_entry(4, &nodes),
                 bind_entry(5, row_sums),
                 texture_binding(6, &node_view),
+                texture_binding(7, &key_views[0]),
+                texture_binding(8, &key_views[1]),
             ],
         });
         Ok(Self {
@@ -965,6 +1038,7 @@ impl Lists {
             _segments: segments,
             nodes,
             node_texels: node_texels.then_some(texture),
+            _sort_keys: sort_keys,
             bind_group,
         })
     }
