@@ -24,23 +24,6 @@
 
 @group(1) @binding(1) var<storage, read_write> counts: array<atomic<u32>>;
 @group(1) @binding(5) var<storage, read_write> row_sums: array<u32>;
-// `dsm`'s sort keys, in the nodes' index space: a texel's starts (z0, slope) at [2·first,
-// 2·first + n), its ends (z1, slope) at [2·first + n, 2·first + 2n); depths in one texture,
-// slopes in the other (src/shadow/deep_capture.rs, SORT_KEY_FORMAT, says why textures).
-@group(1) @binding(7) var sort_depths: texture_storage_2d<r32float, read_write>;
-@group(1) @binding(8) var sort_slopes: texture_storage_2d<r32float, read_write>;
-
-fn sort_key(i: u32) -> vec2<f32> {
-    let texel = row_texel(i);
-    return vec2<f32>(textureLoad(sort_depths, texel).x, textureLoad(sort_slopes, texel).x);
-}
-
-fn set_sort_key(i: u32, key: vec2<f32>) {
-    let texel = row_texel(i);
-    textureStore(sort_depths, texel, vec4<f32>(key.x));
-    textureStore(sort_slopes, texel, vec4<f32>(key.y));
-}
-
 // Shortest chord kept, metres: shorter ones (grazing rays) are widened to this so that every
 // segment has a finite slope; their optical depth τ(1 - d/r)·2w is vanishingly small anyway.
 const MIN_WIDTH_M: f32 = 1e-4;
@@ -380,8 +363,8 @@ fn insertion_sort(@builtin(global_invocation_id) id: vec3<u32>) {
     }
 }
 
-// Merges the sorted starts and ends (the sort keys) into nodes [2·first, 2·first + 2n). The
-// next start and the next end are held, each loaded once.
+// Merges the sorted starts and ends (the sort keys) into the node textures' [2·first, 2·first +
+// 2n). The next start and the next end are held, each loaded once.
 @compute @workgroup_size(8, 8)
 fn merge_nodes(@builtin(global_invocation_id) id: vec3<u32>) {
     let list = band_list(id);
@@ -420,6 +403,6 @@ fn merge_nodes(@builtin(global_invocation_id) id: vec3<u32>) {
         omega += slope * (z - z_prev);
         slope = max(slope + delta, 0.0);
         z_prev = z;
-        nodes[starts + k] = vec2<f32>(z, omega);
+        set_node_texel(starts + k, vec2<f32>(z, omega));
     }
 }

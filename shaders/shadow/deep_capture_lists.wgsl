@@ -1,8 +1,8 @@
 // The per-texel segment lists of a deep capture (src/shadow/deep_capture.rs), as its own passes
 // and the compression passes that read them declare them in group 1. Texel i's segments are
-// segments[offsets[i] .. offsets[i + 1]). After the resolve, for `dsm`, its nodes (z, Ω(z)) of
-// the piecewise-linear optical depth are nodes[2·offsets[i] .. 2·offsets[i + 1]) (and the same
-// in `node_texels`), while its segments hold only their sorted starts; for `avsm` the segments
+// segments[offsets[i] .. offsets[i + 1]) (for `avsm`; `dsm`'s fill writes only the sort keys,
+// below). After the resolve, for `dsm`, its nodes (z, Ω(z)) of the piecewise-linear optical
+// depth are node_texel(2·offsets[i] .. 2·offsets[i + 1]); for `avsm` the segments
 // are sorted by (z0, z1, optical depth), or by draw index alone for its default insertion in
 // draw order (the resolve's `SORT_BY_DRAW`). The lists hold one band of rows at a time (rows
 // [row_begin, row_end), whose first segment is offsets' band_base), so every index into them
@@ -50,14 +50,38 @@ struct Segment {
 @group(1) @binding(2) var<storage, read_write> offsets: array<u32>;
 @group(1) @binding(3) var<storage, read_write> segments: array<Segment>;
 @group(1) @binding(4) var<storage, read_write> nodes: array<vec2<f32>>;
-// The nodes again, as a row texture (shaders/common/rows.wgsl) for an owner that reads them
-// (`dsm`'s search, which reads every node once per greedy fit): node i at texel row_texel(i),
-// copied from `nodes` after the resolve (src/shadow/deep_capture.rs).
-@group(1) @binding(6) var node_texels: texture_2d<f32>;
+// A resolve into nodes (`dsm`'s) keeps its keys and nodes in read-write storage textures of
+// one R32Float each, row textures (shaders/common/rows.wgsl) in the nodes' index space
+// (src/shadow/deep_capture.rs, SORT_KEY_FORMAT, says why textures; 1x1 placeholders for the
+// others): the sort keys, a texel's starts (z0, slope) at [2·first, 2·first + n) and its ends
+// (z1, slope) at [2·first + n, 2·first + 2n), depths in one texture and slopes in the other;
+// and the merged nodes (z, Ω(z)) at [2·first, 2·first + 2n), depths and values.
+@group(1) @binding(6) var node_depths: texture_storage_2d<r32float, read_write>;
+@group(1) @binding(7) var sort_depths: texture_storage_2d<r32float, read_write>;
+@group(1) @binding(8) var sort_slopes: texture_storage_2d<r32float, read_write>;
+@group(1) @binding(9) var node_values: texture_storage_2d<r32float, read_write>;
 @group(3) @binding(0) var<uniform> pass_round: Round;
 
 fn node_texel(i: u32) -> vec2<f32> {
-    return textureLoad(node_texels, row_texel(i), 0).xy;
+    let texel = row_texel(i);
+    return vec2<f32>(textureLoad(node_depths, texel).x, textureLoad(node_values, texel).x);
+}
+
+fn set_node_texel(i: u32, node: vec2<f32>) {
+    let texel = row_texel(i);
+    textureStore(node_depths, texel, vec4<f32>(node.x));
+    textureStore(node_values, texel, vec4<f32>(node.y));
+}
+
+fn sort_key(i: u32) -> vec2<f32> {
+    let texel = row_texel(i);
+    return vec2<f32>(textureLoad(sort_depths, texel).x, textureLoad(sort_slopes, texel).x);
+}
+
+fn set_sort_key(i: u32, key: vec2<f32>) {
+    let texel = row_texel(i);
+    textureStore(sort_depths, texel, vec4<f32>(key.x));
+    textureStore(sort_slopes, texel, vec4<f32>(key.y));
 }
 
 // One texel's list: segments [first, first + count), nodes [2·first, 2·first + 2·count).

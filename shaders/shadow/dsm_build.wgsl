@@ -39,7 +39,7 @@ fn close_segment(origin: vec2<f32>, last: vec2<f32>, lo: f32, hi: f32, eps: f32)
     return vec2<f32>(last.x, clamp(value, last.y - eps, last.y + eps));
 }
 
-// Greedy fit of nodes[base .. base + n) within ±eps. Returns the number of vertices, stopping as
+// Greedy fit of nodes node_texel(base .. base + n) within ±eps. Returns the number of vertices, stopping as
 // soon as it passes `limit`; with `write` it stores them at out_nodes[out ..] (at most `limit`).
 fn greedy_fit(base: u32, n: u32, eps: f32, limit: u32, write: bool, out: u32) -> u32 {
     var origin = node_texel(base);
@@ -116,7 +116,7 @@ fn greedy_fit(base: u32, n: u32, eps: f32, limit: u32, write: bool, out: u32) ->
 // feasible slopes from the first, [(Ω - ε)/dz, (Ω + ε)/dz], hold 0 (Ω - ε <= 0 <= Ω + ε holds
 // in floats too), and the fit is one segment, 2 nodes, within any budget the technique accepts
 // (at least 4 channels: N >= 2). Between rounds the search's state lives in the texel's first
-// two nodes of the capture's buffer (the search reads the node texture): (lo, hi), (mode, 0).
+// two sort keys (nothing reads them after the resolve): (lo, hi), (mode, 0).
 const MODE_BISECT: f32 = 1.0;
 const MODE_EXACT: f32 = 2.0;
 
@@ -178,7 +178,7 @@ fn compress(@builtin(global_invocation_id) id: vec3<u32>) {
         }
         // The whole list fits: copied as it is, the last node repeated.
         for (var k = 0u; k < limit; k++) {
-            out_nodes[out + k] = nodes[base + min(k, n - 1u)];
+            out_nodes[out + k] = node_texel(base + min(k, n - 1u));
         }
         record_tolerance(0.0);
         return;
@@ -190,15 +190,15 @@ fn compress(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     var lo = 0.0;
-    var hi = nodes[base + n - 1u].y;
+    var hi = node_texel(base + n - 1u).y;
     var mode = MODE_BISECT;
-    // Between rounds the search's state waits in the texel's first nodes of the capture's
-    // buffer (the search reads their copy, `node_texels`): (lo, hi), then (mode, 0).
+    // Between rounds the search's state waits in the texel's first sort keys, which nothing
+    // reads after the resolve: (lo, hi), then (mode, 0).
     if first_step > 0u {
-        let bounds = nodes[base];
+        let bounds = sort_key(base);
         lo = bounds.x;
         hi = bounds.y;
-        mode = nodes[base + 1u].x;
+        mode = sort_key(base + 1u).x;
     }
     for (var k = 0u; k < per_round; k++) {
         let step = first_step + k;
@@ -223,6 +223,6 @@ fn compress(@builtin(global_invocation_id) id: vec3<u32>) {
             finish(base, n, hi, limit, out);
         }
     }
-    nodes[base] = vec2<f32>(lo, hi);
-    nodes[base + 1u] = vec2<f32>(mode, 0.0);
+    set_sort_key(base, vec2<f32>(lo, hi));
+    set_sort_key(base + 1u, vec2<f32>(mode, 0.0));
 }

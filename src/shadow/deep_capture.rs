@@ -6,19 +6,22 @@
 //! Four passes, all in shaders/shadow/deep_capture.wgsl: a count raster pass over the
 //! light-space billboards (atomic count per texel), a prefix scan into list offsets, a fill pass
 //! writing each fragment's segment (z0, z1, optical depth, draw index) into its texel's list, and
-//! the resolve's compute passes, as the owner asks ([`Resolve`]): sorting each list by (z0, z1,
-//! optical depth, draw index) — a total key, so the lists do not depend on the order the
-//! fragments arrived in — and merging it into nodes (`dsm`); sorting it by depth only (`avsm`
-//! sorted); or sorting it by draw index (`avsm` streaming), which restores the order the
-//! particles were drawn in, the order an engine's interlocked fragment shader would see them.
+//! the resolve's compute passes, as the owner asks ([`Resolve`]): for `dsm`, the fill writes each
+//! segment's start (z0, slope) and end (z1, slope) instead, and the resolve sorts both by
+//! (depth, slope) — a total key over what is sorted, so the nodes do not depend on the order the
+//! fragments arrived in — and merges them into nodes, all in read-write storage textures
+//! ([`KEY_TEXTURES`]); for `avsm`, it sorts the segments by (z0, z1, optical depth, draw index)
+//! (`avsm` sorted) or by draw index (`avsm` streaming), which restores the order the particles
+//! were drawn in, the order an engine's interlocked fragment shader would see them.
 //! The counts are read back before the fill so the lists can grow to hold the frame (a CPU–GPU
 //! sync per build).
 //! A compression pass then binds [`DeepCapture::layout`] as its group 1
 //! (shaders/shadow/deep_capture_lists.wgsl declares it) and reads the sorted segments or nodes.
 //!
-//! **Bands.** When the frame's segments would not fit one storage binding (the nodes take 16
-//! bytes a segment, so 8.4M segments under a 128 MiB limit: 1,000,000 particles at 512² capture
-//! 12.7M), the map is captured in bands of whole rows, each holding as many segments as fit: the
+//! **Bands.** When the frame's segments would not fit one storage binding (`avsm`'s segments and
+//! nodes take 16 bytes a segment each, so 8.4M segments under a 128 MiB limit: 1,000,000
+//! particles at 512² capture 12.7M; `dsm` bands alike, [`max_band_segments`]), the map is
+//! captured in bands of whole rows, each holding as many segments as fit: the
 //! fill (scissored to the band), the resolve and the owner's compression run once per band over
 //! the same lists, every band but the last in a submission of its own (each band's parameters
 //! are a queue write, which lands at the next submission). One band when everything fits; only
@@ -32,8 +35,8 @@
 //! sized so that it loops at most `loop_budget` times ([`Gpu::loop_budget`]: 60,000 on llvmpipe,
 //! unbounded elsewhere, where every pass is one round). The resolve's heapsorts run
 //! [`sifts_per_round`] sifts a round; a compression says how many rounds it needs
-//! ([`super::deep_nodes::DeepNodesSpec::rounds`]). The single-pass steps (copying the ends,
-//! the merge, a greedy fit) loop 2n times, so a list longer than half the budget is refused
+//! ([`super::deep_nodes::DeepNodesSpec::rounds`]). The single-pass steps (the merge, a greedy
+//! fit) loop 2n times, so a list longer than half the budget is refused
 //! ([`ShadowError::TexelListTooLong`]); the counter `max_texel_list` reports the longest.
 
 use bytemuck::{Pod, Zeroable};
@@ -104,20 +107,21 @@ fn heap_rounds(max_list: u32, loop_budget: u32) -> (u32, u32) {
         max_list.saturating_sub(1).div_ceil(c).max(1),
     )
 }
-/// A node (z, Ω) as a texel of the node texture, a row texture ([`ROW_TEXELS`] a row).
-const NODE_TEXEL_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rg32Float;
-const NODE_TEXEL_BYTES: u64 = 8;
-/// The sort keys of a resolve into nodes (`dsm`'s starts and ends): their depths and their
-/// slopes, two read-write storage textures of one `R32Float` a key (WebGPU allows read-write
-/// storage textures of 32-bit single-channel formats only), in the nodes' index space, row
-/// textures like the node texture. llvmpipe moves a storage texture's texels for all the lanes
-/// of a SIMD group at once and a storage buffer's words lane by lane: heapsorting 16,384 lists
-/// of 128 keys took 260 ms in a buffer and 110 ms in two such textures.
+/// The textures of a resolve into nodes (`dsm`'s): the sort keys (its starts' and ends'
+/// depths and slopes) and the merged nodes (depths and values), four read-write storage
+/// textures of one `R32Float` a key or node (WebGPU allows read-write storage textures of
+/// 32-bit single-channel formats only), row textures ([`ROW_TEXELS`] a row) in the nodes' index
+/// space (two a segment). llvmpipe moves a storage texture's texels for all the lanes of a SIMD
+/// group at once and a storage buffer's words lane by lane: heapsorting 16,384 lists of 128 keys
+/// took 260 ms in a buffer and 110 ms in two such textures. In binding order: node depths (6),
+/// sort depths (7), sort slopes (8), node values (9).
+const KEY_TEXTURES: [&str; 4] = ["node_depths", "sort_depths", "sort_slopes", "node_values"];
+const KEY_BINDINGS: [u32; 4] = [6, 7, 8, 9];
 const SORT_KEY_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Float;
 const SORT_KEY_BYTES: u64 = 4;
 
-/// The node texture's texels for lists of `capacity` segments: two a segment when
-/// `node_texels`, else one (a placeholder for the binding).
+/// The key textures' texels for lists of `capacity` segments: two a segment for a resolve into
+/// nodes, else one (a placeholder for the binding).
 fn node_texel_count(capacity: u64, node_texels: bool) -> u64 {
     match node_texels {
         true => 2 * capacity,
@@ -125,8 +129,8 @@ fn node_texel_count(capacity: u64, node_texels: bool) -> u64 {
     }
 }
 
-/// A read-write storage texture of sort keys at `binding` ([`SORT_KEY_FORMAT`]).
-fn sort_key_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
+/// A read-write key texture at `binding` ([`KEY_TEXTURES`]; the fill writes the sort keys).
+fn key_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry {
         binding,
         visibility: wgpu::ShaderStages::FRAGMENT | wgpu::ShaderStages::COMPUTE,
@@ -139,48 +143,6 @@ fn sort_key_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
     }
 }
 
-/// Copies the first 2 x `segments` nodes of `nodes` into `texture`: the whole rows, then what
-/// is left in a partial one (so the buffer needs no padding to whole rows).
-fn copy_node_texels(
-    encoder: &mut wgpu::CommandEncoder,
-    nodes: &wgpu::Buffer,
-    texture: &wgpu::Texture,
-    segments: u32,
-) {
-    let count = 2 * segments;
-    let (rows, rest) = (count / ROW_TEXELS, count % ROW_TEXELS);
-    let row_bytes = u64::from(ROW_TEXELS) * NODE_TEXEL_BYTES;
-    for (first_row, height, width) in [(0, rows, ROW_TEXELS), (rows, 1, rest)] {
-        if height == 0 || width == 0 {
-            continue;
-        }
-        encoder.copy_buffer_to_texture(
-            wgpu::TexelCopyBufferInfo {
-                buffer: nodes,
-                layout: wgpu::TexelCopyBufferLayout {
-                    offset: u64::from(first_row) * row_bytes,
-                    bytes_per_row: Some(row_bytes as u32),
-                    rows_per_image: None,
-                },
-            },
-            wgpu::TexelCopyTextureInfo {
-                texture,
-                mip_level: 0,
-                origin: wgpu::Origin3d {
-                    x: 0,
-                    y: first_row,
-                    z: 0,
-                },
-                aspect: wgpu::TextureAspect::All,
-            },
-            wgpu::Extent3d {
-                width,
-                height,
-                depth_or_array_layers: 1,
-            },
-        );
-    }
-}
 /// Segments the lists hold before the first frame asks for more.
 const INITIAL_CAPACITY: u32 = 1 << 16;
 /// Format of the dummy colour target the list passes rasterise into (nothing is written).
@@ -188,9 +150,9 @@ const DUMMY_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R8Unorm;
 
 /// The bytes a capture at `resolution_px` with lists for `segment_capacity` segments allocates:
 /// a 32-byte uniform, the 64 KiB round uniform, counts, offsets (+1 for the total), row sums
-/// (+1), an R8 raster target, 16 + 16 bytes of segment and node storage per segment, and the
-/// node texture: a row texture of 2 x capacity texels of 8 bytes for a resolve whose owner
-/// reads them (`node_texels`, `dsm`), else one texel.
+/// (+1), an R8 raster target, and for `avsm` 16 + 16 bytes of segment and node storage per
+/// segment, for `dsm` (`node_texels`) the four key textures ([`KEY_TEXTURES`]), 2 x capacity
+/// texels of 4 bytes each in whole rows: 32 bytes a segment (the others' are placeholders).
 pub fn bytes(resolution_px: u32, segment_capacity: u64, node_texels: bool) -> u64 {
     let texels = u64::from(resolution_px) * u64::from(resolution_px);
     let (width, height) = row_texture_size(node_texel_count(segment_capacity, node_texels));
@@ -201,8 +163,8 @@ pub fn bytes(resolution_px: u32, segment_capacity: u64, node_texels: bool) -> u6
         + (u64::from(resolution_px) + 1) * 4
         + texels
         + segment_buffer_bytes(segment_capacity, node_texels)
-        + segment_capacity * NODE_BYTES_PER_SEGMENT
-        + u64::from(width) * u64::from(height) * (NODE_TEXEL_BYTES + 2 * SORT_KEY_BYTES)
+        + node_buffer_bytes(segment_capacity, node_texels)
+        + u64::from(width) * u64::from(height) * KEY_TEXTURES.len() as u64 * SORT_KEY_BYTES
 }
 
 /// The segments buffer's bytes: [`SEGMENT_BYTES`] a segment of capacity, or for a resolve into
@@ -215,8 +177,21 @@ fn segment_buffer_bytes(segment_capacity: u64, node_texels: bool) -> u64 {
     }
 }
 
-/// The most segments one band may hold: its nodes and its segments (16 bytes a segment each) fit
-/// one storage binding, and its nodes (two a segment) the node texture's rows.
+/// The nodes buffer's bytes: [`NODE_BYTES_PER_SEGMENT`] a segment of capacity (`avsm` keeps its
+/// curve there between rounds), or for a resolve into nodes, whose nodes are the key textures,
+/// one segment's, a placeholder for the binding.
+fn node_buffer_bytes(segment_capacity: u64, node_texels: bool) -> u64 {
+    match node_texels {
+        true => NODE_BYTES_PER_SEGMENT,
+        false => segment_capacity * NODE_BYTES_PER_SEGMENT,
+    }
+}
+
+/// The most segments one band may hold: `avsm`'s segments and nodes (16 bytes a segment each)
+/// within one storage binding, and `dsm`'s keys (two texels a segment) within the key textures'
+/// rows. Both owners band by both bounds, though `dsm` binds no buffer of segments: the bands
+/// stay the same for both, and so does the test that holds banded maps to whole ones
+/// (tests/techniques.rs).
 fn max_band_segments(gpu: &Gpu) -> u32 {
     let binding =
         gpu.limits.max_storage_buffer_binding_size / SEGMENT_BYTES.max(NODE_BYTES_PER_SEGMENT);
@@ -229,13 +204,12 @@ struct Lists {
     capacity: u32,
     /// Held with the bind group that uses them (the ledger records their sizes).
     _segments: wgpu::Buffer,
-    nodes: wgpu::Buffer,
-    /// The nodes as a texture for the owner's compression, when it reads them (`dsm`): a copy
-    /// of the nodes buffer's first 2 x segments texels, a row texture (else a 1x1 placeholder).
-    node_texels: Option<wgpu::Texture>,
-    /// The sort keys' depths and slopes (see [`SORT_KEY_FORMAT`]; 1x1 placeholders unless
-    /// `node_texels`), held with the bind group.
-    _sort_keys: [wgpu::Texture; 2],
+    _nodes: wgpu::Buffer,
+    /// The key textures ([`KEY_TEXTURES`]; 1x1 placeholders unless the resolve is into nodes),
+    /// held with the bind group.
+    _keys: [wgpu::Texture; 4],
+    /// Whether the resolve is into nodes.
+    node_texels: bool,
     bind_group: wgpu::BindGroup,
 }
 
@@ -299,10 +273,11 @@ enum SortList {
 }
 
 impl Resolve {
-    /// Whether the owner's compression reads the nodes, as a texture (`node_texel` in
-    /// shaders/shadow/deep_capture_lists.wgsl): llvmpipe fetches a texture's texels for all the
-    /// lanes of a SIMD group in one gather, where it loads a storage buffer's words lane by
-    /// lane, and `dsm`'s search reads every node once per greedy fit.
+    /// Whether the resolve is into nodes, kept with the sort keys in the key textures
+    /// ([`KEY_TEXTURES`]; `node_texel` in shaders/shadow/deep_capture_lists.wgsl): llvmpipe
+    /// moves a storage texture's texels for all the lanes of a SIMD group at once, where it
+    /// moves a storage buffer's words lane by lane, and `dsm`'s search reads every node once
+    /// per greedy fit.
     pub fn node_texels(self) -> bool {
         self == Resolve::Nodes
     }
@@ -547,13 +522,10 @@ impl DeepCapture {
                 storage_entry(3, raster_and_compute, false),
                 storage_entry(4, wgpu::ShaderStages::COMPUTE, false),
                 storage_entry(5, wgpu::ShaderStages::COMPUTE, false),
-                crate::gpu::texture_entry(
-                    6,
-                    wgpu::ShaderStages::COMPUTE,
-                    wgpu::TextureSampleType::Float { filterable: false },
-                ),
-                sort_key_entry(7),
-                sort_key_entry(8),
+                key_entry(KEY_BINDINGS[0]),
+                key_entry(KEY_BINDINGS[1]),
+                key_entry(KEY_BINDINGS[2]),
+                key_entry(KEY_BINDINGS[3]),
             ],
         });
         let module = shaders::module(
@@ -786,7 +758,6 @@ impl DeepCapture {
                 limit: longest_allowed,
             });
         }
-        let limit = gpu.limits.max_storage_buffer_binding_size;
         let max_segments = max_band_segments(gpu);
         let bands = plan_bands(&row_offsets, max_segments).map_err(|(row, segments)| {
             ShadowError::CaptureTooLarge {
@@ -794,8 +765,7 @@ impl DeepCapture {
                 resolution_px: self.resolution,
                 row,
                 segments: u64::from(segments),
-                bytes: u64::from(segments) * (SEGMENT_BYTES + NODE_BYTES_PER_SEGMENT),
-                limit,
+                limit: u64::from(max_segments),
             }
         })?;
         let largest = bands.iter().map(|b| b.segments).max().unwrap_or(0);
@@ -875,9 +845,6 @@ impl DeepCapture {
             pass.set_bind_group(1, &self.lists.bind_group, &[]);
             self.rounds.dispatch(&mut pass, rounds, groups);
         }
-        if let Some(texture) = &self.lists.node_texels {
-            copy_node_texels(encoder, &self.lists.nodes, texture, band.segments);
-        }
     }
 
     /// Reallocates the lists for at least `total` segments, with headroom so that a slowly
@@ -908,7 +875,7 @@ impl DeepCapture {
             &self.layout,
             fixed,
             capacity,
-            self.lists.node_texels.is_some(),
+            self.lists.node_texels,
         )?;
         Ok(())
     }
@@ -954,9 +921,10 @@ impl DeepCapture {
 }
 
 impl Lists {
-    /// Allocates (transient) list buffers for `capacity` segments, the node texture (with room
-    /// for their nodes when `node_texels`, else 1x1), and the bind group over them and the fixed
-    /// buffers `[params, counts, offsets, row_sums]`.
+    /// Allocates (transient) list buffers for `capacity` segments (placeholders when
+    /// `node_texels`), the key textures (room for their keys and nodes when `node_texels`, else
+    /// 1x1), and the bind group over them and the fixed buffers `[params, counts, offsets,
+    /// row_sums]`.
     fn new(
         device: &wgpu::Device,
         memory: &mut MemoryLedger,
@@ -967,18 +935,13 @@ impl Lists {
         node_texels: bool,
     ) -> Result<Self, AllocationError> {
         let [params, counts, offsets, row_sums] = fixed;
-        let (segments_label, nodes_label, texels_label) = (
+        let (segments_label, nodes_label) = (
             format!("{name}.capture.segments"),
             format!("{name}.capture.nodes"),
-            format!("{name}.capture.node_texels"),
         );
-        let key_labels = [
-            format!("{name}.capture.sort_depths"),
-            format!("{name}.capture.sort_slopes"),
-        ];
+        let key_labels = KEY_TEXTURES.map(|what| format!("{name}.capture.{what}"));
         memory.forget(&segments_label);
         memory.forget(&nodes_label);
-        memory.forget(&texels_label);
         for label in &key_labels {
             memory.forget(label);
         }
@@ -991,20 +954,14 @@ impl Lists {
         )?;
         let nodes = memory.buffer_transient(
             device,
-            &storage_descriptor(&nodes_label, u64::from(capacity) * NODE_BYTES_PER_SEGMENT),
-        )?;
-        let texture = memory.texture_transient(
-            device,
-            &row_texture_descriptor(
-                &texels_label,
-                NODE_TEXEL_FORMAT,
-                wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-                node_texel_count(u64::from(capacity), node_texels),
+            &storage_descriptor(
+                &nodes_label,
+                node_buffer_bytes(u64::from(capacity), node_texels),
             ),
         )?;
-        let node_view = texture.create_view(&wgpu::TextureViewDescriptor::default());
-        let mut key_texture = |label: &str| {
-            memory.texture_transient(
+        let mut keys = Vec::with_capacity(KEY_TEXTURES.len());
+        for label in &key_labels {
+            keys.push(memory.texture_transient(
                 device,
                 &row_texture_descriptor(
                     label,
@@ -1012,10 +969,10 @@ impl Lists {
                     wgpu::TextureUsages::STORAGE_BINDING,
                     node_texel_count(u64::from(capacity), node_texels),
                 ),
-            )
-        };
-        let sort_keys = [key_texture(&key_labels[0])?, key_texture(&key_labels[1])?];
-        let key_views = sort_keys
+            )?);
+        }
+        let keys: [wgpu::Texture; 4] = keys.try_into().expect("four key textures");
+        let key_views = keys
             .each_ref()
             .map(|t| t.create_view(&wgpu::TextureViewDescriptor::default()));
         let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -1028,17 +985,18 @@ impl Lists {
                 bind_entry(3, &segments),
                 bind_entry(4, &nodes),
                 bind_entry(5, row_sums),
-                texture_binding(6, &node_view),
-                texture_binding(7, &key_views[0]),
-                texture_binding(8, &key_views[1]),
+                texture_binding(KEY_BINDINGS[0], &key_views[0]),
+                texture_binding(KEY_BINDINGS[1], &key_views[1]),
+                texture_binding(KEY_BINDINGS[2], &key_views[2]),
+                texture_binding(KEY_BINDINGS[3], &key_views[3]),
             ],
         });
         Ok(Self {
             capacity,
             _segments: segments,
-            nodes,
-            node_texels: node_texels.then_some(texture),
-            _sort_keys: sort_keys,
+            _nodes: nodes,
+            _keys: keys,
+            node_texels,
             bind_group,
         })
     }

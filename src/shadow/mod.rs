@@ -111,16 +111,16 @@ pub enum ShadowError {
         limit: u32,
     },
     #[error(
-        "{technique} at {resolution_px}x{resolution_px} captures {segments} segments ({bytes} \
-         bytes of lists) in row {row} of its map alone this frame, but the adapter binds at most \
-         {limit} bytes per buffer: use a lower --shadow-res"
+        "{technique} at {resolution_px}x{resolution_px} captures {segments} segments in row \
+         {row} of its map alone this frame, but one band of its lists holds at most {limit} \
+         segments on this adapter (its largest storage binding or texture): use a lower \
+         --shadow-res"
     )]
     CaptureTooLarge {
         technique: &'static str,
         resolution_px: u32,
         row: u32,
         segments: u64,
-        bytes: u64,
         limit: u64,
     },
     #[error(
