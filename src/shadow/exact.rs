@@ -26,7 +26,7 @@
 //!   loop limit and its unsorted tails made such a stop skip spheres in front of the point.
 //!   Slices need no sort: the fill's passes order them.)
 //! - *Below what the image shows.* The sum saturates at an optical depth of
-//!   [`OPTICAL_DEPTH_CUT`] (12): T = exp(−min(τ, 12)), within exp(−12) = 6.1e-6 of exp(−τ),
+//!   [`super::closed_form::OPTICAL_DEPTH_CUT`] (12): T = exp(−min(τ, 12)), within exp(−12) = 6.1e-6 of exp(−τ),
 //!   and the walk stops once the saturated sum is reached. The terms are not negative, so the
 //!   clamped running sum is min(partial sum, 12) at every step and the result does not depend
 //!   on the list's order either. The CPU mirror saturates alike
@@ -174,11 +174,9 @@ const MAX_TILES: u32 = 512;
 const TILES_PER_FOOTPRINT: f32 = 4.0;
 /// Slices of the light-distance order the lists are filled in (see the module's comment).
 const SLICES: u32 = 32;
-/// The lookup's entries per loop iteration (`EXACT_UNROLL` in shaders/shadow/exact.wgsl).
+/// The lookup's entries per loop iteration (`EXACT_UNROLL` in shaders/shadow/exact.wgsl; a test
+/// holds the two, and the lookup's `EXACT_CUT` to [`super::closed_form::OPTICAL_DEPTH_CUT`]).
 const UNROLL: u32 = 8;
-/// The optical depth the lookup's sum saturates at (`EXACT_CUT` in shaders/shadow/exact.wgsl
-/// and [`super::closed_form::OPTICAL_DEPTH_CUT`]).
-pub const OPTICAL_DEPTH_CUT: f64 = super::closed_form::OPTICAL_DEPTH_CUT;
 
 /// The longest list the lookup walks within `loop_budget` iterations: whole groups of
 /// [`UNROLL`] entries, then fewer than [`UNROLL`] one at a time.
@@ -201,12 +199,7 @@ fn by_light_distance(
             - f64::from(r);
         (d - 1e-5 * d.abs() - 1e-6) as f32
     };
-    let mut keyed: Vec<(f32, u32)> = instances
-        .par_iter()
-        .enumerate()
-        .map(|(i, instance)| (near(instance), i as u32))
-        .collect();
-    radsort::sort_by_key(&mut keyed, |&(k, _)| k);
+    let keyed = sorted_by_key(instances, near);
     let slice_size = (instances.len() as u32).div_ceil(SLICES).max(1);
     let mut slice_near = vec![f32::INFINITY; SLICES as usize];
     for (slice, chunk) in keyed.chunks(slice_size as usize).enumerate() {
@@ -338,13 +331,25 @@ fn lighting_order(
             ((ndc * 0.5 + 0.5) * CELLS).clamp(glam::Vec2::ZERO, glam::Vec2::splat(CELLS - 1.0));
         morton(cell.x as u32, cell.y as u32)
     };
-    let mut keyed: Vec<(u32, u32)> = instances
+    sorted_by_key(instances, key)
+        .into_iter()
+        .map(|(_, i)| i)
+        .collect()
+}
+
+/// Every instance's (key, index), sorted by key (a radix sort: instances with equal keys stay in
+/// their order); the keys are computed on every core.
+fn sorted_by_key<K: radsort::Key + Send>(
+    instances: &[crate::frame::gpu_data::ParticleInstance],
+    key: impl Fn(&crate::frame::gpu_data::ParticleInstance) -> K + Sync,
+) -> Vec<(K, u32)> {
+    let mut keyed: Vec<(K, u32)> = instances
         .par_iter()
         .enumerate()
         .map(|(i, instance)| (key(instance), i as u32))
         .collect();
     radsort::sort_by_key(&mut keyed, |&(k, _)| k);
-    keyed.into_iter().map(|(_, i)| i).collect()
+    keyed
 }
 
 /// `x` and `y` (below 2^16) with their bits interleaved, x in the even bits.
@@ -922,6 +927,18 @@ mod tests {
         let shuffled = path(&mut (0..256));
         assert!(ordered < 2.0 * 255.0, "{ordered}");
         assert!(shuffled > 4.0 * ordered, "{shuffled} vs {ordered}");
+    }
+
+    #[test]
+    fn the_lookups_constants_are_the_ones_the_build_and_the_cpu_mirror_use() {
+        let wgsl = crate::shaders::source("shadow/exact.wgsl").unwrap();
+        let unroll = format!("const EXACT_UNROLL: u32 = {UNROLL}u;");
+        assert!(wgsl.contains(&unroll), "{unroll}");
+        let cut = format!(
+            "const EXACT_CUT: f32 = {:.1};",
+            super::super::closed_form::OPTICAL_DEPTH_CUT
+        );
+        assert!(wgsl.contains(&cut), "{cut}");
     }
 
     #[test]
