@@ -193,6 +193,52 @@ fn a_broken_reference_is_refused_in_one_line() {
     assert!(c.worst_difference <= TOLERANCE, "{c}");
 }
 
+/// A point drawn uniformly inside the unit ball (rejection sampling).
+fn in_unit_ball(rng: &mut rand_pcg::Pcg64) -> Vec3 {
+    use rand::Rng;
+    loop {
+        let v = Vec3::new(
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+        );
+        if v.length_squared() <= 1.0 {
+            return v;
+        }
+    }
+}
+
+/// `count` spheres of 0.5 m and extinction `density_per_m` whose centres lie within 0.2 m of
+/// `CLUSTER_CENTER`: every one of them covers the light tiles at the cluster's centre, so one
+/// tile list holds them all.
+fn cluster(count: usize, seed: u64, density_per_m: f32) -> Vec<Particle> {
+    use rand::SeedableRng;
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
+    (0..count)
+        .map(|_| Particle {
+            position: CLUSTER_CENTER + in_unit_ball(&mut rng) * 0.2,
+            velocity: Vec3::ZERO,
+            age_s: 1.0,
+            radius_m: 0.5,
+            density_per_m,
+            albedo: Vec3::splat(0.8),
+        })
+        .collect()
+}
+
+const CLUSTER_CENTER: Vec3 = Vec3::new(0.0, 1.5, 0.0);
+
+/// The longest tile list of `renderer`'s `exact` last frame.
+fn longest_tile_list(renderer: &Renderer) -> u64 {
+    renderer
+        .technique()
+        .counters()
+        .into_iter()
+        .find(|(name, _)| *name == "max_tile_list")
+        .unwrap()
+        .1
+}
+
 /// Dense smoke is not refused: 16,000 spheres of 0.5 m whose centres lie within 0.2 m of one
 /// point, so every one of them covers the tiles at the cluster's centre and one tile list holds
 /// all 16,000 (beyond the 15,000 that four lookups per lighting invocation allowed on
@@ -200,43 +246,14 @@ fn a_broken_reference_is_refused_in_one_line() {
 /// of the f64 closed form at the shaded points.
 #[test]
 fn a_tile_list_of_sixteen_thousand_spheres_is_walked_whole() {
-    use rand::{Rng, SeedableRng};
     let gpu = common::gpu();
-    let mut rng = rand_pcg::Pcg64::seed_from_u64(16_000);
-    let cluster: Vec<Particle> = (0..16_000)
-        .map(|_| {
-            let offset = loop {
-                let v = Vec3::new(
-                    rng.random_range(-1.0..1.0),
-                    rng.random_range(-1.0..1.0),
-                    rng.random_range(-1.0..1.0),
-                );
-                if v.length_squared() <= 1.0 {
-                    break v * 0.2;
-                }
-            };
-            Particle {
-                position: Vec3::new(0.0, 1.5, 0.0) + offset,
-                velocity: Vec3::ZERO,
-                age_s: 1.0,
-                radius_m: 0.5,
-                // About 1.6 of optical depth through the middle: T well inside (0, 1).
-                density_per_m: 2e-4,
-                albedo: Vec3::splat(0.8),
-            }
-        })
-        .collect();
+    // About 1.6 of optical depth through the middle: T well inside (0, 1).
+    let cluster = cluster(16_000, 16_000, 2e-4);
     let dir = common::scratch("reference-dense");
     let scene = bare(&dir, "dense", &cluster);
     let particles = particles::scene_particles(&scene).unwrap();
     let mut renderer = render_exact(&gpu, &scene, &particles);
-    let longest = renderer
-        .technique()
-        .counters()
-        .into_iter()
-        .find(|(name, _)| *name == "max_tile_list")
-        .unwrap()
-        .1;
+    let longest = longest_tile_list(&renderer);
     assert!(longest >= 15_001, "longest tile list {longest}");
     let c = reference_check::verify(&mut renderer, &gpu, &scene, &particles).unwrap();
     assert!(c.points >= 100, "only {} points", c.points);
@@ -250,33 +267,10 @@ fn a_tile_list_of_sixteen_thousand_spheres_is_walked_whole() {
 /// inside it, beyond it, and off its axis) stays within 1e-4 of the f64 closed form.
 #[test]
 fn a_tile_list_beyond_the_loop_budget_is_walked_whole() {
-    use rand::{Rng, SeedableRng};
     let gpu = common::gpu();
-    let mut rng = rand_pcg::Pcg64::seed_from_u64(100_000);
-    let center = Vec3::new(0.0, 1.5, 0.0);
-    let cluster: Vec<Particle> = (0..100_000)
-        .map(|_| {
-            let offset = loop {
-                let v = Vec3::new(
-                    rng.random_range(-1.0..1.0),
-                    rng.random_range(-1.0..1.0),
-                    rng.random_range(-1.0..1.0),
-                );
-                if v.length_squared() <= 1.0 {
-                    break v * 0.2;
-                }
-            };
-            Particle {
-                position: center + offset,
-                velocity: Vec3::ZERO,
-                age_s: 1.0,
-                radius_m: 0.5,
-                // About 1.6 of optical depth through the middle, as the 16,000 spheres above.
-                density_per_m: 2e-4 * 0.16,
-                albedo: Vec3::splat(0.8),
-            }
-        })
-        .collect();
+    let center = CLUSTER_CENTER;
+    // About 1.6 of optical depth through the middle, as the 16,000 spheres above.
+    let cluster = cluster(100_000, 100_000, 2e-4 * 0.16);
     let dir = common::scratch("reference-beyond-budget");
     let scene = bare(&dir, "beyond", &cluster);
     let particles = particles::scene_particles(&scene).unwrap();
@@ -295,13 +289,7 @@ fn a_tile_list_beyond_the_loop_budget_is_walked_whole() {
         })
         .collect();
     let gpu_t = renderer.probe(&gpu, &scene, &particles, &points).unwrap();
-    let longest = renderer
-        .technique()
-        .counters()
-        .into_iter()
-        .find(|(name, _)| *name == "max_tile_list")
-        .unwrap()
-        .1;
+    let longest = longest_tile_list(&renderer);
     assert!(longest > 65_535, "longest tile list {longest}");
     let mut darkest = 1.0f32;
     for (p, t) in points.iter().zip(&gpu_t) {
@@ -323,7 +311,7 @@ fn a_tile_list_beyond_the_loop_budget_is_walked_whole() {
 /// the f64 closed form at every one.
 #[test]
 fn exact_agrees_with_the_closed_form_at_262144_particles() {
-    use rand::{Rng, SeedableRng};
+    use rand::SeedableRng;
     const COUNT: usize = 262_144;
     let gpu = common::gpu();
     let scene = small(Scene::thesis_plume());
@@ -333,18 +321,8 @@ fn exact_agrees_with_the_closed_form_at_262144_particles() {
     let grown: Vec<Particle> = (0..COUNT)
         .map(|i| {
             let source = &plume[i % plume.len()];
-            let offset = loop {
-                let v = Vec3::new(
-                    rng.random_range(-1.0..1.0),
-                    rng.random_range(-1.0..1.0),
-                    rng.random_range(-1.0..1.0),
-                );
-                if v.length_squared() <= 1.0 {
-                    break v * source.radius_m;
-                }
-            };
             Particle {
-                position: source.position + offset,
+                position: source.position + in_unit_ball(&mut rng) * source.radius_m,
                 radius_m: source.radius_m * scale,
                 ..*source
             }
