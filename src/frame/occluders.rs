@@ -315,20 +315,12 @@ fn map_texture(
 ) -> Result<wgpu::Texture, AllocationError> {
     memory.texture(
         &gpu.device,
-        &wgpu::TextureDescriptor {
-            label: Some("occluders.map"),
-            size: wgpu::Extent3d {
-                width: resolution_px,
-                height: resolution_px,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: OCCLUDER_MAP_FORMAT,
-            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
-            view_formats: &[],
-        },
+        &crate::gpu::texture_2d_descriptor(
+            "occluders.map",
+            (resolution_px, resolution_px),
+            OCCLUDER_MAP_FORMAT,
+            wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+        ),
     )
 }
 

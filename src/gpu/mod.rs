@@ -409,14 +409,14 @@ pub fn row_texture_size(texels: u64) -> (u32, u32) {
     (width, u32::try_from(rows).unwrap_or(u32::MAX))
 }
 
-/// The descriptor of a row texture (see [`ROW_TEXELS`]) for `texels` elements of `format`.
-pub fn row_texture_descriptor<'a>(
+/// The descriptor of a plain 2D texture: one layer, one mip level, one sample, no other view
+/// formats.
+pub fn texture_2d_descriptor<'a>(
     label: &'a str,
+    (width, height): (u32, u32),
     format: wgpu::TextureFormat,
     usage: wgpu::TextureUsages,
-    texels: u64,
 ) -> wgpu::TextureDescriptor<'a> {
-    let (width, height) = row_texture_size(texels);
     wgpu::TextureDescriptor {
         label: Some(label),
         size: wgpu::Extent3d {
@@ -431,6 +431,16 @@ pub fn row_texture_descriptor<'a>(
         usage,
         view_formats: &[],
     }
+}
+
+/// The descriptor of a row texture (see [`ROW_TEXELS`]) for `texels` elements of `format`.
+pub fn row_texture_descriptor<'a>(
+    label: &'a str,
+    format: wgpu::TextureFormat,
+    usage: wgpu::TextureUsages,
+    texels: u64,
+) -> wgpu::TextureDescriptor<'a> {
+    texture_2d_descriptor(label, row_texture_size(texels), format, usage)
 }
 
 /// A bind-group entry for a texture `view`.

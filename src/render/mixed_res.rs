@@ -336,21 +336,12 @@ impl LowResTargets {
     ) -> Self {
         let (width, height) = res.low_size(frame_size.0, frame_size.1);
         let texture = |label, format| {
-            device.create_texture(&wgpu::TextureDescriptor {
-                label: Some(label),
-                size: wgpu::Extent3d {
-                    width,
-                    height,
-                    depth_or_array_layers: 1,
-                },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
+            device.create_texture(&crate::gpu::texture_2d_descriptor(
+                label,
+                (width, height),
                 format,
-                usage: wgpu::TextureUsages::RENDER_ATTACHMENT
-                    | wgpu::TextureUsages::TEXTURE_BINDING,
-                view_formats: &[],
-            })
+                wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+            ))
         };
         let color_view = texture("mixed_res.hdr", HDR_FORMAT).create_view(&Default::default());
         let depth_view = texture("mixed_res.depth", DEPTH_FORMAT).create_view(&Default::default());

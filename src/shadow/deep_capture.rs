@@ -495,20 +495,12 @@ impl DeepCapture {
         let dummy_target = memory
             .texture_transient(
                 device,
-                &wgpu::TextureDescriptor {
-                    label: Some(&label("raster_target")),
-                    size: wgpu::Extent3d {
-                        width: res,
-                        height: res,
-                        depth_or_array_layers: 1,
-                    },
-                    mip_level_count: 1,
-                    sample_count: 1,
-                    dimension: wgpu::TextureDimension::D2,
-                    format: DUMMY_FORMAT,
-                    usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
-                    view_formats: &[],
-                },
+                &crate::gpu::texture_2d_descriptor(
+                    &label("raster_target"),
+                    (res, res),
+                    DUMMY_FORMAT,
+                    wgpu::TextureUsages::RENDER_ATTACHMENT,
+                ),
             )?
             .create_view(&wgpu::TextureViewDescriptor::default());
 
