@@ -129,11 +129,18 @@ fn node_texel_count(capacity: u64, node_texels: bool) -> u64 {
     }
 }
 
-/// A read-write key texture at `binding` ([`KEY_TEXTURES`]; the fill writes the sort keys).
+/// A read-write key texture at `binding` ([`KEY_TEXTURES`]): the sort keys are also the fill's
+/// (fragment stage), the nodes the compute passes' only, so the fragment stage binds two storage
+/// textures of WebGPU's minimum four a stage.
 fn key_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
+    let sort_key = binding == KEY_BINDINGS[1] || binding == KEY_BINDINGS[2];
+    let visibility = match sort_key {
+        true => wgpu::ShaderStages::FRAGMENT | wgpu::ShaderStages::COMPUTE,
+        false => wgpu::ShaderStages::COMPUTE,
+    };
     wgpu::BindGroupLayoutEntry {
         binding,
-        visibility: wgpu::ShaderStages::FRAGMENT | wgpu::ShaderStages::COMPUTE,
+        visibility,
         ty: wgpu::BindingType::StorageTexture {
             access: wgpu::StorageTextureAccess::ReadWrite,
             format: SORT_KEY_FORMAT,

@@ -602,6 +602,12 @@ impl Exact {
         }
     }
 
+    /// Slice `slice` of `particles` spheres: its first sphere and its count (the fill's range).
+    fn slice_range(&self, slice: u32, particles: u32) -> [u32; 2] {
+        let first = slice * self.slice_size;
+        [first, self.slice_size.min(particles - first)]
+    }
+
     /// Records the fill, a pass per slice in slice order (timed as one pass).
     fn record_fill(
         &self,
@@ -612,8 +618,7 @@ impl Exact {
         let particle_count = inputs.instances.len() as u32;
         let span = inputs.timer.compute_span("shadow");
         for slice in 0..self.slices {
-            let first = slice * self.slice_size;
-            let count = self.slice_size.min(particle_count - first);
+            let [_, count] = self.slice_range(slice, particle_count);
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("exact.fill"),
                 timestamp_writes: inputs.timer.span_writes(
@@ -677,10 +682,9 @@ impl Exact {
             .write_buffer(&self.slice_near, 0, bytemuck::cast_slice(&slice_near));
         let mut ranges = vec![0u8; (SLICES * self.slice_stride) as usize];
         for slice in 0..self.slices {
-            let first = slice * slice_size;
-            let count = slice_size.min(instances.len() as u32 - first);
             let at = (slice * self.slice_stride) as usize;
-            ranges[at..at + 8].copy_from_slice(bytemuck::cast_slice(&[first, count]));
+            let range = self.slice_range(slice, instances.len() as u32);
+            ranges[at..at + 8].copy_from_slice(bytemuck::cast_slice(&range));
         }
         gpu.queue.write_buffer(&self.fill_slices, 0, &ranges);
         let needed = instances.len() as u32;
