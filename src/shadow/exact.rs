@@ -26,10 +26,10 @@
 //!   loop limit and its unsorted tails made such a stop skip spheres in front of the point.
 //!   Slices need no sort: the fill's passes order them.)
 //! - *Below what the image shows.* The sum saturates at an optical depth of
-//!   [`super::closed_form::OPTICAL_DEPTH_CUT`] (12): T = exp(−min(τ, 12)), within exp(−12) = 6.1e-6 of exp(−τ),
-//!   and the walk stops once the saturated sum is reached. The terms are not negative, so the
-//!   clamped running sum is min(partial sum, 12) at every step and the result does not depend
-//!   on the list's order either. The CPU mirror saturates alike
+//!   [`super::closed_form::OPTICAL_DEPTH_CUT`] (12): T = exp(−min(τ, 12)), within
+//!   exp(−12) = 6.1e-6 of exp(−τ), and the walk stops once the saturated sum is reached. The
+//!   terms are not negative, so the clamped running sum is min(partial sum, 12) at every step
+//!   and the result does not depend on the list's order either. The CPU mirror saturates alike
 //!   ([`super::closed_form::transmittance_of`]).
 //!
 //! At 65,536 particles of the reduced plume the two stops and the unrolled walk below took the
