@@ -9,6 +9,7 @@ pub mod compare;
 pub mod diff;
 pub mod frame;
 pub mod gpu;
+pub mod medium;
 pub mod output;
 pub mod particles;
 pub mod progress;

@@ -1,0 +1,17 @@
+//! The media smoke is made of. Today the particles (`crate::sim`, `crate::particles`); next,
+//! density volumes (issue 26): grids of extinction that the eye ray-marches and every technique
+//! builds its shadow from in light space, as the 2022 dissertation (`../shared/seeds/000_...txt`)
+//! and the 2018 cloud thesis (`004_...txt`) shadow their clouds. Not to be confused with the
+//! `volume` technique (`crate::shadow::volume`), a light-space extinction volume built from
+//! either medium.
+//!
+//! - [`analytic`]: homogeneous spheres and boxes with closed-form transmittance, the volumes'
+//!   exact test cases.
+//! - [`grid`]: a dense density grid in the world and its converged f64 march, the CPU mirror
+//!   of the volumes' reference.
+//!
+//! The OpenVDB reader, the eye's march, the light-space build the techniques share and the
+//! procedural cloud come next, each a file of this folder.
+
+pub mod analytic;
+pub mod grid;
