@@ -17,7 +17,7 @@
 //! fragments (pipeline-statistics queries, where the adapter has them): [`bound`] sets each
 //! build against that floor (ns per fragment, per channel written, and the ratio).
 //!
-//! [`write`] puts `bench.csv` (a row per count x technique), `bench.json` (everything) and three
+//! [`write()`] puts `bench.csv` (a row per count x technique), `bench.json` (everything) and three
 //! log-log SVG charts (time, GPU passes and bytes against the particle count) into a folder.
 
 pub mod bound;
@@ -557,7 +557,7 @@ pub const CSV_COLUMNS: &[&str] = &[
     "vs_view_sort_rmse",
 ];
 
-/// The files [`write`] puts in its folder.
+/// The files [`write()`] puts in its folder.
 pub const CSV_FILE: &str = "bench.csv";
 pub const JSON_FILE: &str = "bench.json";
 pub const CHART_FILES: [&str; 3] = [

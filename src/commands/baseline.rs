@@ -19,7 +19,7 @@ pub struct BaselineArgs {
     pub bless: bool,
     /// Only this scene (repeatable; default: the committed scenes). Besides the committed
     /// scenes, your own: a scene file, an embedded scene's name or a particle file, whose
-    /// baselines go to `--dir`/<its name>/ (bless them first).
+    /// baselines go to `--dir/<its name>/` (bless them first).
     #[arg(long = "scene")]
     pub scenes: Vec<String>,
     /// Only this technique (repeatable; default: all).

@@ -31,7 +31,7 @@ pub struct MemoryBudget {
 }
 
 impl MemoryBudget {
-    /// The device's limits and the budget from [`BUDGET_ENV`] (default [`DEFAULT_BUDGET_BYTES`]).
+    /// The device's limits and the budget from `BUDGET_ENV` (default `DEFAULT_BUDGET_BYTES`).
     pub fn for_device(limits: &wgpu::Limits) -> Self {
         let total_bytes = std::env::var(BUDGET_ENV)
             .ok()

@@ -2,7 +2,7 @@
 //! properties) or CSV (a header row), so that smoke simulated elsewhere (Houdini, Blender,
 //! EmberGen, an engine) can be brought in and ours taken out.
 //!
-//! - [`write`] writes particles in the format the file name's extension says (`.ply`, binary
+//! - [`write()`] writes particles in the format the file name's extension says (`.ply`, binary
 //!   little-endian unless [`Format::PlyAscii`] is asked for; `.csv`).
 //! - [`read`] reads either, mapping the property names of common exporters (see
 //!   [`PROPERTIES`]) onto [`Particle`]; properties it does not know are ignored, missing

@@ -142,7 +142,7 @@ pub enum SceneError {
 
 /// One experiment: everything that reaches the pixels of a frame.
 ///
-/// Read and written through [`SceneFile`], the TOML's shape: the emitters come from one
+/// Read and written through `SceneFile`, the TOML's shape: the emitters come from one
 /// `[emitter]` table or from an array of `[[emitters]]`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(try_from = "SceneFile", into = "SceneFile")]

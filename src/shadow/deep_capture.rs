@@ -10,7 +10,7 @@
 //! segment's start (z0, slope) and end (z1, slope) instead, and the resolve sorts both by
 //! (depth, slope) — a total key over what is sorted, so the nodes do not depend on the order the
 //! fragments arrived in — and merges them into nodes, all in read-write storage textures
-//! ([`KEY_TEXTURES`]); for `avsm`, it sorts the segments by (z0, z1, optical depth, draw index)
+//! (`KEY_TEXTURES`); for `avsm`, it sorts the segments by (z0, z1, optical depth, draw index)
 //! (`avsm` sorted) or by draw index (`avsm` streaming), which restores the order the particles
 //! were drawn in, the order an engine's interlocked fragment shader would see them.
 //! The counts are read back before the fill so the lists can grow to hold the frame (a CPU–GPU
@@ -20,7 +20,7 @@
 //!
 //! **Bands.** When the frame's segments would not fit one storage binding (`avsm`'s segments and
 //! nodes take 16 bytes a segment each, so 8.4M segments under a 128 MiB limit: 1,000,000
-//! particles at 512² capture 12.7M; `dsm` bands alike, [`max_band_segments`]), the map is
+//! particles at 512² capture 12.7M; `dsm` bands alike, `max_band_segments`), the map is
 //! captured in bands of whole rows, each holding as many segments as fit: the
 //! fill (scissored to the band), the resolve and the owner's compression run once per band over
 //! the same lists, every band but the last in a submission of its own (each band's parameters
@@ -158,7 +158,7 @@ const DUMMY_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R8Unorm;
 /// The bytes a capture at `resolution_px` with lists for `segment_capacity` segments allocates:
 /// a 32-byte uniform, the 64 KiB round uniform, counts, offsets (+1 for the total), row sums
 /// (+1), an R8 raster target, and for `avsm` 16 + 16 bytes of segment and node storage per
-/// segment, for `dsm` (`node_texels`) the four key textures ([`KEY_TEXTURES`]), 2 x capacity
+/// segment, for `dsm` (`node_texels`) the four key textures (`KEY_TEXTURES`), 2 x capacity
 /// texels of 4 bytes each in whole rows: 32 bytes a segment (the others' are placeholders).
 pub fn bytes(resolution_px: u32, segment_capacity: u64, node_texels: bool) -> u64 {
     let texels = u64::from(resolution_px) * u64::from(resolution_px);
@@ -281,7 +281,7 @@ enum SortList {
 
 impl Resolve {
     /// Whether the resolve is into nodes, kept with the sort keys in the key textures
-    /// ([`KEY_TEXTURES`]; `node_texel` in shaders/shadow/deep_capture_lists.wgsl): llvmpipe
+    /// (`KEY_TEXTURES`; `node_texel` in shaders/shadow/deep_capture_lists.wgsl): llvmpipe
     /// moves a storage texture's texels for all the lanes of a SIMD group at once, where it
     /// moves a storage buffer's words lane by lane, and `dsm`'s search reads every node once
     /// per greedy fit.
@@ -326,7 +326,7 @@ impl Resolve {
 /// so every adapter accepts it.
 const ROUND_STRIDE: u32 = 256;
 
-/// The round indices 0..MAX_ROUNDS, one per [`ROUND_STRIDE`], which a per-texel pass binds as
+/// The round indices 0..MAX_ROUNDS, one per `ROUND_STRIDE`, which a per-texel pass binds as
 /// its group 3 at a dynamic offset (`Round` in shaders/shadow/deep_capture_lists.wgsl).
 pub struct Rounds {
     layout: wgpu::BindGroupLayout,
@@ -391,7 +391,7 @@ impl Rounds {
     }
 
     /// Dispatches rounds 0..count of the pass's pipeline over `groups`, each bound to its index.
-    /// (No pass needs more than [`MAX_ROUNDS`]: lists are refused beyond half the loop budget,
+    /// (No pass needs more than `MAX_ROUNDS`: lists are refused beyond half the loop budget,
     /// where avsm, the pass with the most, takes 100.)
     pub fn dispatch(&self, pass: &mut wgpu::ComputePass<'_>, count: u32, groups: (u32, u32)) {
         debug_assert!(count <= MAX_ROUNDS, "{count} rounds");

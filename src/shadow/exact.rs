@@ -18,7 +18,7 @@
 //! **Stopping early, exactly.** Two stops spare a query most of its list without changing its
 //! result by more than the bound below:
 //! - *Beyond the point.* The spheres are uploaded in order of their nearest distance from the
-//!   light, |c − light| − r, and filled slice by slice of that order ([`SLICES`] fill passes,
+//!   light, |c − light| − r, and filled slice by slice of that order (`SLICES` fill passes,
 //!   run in order), so a list holds its spheres slice by slice. Each slice's lowest distance is
 //!   kept (rounded down); once a query meets an entry whose slice starts beyond its point, no
 //!   later sphere can reach the segment and the walk stops: each sphere it skips adds exactly
@@ -37,8 +37,8 @@
 //!
 //! **The loop limit.** llvmpipe ends every shader loop after 65,535 iterations of an invocation
 //! group, all its loops together. Each invocation of the particle lighting pass, the opaque pass
-//! and the probe makes one lookup, and the walk takes [`UNROLL`] entries per iteration, so a
-//! list may hold up to [`UNROLL`] times the loop budget ([`Gpu::loop_budget`], 60,000), about
+//! and the probe makes one lookup, and the walk takes `UNROLL` entries per iteration, so a
+//! list may hold up to `UNROLL` times the loop budget ([`Gpu::loop_budget`], 60,000), about
 //! 480,000 entries: only a list beyond that is refused ([`ShadowError::TileListTooLong`])
 //! rather than summed short. The build reads the per-tile counts back; the counter
 //! `max_tile_list` reports the longest list on every adapter. The count and the fill loop

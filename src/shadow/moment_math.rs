@@ -257,7 +257,7 @@ fn solve_ldlh(size: usize, entry: impl Fn(usize, usize) -> C, rhs: &[C]) -> Vec<
 /// overflow on such a polynomial.
 pub const VANISHING_LEAD: f64 = 1e-4;
 
-/// The finite roots of Σ coefficients[k] x^k (degree 1..=4): leading coefficients that vanish
+/// The finite roots of Σ `coefficients[k]` x^k (degree 1..=4): leading coefficients that vanish
 /// ([`VANISHING_LEAD`]) lower the degree; the rest in closed form, each polished by two Newton
 /// steps on the polynomial itself.
 pub fn polynomial_roots(coefficients: &[C]) -> Vec<C> {

@@ -40,7 +40,7 @@ pub struct SweepOptions {
     pub frames: u32,
     pub warmup: u32,
     /// Seconds of timed frames after which a cell stops early (after at least
-    /// [`MIN_TIMED_FRAMES`], or [`MIN_SLOW_FRAMES`] of frames each longer than this), so a slow
+    /// `MIN_TIMED_FRAMES`, or `MIN_SLOW_FRAMES` of frames each longer than this), so a slow
     /// technique does not hold the sweep: its medians are over fewer frames, and the cell says
     /// how many (`frames_timed`).
     pub cell_seconds: f64,
