@@ -14,4 +14,5 @@
 //! procedural cloud come next, each a file of this folder.
 
 pub mod analytic;
+pub mod gpu_grid;
 pub mod grid;

@@ -1,0 +1,78 @@
+// A dense density grid (src/medium/gpu_grid.rs): OpenVDB's conventions, as the f64 mirror in
+// src/medium/grid.rs: voxel (i, j, k)'s density at its centre, at integer index coordinates,
+// trilinear between centres, zero outside the voxels and their half-voxel ramp.
+// The importer declares the bindings: `grid` (GridParams, uniform) and `grid_density`
+// (texture_3d<f32>, R32Float, read with textureLoad: exact texel values, no filtering hardware).
+
+// Keep in sync with `GridParams` in src/medium/gpu_grid.rs.
+struct GridParams {
+    index_from_world: mat4x4<f32>,
+    // Voxels along x, y, z (w unused); zero for an empty grid.
+    dims: vec4<u32>,
+    // Extinction per unit of density, 1/m.
+    density_scale_per_m: f32,
+    _pad0: f32,
+    _pad1: f32,
+    _pad2: f32,
+};
+
+fn grid_voxel(i: vec3<i32>) -> f32 {
+    let d = vec3<i32>(grid.dims.xyz);
+    if any(i < vec3<i32>(0)) || any(i >= d) {
+        return 0.0;
+    }
+    return textureLoad(grid_density, i, 0).r;
+}
+
+// The density at index coordinates `q`, trilinear between voxel centres.
+fn grid_density_at_index(q: vec3<f32>) -> f32 {
+    let base = floor(q);
+    let f = q - base;
+    let i = vec3<i32>(base);
+    let x00 = mix(grid_voxel(i), grid_voxel(i + vec3<i32>(1, 0, 0)), f.x);
+    let x10 = mix(grid_voxel(i + vec3<i32>(0, 1, 0)), grid_voxel(i + vec3<i32>(1, 1, 0)), f.x);
+    let x01 = mix(grid_voxel(i + vec3<i32>(0, 0, 1)), grid_voxel(i + vec3<i32>(1, 0, 1)), f.x);
+    let x11 = mix(grid_voxel(i + vec3<i32>(0, 1, 1)), grid_voxel(i + vec3<i32>(1, 1, 1)), f.x);
+    return mix(mix(x00, x10, f.y), mix(x01, x11, f.y), f.z);
+}
+
+// The part [t0, t1] of qa + t (qb - qa), t in [0, 1], where the density can be non-zero (the
+// voxels' box widened by the trilinear ramp's voxel); t0 >= t1 when there is none.
+fn grid_support(qa: vec3<f32>, qb: vec3<f32>) -> vec2<f32> {
+    let lo = vec3<f32>(-1.0);
+    let hi = vec3<f32>(grid.dims.xyz);
+    let d = qb - qa;
+    var t0 = 0.0;
+    var t1 = 1.0;
+    for (var axis = 0u; axis < 3u; axis++) {
+        if d[axis] == 0.0 {
+            if qa[axis] <= lo[axis] || qa[axis] >= hi[axis] {
+                return vec2<f32>(1.0, 0.0);
+            }
+            continue;
+        }
+        let u = (lo[axis] - qa[axis]) / d[axis];
+        let v = (hi[axis] - qa[axis]) / d[axis];
+        t0 = max(t0, min(u, v));
+        t1 = min(t1, max(u, v));
+    }
+    return vec2<f32>(t0, t1);
+}
+
+// Optical depth from world point `a` to `b` by the midpoint rule with `steps` steps over the
+// part of the segment where the density can be non-zero (`steps` + 3 loop iterations: the
+// caller keeps it within the adapter's loop budget).
+fn grid_optical_depth(a: vec3<f32>, b: vec3<f32>, steps: u32) -> f32 {
+    let qa = (grid.index_from_world * vec4<f32>(a, 1.0)).xyz;
+    let qb = (grid.index_from_world * vec4<f32>(b, 1.0)).xyz;
+    let s = grid_support(qa, qb);
+    if s.x >= s.y || steps == 0u {
+        return 0.0;
+    }
+    let dt = (s.y - s.x) / f32(steps);
+    var sum = 0.0;
+    for (var i = 0u; i < steps; i++) {
+        sum += grid_density_at_index(mix(qa, qb, s.x + (f32(i) + 0.5) * dt));
+    }
+    return grid.density_scale_per_m * sum * dt * length(b - a);
+}

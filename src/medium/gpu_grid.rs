@@ -1,0 +1,303 @@
+//! A density grid on the GPU: an `R32Float` 3D texture read with `textureLoad` (exact voxel
+//! values; the trilinear weights are the shader's, as in the f64 mirror [`super::grid`]), and
+//! [`GridMarch`], the light's transmittance through it at world points by a fixed-step march
+//! (`shaders/medium/grid_march.wgsl`): what the volumes' reference evaluates at N and 2N steps,
+//! held to the CPU mirror by `tests/medium.rs`.
+
+use bytemuck::{Pod, Zeroable};
+use glam::{Mat4, Vec3};
+use thiserror::Error;
+use wgpu::util::DeviceExt;
+
+use super::grid::DensityGrid;
+use crate::gpu::{AllocationError, Gpu, GpuError, MemoryLedger, read_buffer};
+use crate::shaders;
+
+/// Keep in sync with `GridParams` in shaders/medium/grid.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+struct GridParams {
+    index_from_world: [[f32; 4]; 4],
+    dims: [u32; 4],
+    density_scale_per_m: f32,
+    _pad: [f32; 3],
+}
+
+/// Keep in sync with `MarchParams` in shaders/medium/grid_march.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+struct MarchParams {
+    light: [f32; 4],
+    steps: u32,
+    count: u32,
+    _pad: [u32; 2],
+}
+
+/// The WGSL structs mirrored here.
+pub fn layouts() -> Vec<crate::gpu::MirrorLayout> {
+    vec![
+        crate::mirror_layout!(
+            GridParams,
+            "medium/grid_march.wgsl",
+            "GridParams",
+            [index_from_world, dims, density_scale_per_m]
+        ),
+        crate::mirror_layout!(
+            MarchParams,
+            "medium/grid_march.wgsl",
+            "MarchParams",
+            [light, steps, count]
+        ),
+    ]
+}
+
+/// Why a grid cannot go to the GPU or be marched there.
+#[derive(Debug, Error)]
+pub enum GridGpuError {
+    #[error("a grid of {x}x{y}x{z} voxels exceeds the device's 3D texture size of {max}")]
+    TooLarge { x: u32, y: u32, z: u32, max: u32 },
+    #[error(transparent)]
+    Allocation(#[from] AllocationError),
+    #[error(
+        "a march of {steps} steps exceeds what one shader invocation may loop on this adapter \
+         ({budget} iterations, 3 of them the march's set-up)"
+    )]
+    TooManySteps { steps: u32, budget: u32 },
+    #[error(transparent)]
+    Gpu(#[from] GpuError),
+}
+
+/// A [`DensityGrid`] uploaded: its voxels and its placement.
+pub struct GpuGrid {
+    params: wgpu::Buffer,
+    view: wgpu::TextureView,
+    /// Bytes the voxels and the parameters take on the device.
+    pub bytes: u64,
+}
+
+impl GpuGrid {
+    /// Uploads `grid`, its texture and uniform recorded in `ledger` (an empty grid takes one
+    /// zero voxel, so that the binding exists).
+    pub fn upload(
+        gpu: &Gpu,
+        ledger: &mut MemoryLedger,
+        grid: &DensityGrid,
+    ) -> Result<Self, GridGpuError> {
+        let dims = grid.dims;
+        let max = gpu.limits.max_texture_dimension_3d;
+        if dims.max_element() > max {
+            return Err(GridGpuError::TooLarge {
+                x: dims.x,
+                y: dims.y,
+                z: dims.z,
+                max,
+            });
+        }
+        let empty = dims.min_element() == 0;
+        let size = match empty {
+            true => wgpu::Extent3d {
+                width: 1,
+                height: 1,
+                depth_or_array_layers: 1,
+            },
+            false => wgpu::Extent3d {
+                width: dims.x,
+                height: dims.y,
+                depth_or_array_layers: dims.z,
+            },
+        };
+        let before = ledger.total_bytes();
+        let texture = ledger.texture(
+            &gpu.device,
+            &wgpu::TextureDescriptor {
+                label: Some("medium.grid.density"),
+                size,
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D3,
+                format: wgpu::TextureFormat::R32Float,
+                usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+                view_formats: &[],
+            },
+        )?;
+        let zero = [0.0f32];
+        let voxels: &[f32] = if empty { &zero } else { &grid.values };
+        gpu.queue.write_texture(
+            texture.as_image_copy(),
+            bytemuck::cast_slice(voxels),
+            wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(4 * size.width),
+                rows_per_image: Some(size.height),
+            },
+            size,
+        );
+        let index_from_world = grid.world_from_index.inverse();
+        let params = GridParams {
+            index_from_world: Mat4::from(glam::Affine3A::from_mat3_translation(
+                index_from_world.matrix3.as_mat3(),
+                index_from_world.translation.as_vec3(),
+            ))
+            .to_cols_array_2d(),
+            dims: [dims.x, dims.y, dims.z, 0].map(|d| if empty { 0 } else { d }),
+            density_scale_per_m: grid.density_scale_per_m as f32,
+            _pad: [0.0; 3],
+        };
+        let params_buffer = gpu
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("medium.grid.params"),
+                contents: bytemuck::bytes_of(&params),
+                usage: wgpu::BufferUsages::UNIFORM,
+            });
+        ledger.record(
+            "medium.grid.params",
+            std::mem::size_of::<GridParams>() as u64,
+        );
+        Ok(Self {
+            params: params_buffer,
+            view: texture.create_view(&wgpu::TextureViewDescriptor::default()),
+            bytes: ledger.total_bytes() - before,
+        })
+    }
+}
+
+/// The transmittance march's pipeline.
+pub struct GridMarch {
+    layout: wgpu::BindGroupLayout,
+    pipeline: wgpu::ComputePipeline,
+}
+
+impl GridMarch {
+    pub fn new(gpu: &Gpu) -> Self {
+        let device = &gpu.device;
+        let module = shaders::module(
+            device,
+            "medium.grid_march",
+            &shaders::compose("medium/grid_march.wgsl", &[]),
+        );
+        let compute = wgpu::ShaderStages::COMPUTE;
+        let buffer = |binding, ty| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: compute,
+            ty: wgpu::BindingType::Buffer {
+                ty,
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        };
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("medium.grid_march.layout"),
+            entries: &[
+                buffer(0, wgpu::BufferBindingType::Uniform),
+                wgpu::BindGroupLayoutEntry {
+                    binding: 1,
+                    visibility: compute,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                        view_dimension: wgpu::TextureViewDimension::D3,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+                buffer(2, wgpu::BufferBindingType::Uniform),
+                buffer(3, wgpu::BufferBindingType::Storage { read_only: true }),
+                buffer(4, wgpu::BufferBindingType::Storage { read_only: false }),
+            ],
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("medium.grid_march.pipeline_layout"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("medium.grid_march.pipeline"),
+            layout: Some(&pipeline_layout),
+            module: &module,
+            entry_point: Some("march_main"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        Self { layout, pipeline }
+    }
+
+    /// T from `light` to each of `points` (world metres) through `grid`, marched with `steps`
+    /// steps, as `DensityGrid::marched_optical_depth` computes it in f64.
+    pub fn transmittance(
+        &self,
+        gpu: &Gpu,
+        grid: &GpuGrid,
+        light: Vec3,
+        points: &[Vec3],
+        steps: u32,
+    ) -> Result<Vec<f32>, GridGpuError> {
+        if let Some(budget) = gpu.loop_budget()
+            && steps.saturating_add(3) > budget
+        {
+            return Err(GridGpuError::TooManySteps { steps, budget });
+        }
+        if points.is_empty() {
+            return Ok(Vec::new());
+        }
+        let device = &gpu.device;
+        let params = MarchParams {
+            light: light.extend(1.0).to_array(),
+            steps,
+            count: points.len() as u32,
+            _pad: [0; 2],
+        };
+        let params = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("medium.grid_march.params"),
+            contents: bytemuck::bytes_of(&params),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+        let padded: Vec<[f32; 4]> = points.iter().map(|p| p.extend(1.0).to_array()).collect();
+        let points_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("medium.grid_march.points"),
+            contents: bytemuck::cast_slice(&padded),
+            usage: wgpu::BufferUsages::STORAGE,
+        });
+        let size = 4 * points.len() as u64;
+        let results = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("medium.grid_march.transmittance"),
+            size,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("medium.grid_march.bind_group"),
+            layout: &self.layout,
+            entries: &[
+                crate::gpu::bind_entry(0, &grid.params),
+                crate::gpu::texture_binding(1, &grid.view),
+                crate::gpu::bind_entry(2, &params),
+                crate::gpu::bind_entry(3, &points_buffer),
+                crate::gpu::bind_entry(4, &results),
+            ],
+        });
+        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("medium.grid_march.encoder"),
+        });
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("medium.grid_march"),
+                timestamp_writes: None,
+            });
+            pass.set_pipeline(&self.pipeline);
+            pass.set_bind_group(0, &bind_group, &[]);
+            pass.dispatch_workgroups((points.len() as u32).div_ceil(64), 1, 1);
+        }
+        gpu.queue.submit([encoder.finish()]);
+        let bytes = read_buffer(gpu, &results, 0, size)?;
+        Ok(bytemuck::cast_slice(&bytes).to_vec())
+    }
+}
+
+/// The medium's composed shader modules, for the naga validation test.
+pub fn shader_modules() -> Vec<(String, String)> {
+    vec![(
+        "medium/grid_march.wgsl".to_owned(),
+        shaders::compose("medium/grid_march.wgsl", &[]),
+    )]
+}

@@ -1,0 +1,181 @@
+//! GPU tests of the density grid (`smokeshadow::medium`): the GPU's fixed-step march against
+//! the f64 mirror at the same steps, its converged T against the analytic box's closed form,
+//! the loop-budget refusal, the empty grid, and the bytes it counts. They run on lavapipe and
+//! fail, never skip, without one.
+
+mod common;
+
+use common::gpu;
+use glam::{DAffine3, DQuat, DVec3, UVec3, Vec3};
+use smokeshadow::gpu::MemoryLedger;
+use smokeshadow::medium::analytic::{HomogeneousMedium, Shape};
+use smokeshadow::medium::gpu_grid::{GpuGrid, GridGpuError, GridMarch};
+use smokeshadow::medium::grid::DensityGrid;
+
+/// Points on a lattice around and inside the grid's box `min..max` (world metres).
+fn lattice(world_from_index: DAffine3, dims: UVec3) -> Vec<Vec3> {
+    let mut points = Vec::new();
+    for k in 0..7 {
+        for j in 0..7 {
+            for i in 0..7 {
+                // From a voxel before the grid to a voxel past it, off the voxel centres.
+                let f = DVec3::new(i as f64, j as f64, k as f64) / 6.0;
+                let q = -DVec3::splat(1.3) + f * (dims.as_dvec3() + DVec3::splat(1.9));
+                points.push(world_from_index.transform_point3(q).as_vec3());
+            }
+        }
+    }
+    points
+}
+
+/// A voxelised ball, turned and moved off the axes so that every index-to-world term is used.
+fn turned_ball() -> DensityGrid {
+    let ball = HomogeneousMedium {
+        shape: Shape::Sphere {
+            center: DVec3::splat(1.0),
+            radius_m: 0.8,
+        },
+        extinction_per_m: 2.5,
+    };
+    let mut grid = DensityGrid::voxelize(
+        &ball,
+        DVec3::ZERO,
+        DVec3::splat(2.0),
+        UVec3::new(24, 20, 28),
+    );
+    let placement = DAffine3::from_scale_rotation_translation(
+        DVec3::new(1.5, 1.5, 1.5),
+        DQuat::from_euler(glam::EulerRot::YXZ, 0.4, -0.3, 0.2),
+        DVec3::new(-3.0, 2.0, 5.0),
+    );
+    grid.world_from_index = placement * grid.world_from_index;
+    grid
+}
+
+#[test]
+fn the_gpu_march_matches_the_f64_mirror_at_the_same_steps() {
+    let gpu = gpu();
+    let mut ledger = MemoryLedger::for_device(&gpu.limits);
+    let march = GridMarch::new(&gpu);
+    let grid = turned_ball();
+    let uploaded = GpuGrid::upload(&gpu, &mut ledger, &grid).unwrap();
+    let light = Vec3::new(4.0, 9.0, -2.0);
+    let points = lattice(grid.world_from_index, grid.dims);
+    for steps in [7, 64, 512] {
+        let t_gpu = march
+            .transmittance(&gpu, &uploaded, light, &points, steps)
+            .unwrap();
+        let mut dimmed = 0;
+        for (p, t) in points.iter().zip(&t_gpu) {
+            let t_cpu = (-grid.marched_optical_depth(light.as_dvec3(), p.as_dvec3(), steps)).exp();
+            // f32 against f64 over at most 512 steps of densities O(1): the sums agree to
+            // ~1e-6 relative; 1e-4 in T leaves room for the f32 index transform.
+            assert!(
+                (f64::from(*t) - t_cpu).abs() < 1e-4,
+                "{steps} steps at {p}: GPU {t}, CPU {t_cpu}"
+            );
+            dimmed += usize::from(t_cpu < 0.9);
+        }
+        assert!(
+            dimmed > 20,
+            "the lattice must sample the shadow ({dimmed} points dimmed)"
+        );
+    }
+}
+
+#[test]
+fn the_converged_gpu_march_reaches_the_analytic_boxs_closed_form() {
+    // The box's faces on the grid's cell boundaries: the trilinear ramps integrate to the
+    // box's width exactly (src/medium/grid.rs), so the converged march is the closed form.
+    let gpu = gpu();
+    let mut ledger = MemoryLedger::for_device(&gpu.limits);
+    let march = GridMarch::new(&gpu);
+    let slab = HomogeneousMedium {
+        shape: Shape::Box {
+            min: DVec3::new(0.5, 0.25, 0.75),
+            max: DVec3::new(1.5, 1.75, 1.25),
+        },
+        extinction_per_m: 1.2,
+    };
+    let grid = DensityGrid::voxelize(&slab, DVec3::ZERO, DVec3::splat(2.0), UVec3::splat(32));
+    let uploaded = GpuGrid::upload(&gpu, &mut ledger, &grid).unwrap();
+    // A light far above: its rays run almost along z. The points keep a voxel and a half from
+    // the box's sides in x and y and away from its top and bottom faces' half-voxel ramps in z
+    // (a point inside a ramp sees part of it, which the sharp box does not have).
+    let light = Vec3::new(1.0, 1.0, 1000.0);
+    let heights = [1.6, 1.3, 1.15, 1.0, 0.8, 0.6, 0.2, -0.3];
+    let points: Vec<Vec3> = (0..40)
+        .map(|i| {
+            let f = i as f32 / 39.0;
+            let z = heights[i % heights.len()];
+            Vec3::new(0.6 + 0.8 * f, 0.35 + 1.3 * (1.0 - f), z)
+        })
+        .collect();
+    let (n, n2) = (2048, 4096);
+    let t_n = march
+        .transmittance(&gpu, &uploaded, light, &points, n)
+        .unwrap();
+    let t_2n = march
+        .transmittance(&gpu, &uploaded, light, &points, n2)
+        .unwrap();
+    for ((p, a), b) in points.iter().zip(&t_n).zip(&t_2n) {
+        assert!((a - b).abs() < 1e-4, "{p}: {n} steps {a}, {n2} steps {b}");
+        let exact = slab.transmittance(light.as_dvec3(), p.as_dvec3());
+        assert!(
+            (f64::from(*b) - exact).abs() < 1e-4,
+            "{p}: marched {b}, closed form {exact}"
+        );
+    }
+    // Some points lie in the box's shadow, some in it, some above it.
+    let exact: Vec<f64> = points
+        .iter()
+        .map(|p| slab.transmittance(light.as_dvec3(), p.as_dvec3()))
+        .collect();
+    assert!(exact.contains(&1.0) && exact.iter().any(|t| *t < 0.6));
+}
+
+#[test]
+fn an_empty_grid_casts_no_shadow_and_its_bytes_are_counted() {
+    let gpu = gpu();
+    let mut ledger = MemoryLedger::for_device(&gpu.limits);
+    let march = GridMarch::new(&gpu);
+    let empty = DensityGrid {
+        dims: UVec3::ZERO,
+        values: Vec::new(),
+        world_from_index: DAffine3::IDENTITY,
+        density_scale_per_m: 1.0,
+    };
+    let uploaded = GpuGrid::upload(&gpu, &mut ledger, &empty).unwrap();
+    let t = march
+        .transmittance(
+            &gpu,
+            &uploaded,
+            Vec3::splat(5.0),
+            &[Vec3::ZERO, Vec3::ONE],
+            64,
+        )
+        .unwrap();
+    assert_eq!(t, vec![1.0, 1.0]);
+    // One placeholder voxel (4 bytes) and the 96-byte uniform.
+    assert_eq!(uploaded.bytes, 4 + 96);
+    let grid = turned_ball();
+    let uploaded = GpuGrid::upload(&gpu, &mut ledger, &grid).unwrap();
+    assert_eq!(uploaded.bytes, 24 * 20 * 28 * 4 + 96);
+}
+
+#[test]
+fn a_march_longer_than_the_loop_budget_is_refused_where_there_is_one() {
+    let gpu = gpu();
+    let mut ledger = MemoryLedger::for_device(&gpu.limits);
+    let march = GridMarch::new(&gpu);
+    let uploaded = GpuGrid::upload(&gpu, &mut ledger, &turned_ball()).unwrap();
+    let result = march.transmittance(&gpu, &uploaded, Vec3::splat(5.0), &[Vec3::ZERO], 100_000);
+    match gpu.loop_budget() {
+        Some(budget) => {
+            let err = result.unwrap_err();
+            assert!(matches!(err, GridGpuError::TooManySteps { .. }), "{err}");
+            assert!(err.to_string().contains(&budget.to_string()), "{err}");
+        }
+        None => assert_eq!(result.unwrap().len(), 1),
+    }
+}
