@@ -9,6 +9,8 @@
 //!   exact test cases.
 //! - [`grid`]: a dense density grid in the world and its converged f64 march, the CPU mirror
 //!   of the volumes' reference.
+//! - [`gpu_grid`]: the grid on the GPU and its fixed-step transmittance march at world points
+//!   (`shaders/medium/`), held to `grid` at the same steps.
 //!
 //! The OpenVDB reader, the eye's march, the light-space build the techniques share and the
 //! procedural cloud come next, each a file of this folder.
