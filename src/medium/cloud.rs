@@ -1,0 +1,243 @@
+//! The procedural cloud's noise textures on the GPU: `shape_main` and `detail_main`
+//! (shaders/medium/cloud_noise_gen.wgsl) write the shape (128³, RGBA: Perlin–Worley and three
+//! Worley FBMs) and detail (32³, RGB: Worley FBMs) texels from a seed into storage buffers,
+//! copied into `Rgba32Float` 3D textures that a march samples with repeat addressing. The CPU
+//! mirror of every texel is [`super::cloud_noise`]; `tests/medium.rs` holds the two together.
+
+use crate::gpu::{AllocationError, Gpu, GpuError, MemoryLedger, read_buffer, storage_descriptor};
+use crate::shaders;
+
+use super::cloud_noise::{CloudNoiseParams, DETAIL_SIZE, FLOATS_PER_TEXEL, SHAPE_SIZE};
+use wgpu::util::DeviceExt;
+
+/// Why the noise could not be made or read.
+#[derive(Debug, thiserror::Error)]
+pub enum CloudNoiseError {
+    #[error(transparent)]
+    Allocation(#[from] AllocationError),
+    #[error(transparent)]
+    Gpu(#[from] GpuError),
+}
+
+/// Texels per workgroup edge of the generators (`@workgroup_size(4, 4, 4)`).
+const WORKGROUP_EDGE: u32 = 4;
+const TEXEL_BYTES: u64 = FLOATS_PER_TEXEL as u64 * 4;
+
+/// The cloud's two noise textures, generated on the device.
+pub struct CloudNoiseTextures {
+    pub shape: wgpu::Texture,
+    pub detail: wgpu::Texture,
+}
+
+/// The generators' pipelines.
+pub struct CloudNoiseGenerator {
+    layout: wgpu::BindGroupLayout,
+    shape: wgpu::ComputePipeline,
+    detail: wgpu::ComputePipeline,
+}
+
+/// The storage buffers one generation writes (scratch: copied into the textures).
+struct TexelBuffers {
+    shape: wgpu::Buffer,
+    detail: wgpu::Buffer,
+}
+
+fn texels_bytes(size: u32) -> u64 {
+    u64::from(size).pow(3) * TEXEL_BYTES
+}
+
+impl CloudNoiseGenerator {
+    pub fn new(gpu: &Gpu) -> Self {
+        let device = &gpu.device;
+        let module = shaders::module(
+            device,
+            "medium.cloud_noise_gen",
+            &shaders::compose("medium/cloud_noise_gen.wgsl", &[]),
+        );
+        let entry = |binding, ty| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Buffer {
+                ty,
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        };
+        let storage = wgpu::BufferBindingType::Storage { read_only: false };
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("medium.cloud_noise.layout"),
+            entries: &[
+                entry(0, wgpu::BufferBindingType::Uniform),
+                entry(1, storage),
+                entry(2, storage),
+            ],
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("medium.cloud_noise.pipeline_layout"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let pipeline = |label, entry_point| {
+            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(label),
+                layout: Some(&pipeline_layout),
+                module: &module,
+                entry_point: Some(entry_point),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+        };
+        Self {
+            shape: pipeline("medium.cloud_noise.shape", "shape_main"),
+            detail: pipeline("medium.cloud_noise.detail", "detail_main"),
+            layout,
+        }
+    }
+
+    /// Records both generators for `seed` into new storage buffers (recorded in `ledger` as
+    /// transient: scratch the textures are copied from).
+    fn record(
+        &self,
+        gpu: &Gpu,
+        ledger: &mut MemoryLedger,
+        encoder: &mut wgpu::CommandEncoder,
+        seed: u32,
+    ) -> Result<TexelBuffers, AllocationError> {
+        let device = &gpu.device;
+        let usage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC;
+        let buffer = |ledger: &mut MemoryLedger, label, size| {
+            let mut desc = storage_descriptor(label, size);
+            desc.usage = usage;
+            ledger.buffer_transient(device, &desc)
+        };
+        let buffers = TexelBuffers {
+            shape: buffer(
+                ledger,
+                "medium.cloud_noise.shape_texels",
+                texels_bytes(SHAPE_SIZE),
+            )?,
+            detail: buffer(
+                ledger,
+                "medium.cloud_noise.detail_texels",
+                texels_bytes(DETAIL_SIZE),
+            )?,
+        };
+        let params = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("medium.cloud_noise.params"),
+            contents: bytemuck::bytes_of(&CloudNoiseParams::new(seed)),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("medium.cloud_noise.bind_group"),
+            layout: &self.layout,
+            entries: &[
+                crate::gpu::bind_entry(0, &params),
+                crate::gpu::bind_entry(1, &buffers.shape),
+                crate::gpu::bind_entry(2, &buffers.detail),
+            ],
+        });
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("medium.cloud_noise"),
+            timestamp_writes: None,
+        });
+        pass.set_bind_group(0, &bind_group, &[]);
+        for (pipeline, size) in [(&self.shape, SHAPE_SIZE), (&self.detail, DETAIL_SIZE)] {
+            let groups = size / WORKGROUP_EDGE;
+            pass.set_pipeline(pipeline);
+            pass.dispatch_workgroups(groups, groups, groups);
+        }
+        Ok(buffers)
+    }
+
+    /// The shape and detail textures for `seed`, recorded in `ledger`.
+    pub fn generate(
+        &self,
+        gpu: &Gpu,
+        ledger: &mut MemoryLedger,
+        seed: u32,
+    ) -> Result<CloudNoiseTextures, CloudNoiseError> {
+        let mut encoder = gpu
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("medium.cloud_noise.encoder"),
+            });
+        let buffers = self.record(gpu, ledger, &mut encoder, seed)?;
+        let texture = |ledger: &mut MemoryLedger, label, size: u32| {
+            ledger.texture(
+                &gpu.device,
+                &wgpu::TextureDescriptor {
+                    label: Some(label),
+                    size: wgpu::Extent3d {
+                        width: size,
+                        height: size,
+                        depth_or_array_layers: size,
+                    },
+                    mip_level_count: 1,
+                    sample_count: 1,
+                    dimension: wgpu::TextureDimension::D3,
+                    format: wgpu::TextureFormat::Rgba32Float,
+                    usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+                    view_formats: &[],
+                },
+            )
+        };
+        let textures = CloudNoiseTextures {
+            shape: texture(ledger, "medium.cloud_noise.shape", SHAPE_SIZE)?,
+            detail: texture(ledger, "medium.cloud_noise.detail", DETAIL_SIZE)?,
+        };
+        for (buffer, texture, size) in [
+            (&buffers.shape, &textures.shape, SHAPE_SIZE),
+            (&buffers.detail, &textures.detail, DETAIL_SIZE),
+        ] {
+            // A row is size x 16 bytes (2048 and 512): multiples of the 256 a copy needs.
+            encoder.copy_buffer_to_texture(
+                wgpu::TexelCopyBufferInfo {
+                    buffer,
+                    layout: wgpu::TexelCopyBufferLayout {
+                        offset: 0,
+                        bytes_per_row: Some(size * TEXEL_BYTES as u32),
+                        rows_per_image: Some(size),
+                    },
+                },
+                texture.as_image_copy(),
+                texture.size(),
+            );
+        }
+        gpu.queue.submit([encoder.finish()]);
+        Ok(textures)
+    }
+
+    /// The generators' texels for `seed` read back: (shape, detail), 4 floats a texel, x
+    /// fastest, as `cloud_noise::shape_texels` and `detail_texels` lay them out.
+    pub fn read_texels(
+        &self,
+        gpu: &Gpu,
+        seed: u32,
+    ) -> Result<(Vec<f32>, Vec<f32>), CloudNoiseError> {
+        let mut ledger = MemoryLedger::for_device(&gpu.limits);
+        let mut encoder = gpu
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("medium.cloud_noise.read_encoder"),
+            });
+        let buffers = self.record(gpu, &mut ledger, &mut encoder, seed)?;
+        gpu.queue.submit([encoder.finish()]);
+        let read = |buffer: &wgpu::Buffer, size| -> Result<Vec<f32>, GpuError> {
+            let bytes = read_buffer(gpu, buffer, 0, texels_bytes(size))?;
+            Ok(bytemuck::cast_slice(&bytes).to_vec())
+        };
+        Ok((
+            read(&buffers.shape, SHAPE_SIZE)?,
+            read(&buffers.detail, DETAIL_SIZE)?,
+        ))
+    }
+}
+
+/// The generators' composed shader module, for the naga validation test.
+pub fn shader_modules() -> Vec<(String, String)> {
+    vec![(
+        "medium/cloud_noise_gen.wgsl".to_owned(),
+        shaders::compose("medium/cloud_noise_gen.wgsl", &[]),
+    )]
+}
