@@ -30,8 +30,9 @@ enum Command {
     /// Print the transmittance at a point (or along the light ray through it) for a technique
     /// and for the exact reference.
     Probe(commands::probe::ProbeArgs),
-    /// Show the GPU adapters, the selected one's capabilities, and the techniques.
-    Info,
+    /// Show the GPU adapters, the selected one's capabilities, and the techniques; or, given an
+    /// OpenVDB file, its grids.
+    Info(commands::info::InfoArgs),
     /// Compare two images: FLIP, RMSE, PSNR, SSIM, and the thesis' 4x-enhanced difference.
     Diff(commands::diff::DiffArgs),
     /// Open the interactive viewer: switch techniques and budgets live, compare them side by
@@ -104,7 +105,7 @@ fn main() -> ExitCode {
         Command::Probe(args) => {
             commands::probe::run(args, &cli.adapter).map(|()| ExitCode::SUCCESS)
         }
-        Command::Info => commands::info::run(&cli.adapter).map(|()| ExitCode::SUCCESS),
+        Command::Info(args) => commands::info::run(args, &cli.adapter).map(|()| ExitCode::SUCCESS),
         Command::Diff(args) => commands::diff::run(args),
         Command::Baseline(args) => commands::baseline::run(args, &cli.adapter),
         Command::View(args) => commands::view::run(args, &cli.adapter).map(|()| ExitCode::SUCCESS),

@@ -1,10 +1,25 @@
 //! `smokeshadow info`: which adapters exist, which one is used, and whether it has what the tool
 //! needs.
 
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+
 use crate::gpu::{self, AdapterPreference, Gpu};
+use crate::medium::vdb;
 use crate::shadow;
 
-pub fn run(preference: &AdapterPreference) -> anyhow::Result<()> {
+#[derive(Clone, Debug, clap::Args)]
+pub struct InfoArgs {
+    /// An OpenVDB file (`.vdb`) to describe instead of the adapters: its grids, their value
+    /// types, compression, voxel counts, placement and the float grids' values.
+    pub file: Option<PathBuf>,
+}
+
+pub fn run(args: &InfoArgs, preference: &AdapterPreference) -> anyhow::Result<()> {
+    if let Some(file) = &args.file {
+        return describe_vdb(file);
+    }
     let adapters = pollster::block_on(gpu::ranked_adapters(&gpu::instance()));
     println!("adapters (in selection order):");
     for a in &adapters {
@@ -94,4 +109,76 @@ pub fn run(preference: &AdapterPreference) -> anyhow::Result<()> {
         println!("  {key:<22} {value} ({source})");
     }
     Ok(())
+}
+
+/// `smokeshadow info FILE.vdb`: each grid as the file lists it, and each float grid read whole
+/// (what a scene's `[volume]` would get from it).
+fn describe_vdb(path: &Path) -> anyhow::Result<()> {
+    let bytes = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let shown = path.display();
+    let grids = vdb::list_grids(&bytes).with_context(|| format!("{shown}"))?;
+    println!("{shown}: {} bytes, {} grid(s)", bytes.len(), grids.len());
+    for g in &grids {
+        let half = if g.saved_as_half {
+            ", saved as half"
+        } else {
+            ""
+        };
+        let class = g.grid_class.as_deref().unwrap_or("no class");
+        println!(
+            "  {:?}: {} ({}{half}), {}, {class}",
+            g.name, g.value_type, g.type_name, g.compression
+        );
+        if let Some(parent) = &g.instance_parent {
+            println!("    an instance of {parent:?} (shares its tree)");
+        }
+        if g.value_type != "float" {
+            println!("    not readable as a density: only float grids are");
+            continue;
+        }
+        let grid = vdb::read_float_grid(&bytes, &g.name, &vdb::Limits::default())
+            .with_context(|| format!("{shown}"))?;
+        describe_float_grid(&grid);
+    }
+    Ok(())
+}
+
+fn describe_float_grid(grid: &vdb::FloatGrid) {
+    let d = grid.dims;
+    if d.min_element() == 0 {
+        println!("    no active voxels: an empty medium");
+        return;
+    }
+    let hi = grid.index_min + d.as_ivec3() - glam::IVec3::ONE;
+    println!(
+        "    {} active voxels in the index box {} to {} (dense {}x{}x{} = {} voxels, {:.1} MiB as \
+         R32Float)",
+        grid.active_voxels,
+        grid.index_min,
+        hi,
+        d.x,
+        d.y,
+        d.z,
+        grid.values.len(),
+        grid.values.len() as f64 * 4.0 / (1024.0 * 1024.0)
+    );
+    let m = grid.world_from_index.matrix3;
+    println!(
+        "    voxel {:.4} x {:.4} x {:.4} (file units), index (0,0,0) at {:.4}",
+        m.x_axis.length(),
+        m.y_axis.length(),
+        m.z_axis.length(),
+        grid.world_from_index.translation
+    );
+    let (mut min, mut max, mut sum, mut nonzero) = (f32::INFINITY, f32::NEG_INFINITY, 0.0f64, 0u64);
+    for &v in &grid.values {
+        min = min.min(v);
+        max = max.max(v);
+        sum += f64::from(v);
+        nonzero += u64::from(v != 0.0);
+    }
+    println!(
+        "    values {min} to {max}, background {}, {nonzero} non-zero, sum {sum:.3}",
+        grid.background
+    );
 }

@@ -42,6 +42,24 @@ pub enum MarchError {
     },
 }
 
+/// Why a file's grid cannot be a medium.
+#[derive(Debug, Error, PartialEq)]
+pub enum GridError {
+    #[error(
+        "grid {name:?} has the background value {background}, not 0: its density would fill \
+         all space outside its voxels"
+    )]
+    Background { name: String, background: f32 },
+    #[error("grid {name:?} holds a negative density ({value} at index {index})")]
+    Negative {
+        name: String,
+        value: f32,
+        index: glam::IVec3,
+    },
+    #[error("grid {name:?} holds a density that is not a finite number at index {index}")]
+    NotFinite { name: String, index: glam::IVec3 },
+}
+
 /// A converged transmittance: T, and the step count N whose T agreed with 2N's.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Converged {
@@ -71,6 +89,69 @@ impl DensityGrid {
             world_from_index,
             density_scale_per_m: 1.0,
         }
+    }
+
+    /// The medium an OpenVDB float grid describes: its dense voxels placed by the file's
+    /// transform (the file's index `index_min` is voxel (0, 0, 0) here), then by `world_from_file`
+    /// (the scene's placement), with `density_scale_per_m` of extinction per unit of density.
+    /// A density must be finite and not negative, and the background (the density outside the
+    /// voxels) zero.
+    pub fn from_vdb(
+        grid: &super::vdb::FloatGrid,
+        world_from_file: DAffine3,
+        density_scale_per_m: f64,
+    ) -> Result<Self, GridError> {
+        if grid.background != 0.0 {
+            return Err(GridError::Background {
+                name: grid.name.clone(),
+                background: grid.background,
+            });
+        }
+        let dims = grid.dims;
+        for (n, &value) in grid.values.iter().enumerate() {
+            if value.is_finite() && value >= 0.0 {
+                continue;
+            }
+            let n = n as u32;
+            let local = UVec3::new(n % dims.x, (n / dims.x) % dims.y, n / (dims.x * dims.y));
+            let index = grid.index_min + local.as_ivec3();
+            let name = grid.name.clone();
+            return Err(match value.is_finite() {
+                true => GridError::Negative { name, value, index },
+                false => GridError::NotFinite { name, index },
+            });
+        }
+        Ok(Self {
+            dims,
+            values: grid.values.clone(),
+            world_from_index: world_from_file
+                * grid.world_from_index
+                * DAffine3::from_translation(grid.index_min.as_dvec3()),
+            density_scale_per_m,
+        })
+    }
+
+    /// The world box the density can be non-zero in (the voxels and their half-voxel ramp),
+    /// as the bounds of its eight corners; `None` for an empty grid.
+    pub fn world_bounds(&self) -> Option<(DVec3, DVec3)> {
+        if self.dims.min_element() == 0 {
+            return None;
+        }
+        let hi = self.dims.as_dvec3() - DVec3::splat(0.5);
+        let corners = (0..8).map(|c| {
+            let pick = |bit: u32, v: f64| if c & bit == 0 { -0.5 } else { v };
+            self.world_from_index.transform_point3(DVec3::new(
+                pick(1, hi.x),
+                pick(2, hi.y),
+                pick(4, hi.z),
+            ))
+        });
+        let (mut lo, mut up) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+        for p in corners {
+            lo = lo.min(p);
+            up = up.max(p);
+        }
+        Some((lo, up))
     }
 
     fn voxel(&self, i: i64, j: i64, k: i64) -> f64 {

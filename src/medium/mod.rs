@@ -12,11 +12,12 @@
 //! - [`gpu_grid`]: the grid on the GPU and its fixed-step transmittance march at world points
 //!   (`shaders/medium/`), held to `grid` at the same steps.
 //!
+//! - [`vdb`]: the OpenVDB reader (float grids, safe on any input), for simulated smoke from
+//!   Houdini, Blender or EmberGen (`smokeshadow info FILE.vdb`).
 //! - [`cloud_noise`] and [`cloud`]: the procedural cloud's tileable Perlin–Worley and Worley
 //!   noise (the slides' and the 2018 thesis' model), on the CPU and generated on the GPU.
 //!
-//! The OpenVDB reader, the eye's march, the light-space build the techniques share and the
-//! scene's `[volume]` come
+//! The eye's march, the light-space build the techniques share and the scene's `[volume]` come
 //! next, each a file of this folder.
 
 pub mod analytic;
@@ -24,3 +25,4 @@ pub mod cloud;
 pub mod cloud_noise;
 pub mod gpu_grid;
 pub mod grid;
+pub mod vdb;
