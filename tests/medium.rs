@@ -228,3 +228,159 @@ fn the_gpu_cloud_noise_is_the_cpu_mirrors_texel_for_texel() {
         assert!(lo < 0.2 && hi > 0.9, "shape texels span {lo}..{hi}");
     }
 }
+
+mod eye {
+    use super::*;
+    use smokeshadow::medium::eye::{EyeMarchProbe, EyeMarchSettings, EyeRay};
+
+    /// Rays along +x through the slab's interior, from well before it to well past it.
+    fn rays_through(min: DVec3, max: DVec3) -> Vec<EyeRay> {
+        (0..24)
+            .map(|i| {
+                let f = (i as f64 + 0.5) / 24.0;
+                let y = min.y + (max.y - min.y) * (0.1 + 0.8 * f);
+                let z = min.z + (max.z - min.z) * (0.9 - 0.8 * f);
+                EyeRay {
+                    origin: Vec3::new(-4.0, y as f32, z as f32),
+                    dir: Vec3::X,
+                    t_near: 0.5 + i as f32 * 0.1,
+                    t_far: 12.0,
+                }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn with_a_constant_source_the_march_is_albedo_times_one_minus_t_at_any_step_count() {
+        // With the light's transmittance 1 everywhere (no light steps) the source is 1, and the
+        // march's sum telescopes to albedo · (1 - T) exactly (shaders/medium/eye_march.wgsl);
+        // converged, T is the box's closed form exp(-σ·width).
+        let gpu = gpu();
+        let mut ledger = MemoryLedger::for_device(&gpu.limits);
+        let probe = EyeMarchProbe::new(&gpu);
+        let (min, max) = (DVec3::new(0.5, 0.25, 0.75), DVec3::new(1.5, 1.75, 1.25));
+        let slab = HomogeneousMedium {
+            shape: Shape::Box { min, max },
+            extinction_per_m: 1.7,
+        };
+        let grid = DensityGrid::voxelize(&slab, DVec3::ZERO, DVec3::splat(2.0), UVec3::splat(32));
+        let uploaded = GpuGrid::upload(&gpu, &mut ledger, &grid).unwrap();
+        let rays = rays_through(min, max);
+        let albedo = Vec3::new(0.9, 0.6, 0.3);
+        let exact_t = (-1.7f64 * 1.0).exp();
+        for (steps, jitter) in [(5, 0.5), (37, 0.13), (4000, 0.5)] {
+            let settings = EyeMarchSettings {
+                light: Vec3::new(1.0, 9.0, 1.0),
+                albedo,
+                eye_steps: steps,
+                light_steps: 0,
+                jitter,
+            };
+            let results = probe.march(&gpu, &uploaded, &settings, &rays).unwrap();
+            for (ray, r) in rays.iter().zip(&results) {
+                let expected = albedo * (1.0 - r.transmittance);
+                assert!(
+                    (r.radiance - expected).abs().max_element() < 1e-5,
+                    "{steps} steps, {ray:?}: {r:?}, albedo·(1 - T) = {expected}"
+                );
+                // 4000 steps converge to the reference's 1e-4 (f32 products of 4000 step
+                // transmittances lose ~1e-6).
+                if steps == 4000 {
+                    let t = f64::from(r.transmittance);
+                    assert!(
+                        (t - exact_t).abs() < 1e-4,
+                        "{ray:?}: T {t}, closed form {exact_t}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn the_shadowed_march_matches_the_f64_mirror() {
+        // Secondary ray marching towards the light from every eye sample, on the turned ball:
+        // the shader against DensityGrid::march_eye at the same steps and jitter.
+        let gpu = gpu();
+        let mut ledger = MemoryLedger::for_device(&gpu.limits);
+        let probe = EyeMarchProbe::new(&gpu);
+        let grid = turned_ball();
+        let uploaded = GpuGrid::upload(&gpu, &mut ledger, &grid).unwrap();
+        let (lo, hi) = grid.world_bounds().unwrap();
+        let centre = (0.5 * (lo + hi)).as_vec3();
+        let eye = centre + Vec3::new(0.5, 1.0, -9.0);
+        let rays: Vec<EyeRay> = (0..48)
+            .map(|i| {
+                let (u, v) = ((i % 8) as f32 / 7.0 - 0.5, (i / 8) as f32 / 5.0 - 0.5);
+                let target = centre + Vec3::new(u * 3.5, v * 3.5, 0.0);
+                EyeRay {
+                    origin: eye,
+                    dir: (target - eye).normalize(),
+                    t_near: 0.1,
+                    t_far: 20.0,
+                }
+            })
+            .collect();
+        let settings = EyeMarchSettings {
+            light: centre + Vec3::new(-6.0, 7.0, 2.0),
+            albedo: Vec3::splat(0.8),
+            eye_steps: 48,
+            light_steps: 32,
+            jitter: 0.37,
+        };
+        let results = probe.march(&gpu, &uploaded, &settings, &rays).unwrap();
+        let mut lit_and_dense = 0;
+        for (ray, r) in rays.iter().zip(&results) {
+            let (radiance, t) = grid.march_eye(
+                ray.origin.as_dvec3(),
+                ray.dir.as_dvec3(),
+                f64::from(ray.t_near),
+                f64::from(ray.t_far),
+                settings.eye_steps,
+                f64::from(settings.jitter),
+                0.8,
+                |p| (-grid.marched_optical_depth(settings.light.as_dvec3(), p, 32)).exp(),
+            );
+            assert!(
+                (f64::from(r.transmittance) - t).abs() < 1e-4,
+                "{ray:?}: {r:?} vs T {t}"
+            );
+            assert!(
+                (f64::from(r.radiance.x) - radiance).abs() < 1e-4,
+                "{ray:?}: {r:?} vs {radiance}"
+            );
+            // Self-shadowing: the radiance is below the unshadowed albedo · (1 - T).
+            assert!(radiance <= 0.8 * (1.0 - t) + 1e-12);
+            lit_and_dense += usize::from(t < 0.5 && radiance < 0.8 * (1.0 - t) * 0.9);
+        }
+        assert!(
+            lit_and_dense >= 4,
+            "the ball must shadow itself on some rays ({lit_and_dense})"
+        );
+    }
+
+    #[test]
+    fn a_march_past_the_loop_budget_is_refused_where_there_is_one() {
+        let gpu = gpu();
+        let mut ledger = MemoryLedger::for_device(&gpu.limits);
+        let probe = EyeMarchProbe::new(&gpu);
+        let uploaded = GpuGrid::upload(&gpu, &mut ledger, &turned_ball()).unwrap();
+        let settings = EyeMarchSettings {
+            light: Vec3::splat(5.0),
+            albedo: Vec3::ONE,
+            eye_steps: 512,
+            light_steps: 512,
+            jitter: 0.5,
+        };
+        let ray = EyeRay {
+            origin: Vec3::splat(-5.0),
+            dir: Vec3::ONE.normalize(),
+            t_near: 0.0,
+            t_far: 30.0,
+        };
+        let result = probe.march(&gpu, &uploaded, &settings, &[ray]);
+        match gpu.loop_budget() {
+            Some(_) => assert!(result.is_err(), "512 x 512 steps must be refused"),
+            None => assert_eq!(result.unwrap().len(), 1),
+        }
+    }
+}

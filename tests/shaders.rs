@@ -8,6 +8,7 @@ fn every_composed_shader_module_validates() {
     let mut modules = smokeshadow::shadow::all_shader_modules();
     modules.extend(smokeshadow::medium::gpu_grid::shader_modules());
     modules.extend(smokeshadow::medium::cloud::shader_modules());
+    modules.extend(smokeshadow::medium::eye::shader_modules());
     assert!(modules.len() >= 5);
     let mut failures = Vec::new();
     for (label, source) in &modules {
@@ -87,6 +88,7 @@ fn every_rust_mirror_matches_nagas_reflection_of_its_wgsl_struct() {
         smokeshadow::render::mixed_res::layouts(),
         smokeshadow::medium::gpu_grid::layouts(),
         smokeshadow::medium::cloud_noise::layouts(),
+        smokeshadow::medium::eye::layouts(),
     ]
     .concat();
     // `none`'s lookup and the occluders' map for the frame shaders' virtual imports.

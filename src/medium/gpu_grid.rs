@@ -76,6 +76,16 @@ pub struct GpuGrid {
 }
 
 impl GpuGrid {
+    /// The grid's uniform (`GridParams`), for a pipeline that binds the grid.
+    pub fn params(&self) -> &wgpu::Buffer {
+        &self.params
+    }
+
+    /// The voxels' 3D texture view.
+    pub fn view(&self) -> &wgpu::TextureView {
+        &self.view
+    }
+
     /// Uploads `grid`, its texture and uniform recorded in `ledger` (an empty grid takes one
     /// zero voxel, so that the binding exists).
     pub fn upload(

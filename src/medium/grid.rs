@@ -230,6 +230,51 @@ impl DensityGrid {
         self.density_scale_per_m * sum * dt * (b - a).length()
     }
 
+    /// The eye's march of `shaders/medium/eye_march.wgsl` in f64 (one colour channel): the
+    /// radiance scattered towards the eye along `origin + t·dir` (`dir` a unit vector) for t in
+    /// [`t_near`, `t_far`], and the ray's transmittance, from `steps` steps over the grid's
+    /// support, each sampled at `jitter` (0..1) of its length, with `in_scatter(p)` the source
+    /// at p per unit of scattering.
+    #[allow(clippy::too_many_arguments)] // the shader function's arguments, one for one
+    pub fn march_eye(
+        &self,
+        origin: DVec3,
+        dir: DVec3,
+        t_near: f64,
+        t_far: f64,
+        steps: u32,
+        jitter: f64,
+        albedo: f64,
+        in_scatter: impl Fn(DVec3) -> f64,
+    ) -> (f64, f64) {
+        let (a, b) = (origin + t_near * dir, origin + t_far * dir);
+        let index_from_world = self.world_from_index.inverse();
+        let (qa, qb) = (
+            index_from_world.transform_point3(a),
+            index_from_world.transform_point3(b),
+        );
+        let (mut radiance, mut transmittance) = (0.0, 1.0);
+        let Some((t0, t1)) = self.support(qa, qb) else {
+            return (radiance, transmittance);
+        };
+        if steps == 0 || t_far <= t_near {
+            return (radiance, transmittance);
+        }
+        let dt = (t1 - t0) / f64::from(steps);
+        let step_m = dt * (t_far - t_near);
+        for i in 0..steps {
+            let f = t0 + (f64::from(i) + jitter) * dt;
+            let sigma = self.density_scale_per_m * self.density_at_index(qa.lerp(qb, f));
+            if sigma <= 0.0 {
+                continue;
+            }
+            let step_t = (-sigma * step_m).exp();
+            radiance += transmittance * albedo * in_scatter(a.lerp(b, f)) * (1.0 - step_t);
+            transmittance *= step_t;
+        }
+        (radiance, transmittance)
+    }
+
     /// Transmittance from `light` to `p`, marched with `start_steps` steps and then twice as
     /// many until two successive counts agree within `tolerance`, up to `max_steps`.
     pub fn converged_transmittance(

@@ -17,12 +17,16 @@
 //! - [`cloud_noise`] and [`cloud`]: the procedural cloud's tileable Perlin–Worley and Worley
 //!   noise (the slides' and the 2018 thesis' model), on the CPU and generated on the GPU.
 //!
-//! The eye's march, the light-space build the techniques share and the scene's `[volume]` come
+//! - [`eye`]: the eye's front-to-back ray march (`shaders/medium/eye_march.wgsl`) and a probe
+//!   of it at rays, with the light's transmittance by secondary ray marching.
+//!
+//! The eye pass in the frame, the light-space build the techniques share and the scene's `[volume]` come
 //! next, each a file of this folder.
 
 pub mod analytic;
 pub mod cloud;
 pub mod cloud_noise;
+pub mod eye;
 pub mod gpu_grid;
 pub mod grid;
 pub mod vdb;
