@@ -89,6 +89,7 @@ fn every_rust_mirror_matches_nagas_reflection_of_its_wgsl_struct() {
         smokeshadow::medium::gpu_grid::layouts(),
         smokeshadow::medium::cloud_noise::layouts(),
         smokeshadow::medium::eye::layouts(),
+        smokeshadow::medium::cloud::layouts(),
     ]
     .concat();
     // `none`'s lookup and the occluders' map for the frame shaders' virtual imports.

@@ -4,11 +4,52 @@
 //! copied into `Rgba32Float` 3D textures that a march samples with repeat addressing. The CPU
 //! mirror of every texel is [`super::cloud_noise`]; `tests/medium.rs` holds the two together.
 
+use bytemuck::{Pod, Zeroable};
+use glam::{DAffine3, DVec3, UVec3, Vec3};
+use wgpu::util::DeviceExt;
+
+use super::cloud_noise::{
+    CloudNoiseParams, CloudParams, DETAIL_SIZE, FLOATS_PER_TEXEL, SHAPE_SIZE,
+};
+use super::grid::DensityGrid;
 use crate::gpu::{AllocationError, Gpu, GpuError, MemoryLedger, read_buffer, storage_descriptor};
 use crate::shaders;
 
-use super::cloud_noise::{CloudNoiseParams, DETAIL_SIZE, FLOATS_PER_TEXEL, SHAPE_SIZE};
-use wgpu::util::DeviceExt;
+/// Keep in sync with `BakeParams` in shaders/medium/cloud_bake.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+struct BakeParams {
+    first_voxel_m: [f32; 4],
+    voxel_m: [f32; 4],
+    dims: [u32; 4],
+}
+
+/// The WGSL structs mirrored here.
+pub fn layouts() -> Vec<crate::gpu::MirrorLayout> {
+    vec![crate::mirror_layout!(
+        BakeParams,
+        "medium/cloud_bake.wgsl",
+        "BakeParams",
+        [first_voxel_m, voxel_m, dims]
+    )]
+}
+
+/// Where a bake puts its voxels: `dims` voxels filling the cloud layer's box, each voxel's
+/// density sampled at its centre.
+pub fn bake_placement(params: &CloudParams, dims: UVec3) -> (DVec3, DVec3) {
+    let min = DVec3::new(
+        f64::from(params.origin_xz_m[0]),
+        f64::from(params.altitude_m),
+        f64::from(params.origin_xz_m[1]),
+    );
+    let size = DVec3::new(
+        f64::from(params.size_xz_m[0]),
+        f64::from(params.thickness_m),
+        f64::from(params.size_xz_m[1]),
+    );
+    let voxel = size / dims.max(UVec3::ONE).as_dvec3();
+    (min + 0.5 * voxel, voxel)
+}
 
 /// Why the noise could not be made or read.
 #[derive(Debug, thiserror::Error)]
@@ -234,10 +275,154 @@ impl CloudNoiseGenerator {
     }
 }
 
-/// The generators' composed shader module, for the naga validation test.
+/// The bake's pipeline: the cloud layer's density at voxel centres, from the noise textures.
+pub struct CloudBaker {
+    layout: wgpu::BindGroupLayout,
+    pipeline: wgpu::ComputePipeline,
+}
+
+impl CloudBaker {
+    pub fn new(gpu: &Gpu) -> Self {
+        let device = &gpu.device;
+        let module = shaders::module(
+            device,
+            "medium.cloud_bake",
+            &shaders::compose("medium/cloud_bake.wgsl", &[]),
+        );
+        let compute = wgpu::ShaderStages::COMPUTE;
+        let buffer = |binding, ty| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: compute,
+            ty: wgpu::BindingType::Buffer {
+                ty,
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        };
+        let texture = |binding| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: compute,
+            ty: wgpu::BindingType::Texture {
+                sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                view_dimension: wgpu::TextureViewDimension::D3,
+                multisampled: false,
+            },
+            count: None,
+        };
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("medium.cloud_bake.layout"),
+            entries: &[
+                buffer(0, wgpu::BufferBindingType::Uniform),
+                buffer(1, wgpu::BufferBindingType::Uniform),
+                texture(2),
+                texture(3),
+                buffer(4, wgpu::BufferBindingType::Storage { read_only: false }),
+            ],
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("medium.cloud_bake.pipeline_layout"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("medium.cloud_bake.pipeline"),
+            layout: Some(&pipeline_layout),
+            module: &module,
+            entry_point: Some("bake_main"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        Self { layout, pipeline }
+    }
+
+    /// The cloud layer of `params` baked from `noise` into a grid of `dims` voxels (extinction
+    /// in 1/m: the grid's density scale is 1), read back so that the reference's f64 mirror
+    /// and the file-backed media share one type. The voxels' buffer is recorded in `ledger`
+    /// as transient; the grid, once uploaded, is counted where it is uploaded.
+    pub fn bake(
+        &self,
+        gpu: &Gpu,
+        ledger: &mut MemoryLedger,
+        noise: &CloudNoiseTextures,
+        params: &CloudParams,
+        dims: UVec3,
+    ) -> Result<DensityGrid, CloudNoiseError> {
+        let device = &gpu.device;
+        let (first_voxel, voxel) = bake_placement(params, dims);
+        let count = u64::from(dims.x) * u64::from(dims.y) * u64::from(dims.z);
+        let size = 4 * count.max(1);
+        let mut desc = storage_descriptor("medium.cloud_bake.voxels", size);
+        desc.usage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC;
+        let voxels = ledger.buffer_transient(device, &desc)?;
+        let bake = BakeParams {
+            first_voxel_m: first_voxel.as_vec3().extend(0.0).to_array(),
+            voxel_m: voxel.as_vec3().extend(0.0).to_array(),
+            dims: [dims.x, dims.y, dims.z, 0],
+        };
+        let uniform = |label, contents: &[u8]| {
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents,
+                usage: wgpu::BufferUsages::UNIFORM,
+            })
+        };
+        let cloud = uniform("medium.cloud_bake.cloud", bytemuck::bytes_of(params));
+        let bake = uniform("medium.cloud_bake.params", bytemuck::bytes_of(&bake));
+        let shape = noise
+            .shape
+            .create_view(&wgpu::TextureViewDescriptor::default());
+        let detail = noise
+            .detail
+            .create_view(&wgpu::TextureViewDescriptor::default());
+        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("medium.cloud_bake.bind_group"),
+            layout: &self.layout,
+            entries: &[
+                crate::gpu::bind_entry(0, &cloud),
+                crate::gpu::bind_entry(1, &bake),
+                crate::gpu::texture_binding(2, &shape),
+                crate::gpu::texture_binding(3, &detail),
+                crate::gpu::bind_entry(4, &voxels),
+            ],
+        });
+        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("medium.cloud_bake.encoder"),
+        });
+        if count > 0 {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("medium.cloud_bake"),
+                timestamp_writes: None,
+            });
+            pass.set_pipeline(&self.pipeline);
+            pass.set_bind_group(0, &bind_group, &[]);
+            let groups = dims.map(|d| d.div_ceil(WORKGROUP_EDGE));
+            pass.dispatch_workgroups(groups.x, groups.y, groups.z);
+        }
+        gpu.queue.submit([encoder.finish()]);
+        let bytes = read_buffer(gpu, &voxels, 0, size)?;
+        let mut values: Vec<f32> = bytemuck::cast_slice(&bytes).to_vec();
+        values.truncate(count as usize);
+        Ok(DensityGrid {
+            dims,
+            values,
+            world_from_index: DAffine3::from_translation(first_voxel) * DAffine3::from_scale(voxel),
+            density_scale_per_m: 1.0,
+        })
+    }
+}
+
+/// The voxel centre (world metres) of voxel `index` of a bake of `dims` voxels, in f32 as
+/// `bake_main` computes it.
+pub fn bake_voxel_centre(params: &CloudParams, dims: UVec3, index: UVec3) -> Vec3 {
+    let (first, voxel) = bake_placement(params, dims);
+    first.as_vec3() + index.as_vec3() * voxel.as_vec3()
+}
+
+/// The generators' and the bake's composed shader modules, for the naga validation test.
 pub fn shader_modules() -> Vec<(String, String)> {
-    vec![(
-        "medium/cloud_noise_gen.wgsl".to_owned(),
-        shaders::compose("medium/cloud_noise_gen.wgsl", &[]),
-    )]
+    ["medium/cloud_noise_gen.wgsl", "medium/cloud_bake.wgsl"]
+        .iter()
+        .map(|f| ((*f).to_owned(), shaders::compose(f, &[])))
+        .collect()
 }
