@@ -496,6 +496,47 @@ pub fn cloud_density(
         * params.density_per_m
 }
 
+/// The noise at `uvw` (one period per unit, repeating) from a texture of `size`³ texels given by
+/// `texel(x, y, z)`, trilinear between texels: texel i holds the noise at i / size. The mirror
+/// of `sample_repeat` in shaders/medium/cloud_bake.wgsl, operation for operation.
+pub fn sample_repeat(uvw: Vec3, size: u32, texel: impl Fn(u32, u32, u32) -> Vec4) -> Vec4 {
+    let x = uvw * size as f32;
+    let base = x.floor();
+    let f = x - base;
+    let n = size as i32;
+    let i = base.as_ivec3();
+    let at = |dx: i32, dy: i32, dz: i32| {
+        let w = |v: i32| (((v % n) + n) % n) as u32;
+        texel(w(i.x + dx), w(i.y + dy), w(i.z + dz))
+    };
+    let x00 = at(0, 0, 0) + (at(1, 0, 0) - at(0, 0, 0)) * f.x;
+    let x10 = at(0, 1, 0) + (at(1, 1, 0) - at(0, 1, 0)) * f.x;
+    let x01 = at(0, 0, 1) + (at(1, 0, 1) - at(0, 0, 1)) * f.x;
+    let x11 = at(0, 1, 1) + (at(1, 1, 1) - at(0, 1, 1)) * f.x;
+    let y0 = x00 + (x10 - x00) * f.y;
+    let y1 = x01 + (x11 - x01) * f.y;
+    y0 + (y1 - y0) * f.z
+}
+
+/// The cloud's extinction (1/m) at world point `p_m`, as `bake_main` in
+/// shaders/medium/cloud_bake.wgsl computes it from the seed's noise textures (without a
+/// coverage map): the CPU mirror a baked voxel is checked against.
+pub fn baked_density(seed: u32, p_m: Vec3, params: &CloudParams) -> f32 {
+    let shape = sample_repeat(cloud_shape_uvw(p_m, params), SHAPE_SIZE, |x, y, z| {
+        Vec4::from_array(shape_voxel(seed, x, y, z))
+    });
+    let detail = sample_repeat(cloud_detail_uvw(p_m, params), DETAIL_SIZE, |x, y, z| {
+        Vec3::from_array(detail_voxel(seed, x, y, z)).extend(0.0)
+    });
+    cloud_density(
+        cloud_layer_point(p_m, params),
+        shape,
+        detail.truncate(),
+        1.0,
+        params,
+    )
+}
+
 #[cfg(test)]
 mod tests {
     //! The raw noises, below the texture channels: Worley against a brute-force periodic search
@@ -619,45 +660,4 @@ mod tests {
         assert!(max_abs <= 1.05, "max |n| {max_abs}");
         assert!(sd > 0.1, "sd {sd}");
     }
-}
-
-/// The noise at `uvw` (one period per unit, repeating) from a texture of `size`³ texels given by
-/// `texel(x, y, z)`, trilinear between texels: texel i holds the noise at i / size. The mirror
-/// of `sample_repeat` in shaders/medium/cloud_bake.wgsl, operation for operation.
-pub fn sample_repeat(uvw: Vec3, size: u32, texel: impl Fn(u32, u32, u32) -> Vec4) -> Vec4 {
-    let x = uvw * size as f32;
-    let base = x.floor();
-    let f = x - base;
-    let n = size as i32;
-    let i = base.as_ivec3();
-    let at = |dx: i32, dy: i32, dz: i32| {
-        let w = |v: i32| (((v % n) + n) % n) as u32;
-        texel(w(i.x + dx), w(i.y + dy), w(i.z + dz))
-    };
-    let x00 = at(0, 0, 0) + (at(1, 0, 0) - at(0, 0, 0)) * f.x;
-    let x10 = at(0, 1, 0) + (at(1, 1, 0) - at(0, 1, 0)) * f.x;
-    let x01 = at(0, 0, 1) + (at(1, 0, 1) - at(0, 0, 1)) * f.x;
-    let x11 = at(0, 1, 1) + (at(1, 1, 1) - at(0, 1, 1)) * f.x;
-    let y0 = x00 + (x10 - x00) * f.y;
-    let y1 = x01 + (x11 - x01) * f.y;
-    y0 + (y1 - y0) * f.z
-}
-
-/// The cloud's extinction (1/m) at world point `p_m`, as `bake_main` in
-/// shaders/medium/cloud_bake.wgsl computes it from the seed's noise textures (without a
-/// coverage map): the CPU mirror a baked voxel is checked against.
-pub fn baked_density(seed: u32, p_m: Vec3, params: &CloudParams) -> f32 {
-    let shape = sample_repeat(cloud_shape_uvw(p_m, params), SHAPE_SIZE, |x, y, z| {
-        Vec4::from_array(shape_voxel(seed, x, y, z))
-    });
-    let detail = sample_repeat(cloud_detail_uvw(p_m, params), DETAIL_SIZE, |x, y, z| {
-        Vec3::from_array(detail_voxel(seed, x, y, z)).extend(0.0)
-    });
-    cloud_density(
-        cloud_layer_point(p_m, params),
-        shape,
-        detail.truncate(),
-        1.0,
-        params,
-    )
 }
