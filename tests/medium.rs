@@ -469,3 +469,45 @@ mod cloud {
         assert!(cloudy_fractions[3] > 0.3, "{cloudy_fractions:?}");
     }
 }
+
+#[test]
+fn the_gpu_reference_doubles_its_steps_until_they_converge_or_says_it_could_not() {
+    let gpu = gpu();
+    let mut ledger = MemoryLedger::for_device(&gpu.limits);
+    let march = GridMarch::new(&gpu);
+    let grid = turned_ball();
+    let uploaded = GpuGrid::upload(&gpu, &mut ledger, &grid).unwrap();
+    let light = Vec3::new(4.0, 9.0, -2.0);
+    let points = lattice(grid.world_from_index, grid.dims);
+    let converged = march
+        .converged_transmittance(&gpu, &uploaded, light, &points, 8, 1 << 16, 1e-4)
+        .unwrap();
+    assert!(converged.worst_difference <= 1e-4);
+    // At least two steps a voxel along the grid's diagonal, whatever the start asked for: 8
+    // and 16 steps both step over the ball's edge on some rays and agree on T = 1 there.
+    let diagonal = (grid.dims.as_vec3() + Vec3::ONE).length();
+    assert!(
+        converged.steps as f32 >= 2.0 * diagonal,
+        "{}",
+        converged.steps
+    );
+    for (p, t) in points.iter().zip(&converged.transmittance) {
+        let cpu = grid
+            .converged_transmittance(light.as_dvec3(), p.as_dvec3(), 8, 1 << 16, 1e-5)
+            .unwrap();
+        // Both within 1e-4 of their limit, and of each other to twice that.
+        assert!(
+            (f64::from(*t) - cpu.transmittance).abs() < 2e-4,
+            "{p}: {t} vs {cpu:?}"
+        );
+    }
+    // A tolerance no step count reaches in f32: refused in one line that says how far it got.
+    let err = march
+        .converged_transmittance(&gpu, &uploaded, light, &points, 8, 4096, 1e-9)
+        .unwrap_err();
+    let line = err.to_string();
+    assert!(
+        line.contains("did not converge") && !line.contains('\n'),
+        "{line}"
+    );
+}
