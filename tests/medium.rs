@@ -9,7 +9,7 @@ use common::gpu;
 use glam::{DAffine3, DQuat, DVec3, UVec3, Vec3};
 use smokeshadow::gpu::MemoryLedger;
 use smokeshadow::medium::analytic::{HomogeneousMedium, Shape};
-use smokeshadow::medium::gpu_grid::{GpuGrid, GridGpuError, GridMarch};
+use smokeshadow::medium::gpu_grid::{Convergence, GpuGrid, GridGpuError, GridMarch};
 use smokeshadow::medium::grid::DensityGrid;
 
 /// Points on a lattice around and inside the grid's box `min..max` (world metres).
@@ -480,7 +480,17 @@ fn the_gpu_reference_doubles_its_steps_until_they_converge_or_says_it_could_not(
     let light = Vec3::new(4.0, 9.0, -2.0);
     let points = lattice(grid.world_from_index, grid.dims);
     let converged = march
-        .converged_transmittance(&gpu, &uploaded, light, &points, 8, 1 << 16, 1e-4)
+        .converged_transmittance(
+            &gpu,
+            &uploaded,
+            light,
+            &points,
+            Convergence {
+                start_steps: 8,
+                max_steps: 1 << 16,
+                tolerance: 1e-4,
+            },
+        )
         .unwrap();
     assert!(converged.worst_difference <= 1e-4);
     // At least two steps a voxel along the grid's diagonal, whatever the start asked for: 8
@@ -503,7 +513,17 @@ fn the_gpu_reference_doubles_its_steps_until_they_converge_or_says_it_could_not(
     }
     // A tolerance no step count reaches in f32: refused in one line that says how far it got.
     let err = march
-        .converged_transmittance(&gpu, &uploaded, light, &points, 8, 4096, 1e-9)
+        .converged_transmittance(
+            &gpu,
+            &uploaded,
+            light,
+            &points,
+            Convergence {
+                start_steps: 8,
+                max_steps: 4096,
+                tolerance: 1e-9,
+            },
+        )
         .unwrap_err();
     let line = err.to_string();
     assert!(

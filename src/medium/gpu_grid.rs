@@ -80,6 +80,15 @@ pub enum GridGpuError {
     Gpu(#[from] GpuError),
 }
 
+/// How a converged march searches: from `start_steps`, doubling, until T at N and 2N agree
+/// within `tolerance`, with 2N never past `max_steps`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Convergence {
+    pub start_steps: u32,
+    pub max_steps: u32,
+    pub tolerance: f32,
+}
+
 /// A march whose step count was shown to have converged at every point.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ConvergedMarch {
@@ -333,21 +342,24 @@ impl GridMarch {
 
 impl GridMarch {
     /// T from `light` to each of `points` through `grid`, with a step count shown to have
-    /// converged: starting at `start_steps`, or at two steps a voxel along the longest segment
+    /// converged: starting at `search.start_steps`, or at two steps a voxel along the longest segment
     /// the grid's support holds if that is more (`DensityGrid::min_steps`: N and 2N can agree
     /// while both step over a thin feature), the steps double until T at N and at 2N agree
-    /// within `tolerance` at every point (the volumes' reference, issue 26 §4). Refused in one
-    /// line when 2N would pass `max_steps` or the adapter's loop budget first.
+    /// within `search.tolerance` at every point (the volumes' reference, issue 26 §4). Refused in
+    /// one line when 2N would pass `search.max_steps` or the adapter's loop budget first.
     pub fn converged_transmittance(
         &self,
         gpu: &Gpu,
         grid: &GpuGrid,
         light: Vec3,
         points: &[Vec3],
-        start_steps: u32,
-        max_steps: u32,
-        tolerance: f32,
+        search: Convergence,
     ) -> Result<ConvergedMarch, GridGpuError> {
+        let Convergence {
+            start_steps,
+            max_steps,
+            tolerance,
+        } = search;
         let limit = match gpu.loop_budget() {
             Some(budget) => max_steps.min(budget.saturating_sub(3)),
             None => max_steps,
