@@ -192,7 +192,7 @@ fn layer() -> CloudParams {
         top_fraction: 1.0,
         shape_period_m: 4000.0,
         detail_period_m: 600.0,
-        _pad0: 0.0,
+        coverage_map: 0.0,
     }
 }
 
@@ -414,4 +414,30 @@ fn layer_point_maps_the_box_to_the_unit_cube_and_params_validate() {
         assert_eq!(err.field, field);
         assert!(err.to_string().contains(field), "{err}");
     }
+}
+
+#[test]
+fn the_coverage_map_tiles_and_holds_both_clear_sky_and_cloud() {
+    use smokeshadow::medium::cloud_noise::{COVERAGE_SIZE, coverage_texel};
+    let n = COVERAGE_SIZE;
+    let mut values = Vec::new();
+    for z in (0..n).step_by(8) {
+        for x in (0..n).step_by(8) {
+            let v = coverage_texel(3, x, z);
+            // Periodic over the layer: the texel one period on is the same value, exactly (the
+            // lattice is integer arithmetic).
+            assert_eq!(v, coverage_texel(3, x + n, z));
+            assert_eq!(v, coverage_texel(3, x, z + n));
+            assert!((0.0..=1.0).contains(&v), "{v}");
+            values.push(v);
+        }
+    }
+    // Fields of each: at least a tenth of the map fully clear and a tenth fully cloudy.
+    let clear = values.iter().filter(|v| **v == 0.0).count() as f64 / values.len() as f64;
+    let cloudy = values.iter().filter(|v| **v == 1.0).count() as f64 / values.len() as f64;
+    assert!(
+        clear > 0.1 && cloudy > 0.1,
+        "clear {clear}, cloudy {cloudy}"
+    );
+    assert_ne!(coverage_texel(3, 17, 40), coverage_texel(4, 17, 40));
 }

@@ -404,7 +404,7 @@ mod cloud {
             top_fraction: 1.0,
             shape_period_m: 3000.0,
             detail_period_m: 700.0,
-            _pad0: 0.0,
+            coverage_map: 0.0,
         }
     }
 
@@ -530,4 +530,81 @@ fn the_gpu_reference_doubles_its_steps_until_they_converge_or_says_it_could_not(
         line.contains("did not converge") && !line.contains('\n'),
         "{line}"
     );
+}
+
+mod coverage_map {
+    use super::*;
+    use smokeshadow::medium::cloud::{CloudBaker, CloudNoiseGenerator, bake_voxel_centre};
+    use smokeshadow::medium::cloud_noise::{CloudParams, baked_density};
+
+    #[test]
+    fn the_coverage_map_parts_the_layer_into_cloud_and_clear_sky() {
+        let gpu = gpu();
+        let mut ledger = MemoryLedger::for_device(&gpu.limits);
+        let seed = 11;
+        let noise = CloudNoiseGenerator::new(&gpu)
+            .generate(&gpu, &mut ledger, seed)
+            .unwrap();
+        let dims = UVec3::new(48, 16, 48);
+        let params = CloudParams {
+            origin_xz_m: [0.0, 0.0],
+            size_xz_m: [8000.0, 8000.0],
+            altitude_m: 1000.0,
+            thickness_m: 1000.0,
+            coverage: 0.8,
+            density_per_m: 0.04,
+            top_fraction: 1.0,
+            shape_period_m: 3000.0,
+            detail_period_m: 600.0,
+            coverage_map: 1.0,
+        };
+        let grid = CloudBaker::new(&gpu)
+            .bake(&gpu, &mut ledger, &noise, &params, dims)
+            .unwrap();
+        // The mirror, map included, at a lattice of voxels (tolerance as for the bake without
+        // the map).
+        for k in (0..dims.z).step_by(5) {
+            for j in (0..dims.y).step_by(3) {
+                for i in (0..dims.x).step_by(5) {
+                    let index = UVec3::new(i, j, k);
+                    let cpu = baked_density(seed, bake_voxel_centre(&params, dims, index), &params);
+                    let gpu_value = grid.values[((k * dims.y + j) * dims.x + i) as usize];
+                    assert!(
+                        (gpu_value - cpu).abs() < 1e-4 * params.density_per_m,
+                        "{index}: GPU {gpu_value}, CPU {cpu}"
+                    );
+                }
+            }
+        }
+        // Columns (x, z) with no cloud at any height, and columns with cloud: both common. With
+        // the map off, the same coverage clouds nearly every column.
+        let columns = |values: &[f32]| {
+            let mut clear = 0;
+            for k in 0..dims.z {
+                for i in 0..dims.x {
+                    let empty = (0..dims.y)
+                        .all(|j| values[((k * dims.y + j) * dims.x + i) as usize] == 0.0);
+                    clear += usize::from(empty);
+                }
+            }
+            clear as f64 / f64::from(dims.x * dims.z)
+        };
+        let clear_with_map = columns(&grid.values);
+        assert!(
+            (0.15..0.85).contains(&clear_with_map),
+            "{clear_with_map} of the columns are clear"
+        );
+        let unmapped = CloudParams {
+            coverage_map: 0.0,
+            ..params
+        };
+        let without = CloudBaker::new(&gpu)
+            .bake(&gpu, &mut ledger, &noise, &unmapped, dims)
+            .unwrap();
+        let clear_without = columns(&without.values);
+        assert!(
+            clear_without < 0.5 * clear_with_map,
+            "{clear_without} vs {clear_with_map}"
+        );
+    }
 }

@@ -12,7 +12,7 @@ struct BakeParams {
     first_voxel_m: vec4<f32>,
     // xyz: a voxel's size along x, y, z, metres.
     voxel_m: vec4<f32>,
-    // xyz: voxels along x, y, z.
+    // xyz: voxels along x, y, z; w: the noise's seed (the coverage map's).
     dims: vec4<u32>,
 };
 
@@ -60,7 +60,8 @@ fn bake_main(@builtin(global_invocation_id) id: vec3<u32>) {
     let p = bake.first_voxel_m.xyz + vec3<f32>(id) * bake.voxel_m.xyz;
     let shape = sample_repeat(shape_noise, cloud_shape_uvw(p, cloud), SHAPE_SIZE);
     let detail = sample_repeat(detail_noise, cloud_detail_uvw(p, cloud), DETAIL_SIZE).xyz;
-    // No coverage map yet: the layer's coverage alone (the map's value 1).
-    let density = cloud_density(cloud_layer_point(p, cloud), shape, detail, 1.0, cloud);
+    let p_layer = cloud_layer_point(p, cloud);
+    let coverage = cloud_coverage_map(bake.dims.w, p_layer, cloud);
+    let density = cloud_density(p_layer, shape, detail, coverage, cloud);
     baked[(id.z * bake.dims.y + id.y) * bake.dims.x + id.x] = density;
 }

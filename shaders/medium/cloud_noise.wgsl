@@ -57,7 +57,9 @@ struct CloudParams {
     shape_period_m: f32,
     // World metres one period of the detail texture spans.
     detail_period_m: f32,
-    _pad0: f32,
+    // How much the coverage map shapes the layer, 0..1: 0 the layer's coverage everywhere, 1
+    // the map's fields of cloud and clear sky (`cloud_coverage_map`).
+    coverage_map: f32,
 };
 
 const SHAPE_SIZE: u32 = 128u;
@@ -69,6 +71,12 @@ const FLOATS_PER_TEXEL: u32 = 4u;
 const SALT_SHAPE_WORLEY: u32 = 0x100u;
 const SALT_PERLIN: u32 = 0x200u;
 const SALT_DETAIL_WORLEY: u32 = 0x300u;
+
+const SALT_COVERAGE: u32 = 0x400u;
+// The coverage map: COVERAGE_SIZE² texels over the layer, Perlin noise of COVERAGE_CELLS cells
+// and twice that.
+const COVERAGE_SIZE: u32 = 256u;
+const COVERAGE_CELLS: u32 = 4u;
 
 const PERLIN_BASE_CELLS: u32 = 8u;
 const PERLIN_OCTAVES: u32 = 3u;
@@ -244,6 +252,37 @@ fn detail_texel(seed: u32, voxel: vec3<u32>) -> vec3<f32> {
         // 32 cells would be one per voxel, so the last FBM has two octaves.
         w8 * 0.75 + w16 * 0.25,
     );
+}
+
+// The coverage map's texel (x, z) (004's weather map WM_c, §3.1.1; the slides' coverage): two
+// octaves of periodic Perlin noise across the layer, 4 and 8 cells, pushed through a smoothstep
+// from 0.45 to 0.55 (about a third of the map each way) so that the map holds fields of cloud
+// (1) and of clear sky (0) with soft borders, as a weather map painted by hand does. Periodic
+// over the layer, like the textures.
+fn coverage_texel(seed: u32, x: u32, z: u32) -> f32 {
+    let voxel = vec3<u32>(x, 0u, z);
+    let coarse = perlin_periodic(voxel, COVERAGE_CELLS, COVERAGE_SIZE, noise_key(seed, SALT_COVERAGE));
+    let fine = perlin_periodic(voxel, 2u * COVERAGE_CELLS, COVERAGE_SIZE, noise_key(seed, SALT_COVERAGE + 1u));
+    let v = clamp(0.5 + 0.5 * (coarse + 0.5 * fine) / 1.5, 0.0, 1.0);
+    let t = saturate((v - 0.45) / 0.1);
+    return t * t * (3.0 - 2.0 * t);
+}
+
+// The coverage map at the layer point's x and z (0..1 across the layer), bilinear between
+// texels (texel i at i / COVERAGE_SIZE, repeating), blended towards 1 (no map) by
+// `params.coverage_map`.
+fn cloud_coverage_map(seed: u32, p_layer: vec3<f32>, params: CloudParams) -> f32 {
+    let x = fract(vec2<f32>(p_layer.x, p_layer.z)) * f32(COVERAGE_SIZE);
+    let base = floor(x);
+    let f = x - base;
+    let i = vec2<u32>(base);
+    let j = (i + vec2<u32>(1u)) % vec2<u32>(COVERAGE_SIZE);
+    let c00 = coverage_texel(seed, i.x, i.y);
+    let c10 = coverage_texel(seed, j.x, i.y);
+    let c01 = coverage_texel(seed, i.x, j.y);
+    let c11 = coverage_texel(seed, j.x, j.y);
+    let map = lerp(lerp(c00, c10, f.x), lerp(c01, c11, f.x), f.y);
+    return lerp(1.0, map, params.coverage_map);
 }
 
 // ---- The density (004 §3.1). Noise samples come in as arguments, so a march can take them from

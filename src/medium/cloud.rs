@@ -68,6 +68,8 @@ const TEXEL_BYTES: u64 = FLOATS_PER_TEXEL as u64 * 4;
 pub struct CloudNoiseTextures {
     pub shape: wgpu::Texture,
     pub detail: wgpu::Texture,
+    /// The seed they were generated from (the bake's coverage map uses it too).
+    pub seed: u32,
 }
 
 /// The generators' pipelines.
@@ -226,6 +228,7 @@ impl CloudNoiseGenerator {
         let textures = CloudNoiseTextures {
             shape: texture(ledger, "medium.cloud_noise.shape", SHAPE_SIZE)?,
             detail: texture(ledger, "medium.cloud_noise.detail", DETAIL_SIZE)?,
+            seed,
         };
         for (buffer, texture, size) in [
             (&buffers.shape, &textures.shape, SHAPE_SIZE),
@@ -358,7 +361,7 @@ impl CloudBaker {
         let bake = BakeParams {
             first_voxel_m: first_voxel.as_vec3().extend(0.0).to_array(),
             voxel_m: voxel.as_vec3().extend(0.0).to_array(),
-            dims: [dims.x, dims.y, dims.z, 0],
+            dims: [dims.x, dims.y, dims.z, noise.seed],
         };
         let uniform = |label, contents: &[u8]| {
             device.create_buffer_init(&wgpu::util::BufferInitDescriptor {

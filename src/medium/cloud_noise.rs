@@ -37,6 +37,11 @@ const SALT_SHAPE_WORLEY: u32 = 0x100;
 const SALT_PERLIN: u32 = 0x200;
 const SALT_DETAIL_WORLEY: u32 = 0x300;
 
+const SALT_COVERAGE: u32 = 0x400;
+/// The coverage map's texels along x and z, and its Perlin noise's coarsest cells.
+pub const COVERAGE_SIZE: u32 = 256;
+const COVERAGE_CELLS: u32 = 4;
+
 const PERLIN_BASE_CELLS: u32 = 8;
 const PERLIN_OCTAVES: u32 = 3;
 
@@ -82,7 +87,9 @@ pub struct CloudParams {
     pub shape_period_m: f32,
     /// World metres one period of the detail texture spans; > 0.
     pub detail_period_m: f32,
-    pub _pad0: f32,
+    /// How much the coverage map shapes the layer, 0..1: 0 the layer's coverage everywhere, 1
+    /// the map's fields of cloud and clear sky ([`cloud_coverage_map`]).
+    pub coverage_map: f32,
 }
 
 /// A [`CloudParams`] field out of its range.
@@ -133,6 +140,12 @@ impl CloudParams {
                 "coverage",
                 self.coverage,
                 (0.0..=1.0).contains(&self.coverage),
+                "[0, 1]",
+            ),
+            (
+                "coverage_map",
+                self.coverage_map,
+                (0.0..=1.0).contains(&self.coverage_map),
                 "[0, 1]",
             ),
             (
@@ -199,7 +212,8 @@ pub fn layouts() -> Vec<crate::gpu::MirrorLayout> {
                 density_per_m,
                 top_fraction,
                 shape_period_m,
-                detail_period_m
+                detail_period_m,
+                coverage_map
             ]
         ),
     ]
@@ -496,6 +510,44 @@ pub fn cloud_density(
         * params.density_per_m
 }
 
+/// The coverage map's texel (x, z): the mirror of `coverage_texel` in
+/// shaders/medium/cloud_noise.wgsl (004's weather map WM_c, fields of cloud and clear sky).
+pub fn coverage_texel(seed: u32, x: u32, z: u32) -> f32 {
+    let voxel = UVec3::new(x, 0, z);
+    let coarse = perlin_periodic(
+        voxel,
+        COVERAGE_CELLS,
+        COVERAGE_SIZE,
+        noise_key(seed, SALT_COVERAGE),
+    );
+    let fine = perlin_periodic(
+        voxel,
+        2 * COVERAGE_CELLS,
+        COVERAGE_SIZE,
+        noise_key(seed, SALT_COVERAGE + 1),
+    );
+    let v = (0.5 + 0.5 * (coarse + 0.5 * fine) / 1.5).clamp(0.0, 1.0);
+    let t = saturate((v - 0.45) / 0.1);
+    t * t * (3.0 - 2.0 * t)
+}
+
+/// The coverage map at the layer point's x and z, bilinear and repeating, blended towards 1 by
+/// `params.coverage_map`: the mirror of `cloud_coverage_map`.
+pub fn cloud_coverage_map(seed: u32, p_layer: Vec3, params: &CloudParams) -> f32 {
+    let fract = |v: f32| v - v.floor();
+    let x = glam::Vec2::new(fract(p_layer.x), fract(p_layer.z)) * COVERAGE_SIZE as f32;
+    let base = x.floor();
+    let f = x - base;
+    let i = base.as_uvec2();
+    let j = (i + glam::UVec2::ONE) % COVERAGE_SIZE;
+    let c00 = coverage_texel(seed, i.x, i.y);
+    let c10 = coverage_texel(seed, j.x, i.y);
+    let c01 = coverage_texel(seed, i.x, j.y);
+    let c11 = coverage_texel(seed, j.x, j.y);
+    let map = lerp(lerp(c00, c10, f.x), lerp(c01, c11, f.x), f.y);
+    lerp(1.0, map, params.coverage_map)
+}
+
 /// The noise at `uvw` (one period per unit, repeating) from a texture of `size`³ texels given by
 /// `texel(x, y, z)`, trilinear between texels: texel i holds the noise at i / size. The mirror
 /// of `sample_repeat` in shaders/medium/cloud_bake.wgsl, operation for operation.
@@ -519,8 +571,8 @@ pub fn sample_repeat(uvw: Vec3, size: u32, texel: impl Fn(u32, u32, u32) -> Vec4
 }
 
 /// The cloud's extinction (1/m) at world point `p_m`, as `bake_main` in
-/// shaders/medium/cloud_bake.wgsl computes it from the seed's noise textures (without a
-/// coverage map): the CPU mirror a baked voxel is checked against.
+/// shaders/medium/cloud_bake.wgsl computes it from the seed's noise textures and coverage map:
+/// the CPU mirror a baked voxel is checked against.
 pub fn baked_density(seed: u32, p_m: Vec3, params: &CloudParams) -> f32 {
     let shape = sample_repeat(cloud_shape_uvw(p_m, params), SHAPE_SIZE, |x, y, z| {
         Vec4::from_array(shape_voxel(seed, x, y, z))
@@ -528,13 +580,9 @@ pub fn baked_density(seed: u32, p_m: Vec3, params: &CloudParams) -> f32 {
     let detail = sample_repeat(cloud_detail_uvw(p_m, params), DETAIL_SIZE, |x, y, z| {
         Vec3::from_array(detail_voxel(seed, x, y, z)).extend(0.0)
     });
-    cloud_density(
-        cloud_layer_point(p_m, params),
-        shape,
-        detail.truncate(),
-        1.0,
-        params,
-    )
+    let p_layer = cloud_layer_point(p_m, params);
+    let coverage = cloud_coverage_map(seed, p_layer, params);
+    cloud_density(p_layer, shape, detail.truncate(), coverage, params)
 }
 
 #[cfg(test)]
