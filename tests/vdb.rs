@@ -232,3 +232,48 @@ fn info_describes_a_vdb_file_and_refuses_a_broken_one_in_one_line() {
         "{lines:?}"
     );
 }
+
+#[test]
+fn bench_volume_measures_every_stage_of_a_file_and_of_the_cloud() {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data/volumes");
+    let out = common::scratch("bench_volume");
+    let smoke = dir.join(TWO_GRIDS);
+    for (source, expected_rows) in [
+        (smoke.to_str().unwrap(), 2 * 2),
+        ("cloud", 1 + 2 + 2 * 2 * 2),
+    ] {
+        let o = out.join(if source == "cloud" { "cloud" } else { "file" });
+        let args = [
+            "bench",
+            "--volume",
+            source,
+            "--grid-sizes",
+            "8,16",
+            "--light-steps",
+            "2,4",
+            "--eye-steps",
+            "4",
+            "--frames",
+            "1",
+            "--warmup",
+            "0",
+            "--size",
+            "16x12",
+            "-o",
+            o.to_str().unwrap(),
+        ];
+        let run = common::smokeshadow(&args);
+        assert!(
+            run.status.success(),
+            "{}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+        let csv = std::fs::read_to_string(o.join("bench_volume.csv")).unwrap();
+        let rows: Vec<&str> = csv.lines().skip(1).collect();
+        assert_eq!(rows.len(), expected_rows, "{csv}");
+        for row in rows {
+            let ms: f64 = row.rsplit(',').next().unwrap().parse().unwrap();
+            assert!(ms > 0.0 && ms.is_finite(), "{row}");
+        }
+    }
+}

@@ -21,6 +21,7 @@
 //! log-log SVG charts (time, GPU passes and bytes against the particle count) into a folder.
 
 pub mod bound;
+pub mod volume;
 
 use std::collections::BTreeMap;
 use std::path::Path;

@@ -55,12 +55,32 @@ pub struct BenchArgs {
         default_value = "view"
     )]
     pub sort: Vec<crate::render::SortOrder>,
+    /// Bench a density volume instead of particles: `cloud` (the procedural cloud, baked at
+    /// each `--grid-sizes`) or an OpenVDB file (its `density` grid): the cloud's noise and
+    /// bake, the light march and the eye's march per grid and light step count, as wall times
+    /// (`bench_volume.csv`).
+    #[arg(long, value_name = "cloud|FILE.vdb")]
+    pub volume: Option<String>,
+    /// The cloud's grid edge lengths for `--volume cloud` (a layer of N x N/4 x N voxels).
+    #[arg(long, value_delimiter = ',', value_name = "N,...", default_value = "64,128,256",
+          value_parser = clap::value_parser!(u32).range(4..=512))]
+    pub grid_sizes: Vec<u32>,
+    /// Steps towards the light for `--volume` (the light march's, and per eye sample).
+    #[arg(long, value_delimiter = ',', value_name = "N,...", default_value = "16,64,256",
+          value_parser = clap::value_parser!(u32).range(1..=16384))]
+    pub light_steps: Vec<u32>,
+    /// The eye march's steps for `--volume`.
+    #[arg(long, default_value_t = 128, value_parser = clap::value_parser!(u32).range(1..=16384))]
+    pub eye_steps: u32,
 }
 
 /// The embedded scene a bench runs when none is given.
 pub const DEFAULT_SCENE: &str = "plume_scaled";
 
 pub fn run(args: &BenchArgs, adapter: &AdapterPreference) -> anyhow::Result<()> {
+    if let Some(source) = &args.volume {
+        return run_volume(args, source, adapter);
+    }
     let scene_arg = args.scene.as_deref().unwrap_or(Path::new(DEFAULT_SCENE));
     let mut scene = super::load_scene(Some(scene_arg), ParticlesArg::default())?;
     let (w, h) = args
@@ -283,4 +303,48 @@ fn label_width(results: &BenchResults) -> usize {
         .max()
         .unwrap_or(0)
         .max("technique".len())
+}
+
+/// `bench --volume`: the density volume's stages (`crate::bench::volume`).
+fn run_volume(args: &BenchArgs, source: &str, adapter: &AdapterPreference) -> anyhow::Result<()> {
+    use crate::bench::volume::{self, VolumeBenchOptions, VolumeSource};
+    let options = VolumeBenchOptions {
+        source: VolumeSource::parse(source),
+        grid_sizes: args.grid_sizes.clone(),
+        light_steps: args.light_steps.clone(),
+        eye_steps: args.eye_steps,
+        frames: args.frames,
+        warmup: args.warmup,
+        size_px: args.size.map_or((256, 192), |s| (s.width, s.height)),
+    };
+    let gpu = Gpu::new(adapter)?;
+    let rows = volume::run(&gpu, &options)?;
+    println!(
+        "bench --volume {source}: eye rays {}x{}, {} eye steps, {} frames after {} warm-up, {}",
+        options.size_px.0,
+        options.size_px.1,
+        options.eye_steps,
+        options.frames,
+        options.warmup,
+        gpu.describe()
+    );
+    println!("  median wall time in ms, from submission to the results' readback");
+    println!(
+        "{:<14} {:>10} {:<32} {:>5} {:>5} {:>10}",
+        "grid", "MiB", "stage", "eye", "light", "wall ms"
+    );
+    for r in &rows {
+        println!(
+            "{:<14} {:>10.2} {:<32} {:>5} {:>5} {:>10.1}",
+            r.grid,
+            r.grid_bytes as f64 / (1024.0 * 1024.0),
+            r.stage,
+            r.eye_steps,
+            r.light_steps,
+            r.median_ms
+        );
+    }
+    let path = volume::write_csv(&rows, &args.output)?;
+    println!("wrote {}", path.display());
+    Ok(())
 }
