@@ -272,8 +272,19 @@ fn bench_volume_measures_every_stage_of_a_file_and_of_the_cloud() {
         let rows: Vec<&str> = csv.lines().skip(1).collect();
         assert_eq!(rows.len(), expected_rows, "{csv}");
         for row in rows {
-            let ms: f64 = row.rsplit(',').next().unwrap().parse().unwrap();
+            // (No field holds a comma: the stages are named without.)
+            let fields: Vec<&str> = row.split(',').collect();
+            assert_eq!(fields.len(), 7, "{row}");
+            let ms: f64 = fields[5].parse().unwrap();
             assert!(ms > 0.0 && ms.is_finite(), "{row}");
+            // The eye march's error against the most light steps: 0 for those, positive or
+            // empty (the other stages) otherwise.
+            if fields[2].starts_with("eye march") {
+                let rmse: f64 = fields[6].parse().unwrap();
+                assert_eq!(rmse == 0.0, fields[4] == "4", "{row}");
+            } else {
+                assert_eq!(fields[6], "", "{row}");
+            }
         }
     }
 }

@@ -70,6 +70,10 @@ pub struct VolumeBenchRow {
     pub light_steps: u32,
     /// Median wall time, submission to readback, ms.
     pub median_ms: f64,
+    /// For the eye march: the RMS difference of its radiance from the run's march with the
+    /// most light steps on the same grid (the 2018 thesis' sun-step experiment, 004 §4.1, whose
+    /// reference took 100), over the pixels; `None` for the other stages.
+    pub rmse_vs_most_steps: Option<f64>,
 }
 
 /// The cloud the bench bakes: a 6 km layer 1.5 km thick, half covered, its coverage map on.
@@ -134,12 +138,13 @@ pub fn run(gpu: &Gpu, options: &VolumeBenchOptions) -> anyhow::Result<Vec<Volume
                 Ok(())
             })?;
             rows.push(VolumeBenchRow {
-                grid: "noise 128,32".to_owned(),
+                grid: "noise 128+32".to_owned(),
                 grid_bytes: (128u64.pow(3) + 32u64.pow(3)) * 16,
                 stage: "cloud noise",
                 eye_steps: 0,
                 light_steps: 0,
                 median_ms: noise_ms,
+                rmse_vs_most_steps: None,
             });
             let noise = generator.generate(gpu, &mut ledger, 7)?;
             let mut grids = Vec::new();
@@ -159,6 +164,7 @@ pub fn run(gpu: &Gpu, options: &VolumeBenchOptions) -> anyhow::Result<Vec<Volume
                     eye_steps: 0,
                     light_steps: 0,
                     median_ms: bake_ms,
+                    rmse_vs_most_steps: None,
                 });
                 grids.push(grid);
             }
@@ -207,6 +213,9 @@ pub fn run(gpu: &Gpu, options: &VolumeBenchOptions) -> anyhow::Result<Vec<Volume
                 }
             })
             .collect();
+        let most_steps = options.light_steps.iter().copied().max().unwrap_or(1);
+        let mut images: Vec<(usize, Vec<f32>)> = Vec::new();
+        let mut reference: Option<Vec<f32>> = None;
         for &light_steps in &options.light_steps {
             let light_ms = median_ms(options.warmup, options.frames, || {
                 march.transmittance(gpu, &uploaded, light, &points, light_steps)?;
@@ -215,10 +224,11 @@ pub fn run(gpu: &Gpu, options: &VolumeBenchOptions) -> anyhow::Result<Vec<Volume
             rows.push(VolumeBenchRow {
                 grid: name.clone(),
                 grid_bytes: uploaded.bytes,
-                stage: "light march, 256² points",
+                stage: "light march at 256² points",
                 eye_steps: 0,
                 light_steps,
                 median_ms: light_ms,
+                rmse_vs_most_steps: None,
             });
             let settings = EyeMarchSettings {
                 light,
@@ -227,18 +237,38 @@ pub fn run(gpu: &Gpu, options: &VolumeBenchOptions) -> anyhow::Result<Vec<Volume
                 light_steps,
                 jitter: 0.5,
             };
+            let mut radiance = Vec::new();
             let eye_ms = median_ms(options.warmup, options.frames, || {
-                eye.march(gpu, &uploaded, &settings, &rays)?;
+                radiance = eye
+                    .march(gpu, &uploaded, &settings, &rays)?
+                    .iter()
+                    .map(|r| r.radiance.x)
+                    .collect();
                 Ok(())
             })?;
+            images.push((rows.len(), radiance.clone()));
+            if light_steps == most_steps {
+                reference = Some(radiance);
+            }
             rows.push(VolumeBenchRow {
                 grid: name.clone(),
                 grid_bytes: uploaded.bytes,
-                stage: "eye march + SRM, a ray a pixel",
+                stage: "eye march + SRM (ray a pixel)",
                 eye_steps: options.eye_steps,
                 light_steps,
                 median_ms: eye_ms,
+                rmse_vs_most_steps: None,
             });
+        }
+        if let Some(reference) = reference {
+            for (row, image) in images {
+                let sum: f64 = image
+                    .iter()
+                    .zip(&reference)
+                    .map(|(a, b)| f64::from(a - b).powi(2))
+                    .sum();
+                rows[row].rmse_vs_most_steps = Some((sum / image.len().max(1) as f64).sqrt());
+            }
         }
     }
     Ok(rows)
@@ -248,14 +278,32 @@ pub fn run(gpu: &Gpu, options: &VolumeBenchOptions) -> anyhow::Result<Vec<Volume
 pub fn write_csv(rows: &[VolumeBenchRow], folder: &Path) -> anyhow::Result<PathBuf> {
     std::fs::create_dir_all(folder)
         .with_context(|| format!("cannot create {}", folder.display()))?;
-    let mut text = String::from("grid,grid_bytes,stage,eye_steps,light_steps,median_wall_ms\n");
+    let mut csv = csv::Writer::from_writer(Vec::new());
+    csv.write_record([
+        "grid",
+        "grid_bytes",
+        "stage",
+        "eye_steps",
+        "light_steps",
+        "median_wall_ms",
+        "rmse_vs_most_light_steps",
+    ])?;
     for r in rows {
-        text.push_str(&format!(
-            "{},{},{},{},{},{:.3}\n",
-            r.grid, r.grid_bytes, r.stage, r.eye_steps, r.light_steps, r.median_ms
-        ));
+        let rmse = r
+            .rmse_vs_most_steps
+            .map_or(String::new(), |e| format!("{e:.6}"));
+        csv.write_record([
+            r.grid.clone(),
+            r.grid_bytes.to_string(),
+            r.stage.to_owned(),
+            r.eye_steps.to_string(),
+            r.light_steps.to_string(),
+            format!("{:.3}", r.median_ms),
+            rmse,
+        ])?;
     }
+    let text = csv.into_inner().map_err(|e| anyhow::anyhow!("{e}"))?;
     let path = folder.join(CSV_FILE);
-    crate::output::write_atomic(&path, text.as_bytes())?;
+    crate::output::write_atomic(&path, &text)?;
     Ok(path)
 }

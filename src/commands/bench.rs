@@ -330,18 +330,25 @@ fn run_volume(args: &BenchArgs, source: &str, adapter: &AdapterPreference) -> an
     );
     println!("  median wall time in ms, from submission to the results' readback");
     println!(
-        "{:<14} {:>10} {:<32} {:>5} {:>5} {:>10}",
-        "grid", "MiB", "stage", "eye", "light", "wall ms"
+        "  rmse: the eye march's radiance against the same grid's march with the most light steps"
+    );
+    println!(
+        "{:<14} {:>10} {:<32} {:>5} {:>5} {:>10} {:>9}",
+        "grid", "MiB", "stage", "eye", "light", "wall ms", "rmse"
     );
     for r in &rows {
+        let rmse = r
+            .rmse_vs_most_steps
+            .map_or(String::new(), |e| format!("{e:.5}"));
         println!(
-            "{:<14} {:>10.2} {:<32} {:>5} {:>5} {:>10.1}",
+            "{:<14} {:>10.2} {:<32} {:>5} {:>5} {:>10.1} {:>9}",
             r.grid,
             r.grid_bytes as f64 / (1024.0 * 1024.0),
             r.stage,
             r.eye_steps,
             r.light_steps,
-            r.median_ms
+            r.median_ms,
+            rmse
         );
     }
     let path = volume::write_csv(&rows, &args.output)?;
