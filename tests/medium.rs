@@ -3,6 +3,8 @@
 //! the loop-budget refusal, the empty grid, and the bytes it counts. They run on lavapipe and
 //! fail, never skip, without one.
 
+#[path = "medium/cloud_noise.rs"]
+mod cloud_noise;
 mod common;
 
 use common::gpu;

@@ -5,6 +5,10 @@
 //! agrees with the f64 mirror and converges.
 
 mod common;
+#[path = "vdb/reader.rs"]
+mod reader;
+#[path = "common/vdb_writer.rs"]
+mod vdb_writer;
 
 use std::path::PathBuf;
 

@@ -14,7 +14,8 @@
 //!   `TranslationMap`, `AffineMap`, `UnitaryMap`);
 //! - the tree: root tiles and children, internal nodes 5 and 4 (child and value masks, their
 //!   compressed tile values) and 8³ leaves, with the per-node "metadata byte" mask compression
-//!   (all seven modes, the selection mask and stored inactive values);
+//!   (all seven modes; stored inactive values and the selection mask are parsed but not kept,
+//!   because inactive voxels become the background in the dense grid);
 //! - zip chunks (zlib via `flate2`) and blosc1 chunks (byte shuffle, split blocks, memcpyed
 //!   chunks, the lz4 codec via `lz4_flex` and the zlib codec), half floats widened to `f32`.
 //!
@@ -23,6 +24,10 @@
 //! changes), files written as streams without grid offsets, frustum and other non-linear maps,
 //! singular transforms, blosc codecs other than lz4 and zlib (OpenVDB itself always writes lz4),
 //! blosc bit-shuffle, and dense grids larger than [`Limits::max_dense_voxels`].
+//!
+//! Reading is two passes over the tree, as in OpenVDB: the topology (masks and tile values)
+//! gives the active box and count, which are checked against [`Limits`] before the dense grid
+//! is allocated; then the leaf buffers are decoded straight into it.
 //!
 //! Safety: every length, count and offset read from the file is checked against the bytes that
 //! remain before anything is allocated from it, arithmetic on them is checked, decompressed sizes
@@ -48,8 +53,9 @@ const NAME_SEP: char = '\x1e';
 const COMPRESS_ZIP: u32 = 0x1;
 const COMPRESS_ACTIVE_MASK: u32 = 0x2;
 const COMPRESS_BLOSC: u32 = 0x4;
-/// Per-node metadata byte values (io/Compression.h); 6 = NO_MASK_AND_ALL_VALS is the largest.
-const NO_MASK_OR_INACTIVE_VALS: u8 = 0;
+/// Per-node metadata byte values (io/Compression.h). 0 NO_MASK_OR_INACTIVE_VALS and
+/// 1 NO_MASK_AND_MINUS_BG store nothing extra; the others below store inactive values and/or a
+/// selection mask; 6 NO_MASK_AND_ALL_VALS stores every value and is the largest valid byte.
 const NO_MASK_AND_ONE_INACTIVE_VAL: u8 = 2;
 const MASK_AND_NO_INACTIVE_VALS: u8 = 3;
 const MASK_AND_ONE_INACTIVE_VAL: u8 = 4;
@@ -236,7 +242,7 @@ pub fn read_float_grid(bytes: &[u8], name: &str, limits: &Limits) -> Result<Floa
 
     // An instance shares the tree of its parent; the tree is stored (with the parent's own
     // compression settings) after the parent's metadata and transform.
-    let (mut tree_cursor, tree_head) = if d.instance_parent.is_empty() {
+    let (tree_cursor, tree_head) = if d.instance_parent.is_empty() {
         (c, head)
     } else {
         let parent_name = display_name(&d.instance_parent);
@@ -255,42 +261,23 @@ pub fn read_float_grid(bytes: &[u8], name: &str, limits: &Limits) -> Result<Floa
         (pc, parent_head)
     };
 
-    let mut stream = Stream {
-        compression: tree_head.compression,
-        half: tree_head.half,
-        background: 0.0,
-        codecs: 0,
-    };
-    let mut scratch = Scratch::default();
-    let topology = read_topology(
-        &mut tree_cursor,
-        &mut stream,
-        limits,
-        &shown_name,
-        &mut scratch,
-    )?;
-    let (index_min, dims, mut values) = allocate_dense(&topology, stream.background, limits)?;
-    fill_tiles(&topology, index_min, dims, &mut values)?;
-    read_leaf_buffers(
-        &mut tree_cursor,
-        &mut stream,
-        &topology,
-        index_min,
-        dims,
-        &mut values,
-        &mut scratch,
-    )?;
-
+    let mut tree = TreeReader::new(tree_cursor, &tree_head, &shown_name, limits);
+    tree.read_topology()?;
+    let mut dense = Dense::allocate(&tree.t, tree.background, limits)?;
+    dense.fill_tiles(&tree.t.active_tiles)?;
+    tree.read_leaf_buffers(&mut dense)?;
+    let [x, y, z] = dense.dims.map(|d| d as u32); // checked against u32::MAX in allocate
     Ok(FloatGrid {
         name: shown_name,
-        index_min: index_min_ivec(index_min),
-        dims: UVec3::new(dims[0] as u32, dims[1] as u32, dims[2] as u32),
-        values,
-        background: stream.background,
-        active_voxels: topology.active_voxels,
+        // Active voxels lie at or above i32 origins, so the minimum corner fits in i32.
+        index_min: IVec3::from_array(dense.lo.map(|v| v as i32)),
+        dims: UVec3::new(x, y, z),
+        values: dense.values,
+        background: tree.background,
+        active_voxels: tree.t.active_voxels,
         world_from_index,
-        saved_as_half: stream.half,
-        compression: stream.compression_name(),
+        saved_as_half: tree.half,
+        compression: tree.compression_name(),
     })
 }
 
@@ -443,19 +430,22 @@ fn parse_file(bytes: &[u8]) -> Result<VdbFile, VdbError> {
         let _block_pos = c.i64("block position")?;
         let end_pos = c.i64("grid end position")?;
         // The next descriptor follows this grid; requiring it to lie ahead guarantees progress.
-        let in_file = |p: i64| usize::try_from(p).ok().filter(|&p| p <= bytes.len());
-        let (Some(grid_pos), Some(end_pos)) = (in_file(grid_pos), in_file(end_pos)) else {
-            return Err(invalid(
-                offset,
-                format!("grid offsets {grid_pos}..{end_pos} lie outside the file"),
-            ));
-        };
-        if end_pos < c.pos {
-            return Err(invalid(
-                offset,
-                format!("grid end position {end_pos} lies before its descriptor"),
-            ));
+        if grid_pos < 0 || end_pos < c.pos as i64 {
+            let what = format!("grid offsets {grid_pos}..{end_pos} are out of order");
+            return Err(invalid(offset, what));
         }
+        let furthest = grid_pos.max(end_pos) as u64;
+        if furthest > bytes.len() as u64 {
+            let (at, remaining) = (c.pos, c.remaining());
+            let needed = furthest - at as u64;
+            return Err(VdbError::Truncated {
+                offset: at,
+                what: "grid (by its end offset)",
+                needed,
+                remaining,
+            });
+        }
+        let (grid_pos, end_pos) = (grid_pos as usize, end_pos as usize);
         let grid_name = match unique_name.find(NAME_SEP) {
             Some(i) => unique_name[..i].to_string(),
             None => unique_name.clone(),
@@ -677,10 +667,8 @@ fn read_transform(c: &mut Cursor, grid: &str) -> Result<DAffine3, VdbError> {
             }
             let row = |i: usize| DVec3::new(m[4 * i], m[4 * i + 1], m[4 * i + 2]);
             if [m[3], m[7], m[11], m[15]] != [0.0, 0.0, 0.0, 1.0] {
-                return Err(invalid(
-                    at,
-                    "the AffineMap matrix is projective, not affine",
-                ));
+                let what = "the AffineMap matrix is projective, not affine";
+                return Err(invalid(at, what));
             }
             DAffine3::from_mat3_translation(DMat3::from_cols(row(0), row(1), row(2)), row(3))
         }
@@ -703,45 +691,108 @@ fn check_transform(affine: DAffine3, at: usize) -> Result<DAffine3, VdbError> {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Value buffers: the per-node metadata byte, zip and blosc chunks, half floats
+// Tree reading: topology, then leaf buffers
 
-/// Per-grid settings that OpenVDB keeps on its stream while reading a tree.
-struct Stream {
+/// Reads one grid's tree. It keeps what OpenVDB keeps on its stream while reading a tree
+/// (compression flags, half flag, background), buffers reused across nodes so that reading
+/// allocates a fixed amount per grid, and the topology read so far.
+struct TreeReader<'a> {
+    c: Cursor<'a>,
     compression: u32,
     half: bool,
     background: f32,
     /// Blosc codecs met so far (CODEC_LZ4 | CODEC_ZLIB), for [`FloatGrid::compression`].
     codecs: u8,
-}
-
-impl Stream {
-    fn compression_name(&self) -> &'static str {
-        if self.compression & COMPRESS_BLOSC != 0 {
-            match self.codecs {
-                CODEC_LZ4 => "blosc(lz4)",
-                CODEC_ZLIB => "blosc(zlib)",
-                0 => "blosc",
-                _ => "blosc(lz4+zlib)",
-            }
-        } else if self.compression & COMPRESS_ZIP != 0 {
-            "zip"
-        } else {
-            "none"
-        }
-    }
-}
-
-/// Buffers reused across nodes so that reading allocates a fixed amount per grid.
-#[derive(Default)]
-struct Scratch {
     /// Decoded bytes of one chunk (at most 32768 values * 4 bytes).
     bytes: Vec<u8>,
     /// One blosc block before unshuffling.
     block: Vec<u8>,
-    /// The values read from one chunk.
+    /// The values of one chunk, then only the active ones (see `read_active_values`).
     values: Vec<f32>,
-    /// All values of one internal node (32768 for node 5).
-    node_values: Vec<f32>,
+    t: Topology,
+}
+
+struct Leaf {
+    origin: [i64; 3],
+    mask: [u64; 8],
+}
+
+struct Tile {
+    origin: [i64; 3],
+    dim_voxels: i64,
+    value: f32,
+}
+
+struct RootChild {
+    origin: [i64; 3],
+    leaves: std::ops::Range<usize>,
+}
+
+#[derive(Default)]
+struct Topology {
+    grid: String,
+    max_active_voxels: u64,
+    leaves: Vec<Leaf>,
+    active_tiles: Vec<Tile>,
+    root_children: Vec<RootChild>,
+    active_voxels: u64,
+    /// Inclusive index box of active voxels, if any.
+    bbox: Option<([i64; 3], [i64; 3])>,
+}
+
+impl Topology {
+    fn add_active(&mut self, voxels: u64, lo: [i64; 3], hi: [i64; 3]) -> Result<(), VdbError> {
+        self.active_voxels = self.active_voxels.saturating_add(voxels);
+        // The dense grid holds at least every active voxel, so this bounds the tile list too.
+        if self.active_voxels > self.max_active_voxels {
+            let (name, limit) = (self.grid.clone(), self.max_active_voxels);
+            return Err(VdbError::TooManyActive { name, limit });
+        }
+        let (a, b) = self.bbox.unwrap_or((lo, hi));
+        self.bbox = Some((
+            [0, 1, 2].map(|i| a[i].min(lo[i])),
+            [0, 1, 2].map(|i| b[i].max(hi[i])),
+        ));
+        Ok(())
+    }
+
+    fn add_tile(&mut self, origin: [i64; 3], dim_voxels: i64, value: f32) -> Result<(), VdbError> {
+        let hi = origin.map(|o| o + dim_voxels - 1);
+        self.add_active((dim_voxels as u64).pow(3), origin, hi)?;
+        self.active_tiles.push(Tile {
+            origin,
+            dim_voxels,
+            value,
+        });
+        Ok(())
+    }
+}
+
+/// Internal node levels of the 5-4-3 tree: node 5 has 32³ children of 128³ voxels, node 4 has
+/// 16³ leaves of 8³ voxels.
+#[derive(Clone, Copy, PartialEq)]
+enum Level {
+    Node5,
+    Node4,
+}
+
+impl Level {
+    fn log2_dim(self) -> u32 {
+        if self == Level::Node5 { 5 } else { 4 }
+    }
+    fn child_log2_voxels(self) -> u32 {
+        if self == Level::Node5 { 7 } else { 3 }
+    }
+    /// Global origin of child slot `n` (InternalNode::offsetToGlobalCoord).
+    fn child_origin(self, origin: [i64; 3], n: usize) -> [i64; 3] {
+        let (log2, shift) = (self.log2_dim(), self.child_log2_voxels());
+        let local = [
+            n >> (2 * log2),
+            (n >> log2) & ((1 << log2) - 1),
+            n & ((1 << log2) - 1),
+        ];
+        [0, 1, 2].map(|a| origin[a] + ((local[a] as i64) << shift))
+    }
 }
 
 fn bit(mask: &[u64], i: usize) -> bool {
@@ -766,145 +817,296 @@ fn count_ones(mask: &[u64]) -> usize {
     mask.iter().map(|w| w.count_ones() as usize).sum()
 }
 
-/// Reads one node's values into `dest` (io::readCompressedValues): the metadata byte, up to two
-/// inactive values, the selection mask, then either all values or only the active ones.
-fn read_compressed_values(
-    c: &mut Cursor,
-    s: &mut Stream,
-    value_mask: &[u64],
-    dest: &mut [f32],
-    scratch: &mut Scratch,
-) -> Result<(), VdbError> {
-    let at = c.pos;
-    let metadata = c.u8("per-node compression byte")?;
-    if metadata > NO_MASK_AND_ALL_VALS {
-        return Err(invalid(
-            at,
-            format!("per-node compression byte {metadata} is not 0..=6"),
-        ));
-    }
-    let mut inactive0 = if metadata == NO_MASK_OR_INACTIVE_VALS {
-        s.background
-    } else {
-        -s.background
-    };
-    let mut inactive1 = s.background;
-    if matches!(
-        metadata,
-        NO_MASK_AND_ONE_INACTIVE_VAL | MASK_AND_ONE_INACTIVE_VAL | MASK_AND_TWO_INACTIVE_VALS
-    ) {
-        // Inactive values are always stored full size, even for half-float grids.
-        inactive0 = c.f32("inactive value")?;
-        if metadata == MASK_AND_TWO_INACTIVE_VALS {
-            inactive1 = c.f32("second inactive value")?;
-        }
-    }
-    let mut selection: &[u8] = &[];
-    if matches!(
-        metadata,
-        MASK_AND_NO_INACTIVE_VALS | MASK_AND_ONE_INACTIVE_VAL | MASK_AND_TWO_INACTIVE_VALS
-    ) {
-        selection = c.take(dest.len() as u64 / 8, "selection mask")?;
-    }
-    let mask_compressed =
-        s.compression & COMPRESS_ACTIVE_MASK != 0 && metadata != NO_MASK_AND_ALL_VALS;
-    let count = if mask_compressed {
-        count_ones(value_mask).min(dest.len())
-    } else {
-        dest.len()
-    };
-    read_data(c, s, count, scratch)?;
-    if count == dest.len() {
-        for (d, v) in dest.iter_mut().zip(&scratch.values) {
-            *d = *v;
-        }
-        return Ok(());
-    }
-    // Only active values were stored: put them back in place and rebuild the inactive ones.
-    let mut active = scratch.values.iter();
-    for (i, d) in dest.iter_mut().enumerate() {
-        *d = if bit(value_mask, i) {
-            active.next().copied().unwrap_or(s.background)
-        } else if selection
-            .get(i / 8)
-            .is_some_and(|b| (b >> (i % 8)) & 1 != 0)
-        {
-            inactive1
-        } else {
-            inactive0
+impl<'a> TreeReader<'a> {
+    fn new(c: Cursor<'a>, head: &GridHead, grid: &str, limits: &Limits) -> Self {
+        let max_active_voxels = limits.max_dense_voxels;
+        let t = Topology {
+            grid: grid.to_string(),
+            max_active_voxels,
+            ..Default::default()
         };
+        let (compression, half, background, codecs) = (head.compression, head.half, 0.0, 0);
+        let bufs = (Vec::new(), Vec::new(), Vec::new());
+        let (bytes, block, values) = bufs;
+        TreeReader {
+            c,
+            compression,
+            half,
+            background,
+            codecs,
+            bytes,
+            block,
+            values,
+            t,
+        }
     }
-    Ok(())
-}
 
-/// Reads `count` values (io::readData / HalfReader) into `scratch.values`.
-fn read_data(
-    c: &mut Cursor,
-    s: &mut Stream,
-    count: usize,
-    scratch: &mut Scratch,
-) -> Result<(), VdbError> {
-    scratch.values.clear();
-    // HalfReader returns before touching the stream when there is nothing to read.
-    if s.half && count == 0 {
-        return Ok(());
+    fn compression_name(&self) -> &'static str {
+        if self.compression & COMPRESS_BLOSC != 0 {
+            match self.codecs {
+                CODEC_LZ4 => "blosc(lz4)",
+                CODEC_ZLIB => "blosc(zlib)",
+                0 => "blosc",
+                _ => "blosc(lz4+zlib)",
+            }
+        } else if self.compression & COMPRESS_ZIP != 0 {
+            "zip"
+        } else {
+            "none"
+        }
     }
-    let value_bytes = if s.half { 2 } else { 4 };
-    read_chunk(c, s, count * value_bytes, scratch)?;
-    if s.half {
-        let halves = scratch.bytes.chunks_exact(2);
-        scratch
-            .values
-            .extend(halves.map(|b| f16_to_f32(u16::from_le_bytes(b.try_into().unwrap_or([0; 2])))));
-    } else {
-        let floats = scratch.bytes.chunks_exact(4);
-        scratch
-            .values
-            .extend(floats.map(|b| f32::from_le_bytes(b.try_into().unwrap_or([0; 4]))));
-    }
-    Ok(())
-}
 
-/// Reads `nbytes` bytes of values into `scratch.bytes`: raw, or a zip / blosc chunk that starts
-/// with an i64 byte count (negative: the bytes follow uncompressed).
-fn read_chunk(
-    c: &mut Cursor,
-    s: &mut Stream,
-    nbytes: usize,
-    scratch: &mut Scratch,
-) -> Result<(), VdbError> {
-    scratch.bytes.clear();
-    if s.compression & (COMPRESS_BLOSC | COMPRESS_ZIP) == 0 {
-        scratch
-            .bytes
-            .extend_from_slice(c.take(nbytes as u64, "uncompressed values")?);
-        return Ok(());
+    /// Reads the tree topology (Tree::readTopology): buffer count, root background, root tiles
+    /// and children, internal nodes with their tile values, and leaf value masks.
+    fn read_topology(&mut self) -> Result<(), VdbError> {
+        let _buffer_count = self.c.i32("tree buffer count")?; // 1; OpenVDB only warns otherwise
+        self.background = self.c.f32("background value")?;
+        let tile_count = self.c.u32("root tile count")?;
+        let child_count = self.c.u32("root child count")?;
+        let mut keys = Vec::new();
+        for _ in 0..tile_count {
+            let origin = self.root_origin("root tile origin")?;
+            let value = self.c.f32("root tile value")?;
+            if self.c.u8("root tile active flag")? != 0 {
+                self.t.add_tile(origin, ROOT_CHILD_DIM_VOXELS, value)?;
+            }
+            keys.push(origin);
+        }
+        for _ in 0..child_count {
+            let origin = self.root_origin("root child origin")?;
+            let first = self.t.leaves.len();
+            self.read_internal(Level::Node5, origin)?;
+            let leaves = first..self.t.leaves.len();
+            self.t.root_children.push(RootChild { origin, leaves });
+            keys.push(origin);
+        }
+        // The root keeps its entries in a map: a repeated origin would be dropped there and its
+        // buffers never read, so the file is refused instead.
+        keys.sort_unstable();
+        if let Some(w) = keys.windows(2).find(|w| w.first() == w.get(1)) {
+            let what = format!("the root holds two entries at {:?}", w.first());
+            return Err(invalid(self.c.pos, what));
+        }
+        Ok(())
     }
-    let at = c.pos;
-    let size = c.i64("compressed chunk size")?;
-    if size <= 0 {
-        if size.unsigned_abs() != nbytes as u64 {
-            let what = format!(
-                "stored chunk holds {} bytes, the node needs {nbytes}",
-                size.unsigned_abs()
-            );
+
+    fn root_origin(&mut self, what: &'static str) -> Result<[i64; 3], VdbError> {
+        let at = self.c.pos;
+        let origin = self.c.coord(what)?;
+        if origin.iter().any(|o| o % ROOT_CHILD_DIM_VOXELS != 0) {
+            let what = format!("root entry origin {origin:?} is not a multiple of 4096");
             return Err(invalid(at, what));
         }
-        scratch
-            .bytes
-            .extend_from_slice(c.take(nbytes as u64, "stored chunk")?);
-        return Ok(());
+        Ok(origin)
     }
-    let src = c.take(size as u64, "compressed chunk")?;
-    // OpenVDB prefers blosc when both flags are set.
-    if s.compression & COMPRESS_BLOSC != 0 {
-        s.codecs |= blosc_decompress(src, nbytes, at, &mut scratch.bytes, &mut scratch.block)?;
-    } else {
-        scratch.bytes.resize(nbytes, 0);
-        zlib_decompress(src, &mut scratch.bytes, at)?;
+
+    /// Reads an internal node's topology (InternalNode::readTopology). Node 5 calls this for
+    /// its node-4 children and node 4 reads leaves, so the recursion is at most two deep.
+    fn read_internal(&mut self, level: Level, origin: [i64; 3]) -> Result<(), VdbError> {
+        let slots = 1usize << (3 * level.log2_dim());
+        let child_mask = self.c.mask(slots / 64, "internal node child mask")?;
+        let value_mask = self.c.mask(slots / 64, "internal node value mask")?;
+        self.read_active_values(&value_mask, slots)?;
+        // Active values come in value-mask order; a slot that also has a child is a child.
+        let dim_voxels = 1 << level.child_log2_voxels();
+        for (n, &value) in set_bits(&value_mask).zip(&self.values) {
+            if !bit(&child_mask, n) {
+                self.t
+                    .add_tile(level.child_origin(origin, n), dim_voxels, value)?;
+            }
+        }
+        for n in set_bits(&child_mask) {
+            let child = level.child_origin(origin, n);
+            match level {
+                Level::Node5 => self.read_internal(Level::Node4, child)?,
+                Level::Node4 => self.read_leaf_topology(child)?,
+            }
+        }
+        Ok(())
     }
-    Ok(())
+
+    /// Reads a leaf's value mask (LeafNode::readTopology) and records its active voxels.
+    fn read_leaf_topology(&mut self, origin: [i64; 3]) -> Result<(), VdbError> {
+        let mut mask = [0u64; 8];
+        for (m, w) in mask.iter_mut().zip(self.c.mask(8, "leaf value mask")?) {
+            *m = w;
+        }
+        let active = count_ones(&mask) as u64;
+        if active > 0 {
+            // Word x holds slice x of the leaf, byte y of a word row y, bit z of a byte column z.
+            let xs = (0..8u32).filter(|&x| mask[x as usize] != 0);
+            let (x_lo, x_hi) = xs.fold((7, 0), |(l, h), x| (x.min(l), x.max(h)));
+            let rows = mask.iter().fold(0u64, |a, &w| a | w);
+            let columns = rows.to_le_bytes().iter().fold(0u8, |a, &b| a | b);
+            let lo = [x_lo, rows.trailing_zeros() / 8, columns.trailing_zeros()];
+            let hi = [
+                x_hi,
+                (63 - rows.leading_zeros()) / 8,
+                7 - columns.leading_zeros(),
+            ];
+            let at = |v: [u32; 3]| [0, 1, 2].map(|a| origin[a] + v[a] as i64);
+            self.t.add_active(active, at(lo), at(hi))?;
+        }
+        self.t.leaves.push(Leaf { origin, mask });
+        Ok(())
+    }
+
+    /// Reads the leaf buffers (Tree::readBuffers) and writes active values into the dense grid.
+    /// The root visits its children in coordinate order (it keeps them in a std::map), each
+    /// internal node in child-mask order, which is the order of `leaves` within a root child.
+    fn read_leaf_buffers(&mut self, dense: &mut Dense) -> Result<(), VdbError> {
+        self.t.root_children.sort_by_key(|r| r.origin);
+        // Strides of the dense array, x fastest; offsets are computed in i64 and checked.
+        let (stride_y, stride_z) = (dense.dims[0] as i64, (dense.dims[0] * dense.dims[1]) as i64);
+        for child in 0..self.t.root_children.len() {
+            let range = self
+                .t
+                .root_children
+                .get(child)
+                .map_or(0..0, |r| r.leaves.clone());
+            for l in range {
+                let Some(&Leaf { origin, mask }) = self.t.leaves.get(l) else {
+                    continue;
+                };
+                // A seekable OpenVDB reader skips this copy of the mask and keeps the topology's.
+                self.c.take(64, "leaf value mask (buffer copy)")?;
+                self.read_active_values(&mask, LEAF_VALUES)?;
+                let o = [0, 1, 2].map(|a| origin[a] - dense.lo[a]);
+                let base = o[2] * stride_z + o[1] * stride_y + o[0];
+                let mut active = self.values.iter();
+                for (x, &word) in mask.iter().enumerate() {
+                    let mut rest = word;
+                    while rest != 0 {
+                        let n = rest.trailing_zeros() as i64;
+                        rest &= rest - 1;
+                        let i = base + x as i64 + (n >> 3) * stride_y + (n & 7) * stride_z;
+                        let slot = usize::try_from(i)
+                            .ok()
+                            .and_then(|i| dense.values.get_mut(i));
+                        let (Some(slot), Some(&v)) = (slot, active.next()) else {
+                            return Err(invalid(
+                                self.c.pos,
+                                "internal error: voxel outside the box",
+                            ));
+                        };
+                        *slot = v;
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Reads one node's value buffer (io::readCompressedValues) and leaves in `self.values` the
+    /// values of the positions set in `value_mask`, in increasing order. The metadata byte, up
+    /// to two inactive values and the selection mask are parsed to stay in step with the
+    /// stream, but inactive values are not kept: the dense grid holds the background for them.
+    fn read_active_values(
+        &mut self,
+        value_mask: &[u64],
+        node_values: usize,
+    ) -> Result<(), VdbError> {
+        let c = &mut self.c;
+        let at = c.pos;
+        let metadata = c.u8("per-node compression byte")?;
+        if metadata > NO_MASK_AND_ALL_VALS {
+            let what = format!("per-node compression byte {metadata} is not 0..=6");
+            return Err(invalid(at, what));
+        }
+        let (one, two) = (MASK_AND_ONE_INACTIVE_VAL, MASK_AND_TWO_INACTIVE_VALS);
+        if matches!(metadata, NO_MASK_AND_ONE_INACTIVE_VAL) || metadata == one || metadata == two {
+            // Inactive values are always stored full size, even for half-float grids.
+            c.take(if metadata == two { 8 } else { 4 }, "inactive values")?;
+        }
+        if metadata == MASK_AND_NO_INACTIVE_VALS || metadata == one || metadata == two {
+            c.take(node_values as u64 / 8, "selection mask")?;
+        }
+        let mask_compressed =
+            self.compression & COMPRESS_ACTIVE_MASK != 0 && metadata != NO_MASK_AND_ALL_VALS;
+        let active = count_ones(value_mask).min(node_values);
+        let count = if mask_compressed { active } else { node_values };
+        self.read_data(count)?;
+        if count != active {
+            // All values were stored: keep the active ones, compacting in place (k <= n).
+            let v = &mut self.values;
+            let mut k = 0;
+            for (w, &word) in value_mask.iter().enumerate() {
+                let mut rest = word;
+                while rest != 0 {
+                    let n = w * 64 + rest.trailing_zeros() as usize;
+                    rest &= rest - 1;
+                    if n < v.len() && k < n {
+                        v[k] = v[n];
+                    }
+                    k += 1;
+                }
+            }
+            v.truncate(k);
+        }
+        Ok(())
+    }
+
+    /// Reads `count` values (io::readData, or HalfReader for half floats) into `self.values`.
+    fn read_data(&mut self, count: usize) -> Result<(), VdbError> {
+        self.values.clear();
+        // HalfReader returns before touching the stream when there is nothing to read.
+        if self.half && count == 0 {
+            return Ok(());
+        }
+        self.read_chunk(count * if self.half { 2 } else { 4 })?;
+        // While loops over plain indices (all < len): this runs for every value of every
+        // leaf, and the crate may be built without optimisation.
+        let (b, v) = (&self.bytes, &mut self.values);
+        let mut i = 0;
+        if self.half {
+            while i + 2 <= b.len() {
+                v.push(f16_to_f32(u16::from_le_bytes([b[i], b[i + 1]])));
+                i += 2;
+            }
+        } else {
+            while i + 4 <= b.len() {
+                v.push(f32::from_le_bytes([b[i], b[i + 1], b[i + 2], b[i + 3]]));
+                i += 4;
+            }
+        }
+        Ok(())
+    }
+
+    /// Reads `nbytes` bytes of values into `self.bytes`: raw, or a zip / blosc chunk that
+    /// starts with an i64 byte count (negative: the bytes follow uncompressed).
+    fn read_chunk(&mut self, nbytes: usize) -> Result<(), VdbError> {
+        let at = self.c.pos;
+        let stored = if self.compression & (COMPRESS_BLOSC | COMPRESS_ZIP) == 0 {
+            self.c.take(nbytes as u64, "uncompressed values")?
+        } else {
+            let size = self.c.i64("compressed chunk size")?;
+            if size > 0 {
+                let src = self.c.take(size as u64, "compressed chunk")?;
+                // OpenVDB prefers blosc when both flags are set.
+                if self.compression & COMPRESS_BLOSC != 0 {
+                    let (out, block) = (&mut self.bytes, &mut self.block);
+                    self.codecs |= blosc_decompress(src, nbytes, at, out, block)?;
+                } else {
+                    self.bytes.resize(nbytes, 0);
+                    zlib_decompress(src, &mut self.bytes, at)?;
+                }
+                return Ok(());
+            }
+            if size.unsigned_abs() != nbytes as u64 {
+                let n = size.unsigned_abs();
+                let what = format!("stored chunk holds {n} bytes, the node needs {nbytes}");
+                return Err(invalid(at, what));
+            }
+            self.c.take(nbytes as u64, "stored chunk")?
+        };
+        self.bytes.clear();
+        self.bytes.extend_from_slice(stored);
+        Ok(())
+    }
 }
+
+// ---------------------------------------------------------------------------------------------
+// Zip and blosc chunks, half floats
 
 /// Inflates a zlib stream into exactly `out.len()` bytes.
 fn zlib_decompress(src: &[u8], out: &mut [u8], at: usize) -> Result<(), VdbError> {
@@ -912,14 +1114,18 @@ fn zlib_decompress(src: &[u8], out: &mut [u8], at: usize) -> Result<(), VdbError
     z.decompress(src, out, flate2::FlushDecompress::Finish)
         .map_err(|e| invalid(at, format!("corrupt zlib data: {e}")))?;
     if z.total_out() != out.len() as u64 {
-        let what = format!(
-            "zlib data inflates to {} bytes, the node needs {}",
-            z.total_out(),
-            out.len()
-        );
+        let (got, want) = (z.total_out(), out.len());
+        let what = format!("zlib data inflates to {got} bytes, the node needs {want}");
         return Err(invalid(at, what));
     }
     Ok(())
+}
+
+fn unsupported(offset: usize, what: impl Into<String>) -> VdbError {
+    VdbError::Unsupported {
+        offset,
+        what: what.into(),
+    }
 }
 
 /// Decompresses a blosc1 container (c-blosc's blosc_decompress_ctx) into exactly `expected`
@@ -931,189 +1137,134 @@ fn blosc_decompress(
     out: &mut Vec<u8>,
     block: &mut Vec<u8>,
 ) -> Result<u8, VdbError> {
-    let Some(header) = src
+    let header = src
         .get(..BLOSC_HEADER_BYTES)
-        .and_then(|h| <[u8; BLOSC_HEADER_BYTES]>::try_from(h).ok())
-    else {
-        return Err(invalid(
-            at,
-            "blosc chunk is shorter than its 16-byte header",
-        ));
+        .and_then(|h| <[u8; BLOSC_HEADER_BYTES]>::try_from(h).ok());
+    let Some(h) = header else {
+        let what = "blosc chunk is shorter than its 16-byte header";
+        return Err(invalid(at, what));
     };
-    let le = |i: usize| {
-        header
-            .get(i..i + 4)
-            .and_then(|b| b.try_into().ok())
-            .map_or(0, u32::from_le_bytes) as usize
-    };
-    let (version, codec_version, flags) = (header[0], header[1], header[2]);
-    let (typesize, nbytes, blocksize, cbytes) = (header[3] as usize, le(4), le(8), le(12));
+    let le = |i: usize| u32::from_le_bytes([h[i], h[i + 1], h[i + 2], h[i + 3]]) as usize;
+    let (version, codec_version, flags, typesize) = (h[0], h[1], h[2], h[3] as usize);
+    let (nbytes, blocksize, cbytes) = (le(4), le(8), le(12));
     if nbytes != expected {
-        return Err(invalid(
-            at,
-            format!("blosc chunk holds {nbytes} bytes, the node needs {expected}"),
-        ));
+        let what = format!("blosc chunk holds {nbytes} bytes, the node needs {expected}");
+        return Err(invalid(at, what));
     }
-    out.clear();
+    // Every byte is overwritten below, so only the length changes (no re-zeroing per chunk).
     out.resize(expected, 0);
     if nbytes == 0 {
         return Ok(0);
     }
     if version != 2 {
-        let what = format!("blosc format version {version} (only version 2, c-blosc 1.x, is read)");
-        return Err(VdbError::Unsupported { offset: at, what });
+        let what = format!("blosc format version {version} (only 2, c-blosc 1.x)");
+        return Err(unsupported(at, what));
     }
     if flags & 0x08 != 0 {
-        return Err(VdbError::Unsupported {
-            offset: at,
-            what: format!("blosc flags {flags:#04x} from a newer blosc"),
-        });
+        let what = format!("blosc flags {flags:#04x} from a newer blosc");
+        return Err(unsupported(at, what));
     }
     if typesize == 0 || blocksize == 0 || blocksize > expected {
-        return Err(invalid(
-            at,
-            format!("blosc typesize {typesize} or block size {blocksize} is invalid"),
-        ));
+        let what = format!("blosc typesize {typesize} or block size {blocksize} is invalid");
+        return Err(invalid(at, what));
     }
     let Some(src) = src.get(..cbytes).filter(|_| cbytes >= BLOSC_HEADER_BYTES) else {
-        return Err(invalid(
-            at,
-            format!(
-                "blosc header claims {cbytes} bytes, the chunk has {}",
-                src.len()
-            ),
-        ));
+        let what = format!(
+            "blosc header claims {cbytes} bytes, the chunk has {}",
+            src.len()
+        );
+        return Err(invalid(at, what));
     };
     if flags & 0x02 != 0 {
         // Memcpyed: the data follows the header unchanged (and unshuffled).
-        return match src.get(BLOSC_HEADER_BYTES..).filter(|d| d.len() == nbytes) {
-            Some(data) => {
-                out.copy_from_slice(data);
-                Ok(0)
-            }
-            None => Err(invalid(
-                at,
-                "blosc memcpyed chunk size does not match its header",
-            )),
+        let Some(data) = src.get(BLOSC_HEADER_BYTES..).filter(|d| d.len() == nbytes) else {
+            let what = "blosc memcpyed chunk size does not match its header";
+            return Err(invalid(at, what));
         };
+        out.copy_from_slice(data);
+        return Ok(0);
     }
     let (codec, codec_bit) = match flags >> 5 {
         1 => ("lz4", CODEC_LZ4),
         3 => ("zlib", CODEC_ZLIB),
-        0 => {
-            return Err(VdbError::UnsupportedCodec {
-                codec: "blosclz",
-                offset: at,
-            });
-        }
-        2 => {
-            return Err(VdbError::UnsupportedCodec {
-                codec: "snappy",
-                offset: at,
-            });
-        }
-        4 => {
-            return Err(VdbError::UnsupportedCodec {
-                codec: "zstd",
-                offset: at,
-            });
-        }
-        _ => {
-            return Err(VdbError::UnsupportedCodec {
-                codec: "with an unknown code",
-                offset: at,
-            });
+        other => {
+            let codec = ["blosclz", "lz4", "snappy", "zlib", "zstd"].get(other as usize);
+            let codec = codec.copied().unwrap_or("with an unknown code");
+            return Err(VdbError::UnsupportedCodec { codec, offset: at });
         }
     };
     if codec_version != 1 {
-        let what = format!("blosc {codec} format version {codec_version} (only 1 is read)");
-        return Err(VdbError::Unsupported { offset: at, what });
+        let what = format!("blosc {codec} format version {codec_version} (only 1)");
+        return Err(unsupported(at, what));
     }
     if flags & 0x04 != 0 && blocksize >= typesize {
-        let what =
-            "blosc bit-shuffle filter is not supported (OpenVDB writes byte shuffle)".to_string();
-        return Err(VdbError::Unsupported { offset: at, what });
+        let what = "blosc bit-shuffle filter (OpenVDB writes byte shuffle)";
+        return Err(unsupported(at, what));
     }
     let shuffled = flags & 0x01 != 0 && typesize > 1;
     let dont_split = flags & 0x10 != 0;
     let nblocks = nbytes.div_ceil(blocksize);
     let Some(starts) = src.get(BLOSC_HEADER_BYTES..BLOSC_HEADER_BYTES + 4 * nblocks) else {
-        return Err(invalid(
-            at,
-            format!("blosc block table of {nblocks} blocks does not fit the chunk"),
-        ));
+        let what = format!("blosc table of {nblocks} blocks does not fit the chunk");
+        return Err(invalid(at, what));
     };
     let read_u32 = |o: usize| {
         src.get(o..o.checked_add(4)?)
             .and_then(|b| b.try_into().ok())
-            .map(u32::from_le_bytes)
     };
-    block.clear();
     block.resize(blocksize, 0);
     for (j, start) in starts.chunks_exact(4).enumerate() {
         let first = j * blocksize;
         let bsize = blocksize.min(nbytes - first);
-        let leftover = bsize < blocksize;
         // A full block of at least 128 elements was compressed as one stream per byte of the
         // element (after shuffling), unless the writer said not to split.
-        let splits = if !dont_split && typesize <= 16 && bsize / typesize >= 128 && !leftover {
-            typesize
-        } else {
-            1
-        };
+        let split = !dont_split && typesize <= 16 && bsize / typesize >= 128 && bsize == blocksize;
+        let splits = if split { typesize } else { 1 };
         let split_bytes = bsize / splits;
-        let mut offset = u32::from_le_bytes(start.try_into().unwrap_or([0; 4])) as usize;
+        let mut offset = u32::from_le_bytes([start[0], start[1], start[2], start[3]]) as usize;
         let target = if shuffled {
             block.get_mut(..bsize)
         } else {
             out.get_mut(first..first + bsize)
         };
-        let Some(target) = target else {
-            return Err(invalid(at, "blosc block lies outside the output"));
+        let bad = |k: usize| {
+            invalid(
+                at,
+                format!("blosc block {j} split {k} lies outside the chunk"),
+            )
         };
+        let target = target.ok_or_else(|| bad(0))?;
         for k in 0..splits {
-            let bad = || {
-                invalid(
-                    at,
-                    format!("blosc block {j} split {k} lies outside the chunk"),
-                )
+            let csize = read_u32(offset)
+                .map(u32::from_le_bytes)
+                .ok_or_else(|| bad(k))? as usize;
+            let from = offset.checked_add(4);
+            let end = from.and_then(|f| f.checked_add(csize));
+            let data = from.zip(end).and_then(|(f, e)| src.get(f..e));
+            let dst = target.get_mut(k * split_bytes..(k + 1) * split_bytes);
+            let (Some(data), Some(dst)) = (data, dst) else {
+                return Err(bad(k));
             };
-            let csize = read_u32(offset).ok_or_else(bad)? as usize;
-            offset = offset.checked_add(4).ok_or_else(bad)?;
-            let data = offset
-                .checked_add(csize)
-                .and_then(|end| src.get(offset..end))
-                .ok_or_else(bad)?;
-            offset += csize;
-            let dst = target
-                .get_mut(k * split_bytes..(k + 1) * split_bytes)
-                .ok_or_else(bad)?;
+            offset = end.unwrap_or(usize::MAX);
             if csize == split_bytes {
                 dst.copy_from_slice(data); // stored: the compressor could not shrink it
-                continue;
-            }
-            let produced = match codec_bit {
-                CODEC_LZ4 => lz4_flex::block::decompress_into(data, dst).map_err(|e| {
+            } else if codec_bit == CODEC_ZLIB {
+                zlib_decompress(data, dst, at)?;
+            } else {
+                let produced = lz4_flex::block::decompress_into(data, dst).map_err(|e| {
                     invalid(at, format!("corrupt lz4 data in blosc block {j}: {e}"))
-                })?,
-                _ => {
-                    zlib_decompress(data, dst, at)?;
-                    split_bytes
+                })?;
+                if produced != split_bytes {
+                    let what =
+                        format!("blosc block {j} holds {produced} bytes, expected {split_bytes}");
+                    return Err(invalid(at, what));
                 }
-            };
-            if produced != split_bytes {
-                return Err(invalid(
-                    at,
-                    format!(
-                        "blosc block {j} decompresses to {produced} bytes, expected {split_bytes}"
-                    ),
-                ));
             }
         }
         if shuffled {
             let (Some(from), Some(to)) = (block.get(..bsize), out.get_mut(first..first + bsize))
             else {
-                return Err(invalid(at, "blosc block lies outside the output"));
+                return Err(bad(0));
             };
             unshuffle(typesize, from, to);
         }
@@ -1124,20 +1275,21 @@ fn blosc_decompress(
 /// Undoes blosc's byte shuffle: byte `j` of element `i` was stored at `j * elements + i`;
 /// trailing bytes that do not fill an element were left in place.
 fn unshuffle(typesize: usize, from: &[u8], to: &mut [u8]) {
-    let elements = from.len() / typesize;
-    for (j, plane) in from
-        .chunks_exact(elements.max(1))
-        .take(typesize)
-        .enumerate()
-    {
-        for (i, &b) in plane.iter().enumerate().take(elements) {
-            if let Some(slot) = to.get_mut(i * typesize + j) {
-                *slot = b;
-            }
+    let len = from.len().min(to.len());
+    let elements = len / typesize;
+    // Plain index loops (all indices < elements * typesize <= len): this runs for every leaf,
+    // and the crate may be built without optimisation.
+    let mut j = 0;
+    while j < typesize {
+        let (mut i, plane) = (0, j * elements);
+        while i < elements {
+            to[i * typesize + j] = from[plane + i];
+            i += 1;
         }
+        j += 1;
     }
     let tail = elements * typesize;
-    if let (Some(t), Some(f)) = (to.get_mut(tail..), from.get(tail..)) {
+    if let (Some(t), Some(f)) = (to.get_mut(tail..len), from.get(tail..len)) {
         t.copy_from_slice(f);
     }
 }
@@ -1159,351 +1311,65 @@ fn f16_to_f32(h: u16) -> f32 {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Tree topology
-
-struct Leaf {
-    origin: [i64; 3],
-    mask: [u64; 8],
-}
-
-struct Tile {
-    origin: [i64; 3],
-    dim_voxels: i64,
-    value: f32,
-}
-
-struct RootChild {
-    origin: [i64; 3],
-    leaves: std::ops::Range<usize>,
-}
-
-#[derive(Default)]
-struct Topology {
-    leaves: Vec<Leaf>,
-    active_tiles: Vec<Tile>,
-    root_children: Vec<RootChild>,
-    active_voxels: u64,
-    /// Inclusive index box of active voxels, if any.
-    bbox: Option<([i64; 3], [i64; 3])>,
-}
-
-impl Topology {
-    fn add_active(
-        &mut self,
-        voxels: u64,
-        lo: [i64; 3],
-        hi: [i64; 3],
-        limit: u64,
-        name: &str,
-    ) -> Result<(), VdbError> {
-        self.active_voxels = self.active_voxels.saturating_add(voxels);
-        // The dense grid holds at least every active voxel, so this bounds the tile list too.
-        if self.active_voxels > limit {
-            return Err(VdbError::TooManyActive {
-                name: name.to_string(),
-                limit,
-            });
-        }
-        self.bbox = Some(match self.bbox {
-            None => (lo, hi),
-            Some((a, b)) => (
-                [a[0].min(lo[0]), a[1].min(lo[1]), a[2].min(lo[2])],
-                [b[0].max(hi[0]), b[1].max(hi[1]), b[2].max(hi[2])],
-            ),
-        });
-        Ok(())
-    }
-
-    fn add_tile(
-        &mut self,
-        origin: [i64; 3],
-        dim_voxels: i64,
-        value: f32,
-        limit: u64,
-        name: &str,
-    ) -> Result<(), VdbError> {
-        let hi = origin.map(|o| o + dim_voxels - 1);
-        self.add_active((dim_voxels as u64).pow(3), origin, hi, limit, name)?;
-        self.active_tiles.push(Tile {
-            origin,
-            dim_voxels,
-            value,
-        });
-        Ok(())
-    }
-}
-
-/// Internal node levels of the 5-4-3 tree.
-#[derive(Clone, Copy, PartialEq)]
-enum Level {
-    /// 32³ children of 128³ voxels each.
-    Node5,
-    /// 16³ children (leaves) of 8³ voxels each.
-    Node4,
-}
-
-impl Level {
-    fn log2_dim(self) -> u32 {
-        match self {
-            Level::Node5 => 5,
-            Level::Node4 => 4,
-        }
-    }
-    fn child_log2_voxels(self) -> u32 {
-        match self {
-            Level::Node5 => 7,
-            Level::Node4 => 3,
-        }
-    }
-    /// Global origin of child slot `n` (InternalNode::offsetToGlobalCoord).
-    fn child_origin(self, origin: [i64; 3], n: usize) -> [i64; 3] {
-        let (log2, shift) = (self.log2_dim(), self.child_log2_voxels());
-        let local = [
-            n >> (2 * log2),
-            (n >> log2) & ((1 << log2) - 1),
-            n & ((1 << log2) - 1),
-        ];
-        [0, 1, 2].map(|a| origin[a] + ((local[a] as i64) << shift))
-    }
-}
-
-/// Reads the tree topology (Tree::readTopology): buffer count, root background, root tiles and
-/// children, internal nodes with their tile values, and leaf value masks.
-fn read_topology(
-    c: &mut Cursor,
-    s: &mut Stream,
-    limits: &Limits,
-    name: &str,
-    scratch: &mut Scratch,
-) -> Result<Topology, VdbError> {
-    let limit = limits.max_dense_voxels;
-    let mut t = Topology::default();
-    let _buffer_count = c.i32("tree buffer count")?; // always 1; OpenVDB only warns otherwise
-    s.background = c.f32("background value")?;
-    let tile_count = c.u32("root tile count")?;
-    let child_count = c.u32("root child count")?;
-    let mut keys = Vec::new();
-    for _ in 0..tile_count {
-        let at = c.pos;
-        let origin = c.coord("root tile origin")?;
-        let value = c.f32("root tile value")?;
-        let active = c.u8("root tile active flag")? != 0;
-        check_root_origin(origin, at)?;
-        keys.push(origin);
-        if active {
-            t.add_tile(origin, ROOT_CHILD_DIM_VOXELS, value, limit, name)?;
-        }
-    }
-    for _ in 0..child_count {
-        let at = c.pos;
-        let origin = c.coord("root child origin")?;
-        check_root_origin(origin, at)?;
-        keys.push(origin);
-        let first = t.leaves.len();
-        read_internal(c, s, Level::Node5, origin, &mut t, limit, name, scratch)?;
-        t.root_children.push(RootChild {
-            origin,
-            leaves: first..t.leaves.len(),
-        });
-    }
-    // The root keeps its entries in a map: a repeated origin would be dropped there and its
-    // buffers never read, so the file is refused instead.
-    keys.sort_unstable();
-    if let Some(w) = keys.windows(2).find(|w| w.first() == w.get(1)) {
-        return Err(invalid(
-            c.pos,
-            format!("the root holds two entries at {:?}", w.first()),
-        ));
-    }
-    Ok(t)
-}
-
-fn check_root_origin(origin: [i64; 3], at: usize) -> Result<(), VdbError> {
-    if origin.iter().any(|o| o % ROOT_CHILD_DIM_VOXELS != 0) {
-        return Err(invalid(
-            at,
-            format!("root entry origin {origin:?} is not a multiple of 4096"),
-        ));
-    }
-    Ok(())
-}
-
-/// Reads an internal node's topology (InternalNode::readTopology). Node 5 calls this for its
-/// node-4 children, and node 4 reads leaves directly, so the recursion is at most two deep.
-#[allow(clippy::too_many_arguments)]
-fn read_internal(
-    c: &mut Cursor,
-    s: &mut Stream,
-    level: Level,
-    origin: [i64; 3],
-    t: &mut Topology,
-    limit: u64,
-    name: &str,
-    scratch: &mut Scratch,
-) -> Result<(), VdbError> {
-    let slots = 1usize << (3 * level.log2_dim());
-    let child_mask = c.mask(slots / 64, "internal node child mask")?;
-    let value_mask = c.mask(slots / 64, "internal node value mask")?;
-    let mut values = std::mem::take(&mut scratch.node_values);
-    values.clear();
-    values.resize(slots, 0.0);
-    let read = read_compressed_values(c, s, &value_mask, &mut values, scratch);
-    let tiles = read.and_then(|()| {
-        for n in set_bits(&value_mask).filter(|&n| !bit(&child_mask, n)) {
-            let value = values.get(n).copied().unwrap_or(s.background);
-            t.add_tile(
-                level.child_origin(origin, n),
-                1 << level.child_log2_voxels(),
-                value,
-                limit,
-                name,
-            )?;
-        }
-        Ok(())
-    });
-    scratch.node_values = values;
-    tiles?;
-    for n in set_bits(&child_mask) {
-        let child = level.child_origin(origin, n);
-        match level {
-            Level::Node5 => read_internal(c, s, Level::Node4, child, t, limit, name, scratch)?,
-            Level::Node4 => read_leaf_topology(c, child, t, limit, name)?,
-        }
-    }
-    Ok(())
-}
-
-/// Reads a leaf's value mask (LeafNode::readTopology) and records its active voxels.
-fn read_leaf_topology(
-    c: &mut Cursor,
-    origin: [i64; 3],
-    t: &mut Topology,
-    limit: u64,
-    name: &str,
-) -> Result<(), VdbError> {
-    let words = c.mask(8, "leaf value mask")?;
-    let mut mask = [0u64; 8];
-    for (m, w) in mask.iter_mut().zip(words) {
-        *m = w;
-    }
-    let mut lo = [i64::MAX; 3];
-    let mut hi = [i64::MIN; 3];
-    for n in set_bits(&mask) {
-        let local = [n >> 6, (n >> 3) & 7, n & 7];
-        for a in 0..3 {
-            let v = origin[a] + local[a] as i64;
-            lo[a] = lo[a].min(v);
-            hi[a] = hi[a].max(v);
-        }
-    }
-    let active = count_ones(&mask) as u64;
-    if active > 0 {
-        t.add_active(active, lo, hi, limit, name)?;
-    }
-    t.leaves.push(Leaf { origin, mask });
-    Ok(())
-}
-
-// ---------------------------------------------------------------------------------------------
 // Dense grid
 
-/// A dense grid being filled: its lowest index, its size in voxels and its values.
-type Dense = ([i64; 3], [u64; 3], Vec<f32>);
+struct Dense {
+    /// Index of `values[0]`.
+    lo: [i64; 3],
+    dims: [u64; 3],
+    values: Vec<f32>,
+}
 
-/// Allocates the dense grid over the active box, filled with the background.
-fn allocate_dense(t: &Topology, background: f32, limits: &Limits) -> Result<Dense, VdbError> {
-    let Some((lo, hi)) = t.bbox else {
-        return Ok(([0; 3], [0; 3], Vec::new()));
-    };
-    let dims = [0, 1, 2].map(|a| (hi[a] - lo[a] + 1) as u64);
-    let voxels = dims.iter().map(|&d| d as u128).product::<u128>();
-    let too_large = VdbError::TooLarge {
-        x: dims[0],
-        y: dims[1],
-        z: dims[2],
-        voxels,
-        limit: limits.max_dense_voxels,
-    };
-    if voxels > limits.max_dense_voxels as u128 || dims.iter().any(|&d| d > u32::MAX as u64) {
-        return Err(too_large);
-    }
-    let count = usize::try_from(voxels).map_err(|_| too_large)?;
-    let mut values = Vec::new();
-    values
-        .try_reserve_exact(count)
-        .map_err(|_| VdbError::OutOfMemory {
+impl Dense {
+    /// Allocates the dense grid over the active box, filled with the background.
+    fn allocate(t: &Topology, background: f32, limits: &Limits) -> Result<Dense, VdbError> {
+        let Some((lo, hi)) = t.bbox else {
+            return Ok(Dense {
+                lo: [0; 3],
+                dims: [0; 3],
+                values: Vec::new(),
+            });
+        };
+        let dims = [0, 1, 2].map(|a| (hi[a] - lo[a] + 1) as u64);
+        let voxels = dims.iter().map(|&d| d as u128).product::<u128>();
+        let limit = limits.max_dense_voxels;
+        let too_large = VdbError::TooLarge {
+            x: dims[0],
+            y: dims[1],
+            z: dims[2],
+            voxels,
+            limit,
+        };
+        if voxels > limit as u128 || dims.iter().any(|&d| d > u32::MAX as u64) {
+            return Err(too_large);
+        }
+        let count = usize::try_from(voxels).map_err(|_| too_large)?;
+        let mut values = Vec::new();
+        let oom = VdbError::OutOfMemory {
             voxels: count as u64,
-        })?;
-    values.resize(count, background);
-    Ok((lo, dims, values))
-}
+        };
+        values.try_reserve_exact(count).map_err(|_| oom)?;
+        values.resize(count, background);
+        Ok(Dense { lo, dims, values })
+    }
 
-/// Dense index of an index-space coordinate known to lie in the box.
-fn dense_index(p: [i64; 3], lo: [i64; 3], dims: [u64; 3]) -> Option<usize> {
-    let l = [0, 1, 2].map(|a| (p[a] - lo[a]) as u64);
-    let i = (l[2].checked_mul(dims[1])?.checked_add(l[1])?)
-        .checked_mul(dims[0])?
-        .checked_add(l[0])?;
-    usize::try_from(i).ok()
-}
-
-fn fill_tiles(
-    t: &Topology,
-    lo: [i64; 3],
-    dims: [u64; 3],
-    values: &mut [f32],
-) -> Result<(), VdbError> {
-    for tile in &t.active_tiles {
-        let d = tile.dim_voxels;
-        for z in tile.origin[2]..tile.origin[2] + d {
-            for y in tile.origin[1]..tile.origin[1] + d {
-                let row = dense_index([tile.origin[0], y, z], lo, dims)
-                    .and_then(|start| values.get_mut(start..start.checked_add(d as usize)?));
-                row.ok_or_else(|| invalid(0, "internal error: tile outside the dense box"))?
-                    .fill(tile.value);
+    /// Fills the active tiles' voxels, row by row.
+    fn fill_tiles(&mut self, tiles: &[Tile]) -> Result<(), VdbError> {
+        let (lo, dims) = (self.lo, self.dims);
+        for tile in tiles {
+            let (d, [x, y0, z0]) = (tile.dim_voxels, tile.origin);
+            for z in z0..z0 + d {
+                for y in y0..y0 + d {
+                    let l = [x - lo[0], y - lo[1], z - lo[2]].map(|v| v as u64);
+                    let start = (l[2] * dims[1] + l[1]) * dims[0] + l[0];
+                    let row = usize::try_from(start)
+                        .ok()
+                        .and_then(|s| self.values.get_mut(s..s + d as usize));
+                    row.ok_or_else(|| invalid(0, "internal error: tile outside the box"))?
+                        .fill(tile.value);
+                }
             }
         }
+        Ok(())
     }
-    Ok(())
-}
-
-/// Reads the leaf buffers (Tree::readBuffers) and writes active values into the dense grid.
-/// The root visits its children in coordinate order (it stores them in a std::map), each
-/// internal node in child-mask order, which is the order of `leaves` within a root child.
-fn read_leaf_buffers(
-    c: &mut Cursor,
-    s: &mut Stream,
-    t: &Topology,
-    lo: [i64; 3],
-    dims: [u64; 3],
-    values: &mut [f32],
-    scratch: &mut Scratch,
-) -> Result<(), VdbError> {
-    let mut order: Vec<&RootChild> = t.root_children.iter().collect();
-    order.sort_by_key(|r| r.origin);
-    let mut leaf_values = [0.0f32; LEAF_VALUES];
-    for root_child in order {
-        for leaf in t.leaves.get(root_child.leaves.clone()).unwrap_or_default() {
-            // A seekable OpenVDB reader skips this copy of the mask and keeps the topology's.
-            c.take(64, "leaf value mask (buffer copy)")?;
-            read_compressed_values(c, s, &leaf.mask, &mut leaf_values, scratch)?;
-            for n in set_bits(&leaf.mask) {
-                let p = [
-                    leaf.origin[0] + (n >> 6) as i64,
-                    leaf.origin[1] + ((n >> 3) & 7) as i64,
-                    leaf.origin[2] + (n & 7) as i64,
-                ];
-                let slot = dense_index(p, lo, dims).and_then(|i| values.get_mut(i));
-                *slot.ok_or_else(|| {
-                    invalid(c.pos, "internal error: voxel outside the dense box")
-                })? = leaf_values.get(n).copied().unwrap_or(s.background);
-            }
-        }
-    }
-    Ok(())
-}
-
-fn index_min_ivec(lo: [i64; 3]) -> IVec3 {
-    // Origins are i32 and offsets non-negative within the node, so the box minimum fits.
-    IVec3::new(lo[0] as i32, lo[1] as i32, lo[2] as i32)
 }
