@@ -59,7 +59,8 @@ pub struct BenchArgs {
     /// each `--grid-sizes`) or an OpenVDB file (its `density` grid): the cloud's noise and
     /// bake, the light march and the eye's march per grid and light step count, as wall times
     /// (`bench_volume.csv`).
-    #[arg(long, value_name = "cloud|FILE.vdb")]
+    #[arg(long, value_name = "cloud|FILE.vdb",
+          conflicts_with_all = ["scene", "techniques", "particles_list", "particle_res", "sort"])]
     pub volume: Option<String>,
     /// The cloud's grid edge lengths for `--volume cloud` (a layer of N x N/4 x N voxels).
     #[arg(long, value_delimiter = ',', value_name = "N,...", default_value = "64,128,256",
