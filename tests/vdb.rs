@@ -244,7 +244,7 @@ fn bench_volume_measures_every_stage_of_a_file_and_of_the_cloud() {
     let smoke = dir.join(TWO_GRIDS);
     for (source, expected_rows) in [
         (smoke.to_str().unwrap(), 2 * 2),
-        ("cloud", 1 + 2 + 2 * 2 * 2),
+        ("cloud", 1 + 2 * 2 + 2 * 2 * 2 * 2),
     ] {
         let o = out.join(if source == "cloud" { "cloud" } else { "file" });
         let args = [
@@ -255,6 +255,8 @@ fn bench_volume_measures_every_stage_of_a_file_and_of_the_cloud() {
             "8,16",
             "--light-steps",
             "2,4",
+            "--coverages",
+            "0.3,0.9",
             "--eye-steps",
             "4",
             "--frames",
@@ -278,16 +280,16 @@ fn bench_volume_measures_every_stage_of_a_file_and_of_the_cloud() {
         for row in rows {
             // (No field holds a comma: the stages are named without.)
             let fields: Vec<&str> = row.split(',').collect();
-            assert_eq!(fields.len(), 7, "{row}");
-            let ms: f64 = fields[5].parse().unwrap();
+            assert_eq!(fields.len(), 8, "{row}");
+            let ms: f64 = fields[6].parse().unwrap();
             assert!(ms > 0.0 && ms.is_finite(), "{row}");
             // The eye march's error against the most light steps: 0 for those, positive or
             // empty (the other stages) otherwise.
-            if fields[2].starts_with("eye march") {
-                let rmse: f64 = fields[6].parse().unwrap();
-                assert_eq!(rmse == 0.0, fields[4] == "4", "{row}");
+            if fields[3].starts_with("eye march") {
+                let rmse: f64 = fields[7].parse().unwrap();
+                assert_eq!(rmse == 0.0, fields[5] == "4", "{row}");
             } else {
-                assert_eq!(fields[6], "", "{row}");
+                assert_eq!(fields[7], "", "{row}");
             }
         }
     }

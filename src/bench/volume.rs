@@ -49,6 +49,9 @@ pub struct VolumeBenchOptions {
     pub source: VolumeSource,
     /// Edge lengths of the cloud's bake (ignored for a file).
     pub grid_sizes: Vec<u32>,
+    /// The cloud layer's coverages, 0..1 (ignored for a file): the dissertation's coverage
+    /// axis (000 §4.1.5, 10-100%), along which SRM's cost grows with the cloud it crosses.
+    pub coverages: Vec<f32>,
     /// Steps towards the light: the light march's, and SRM's per eye sample.
     pub light_steps: Vec<u32>,
     pub eye_steps: u32,
@@ -63,6 +66,8 @@ pub struct VolumeBenchOptions {
 pub struct VolumeBenchRow {
     /// The grid's voxels along x, y, z, as `64x16x64`.
     pub grid: String,
+    /// The cloud's coverage, for a baked cloud.
+    pub coverage: Option<f32>,
     /// Bytes of the grid on the device.
     pub grid_bytes: u64,
     pub stage: &'static str,
@@ -76,14 +81,14 @@ pub struct VolumeBenchRow {
     pub rmse_vs_most_steps: Option<f64>,
 }
 
-/// The cloud the bench bakes: a 6 km layer 1.5 km thick, half covered, its coverage map on.
-fn bench_cloud() -> CloudParams {
+/// The cloud the bench bakes: a 6 km layer 1.5 km thick at `coverage`, its coverage map on.
+fn bench_cloud(coverage: f32) -> CloudParams {
     CloudParams {
         origin_xz_m: [-3000.0, -3000.0],
         size_xz_m: [6000.0, 6000.0],
         altitude_m: 1500.0,
         thickness_m: 1500.0,
-        coverage: 0.6,
+        coverage,
         density_per_m: 0.02,
         top_fraction: 1.0,
         shape_period_m: 4000.0,
@@ -111,25 +116,35 @@ fn median_ms(
     Ok(times[times.len() / 2])
 }
 
-/// Runs the bench: for each grid (each size of the cloud, or the file's), the light march and
-/// the eye march at each light step count; for the cloud, the noise and the bake too.
-pub fn run(gpu: &Gpu, options: &VolumeBenchOptions) -> anyhow::Result<Vec<VolumeBenchRow>> {
+/// What a bench measured, and the grids it could not march (empty: no cloud at that coverage, or
+/// a file's empty grid), one line each.
+pub struct VolumeBench {
+    pub rows: Vec<VolumeBenchRow>,
+    pub skipped: Vec<String>,
+}
+
+/// Runs the bench: for each grid (each size and coverage of the cloud, or the file's), the light
+/// march and the eye march at each light step count; for the cloud, the noise and the bake too.
+pub fn run(gpu: &Gpu, options: &VolumeBenchOptions) -> anyhow::Result<VolumeBench> {
     let mut rows = Vec::new();
+    let mut skipped = Vec::new();
     let mut ledger = MemoryLedger::for_device(&gpu.limits);
     let march = GridMarch::new(gpu);
     let eye = EyeMarchProbe::new(gpu);
-    let grids: Vec<DensityGrid> = match &options.source {
+    let grids: Vec<(Option<f32>, DensityGrid)> = match &options.source {
         VolumeSource::File(path) => {
             let bytes =
                 std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
             let grid = vdb::read_float_grid(&bytes, "density", &vdb::Limits::default())
                 .with_context(|| format!("{}", path.display()))?;
-            vec![DensityGrid::from_vdb(&grid, DAffine3::IDENTITY, 10.0)?]
+            vec![(
+                None,
+                DensityGrid::from_vdb(&grid, DAffine3::IDENTITY, 10.0)?,
+            )]
         }
         VolumeSource::Cloud => {
             let generator = CloudNoiseGenerator::new(gpu);
             let baker = CloudBaker::new(gpu);
-            let params = bench_cloud();
             let noise_ms = median_ms(options.warmup, options.frames, || {
                 // The textures are made and dropped each run; `read_texels` would add a readback.
                 let mut scratch = MemoryLedger::for_device(&gpu.limits);
@@ -139,6 +154,7 @@ pub fn run(gpu: &Gpu, options: &VolumeBenchOptions) -> anyhow::Result<Vec<Volume
             })?;
             rows.push(VolumeBenchRow {
                 grid: "noise 128+32".to_owned(),
+                coverage: None,
                 grid_bytes: (128u64.pow(3) + 32u64.pow(3)) * 16,
                 stage: "cloud noise",
                 eye_steps: 0,
@@ -149,34 +165,44 @@ pub fn run(gpu: &Gpu, options: &VolumeBenchOptions) -> anyhow::Result<Vec<Volume
             let noise = generator.generate(gpu, &mut ledger, 7)?;
             let mut grids = Vec::new();
             for &size in &options.grid_sizes {
-                let dims = UVec3::new(size, (size / 4).max(1), size);
-                let mut grid = None;
-                let bake_ms = median_ms(options.warmup, options.frames, || {
-                    let mut scratch = MemoryLedger::for_device(&gpu.limits);
-                    grid = Some(baker.bake(gpu, &mut scratch, &noise, &params, dims)?);
-                    Ok(())
-                })?;
-                let grid = grid.expect("baked at least once");
-                rows.push(VolumeBenchRow {
-                    grid: format!("{}x{}x{}", dims.x, dims.y, dims.z),
-                    grid_bytes: 4 * u64::from(dims.x * dims.y * dims.z),
-                    stage: "cloud bake (with readback)",
-                    eye_steps: 0,
-                    light_steps: 0,
-                    median_ms: bake_ms,
-                    rmse_vs_most_steps: None,
-                });
-                grids.push(grid);
+                for &coverage in &options.coverages {
+                    let params = bench_cloud(coverage);
+                    let dims = UVec3::new(size, (size / 4).max(1), size);
+                    let mut grid = None;
+                    let bake_ms = median_ms(options.warmup, options.frames, || {
+                        let mut scratch = MemoryLedger::for_device(&gpu.limits);
+                        grid = Some(baker.bake(gpu, &mut scratch, &noise, &params, dims)?);
+                        Ok(())
+                    })?;
+                    let grid = grid.expect("baked at least once");
+                    rows.push(VolumeBenchRow {
+                        grid: format!("{}x{}x{}", dims.x, dims.y, dims.z),
+                        coverage: Some(coverage),
+                        grid_bytes: 4 * u64::from(dims.x * dims.y * dims.z),
+                        stage: "cloud bake (with readback)",
+                        eye_steps: 0,
+                        light_steps: 0,
+                        median_ms: bake_ms,
+                        rmse_vs_most_steps: None,
+                    });
+                    grids.push((Some(coverage), grid));
+                }
             }
             grids
         }
     };
-    for grid in &grids {
+    for (coverage, grid) in &grids {
+        let coverage = *coverage;
         let uploaded = GpuGrid::upload(gpu, &mut ledger, grid)?;
         let dims = grid.dims;
         let name = format!("{}x{}x{}", dims.x, dims.y, dims.z);
-        let Some((lo, hi)) = grid.world_bounds() else {
-            anyhow::bail!("the grid is empty: nothing to march");
+        let Some((lo, hi)) = grid
+            .world_bounds()
+            .filter(|_| grid.values.iter().any(|v| *v > 0.0))
+        else {
+            let at = coverage.map_or(String::new(), |c| format!(" at coverage {c}"));
+            skipped.push(format!("{name}{at}: no density anywhere, nothing to march"));
+            continue;
         };
         let (lo, hi) = (lo.as_vec3(), hi.as_vec3());
         let centre = 0.5 * (lo + hi);
@@ -223,6 +249,7 @@ pub fn run(gpu: &Gpu, options: &VolumeBenchOptions) -> anyhow::Result<Vec<Volume
             })?;
             rows.push(VolumeBenchRow {
                 grid: name.clone(),
+                coverage,
                 grid_bytes: uploaded.bytes,
                 stage: "light march at 256² points",
                 eye_steps: 0,
@@ -252,6 +279,7 @@ pub fn run(gpu: &Gpu, options: &VolumeBenchOptions) -> anyhow::Result<Vec<Volume
             }
             rows.push(VolumeBenchRow {
                 grid: name.clone(),
+                coverage,
                 grid_bytes: uploaded.bytes,
                 stage: "eye march + SRM (ray a pixel)",
                 eye_steps: options.eye_steps,
@@ -271,7 +299,7 @@ pub fn run(gpu: &Gpu, options: &VolumeBenchOptions) -> anyhow::Result<Vec<Volume
             }
         }
     }
-    Ok(rows)
+    Ok(VolumeBench { rows, skipped })
 }
 
 /// Writes the rows as CSV into `folder` (created if missing), atomically.
@@ -281,6 +309,7 @@ pub fn write_csv(rows: &[VolumeBenchRow], folder: &Path) -> anyhow::Result<PathB
     let mut csv = csv::Writer::from_writer(Vec::new());
     csv.write_record([
         "grid",
+        "coverage",
         "grid_bytes",
         "stage",
         "eye_steps",
@@ -294,6 +323,7 @@ pub fn write_csv(rows: &[VolumeBenchRow], folder: &Path) -> anyhow::Result<PathB
             .map_or(String::new(), |e| format!("{e:.6}"));
         csv.write_record([
             r.grid.clone(),
+            r.coverage.map_or(String::new(), |c| c.to_string()),
             r.grid_bytes.to_string(),
             r.stage.to_owned(),
             r.eye_steps.to_string(),

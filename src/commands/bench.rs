@@ -66,6 +66,10 @@ pub struct BenchArgs {
     #[arg(long, value_delimiter = ',', value_name = "N,...", default_value = "64,128,256",
           value_parser = clap::value_parser!(u32).range(4..=512))]
     pub grid_sizes: Vec<u32>,
+    /// The cloud's coverages for `--volume cloud`, 0..1 (the dissertation's coverage axis).
+    #[arg(long, value_delimiter = ',', value_name = "C,...", default_value = "0.6",
+          value_parser = coverage_fraction)]
+    pub coverages: Vec<f32>,
     /// Steps towards the light for `--volume` (the light march's, and per eye sample).
     #[arg(long, value_delimiter = ',', value_name = "N,...", default_value = "16,64,256",
           value_parser = clap::value_parser!(u32).range(1..=16384))]
@@ -312,6 +316,7 @@ fn run_volume(args: &BenchArgs, source: &str, adapter: &AdapterPreference) -> an
     let options = VolumeBenchOptions {
         source: VolumeSource::parse(source),
         grid_sizes: args.grid_sizes.clone(),
+        coverages: args.coverages.clone(),
         light_steps: args.light_steps.clone(),
         eye_steps: args.eye_steps,
         frames: args.frames,
@@ -319,7 +324,7 @@ fn run_volume(args: &BenchArgs, source: &str, adapter: &AdapterPreference) -> an
         size_px: args.size.map_or((256, 192), |s| (s.width, s.height)),
     };
     let gpu = Gpu::new(adapter)?;
-    let rows = volume::run(&gpu, &options)?;
+    let volume::VolumeBench { rows, skipped } = volume::run(&gpu, &options)?;
     println!(
         "bench --volume {source}: eye rays {}x{}, {} eye steps, {} frames after {} warm-up, {}",
         options.size_px.0,
@@ -334,15 +339,16 @@ fn run_volume(args: &BenchArgs, source: &str, adapter: &AdapterPreference) -> an
         "  rmse: the eye march's radiance against the same grid's march with the most light steps"
     );
     println!(
-        "{:<14} {:>10} {:<32} {:>5} {:>5} {:>10} {:>9}",
-        "grid", "MiB", "stage", "eye", "light", "wall ms", "rmse"
+        "{:<14} {:>5} {:>10} {:<32} {:>5} {:>5} {:>10} {:>9}",
+        "grid", "cover", "MiB", "stage", "eye", "light", "wall ms", "rmse"
     );
     for r in &rows {
         let rmse = r
             .rmse_vs_most_steps
             .map_or(String::new(), |e| format!("{e:.5}"));
+        let coverage = r.coverage.map_or(String::new(), |c| format!("{c}"));
         println!(
-            "{:<14} {:>10.2} {:<32} {:>5} {:>5} {:>10.1} {:>9}",
+            "{:<14} {coverage:>5} {:>10.2} {:<32} {:>5} {:>5} {:>10.1} {:>9}",
             r.grid,
             r.grid_bytes as f64 / (1024.0 * 1024.0),
             r.stage,
@@ -352,7 +358,22 @@ fn run_volume(args: &BenchArgs, source: &str, adapter: &AdapterPreference) -> an
             rmse
         );
     }
+    for line in &skipped {
+        println!("skipped {line}");
+    }
     let path = volume::write_csv(&rows, &args.output)?;
     println!("wrote {}", path.display());
     Ok(())
+}
+
+/// A coverage in 0..1.
+fn coverage_fraction(text: &str) -> Result<f32, String> {
+    let c: f32 = text
+        .trim()
+        .parse()
+        .map_err(|_| format!("{text:?} is not a number"))?;
+    match (0.0..=1.0).contains(&c) {
+        true => Ok(c),
+        false => Err(format!("coverage {c} is outside [0, 1]")),
+    }
 }
