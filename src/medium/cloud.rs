@@ -12,7 +12,10 @@ use super::cloud_noise::{
     CloudNoiseParams, CloudParams, DETAIL_SIZE, FLOATS_PER_TEXEL, SHAPE_SIZE,
 };
 use super::grid::DensityGrid;
-use crate::gpu::{AllocationError, Gpu, GpuError, MemoryLedger, read_buffer, storage_descriptor};
+use crate::gpu::{
+    AllocationError, Gpu, GpuError, MemoryLedger, read_buffer, storage_descriptor, storage_entry,
+    texture_3d_entry, uniform_entry,
+};
 use crate::shaders;
 
 /// Keep in sync with `BakeParams` in shaders/medium/cloud_bake.wgsl.
@@ -97,23 +100,13 @@ impl CloudNoiseGenerator {
             "medium.cloud_noise_gen",
             &shaders::compose("medium/cloud_noise_gen.wgsl", &[]),
         );
-        let entry = |binding, ty| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Buffer {
-                ty,
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        };
-        let storage = wgpu::BufferBindingType::Storage { read_only: false };
+        let compute = wgpu::ShaderStages::COMPUTE;
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("medium.cloud_noise.layout"),
             entries: &[
-                entry(0, wgpu::BufferBindingType::Uniform),
-                entry(1, storage),
-                entry(2, storage),
+                uniform_entry(0, compute),
+                storage_entry(1, compute, false),
+                storage_entry(2, compute, false),
             ],
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -293,34 +286,15 @@ impl CloudBaker {
             &shaders::compose("medium/cloud_bake.wgsl", &[]),
         );
         let compute = wgpu::ShaderStages::COMPUTE;
-        let buffer = |binding, ty| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: compute,
-            ty: wgpu::BindingType::Buffer {
-                ty,
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        };
-        let texture = |binding| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: compute,
-            ty: wgpu::BindingType::Texture {
-                sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                view_dimension: wgpu::TextureViewDimension::D3,
-                multisampled: false,
-            },
-            count: None,
-        };
+        let noise = wgpu::TextureSampleType::Float { filterable: false };
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("medium.cloud_bake.layout"),
             entries: &[
-                buffer(0, wgpu::BufferBindingType::Uniform),
-                buffer(1, wgpu::BufferBindingType::Uniform),
-                texture(2),
-                texture(3),
-                buffer(4, wgpu::BufferBindingType::Storage { read_only: false }),
+                uniform_entry(0, compute),
+                uniform_entry(1, compute),
+                texture_3d_entry(2, compute, noise),
+                texture_3d_entry(3, compute, noise),
+                storage_entry(4, compute, false),
             ],
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {

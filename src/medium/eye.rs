@@ -6,10 +6,9 @@
 
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
-use wgpu::util::DeviceExt;
 
-use super::gpu_grid::{GpuGrid, GridGpuError};
-use crate::gpu::{Gpu, read_buffer};
+use super::gpu_grid::{GpuGrid, GridGpuError, GridProbe};
+use crate::gpu::Gpu;
 use crate::shaders;
 
 /// Keep in sync with `EyeProbeParams` in shaders/medium/eye_march_probe.wgsl.
@@ -81,62 +80,19 @@ pub struct EyeResult {
 
 /// The eye-march probe's pipeline.
 pub struct EyeMarchProbe {
-    layout: wgpu::BindGroupLayout,
-    pipeline: wgpu::ComputePipeline,
+    probe: GridProbe,
 }
 
 impl EyeMarchProbe {
     pub fn new(gpu: &Gpu) -> Self {
-        let device = &gpu.device;
-        let module = shaders::module(
-            device,
-            "medium.eye_march_probe",
-            &shaders::compose("medium/eye_march_probe.wgsl", &[]),
-        );
-        let compute = wgpu::ShaderStages::COMPUTE;
-        let buffer = |binding, ty| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: compute,
-            ty: wgpu::BindingType::Buffer {
-                ty,
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        };
-        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("medium.eye_probe.layout"),
-            entries: &[
-                buffer(0, wgpu::BufferBindingType::Uniform),
-                wgpu::BindGroupLayoutEntry {
-                    binding: 1,
-                    visibility: compute,
-                    ty: wgpu::BindingType::Texture {
-                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                        view_dimension: wgpu::TextureViewDimension::D3,
-                        multisampled: false,
-                    },
-                    count: None,
-                },
-                buffer(2, wgpu::BufferBindingType::Uniform),
-                buffer(3, wgpu::BufferBindingType::Storage { read_only: true }),
-                buffer(4, wgpu::BufferBindingType::Storage { read_only: false }),
-            ],
-        });
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("medium.eye_probe.pipeline_layout"),
-            bind_group_layouts: &[Some(&layout)],
-            immediate_size: 0,
-        });
-        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("medium.eye_probe.pipeline"),
-            layout: Some(&pipeline_layout),
-            module: &module,
-            entry_point: Some("eye_probe_main"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
-        Self { layout, pipeline }
+        Self {
+            probe: GridProbe::new(
+                gpu,
+                "medium.eye_probe",
+                "medium/eye_march_probe.wgsl",
+                "eye_probe_main",
+            ),
+        }
     }
 
     /// The march along each of `rays` through `grid`. Refused where one invocation's loops
@@ -157,10 +113,6 @@ impl EyeMarchProbe {
                 budget,
             });
         }
-        if rays.is_empty() {
-            return Ok(Vec::new());
-        }
-        let device = &gpu.device;
         let params = EyeProbeParams {
             light: settings.light.extend(1.0).to_array(),
             albedo: settings.albedo.extend(0.0).to_array(),
@@ -169,11 +121,6 @@ impl EyeMarchProbe {
             count: rays.len() as u32,
             jitter: settings.jitter,
         };
-        let params = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("medium.eye_probe.params"),
-            contents: bytemuck::bytes_of(&params),
-            usage: wgpu::BufferUsages::UNIFORM,
-        });
         let data: Vec<EyeRayData> = rays
             .iter()
             .map(|r| EyeRayData {
@@ -181,43 +128,14 @@ impl EyeMarchProbe {
                 dir: r.dir.extend(r.t_far).to_array(),
             })
             .collect();
-        let rays_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("medium.eye_probe.rays"),
-            contents: bytemuck::cast_slice(&data),
-            usage: wgpu::BufferUsages::STORAGE,
-        });
-        let size = 16 * rays.len() as u64;
-        let results = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("medium.eye_probe.results"),
-            size,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
-        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("medium.eye_probe.bind_group"),
-            layout: &self.layout,
-            entries: &[
-                crate::gpu::bind_entry(0, grid.params()),
-                crate::gpu::texture_binding(1, grid.view()),
-                crate::gpu::bind_entry(2, &params),
-                crate::gpu::bind_entry(3, &rays_buffer),
-                crate::gpu::bind_entry(4, &results),
-            ],
-        });
-        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
-            label: Some("medium.eye_probe.encoder"),
-        });
-        {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("medium.eye_probe"),
-                timestamp_writes: None,
-            });
-            pass.set_pipeline(&self.pipeline);
-            pass.set_bind_group(0, &bind_group, &[]);
-            pass.dispatch_workgroups((rays.len() as u32).div_ceil(64), 1, 1);
-        }
-        gpu.queue.submit([encoder.finish()]);
-        let bytes = read_buffer(gpu, &results, 0, size)?;
+        let bytes = self.probe.run(
+            gpu,
+            grid,
+            bytemuck::bytes_of(&params),
+            bytemuck::cast_slice(&data),
+            rays.len(),
+            16,
+        )?;
         let values: &[[f32; 4]] = bytemuck::cast_slice(&bytes);
         Ok(values
             .iter()

@@ -10,7 +10,10 @@ use thiserror::Error;
 use wgpu::util::DeviceExt;
 
 use super::grid::DensityGrid;
-use crate::gpu::{AllocationError, Gpu, GpuError, MemoryLedger, read_buffer};
+use crate::gpu::{
+    AllocationError, Gpu, GpuError, MemoryLedger, bind_entry, read_buffer, storage_entry,
+    texture_3d_entry, texture_binding, uniform_entry,
+};
 use crate::shaders;
 
 /// Keep in sync with `GridParams` in shaders/medium/grid.wgsl.
@@ -111,16 +114,6 @@ pub struct GpuGrid {
 }
 
 impl GpuGrid {
-    /// The grid's uniform (`GridParams`), for a pipeline that binds the grid.
-    pub fn params(&self) -> &wgpu::Buffer {
-        &self.params
-    }
-
-    /// The voxels' 3D texture view.
-    pub fn view(&self) -> &wgpu::TextureView {
-        &self.view
-    }
-
     /// Uploads `grid`, its texture and uniform recorded in `ledger` (an empty grid takes one
     /// zero voxel, so that the binding exists).
     pub fn upload(
@@ -208,64 +201,131 @@ impl GpuGrid {
     }
 }
 
-/// The transmittance march's pipeline.
-pub struct GridMarch {
+/// A compute pipeline that evaluates something of a grid at a list of inputs, one invocation
+/// an input (`@workgroup_size(64)`), with the bindings every such shader declares: the grid's
+/// uniform (0) and voxels (1), its own uniform (2), its inputs (3, read) and its results (4).
+/// [`GridMarch`] and `super::eye::EyeMarchProbe` are two.
+pub(super) struct GridProbe {
+    label: &'static str,
     layout: wgpu::BindGroupLayout,
     pipeline: wgpu::ComputePipeline,
 }
 
-impl GridMarch {
-    pub fn new(gpu: &Gpu) -> Self {
+impl GridProbe {
+    /// The pipeline of `entry_point` in the composed `shader`, its objects labelled `label`.
+    pub(super) fn new(gpu: &Gpu, label: &'static str, shader: &str, entry_point: &str) -> Self {
         let device = &gpu.device;
-        let module = shaders::module(
-            device,
-            "medium.grid_march",
-            &shaders::compose("medium/grid_march.wgsl", &[]),
-        );
+        let module = shaders::module(device, label, &shaders::compose(shader, &[]));
         let compute = wgpu::ShaderStages::COMPUTE;
-        let buffer = |binding, ty| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: compute,
-            ty: wgpu::BindingType::Buffer {
-                ty,
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        };
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("medium.grid_march.layout"),
+            label: Some(&format!("{label}.layout")),
             entries: &[
-                buffer(0, wgpu::BufferBindingType::Uniform),
-                wgpu::BindGroupLayoutEntry {
-                    binding: 1,
-                    visibility: compute,
-                    ty: wgpu::BindingType::Texture {
-                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                        view_dimension: wgpu::TextureViewDimension::D3,
-                        multisampled: false,
-                    },
-                    count: None,
-                },
-                buffer(2, wgpu::BufferBindingType::Uniform),
-                buffer(3, wgpu::BufferBindingType::Storage { read_only: true }),
-                buffer(4, wgpu::BufferBindingType::Storage { read_only: false }),
+                uniform_entry(0, compute),
+                texture_3d_entry(
+                    1,
+                    compute,
+                    wgpu::TextureSampleType::Float { filterable: false },
+                ),
+                uniform_entry(2, compute),
+                storage_entry(3, compute, true),
+                storage_entry(4, compute, false),
             ],
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("medium.grid_march.pipeline_layout"),
+            label: Some(&format!("{label}.pipeline_layout")),
             bind_group_layouts: &[Some(&layout)],
             immediate_size: 0,
         });
         let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("medium.grid_march.pipeline"),
+            label: Some(&format!("{label}.pipeline")),
             layout: Some(&pipeline_layout),
             module: &module,
-            entry_point: Some("march_main"),
+            entry_point: Some(entry_point),
             compilation_options: Default::default(),
             cache: None,
         });
-        Self { layout, pipeline }
+        Self {
+            label,
+            layout,
+            pipeline,
+        }
+    }
+
+    /// Evaluates `count` inputs (`inputs`, laid out as the shader reads them) through `grid`
+    /// with the shader's uniform `params`, and reads back `result_bytes` bytes a result.
+    pub(super) fn run(
+        &self,
+        gpu: &Gpu,
+        grid: &GpuGrid,
+        params: &[u8],
+        inputs: &[u8],
+        count: usize,
+        result_bytes: u64,
+    ) -> Result<Vec<u8>, GpuError> {
+        if count == 0 {
+            return Ok(Vec::new());
+        }
+        let device = &gpu.device;
+        let label = self.label;
+        let buffer = |what: &str, contents: &[u8], usage| {
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(&format!("{label}.{what}")),
+                contents,
+                usage,
+            })
+        };
+        let params = buffer("params", params, wgpu::BufferUsages::UNIFORM);
+        let inputs = buffer("inputs", inputs, wgpu::BufferUsages::STORAGE);
+        let size = result_bytes * count as u64;
+        let results = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(&format!("{label}.results")),
+            size,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some(&format!("{label}.bind_group")),
+            layout: &self.layout,
+            entries: &[
+                bind_entry(0, &grid.params),
+                texture_binding(1, &grid.view),
+                bind_entry(2, &params),
+                bind_entry(3, &inputs),
+                bind_entry(4, &results),
+            ],
+        });
+        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some(&format!("{label}.encoder")),
+        });
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some(label),
+                timestamp_writes: None,
+            });
+            pass.set_pipeline(&self.pipeline);
+            pass.set_bind_group(0, &bind_group, &[]);
+            pass.dispatch_workgroups((count as u32).div_ceil(64), 1, 1);
+        }
+        gpu.queue.submit([encoder.finish()]);
+        read_buffer(gpu, &results, 0, size)
+    }
+}
+
+/// The transmittance march's pipeline.
+pub struct GridMarch {
+    probe: GridProbe,
+}
+
+impl GridMarch {
+    pub fn new(gpu: &Gpu) -> Self {
+        Self {
+            probe: GridProbe::new(
+                gpu,
+                "medium.grid_march",
+                "medium/grid_march.wgsl",
+                "march_main",
+            ),
+        }
     }
 
     /// T from `light` to each of `points` (world metres) through `grid`, marched with `steps`
@@ -283,59 +343,21 @@ impl GridMarch {
         {
             return Err(GridGpuError::TooManySteps { steps, budget });
         }
-        if points.is_empty() {
-            return Ok(Vec::new());
-        }
-        let device = &gpu.device;
         let params = MarchParams {
             light: light.extend(1.0).to_array(),
             steps,
             count: points.len() as u32,
             _pad: [0; 2],
         };
-        let params = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("medium.grid_march.params"),
-            contents: bytemuck::bytes_of(&params),
-            usage: wgpu::BufferUsages::UNIFORM,
-        });
         let padded: Vec<[f32; 4]> = points.iter().map(|p| p.extend(1.0).to_array()).collect();
-        let points_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("medium.grid_march.points"),
-            contents: bytemuck::cast_slice(&padded),
-            usage: wgpu::BufferUsages::STORAGE,
-        });
-        let size = 4 * points.len() as u64;
-        let results = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("medium.grid_march.transmittance"),
-            size,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
-        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("medium.grid_march.bind_group"),
-            layout: &self.layout,
-            entries: &[
-                crate::gpu::bind_entry(0, &grid.params),
-                crate::gpu::texture_binding(1, &grid.view),
-                crate::gpu::bind_entry(2, &params),
-                crate::gpu::bind_entry(3, &points_buffer),
-                crate::gpu::bind_entry(4, &results),
-            ],
-        });
-        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
-            label: Some("medium.grid_march.encoder"),
-        });
-        {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("medium.grid_march"),
-                timestamp_writes: None,
-            });
-            pass.set_pipeline(&self.pipeline);
-            pass.set_bind_group(0, &bind_group, &[]);
-            pass.dispatch_workgroups((points.len() as u32).div_ceil(64), 1, 1);
-        }
-        gpu.queue.submit([encoder.finish()]);
-        let bytes = read_buffer(gpu, &results, 0, size)?;
+        let bytes = self.probe.run(
+            gpu,
+            grid,
+            bytemuck::bytes_of(&params),
+            bytemuck::cast_slice(&padded),
+            points.len(),
+            4,
+        )?;
         Ok(bytemuck::cast_slice(&bytes).to_vec())
     }
 }

@@ -42,7 +42,8 @@
 use bytemuck::{Pod, Zeroable};
 
 use super::ShadowError;
-use super::layered::{billboard_pipeline, cleared_attachment, draw_particles, uniform_entry};
+use super::layered::{billboard_pipeline, cleared_attachment, draw_particles};
+use crate::gpu::uniform_entry;
 use crate::gpu::{
     AllocationError, Gpu, GpuTimer, MemoryLedger, ROW_TEXELS, bind_entry, read_buffer,
     row_texture_descriptor, row_texture_size, storage_descriptor, storage_entry, texture_binding,

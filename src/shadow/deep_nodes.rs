@@ -18,11 +18,11 @@
 use bytemuck::{Pod, Zeroable};
 
 use super::deep_capture::{BandPass, DeepCapture, Resolve};
-use super::layered::uniform_entry;
 use super::{
     BuildInputs, LOOKUP_STAGES, MemoryCase, MemoryUse, ShadowError, ShadowTechnique,
     TechniqueContext, TechniqueParams,
 };
+use crate::gpu::uniform_entry;
 use crate::gpu::{Gpu, MemoryLedger, read_buffer};
 use crate::gpu::{bind_entry, storage_descriptor, storage_entry};
 use crate::shaders;

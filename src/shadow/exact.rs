@@ -66,11 +66,11 @@
 use bytemuck::{Pod, Zeroable};
 use rayon::prelude::*;
 
-use super::layered::uniform_entry;
 use super::{
     BuildInputs, LOOKUP_STAGES, MemoryUse, Role, ShadowError, ShadowTechnique, TechniqueContext,
     TechniqueEntry, TechniqueParams,
 };
+use crate::gpu::uniform_entry;
 use crate::gpu::{
     AllocationError, Gpu, MemoryLedger, ROW_TEXELS, bind_entry, read_buffer,
     row_texture_descriptor, storage_descriptor, storage_entry, texture_binding, texture_entry,

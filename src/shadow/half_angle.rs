@@ -33,7 +33,6 @@ use glam::Vec3;
 
 use super::layered::{
     ADDITIVE, billboard_pipeline, cleared_attachment, map_texture, sampler_entry, texture_entry,
-    uniform_entry,
 };
 use super::probe::PendingProbe;
 use super::{
@@ -44,6 +43,7 @@ use super::{
 use crate::frame::gpu_data::{BILLBOARD_VERTICES, ParticleInstance};
 use crate::frame::particles::{LightBuffers, LitParticle, ParticleLighting};
 use crate::frame::{HDR_FORMAT, OVER, ParticleLayouts, ParticlePipelines, UNDER, fullscreen};
+use crate::gpu::uniform_entry;
 use crate::gpu::{AllocationError, Gpu, MemoryLedger, TargetWrites};
 use crate::shaders;
 use crate::sim::Particle;

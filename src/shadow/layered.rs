@@ -19,7 +19,7 @@ use super::{
     SplatMode, TechniqueContext, TechniqueParams,
 };
 use crate::frame::gpu_data::{BILLBOARD_VERTICES, ParticleInstance};
-use crate::gpu::{AllocationError, Gpu, MemoryLedger, TargetWrites};
+use crate::gpu::{AllocationError, Gpu, MemoryLedger, TargetWrites, uniform_entry};
 use crate::shaders;
 
 /// Most render targets a layered technique writes (8 x 4 = 32 channels).
@@ -390,22 +390,6 @@ struct DepthPass {
     view: wgpu::TextureView,
     pipeline: wgpu::RenderPipeline,
     bind_group: wgpu::BindGroup,
-}
-
-pub(crate) fn uniform_entry(
-    binding: u32,
-    visibility: wgpu::ShaderStages,
-) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility,
-        ty: wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Uniform,
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
-        count: None,
-    }
 }
 
 /// A filtering sampler.

@@ -89,12 +89,13 @@
 
 use bytemuck::{Pod, Zeroable};
 
-use super::layered::{sampler_entry, uniform_entry};
+use super::layered::sampler_entry;
 use super::{
     BuildInputs, LOOKUP_STAGES, MemoryUse, ParamSpec, Role, ShadowError, ShadowTechnique,
     TechniqueContext, TechniqueEntry, TechniqueParams,
 };
 use crate::frame::gpu_data::ParticleInstance;
+use crate::gpu::uniform_entry;
 use crate::gpu::{
     AllocationError, Gpu, MemoryLedger, bind_entry, storage_descriptor, storage_entry,
 };
