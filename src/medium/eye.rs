@@ -96,7 +96,7 @@ impl EyeMarchProbe {
     }
 
     /// The march along each of `rays` through `grid`. Refused where one invocation's loops
-    /// (eye steps x (light steps + 3), plus the set-up) would pass the adapter's loop budget.
+    /// (eye steps x (light steps + 4), plus 3 of set-up) would pass the adapter's loop budget.
     pub fn march(
         &self,
         gpu: &Gpu,
@@ -108,8 +108,10 @@ impl EyeMarchProbe {
         if let Some(budget) = gpu.loop_budget()
             && loops > u64::from(budget)
         {
-            return Err(GridGpuError::TooManySteps {
-                steps: loops.min(u64::from(u32::MAX)) as u32,
+            return Err(GridGpuError::TooManyLoops {
+                eye_steps: settings.eye_steps,
+                light_steps: settings.light_steps,
+                loops,
                 budget,
             });
         }

@@ -67,6 +67,17 @@ pub enum GridGpuError {
     )]
     TooManySteps { steps: u32, budget: u32 },
     #[error(
+        "an eye march of {eye_steps} steps, each marching {light_steps} steps towards the light, \
+         loops {loops} times, more than one shader invocation may loop on this adapter \
+         ({budget})"
+    )]
+    TooManyLoops {
+        eye_steps: u32,
+        light_steps: u32,
+        loops: u64,
+        budget: u32,
+    },
+    #[error(
         "the light march did not converge: T at {steps} and {} steps differ by {difference:.2e} \
          at {point}, more than {tolerance:.0e}, and {} steps would pass {limit} steps",
         2 * steps,
