@@ -11,7 +11,7 @@ use wgpu::util::DeviceExt;
 use super::cloud_noise::{
     CloudNoiseParams, CloudParams, DETAIL_SIZE, FLOATS_PER_TEXEL, SHAPE_SIZE,
 };
-use super::grid::DensityGrid;
+use super::grid::{DensityGrid, box_cells};
 use crate::gpu::{
     AllocationError, Gpu, GpuError, MemoryLedger, read_buffer, storage_descriptor, storage_entry,
     texture_3d_entry, uniform_entry,
@@ -38,8 +38,8 @@ pub fn layouts() -> Vec<crate::gpu::MirrorLayout> {
 }
 
 /// Where a bake puts its voxels: `dims` voxels filling the cloud layer's box, each voxel's
-/// density sampled at its centre.
-pub fn bake_placement(params: &CloudParams, dims: UVec3) -> (DVec3, DVec3) {
+/// density sampled at its centre ([`box_cells`]).
+pub fn bake_placement(params: &CloudParams, dims: UVec3) -> DAffine3 {
     let min = DVec3::new(
         f64::from(params.origin_xz_m[0]),
         f64::from(params.altitude_m),
@@ -50,8 +50,17 @@ pub fn bake_placement(params: &CloudParams, dims: UVec3) -> (DVec3, DVec3) {
         f64::from(params.thickness_m),
         f64::from(params.size_xz_m[1]),
     );
-    let voxel = size / dims.max(UVec3::ONE).as_dvec3();
-    (min + 0.5 * voxel, voxel)
+    box_cells(min, min + size, dims)
+}
+
+/// The first voxel's centre and a voxel's size, world metres, of a placement by [`box_cells`]
+/// (what `bake_main` steps by).
+fn first_voxel_and_size(placement: &DAffine3) -> (DVec3, DVec3) {
+    let m = placement.matrix3;
+    (
+        placement.translation,
+        DVec3::new(m.x_axis.x, m.y_axis.y, m.z_axis.z),
+    )
 }
 
 /// Why the noise could not be made or read.
@@ -326,7 +335,8 @@ impl CloudBaker {
         dims: UVec3,
     ) -> Result<DensityGrid, CloudNoiseError> {
         let device = &gpu.device;
-        let (first_voxel, voxel) = bake_placement(params, dims);
+        let placement = bake_placement(params, dims);
+        let (first_voxel, voxel) = first_voxel_and_size(&placement);
         let count = u64::from(dims.x) * u64::from(dims.y) * u64::from(dims.z);
         let size = 4 * count.max(1);
         let mut desc = storage_descriptor("medium.cloud_bake.voxels", size);
@@ -383,7 +393,7 @@ impl CloudBaker {
         Ok(DensityGrid {
             dims,
             values,
-            world_from_index: DAffine3::from_translation(first_voxel) * DAffine3::from_scale(voxel),
+            world_from_index: placement,
             density_scale_per_m: 1.0,
         })
     }
@@ -392,7 +402,7 @@ impl CloudBaker {
 /// The voxel centre (world metres) of voxel `index` of a bake of `dims` voxels, in f32 as
 /// `bake_main` computes it.
 pub fn bake_voxel_centre(params: &CloudParams, dims: UVec3, index: UVec3) -> Vec3 {
-    let (first, voxel) = bake_placement(params, dims);
+    let (first, voxel) = first_voxel_and_size(&bake_placement(params, dims));
     first.as_vec3() + index.as_vec3() * voxel.as_vec3()
 }
 

@@ -42,6 +42,13 @@ pub enum MarchError {
     },
 }
 
+/// Index to world for `dims` voxels filling the box `min`..`max`: each voxel a cell of the box,
+/// its centre the cell's middle.
+pub fn box_cells(min: DVec3, max: DVec3, dims: UVec3) -> DAffine3 {
+    let cell = (max - min) / dims.max(UVec3::ONE).as_dvec3();
+    DAffine3::from_translation(min + 0.5 * cell) * DAffine3::from_scale(cell)
+}
+
 /// Why a file's grid cannot be a medium.
 #[derive(Debug, Error, PartialEq)]
 pub enum GridError {
@@ -81,9 +88,7 @@ impl DensityGrid {
     /// The voxels of `medium` sampled at the centres of a grid of `dims` voxels spanning the
     /// world box `min`..`max` (each voxel a cell of that box, its centre its sample).
     pub fn voxelize(medium: &HomogeneousMedium, min: DVec3, max: DVec3, dims: UVec3) -> Self {
-        let cell = (max - min) / dims.as_dvec3();
-        let world_from_index =
-            DAffine3::from_translation(min + 0.5 * cell) * DAffine3::from_scale(cell);
+        let world_from_index = box_cells(min, max, dims);
         let mut values = Vec::with_capacity((dims.x * dims.y * dims.z) as usize);
         for k in 0..dims.z {
             for j in 0..dims.y {
