@@ -24,7 +24,7 @@ fn main() -> anyhow::Result<()> {
     let gpu = Gpu::new(&AdapterPreference::Cpu)?;
     let particles = simulate(&scene);
     let (w, h) = (scene.output.width_px / 2, scene.output.height_px / 2);
-    let points = shaded_points(&scene, &particles, w, h, 4);
+    let points = shaded_points(&scene, &particles, (w, h), 4, None);
     let res = scene.shadow.resolution_px;
     let config = |name: &str, channels: u32, values: &[(String, f32)]| -> anyhow::Result<_> {
         let mut params = TechniqueParams {

@@ -23,7 +23,7 @@ fn committed_baselines_match_fresh_renders() {
     // Every registered technique on both thesis scenes.
     assert_eq!(
         selected.len(),
-        2 * smokeshadow::shadow::REGISTRY.len(),
+        2 * smokeshadow::shadow::particle_techniques().count(),
         "{selected:?}"
     );
     let rows = baseline::check(&gpu, &selected, &out).unwrap();

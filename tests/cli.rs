@@ -355,7 +355,7 @@ fn bench_prints_per_pass_gpu_times() {
 #[test]
 fn render_works_for_every_technique() {
     let dir = scratch("cli-every-technique");
-    for technique in smokeshadow::shadow::REGISTRY.iter().map(|e| e.name) {
+    for technique in smokeshadow::shadow::particle_techniques().map(|e| e.name) {
         let png = dir.join(format!("{technique}.png"));
         let out = smokeshadow(&[
             "render",
@@ -435,7 +435,7 @@ fn the_largest_budget_at_the_largest_resolution_renders_or_fails_in_one_line() {
     // scope, or small enough to render (`has`'s light buffer, `none`). Never a panic, never a
     // half-written file.
     let dir = scratch("cli-largest");
-    for entry in smokeshadow::shadow::REGISTRY {
+    for entry in smokeshadow::shadow::particle_techniques() {
         let png = dir.join(format!("{}.png", entry.name));
         let out = smokeshadow(&[
             "render",

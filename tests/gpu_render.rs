@@ -473,7 +473,7 @@ fn every_techniques_gpu_timestamps_agree_with_the_clock() {
         smokeshadow::render::Renderer::new(&gpu, W, H, smokeshadow::render::OUTPUT_FORMAT, &first)
             .unwrap();
     let options = RenderOptions::default();
-    for entry in smokeshadow::shadow::REGISTRY {
+    for entry in smokeshadow::shadow::particle_techniques() {
         let config = technique(
             entry.name,
             entry.min_channels.max(16),

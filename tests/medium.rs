@@ -158,11 +158,12 @@ fn an_empty_grid_casts_no_shadow_and_its_bytes_are_counted() {
         )
         .unwrap();
     assert_eq!(t, vec![1.0, 1.0]);
-    // One placeholder voxel (4 bytes) and the 96-byte uniform.
-    assert_eq!(uploaded.bytes, 4 + 96);
+    // One placeholder voxel (4 bytes) and the 128-byte uniform (the placement, 96 bytes, and
+    // the frame's march settings, 32).
+    assert_eq!(uploaded.bytes, 4 + 128);
     let grid = turned_ball();
     let uploaded = GpuGrid::upload(&gpu, &mut ledger, &grid).unwrap();
-    assert_eq!(uploaded.bytes, 24 * 20 * 28 * 4 + 96);
+    assert_eq!(uploaded.bytes, 24 * 20 * 28 * 4 + 128);
 }
 
 #[test]

@@ -267,7 +267,7 @@ fn the_registrys_particle_pass_owners_are_the_techniques_that_draw_it() {
         particle_res: ParticleRes::Half,
         ..RenderOptions::default()
     };
-    for entry in smokeshadow::shadow::REGISTRY {
+    for entry in smokeshadow::shadow::particle_techniques() {
         let config = technique(entry.name, entry.min_channels.max(8), 64, SplatMode::Point);
         renderer.set_technique(&gpu, &config).unwrap();
         let refused = matches!(

@@ -228,7 +228,7 @@ fn error_against_exact_on_the_plume_falls_as_the_moments_grow() {
     let gpu = gpu();
     let scene = reduced_plume();
     let particles = simulate(&scene);
-    let points = shaded_points(&scene, &particles, 256, 192, 4);
+    let points = shaded_points(&scene, &particles, (256, 192), 4, None);
     let res = scene.shadow.resolution_px;
     let exact = probe_all(
         &gpu,

@@ -135,7 +135,7 @@ fn the_box_shadows_the_ground_behind_it_under_every_technique() {
     let g = scene.ground.albedo;
     let a = scene.shading.ambient;
     let ambient_only = [g.x * a.x, g.y * a.y, g.z * a.z];
-    for (entry, mode) in shadow::REGISTRY.iter().flat_map(|e| MODES.map(|m| (e, m))) {
+    for (entry, mode) in shadow::particle_techniques().flat_map(|e| MODES.map(|m| (e, m))) {
         let frames = hdr_at(
             entry.name,
             mode,
@@ -216,7 +216,7 @@ fn a_particle_in_the_box_shadow_is_darker_than_the_same_particle_in_the_light() 
     no_box.boxes.clear();
     // Dense enough (optical depth 2 across) that the pixel is mostly the particle's radiance,
     // thin enough that its own shadow leaves it some direct light.
-    for (entry, mode) in shadow::REGISTRY.iter().flat_map(|e| MODES.map(|m| (e, m))) {
+    for (entry, mode) in shadow::particle_techniques().flat_map(|e| MODES.map(|m| (e, m))) {
         let frames = hdr_at(
             entry.name,
             mode,

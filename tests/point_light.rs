@@ -55,8 +55,7 @@ fn max_difference(a: &[f32], b: &[f32]) -> f32 {
 
 /// Every technique but `none`.
 fn point_light_techniques() -> Vec<&'static shadow::TechniqueEntry> {
-    shadow::REGISTRY
-        .iter()
+    shadow::particle_techniques()
         .filter(|e| e.name != "none")
         .collect()
 }

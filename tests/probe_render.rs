@@ -15,7 +15,6 @@ use smokeshadow::render::{
     CameraMatrices, OUTPUT_FORMAT, OffscreenTarget, RenderOptions, Renderer, TechniqueConfig,
 };
 use smokeshadow::scene::Scene;
-use smokeshadow::shadow::REGISTRY;
 
 const W: u32 = 160;
 const H: u32 = 120;
@@ -37,7 +36,7 @@ fn the_probe_gives_the_t_the_particle_lighting_used_for_every_technique() {
     }
     let eye = CameraMatrices::new(&scene, W, H).position;
     let target = OffscreenTarget::new(&gpu, W, H);
-    for entry in REGISTRY {
+    for entry in smokeshadow::shadow::particle_techniques() {
         let config = TechniqueConfig {
             name: entry.name.to_owned(),
             params: scene.shadow.params(8.max(entry.min_channels)),

@@ -90,6 +90,8 @@ fn every_rust_mirror_matches_nagas_reflection_of_its_wgsl_struct() {
         smokeshadow::medium::cloud_noise::layouts(),
         smokeshadow::medium::eye::layouts(),
         smokeshadow::medium::cloud::layouts(),
+        smokeshadow::medium::eye_pass::layouts(),
+        smokeshadow::shadow::srm::layouts(),
     ]
     .concat();
     // `none`'s lookup and the occluders' map for the frame shaders' virtual imports.

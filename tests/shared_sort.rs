@@ -119,8 +119,7 @@ fn has_draws_in_the_frames_half_angle_order_without_a_sort_of_its_own() {
 fn the_shared_order_changes_only_the_eyes_compositing_not_the_shadows() {
     let gpu = gpu();
     let (scenes, particles) = both_sides();
-    let entries: Vec<_> = shadow::REGISTRY
-        .iter()
+    let entries: Vec<_> = shadow::particle_techniques()
         .filter(|e| e.order_independent && !e.owns_particle_pass && e.name != "none")
         .collect();
     assert!(entries.len() >= 8);

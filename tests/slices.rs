@@ -286,7 +286,7 @@ fn dom_proxy_start_is_never_behind_the_sharp_start() {
     let gpu = gpu();
     let scene = reduced_plume();
     let particles = simulate(&scene);
-    let points = shaded_points(&scene, &particles, W, H, 4);
+    let points = shaded_points(&scene, &particles, (W, H), 4, None);
     let starts: Vec<Vec<f32>> = ["1", "1.5", "2"]
         .iter()
         .map(|d| {
@@ -351,7 +351,7 @@ fn errors_against_exact(gpu: &Gpu, scene_name: &str, configs: &[TechniqueConfig]
     scene.output.width_px = W;
     scene.output.height_px = H;
     let particles = simulate(&scene);
-    let points = shaded_points(&scene, &particles, W, H, 4);
+    let points = shaded_points(&scene, &particles, (W, H), 4, None);
     let mut all = vec![technique("exact", 1, 512, SplatMode::Segment)];
     all.extend_from_slice(configs);
     let t = probe_all(gpu, &scene, &particles, &all, &points);

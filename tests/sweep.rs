@@ -970,9 +970,9 @@ fn a_sweep_with_a_known_answer_gives_it_and_its_errors_match_an_independent_prob
     let points = shaded_points(
         &scene,
         &particles,
-        160,
-        120,
+        (160, 120),
         smokeshadow::sweep::SHADED_STRIDE_PX,
+        None,
     );
     let owners = point_owners(particles.len(), points.len());
     let gpu = smokeshadow::gpu::Gpu::new(&smokeshadow::gpu::AdapterPreference::Cpu).unwrap();

@@ -58,7 +58,7 @@ fn exact_matches_the_analytic_sphere_and_layered_techniques_converge_to_it() {
 
     // Every technique: finite T in [0, 1] at every budget, within a bound of the analytic curve
     // at 24 channels; the ones that converge get closer with every budget step.
-    for entry in smokeshadow::shadow::contenders() {
+    for entry in smokeshadow::shadow::contenders().filter(|e| e.shadows_particles) {
         let name = entry.name;
         // `dom` on uniform layers from the sphere itself, the paper's: the tuned default's
         // geometric layers are thickest at the back, so a point just behind the sphere may lie
@@ -333,7 +333,7 @@ fn exact_agrees_with_its_cpu_mirror_on_the_plume() {
         ("plume", &plume, 8..=128, 1e-5),
         ("specks", &specks, 512..=512, 1e-4),
     ] {
-        let points = shaded_points(&scene, particles, W, H, 4);
+        let points = shaded_points(&scene, particles, (W, H), 4, None);
         let mut renderer = Renderer::new(
             &gpu,
             W,
@@ -380,7 +380,7 @@ fn error_against_exact_on_the_plume_shrinks_as_the_budget_grows() {
     let gpu = gpu();
     let scene = reduced_plume();
     let particles = simulate(&scene);
-    let points = shaded_points(&scene, &particles, W, H, 4);
+    let points = shaded_points(&scene, &particles, (W, H), 4, None);
     let res = scene.shadow.resolution_px;
     let budgets = [6, 8, 16, 24];
     let exact = probe_all(
@@ -401,7 +401,7 @@ fn error_against_exact_on_the_plume_shrinks_as_the_budget_grows() {
         "technique", "splat", 6, 8, 16, 24
     );
     for splat in [SplatMode::Segment, SplatMode::Point] {
-        for entry in smokeshadow::shadow::contenders() {
+        for entry in smokeshadow::shadow::contenders().filter(|e| e.shadows_particles) {
             let name = entry.name;
             let configs: Vec<_> = budgets
                 .iter()
@@ -450,7 +450,7 @@ fn on_the_default_settings_no_converging_techniques_error_rises_with_its_budget(
             "{name}: the default splat is the reference's model"
         );
         let particles = smokeshadow::particles::scene_particles(&scene).unwrap();
-        let points = shaded_points(&scene, &particles, 160, 120, 4);
+        let points = shaded_points(&scene, &particles, (160, 120), 4, None);
         let config = |technique: &str, channels: u32| TechniqueConfig {
             name: technique.to_owned(),
             params: scene.shadow.params(channels),
@@ -478,10 +478,7 @@ fn order_independent_maps_do_not_depend_on_the_particle_order() {
     // passes see them. The light space does not depend on the camera: T must not change.
     let gpu = gpu();
     let orders = ReversedOrder::new();
-    for entry in smokeshadow::shadow::REGISTRY
-        .iter()
-        .filter(|e| e.order_independent)
-    {
+    for entry in smokeshadow::shadow::particle_techniques().filter(|e| e.order_independent) {
         let name = entry.name;
         for splat in [SplatMode::Point, SplatMode::Segment] {
             let config = technique(name, 16, orders.resolution_px(), splat);
@@ -592,8 +589,7 @@ fn every_technique_at_every_thesis_budget_renders_a_finite_shadowed_plume() {
     );
     let mean = |t: &[f32], idx: &[usize]| idx.iter().map(|&i| t[i]).sum::<f32>() / idx.len() as f32;
 
-    let shadowing = smokeshadow::shadow::REGISTRY
-        .iter()
+    let shadowing = smokeshadow::shadow::particle_techniques()
         .filter(|e| e.role != smokeshadow::shadow::Role::FrameBaseline);
     for entry in shadowing {
         let name = entry.name;
@@ -651,7 +647,7 @@ fn reported_channels_and_bytes_match_each_techniques_formula() {
     .unwrap();
     let target = smokeshadow::render::OffscreenTarget::new(&gpu, 96, 64);
     let budgets = [1u32, 2, 3, 4, 5, 6, 7, 8, 15, 16, 23, 24, 31, 32];
-    for entry in smokeshadow::shadow::REGISTRY {
+    for entry in smokeshadow::shadow::particle_techniques() {
         // Its default settings, and each other precision where a parameter chooses it.
         let precision = entry.params.iter().find(|p| p.key.ends_with("_precision"));
         let mut settings = vec![None];
@@ -872,10 +868,7 @@ fn written_out(
 fn budgets_below_a_techniques_minimum_name_it() {
     let gpu = gpu();
     let scene = reduced_plume();
-    for entry in smokeshadow::shadow::REGISTRY
-        .iter()
-        .filter(|e| e.min_channels > 1)
-    {
+    for entry in smokeshadow::shadow::particle_techniques().filter(|e| e.min_channels > 1) {
         let (name, min) = (entry.name, entry.min_channels);
         let err = Renderer::new(
             &gpu,
@@ -1054,7 +1047,7 @@ fn deep_maps_captured_in_bands_equal_the_map_captured_whole() {
     // the same as when the map is captured whole, so T is identical.
     let scene = reduced_plume();
     let particles = simulate(&scene);
-    let points = shaded_points(&scene, &particles, W, H, 8);
+    let points = shaded_points(&scene, &particles, (W, H), 8, None);
     let res = 64;
     let whole_gpu = gpu();
     for name in ["dsm", "avsm"] {

@@ -72,7 +72,7 @@ fn tune_scores_every_technique_alike_and_writes_a_file_the_other_commands_read()
         scene.output.width_px = 128;
         scene.output.height_px = 96;
         let particles = smokeshadow::particles::scene_particles(&scene).unwrap();
-        let points = shaded_points(&scene, &particles, 128, 96, 4);
+        let points = shaded_points(&scene, &particles, (128, 96), 4, None);
         let owners = point_owners(particles.len(), points.len());
         let t = |name: &str, channels| {
             let config = TechniqueConfig {

@@ -1,5 +1,8 @@
-// Per-frame uniforms shared by every pass: camera, spotlight and light-space bounds.
-// Keep in sync with `FrameUniforms` in src/render/gpu_data.rs.
+// Per-frame uniforms shared by every pass: camera, spotlight and light-space bounds, and the
+// scene's density volume (its placement and march settings in `grid`, its voxels in
+// `grid_density`; src/medium/frame.rs). Keep in sync with `FrameUniforms` in
+// src/frame/gpu_data.rs.
+#import medium/grid.wgsl
 
 struct Frame {
     clip_from_world: mat4x4<f32>,
@@ -9,6 +12,8 @@ struct Frame {
     // field of view as `light_clip_from_world` (so the same map coordinates), with near and far
     // planes around the opaque geometry instead of the smoke.
     occluder_clip_from_world: mat4x4<f32>,
+    // The inverse of `light_clip_from_world`: a light-space texel's ray.
+    world_from_light_clip: mat4x4<f32>,
     // xyz: eye position (m); w: near clip distance (m).
     camera_pos: vec4<f32>,
     // xyz: unit view direction; w: far clip distance (m).
@@ -36,6 +41,16 @@ struct Frame {
     // exact occluder test treats a point as on a surface (m, src/frame/occluders.rs: `epsilon_m`);
     // w: unused.
     ground: vec4<f32>,
+    // The density volume's placement and the frame's marches (dims 0 without a volume).
+    grid: GridParams,
 };
 
 @group(0) @binding(0) var<uniform> frame: Frame;
+// The density volume's voxels (one zero voxel without a volume). A uniform of its own here
+// would crash lavapipe (not a validation error) beside `avsm`'s, so its parameters ride in
+// `frame`.
+@group(0) @binding(4) var grid_density: texture_3d<f32>;
+
+fn grid_params() -> GridParams {
+    return frame.grid;
+}

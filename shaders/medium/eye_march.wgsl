@@ -29,8 +29,8 @@ fn march_eye(origin: vec3<f32>, dir: vec3<f32>, t_near: f32, t_far: f32, steps: 
     var out = EyeMarch(vec3<f32>(0.0), 1.0);
     let a = origin + t_near * dir;
     let b = origin + t_far * dir;
-    let qa = (grid.index_from_world * vec4<f32>(a, 1.0)).xyz;
-    let qb = (grid.index_from_world * vec4<f32>(b, 1.0)).xyz;
+    let qa = (grid_params().index_from_world * vec4<f32>(a, 1.0)).xyz;
+    let qb = (grid_params().index_from_world * vec4<f32>(b, 1.0)).xyz;
     let s = grid_support(qa, qb);
     if s.x >= s.y || steps == 0u || t_far <= t_near {
         return out;
@@ -39,7 +39,7 @@ fn march_eye(origin: vec3<f32>, dir: vec3<f32>, t_near: f32, t_far: f32, steps: 
     let step_m = dt * (t_far - t_near);
     for (var i = 0u; i < steps; i++) {
         let f = s.x + (f32(i) + jitter) * dt;
-        let sigma = grid.density_scale_per_m * grid_density_at_index(mix(qa, qb, f));
+        let sigma = grid_params().density_scale_per_m * grid_density_at_index(mix(qa, qb, f));
         if sigma <= 0.0 {
             continue;
         }

@@ -26,6 +26,10 @@ struct EyeRay {
 
 @group(0) @binding(0) var<uniform> grid: GridParams;
 @group(0) @binding(1) var grid_density: texture_3d<f32>;
+
+fn grid_params() -> GridParams {
+    return grid;
+}
 @group(0) @binding(2) var<uniform> eye_probe: EyeProbeParams;
 @group(0) @binding(3) var<storage, read> eye_rays: array<EyeRay>;
 // Per ray: rgb radiance, a transmittance.

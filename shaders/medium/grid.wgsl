@@ -1,8 +1,9 @@
 // A dense density grid (src/medium/gpu_grid.rs): OpenVDB's conventions, as the f64 mirror in
 // src/medium/grid.rs: voxel (i, j, k)'s density at its centre, at integer index coordinates,
 // trilinear between centres, zero outside the voxels and their half-voxel ramp.
-// The importer declares the bindings: `grid` (GridParams, uniform) and `grid_density`
-// (texture_3d<f32>, R32Float, read with textureLoad: exact texel values, no filtering hardware).
+// The importer declares `grid_density` (texture_3d<f32>, R32Float, read with textureLoad: exact
+// texel values, no filtering hardware) and `fn grid_params() -> GridParams` (the probes: their
+// own uniform; the frame: `frame.grid`, shaders/common/frame.wgsl).
 
 // Keep in sync with `GridParams` in src/medium/gpu_grid.rs.
 struct GridParams {
@@ -11,13 +12,23 @@ struct GridParams {
     dims: vec4<u32>,
     // Extinction per unit of density, 1/m.
     density_scale_per_m: f32,
-    _pad0: f32,
-    _pad1: f32,
-    _pad2: f32,
+    // The frame's marches (src/medium/frame.rs; the probes leave them 0): the eye's steps,
+    // where in its step each eye sample lies (0.5 ± jitter/2 by a per-pixel hash), and the
+    // reference's steps towards the light.
+    eye_steps: u32,
+    jitter: f32,
+    reference_steps: u32,
+    // rgb: single-scattering albedo; w: the powder term's weight (0 off).
+    albedo_powder: vec4<f32>,
+    // Steps of the techniques' light-space build along each texel's ray.
+    build_steps: u32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
 };
 
 fn grid_voxel(i: vec3<i32>) -> f32 {
-    let d = vec3<i32>(grid.dims.xyz);
+    let d = vec3<i32>(grid_params().dims.xyz);
     if any(i < vec3<i32>(0)) || any(i >= d) {
         return 0.0;
     }
@@ -40,7 +51,7 @@ fn grid_density_at_index(q: vec3<f32>) -> f32 {
 // voxels' box widened by the trilinear ramp's voxel); t0 >= t1 when there is none.
 fn grid_support(qa: vec3<f32>, qb: vec3<f32>) -> vec2<f32> {
     let lo = vec3<f32>(-1.0);
-    let hi = vec3<f32>(grid.dims.xyz);
+    let hi = vec3<f32>(grid_params().dims.xyz);
     let d = qb - qa;
     var t0 = 0.0;
     var t1 = 1.0;
@@ -63,8 +74,8 @@ fn grid_support(qa: vec3<f32>, qb: vec3<f32>) -> vec2<f32> {
 // part of the segment where the density can be non-zero (`steps` + 3 loop iterations: the
 // caller keeps it within the adapter's loop budget).
 fn grid_optical_depth(a: vec3<f32>, b: vec3<f32>, steps: u32) -> f32 {
-    let qa = (grid.index_from_world * vec4<f32>(a, 1.0)).xyz;
-    let qb = (grid.index_from_world * vec4<f32>(b, 1.0)).xyz;
+    let qa = (grid_params().index_from_world * vec4<f32>(a, 1.0)).xyz;
+    let qb = (grid_params().index_from_world * vec4<f32>(b, 1.0)).xyz;
     let s = grid_support(qa, qb);
     if s.x >= s.y || steps == 0u {
         return 0.0;
@@ -74,5 +85,5 @@ fn grid_optical_depth(a: vec3<f32>, b: vec3<f32>, steps: u32) -> f32 {
     for (var i = 0u; i < steps; i++) {
         sum += grid_density_at_index(mix(qa, qb, s.x + (f32(i) + 0.5) * dt));
     }
-    return grid.density_scale_per_m * sum * dt * length(b - a);
+    return grid_params().density_scale_per_m * sum * dt * length(b - a);
 }

@@ -15,6 +15,10 @@ struct MarchParams {
 
 @group(0) @binding(0) var<uniform> grid: GridParams;
 @group(0) @binding(1) var grid_density: texture_3d<f32>;
+
+fn grid_params() -> GridParams {
+    return grid;
+}
 @group(0) @binding(2) var<uniform> march: MarchParams;
 // xyz: world point (m), w unused.
 @group(0) @binding(3) var<storage, read> march_points: array<vec4<f32>>;

@@ -18,3 +18,18 @@ fn fs_build(in: BuildVertexOut) -> BsmTargets {
     out.optical_depth = vec4<f32>(s.optical_depth);
     return out;
 }
+
+// The volume's: the first step with density, the last one's far end and the optical depth of
+// the whole ray (shaders/shadow/volume_splat.wgsl).
+@fragment
+fn fs_build_volume(in: VolumeVertexOut) -> BsmTargets {
+    let extent = volume_extent(volume_light_ray(in.ndc));
+    if extent.optical_depth <= 0.0 {
+        discard;
+    }
+    var out: BsmTargets;
+    out.front = vec4<f32>(extent.front);
+    out.back = vec4<f32>(extent.back);
+    out.optical_depth = vec4<f32>(extent.optical_depth);
+    return out;
+}

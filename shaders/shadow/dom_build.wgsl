@@ -24,6 +24,16 @@ fn fs_depth(in: BuildVertexOut) -> @location(0) vec4<f32> {
     return vec4<f32>(splat_fragment(in, true).z0);
 }
 
+// The volume's start depth: its first step with density (shaders/shadow/volume_splat.wgsl).
+@fragment
+fn fs_depth_volume(in: VolumeVertexOut) -> @location(0) vec4<f32> {
+    let extent = volume_extent(volume_light_ray(in.ndc));
+    if extent.optical_depth <= 0.0 {
+        discard;
+    }
+    return vec4<f32>(extent.front);
+}
+
 // Values for layer target `index`: boundaries k = 4·index + 1 ..= 4·index + 4.
 // The fragment's splat and its texel's layer geometry (read once, used by every target).
 struct Prepared {

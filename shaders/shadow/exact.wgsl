@@ -12,6 +12,7 @@
 // sum beyond 64 (T < 1.7e-28) saturates. Keep `ExactParams` in sync with src/shadow/exact.rs
 // and exact_build.wgsl, and the arithmetic with src/shadow/closed_form.rs.
 #import common/lighting.wgsl
+#import common/medium.wgsl
 #import common/rows.wgsl
 
 struct ExactParams {
@@ -141,6 +142,10 @@ fn exact_optical_depth(p: vec3<f32>) -> f32 {
     return f32(sum) / EXACT_UNITS;
 }
 
+// With a density volume, its optical depth too: a midpoint march towards the light with the
+// reference's step count, shown to have converged (src/medium/frame.rs: two steps a voxel along
+// the grid's diagonal, within the loop iterations src/shadow/exact.rs leaves it).
 fn shadow_transmittance(p: vec3<f32>) -> f32 {
-    return exp(-exact_optical_depth(p));
+    let volume = medium_optical_depth(frame.light_pos.xyz, p, grid_params().reference_steps);
+    return exp(-(exact_optical_depth(p) + volume));
 }

@@ -11,6 +11,8 @@
 // of 8 sub-samples: within llvmpipe's 65,535 iterations. Keep `VolumeBuild` and `VolumeJob` in
 // sync with src/shadow/volume.rs.
 
+#import common/medium.wgsl
+
 struct VolumeBuild {
     // The grid's corner (m) and voxels per side.
     origin: vec3<f32>,
@@ -73,10 +75,10 @@ fn light_ray_extinction(at: vec3<f32>, job: VolumeJob) -> f32 {
     return max(1.0 - d / job.radius, 0.0);
 }
 
-@group(0) @binding(0) var<uniform> build: VolumeBuild;
-@group(0) @binding(1) var<storage, read> jobs: array<VolumeJob>;
-@group(0) @binding(2) var<storage, read_write> scratch: array<atomic<u32>>;
-@group(0) @binding(3) var<storage, read_write> staging: array<u32>;
+@group(1) @binding(0) var<uniform> build: VolumeBuild;
+@group(1) @binding(1) var<storage, read> jobs: array<VolumeJob>;
+@group(1) @binding(2) var<storage, read_write> scratch: array<atomic<u32>>;
+@group(1) @binding(3) var<storage, read_write> staging: array<u32>;
 
 fn unpack3(v: u32) -> vec3<u32> {
     return vec3<u32>(v & 1023u, (v >> 10u) & 1023u, v >> 20u);
@@ -177,18 +179,37 @@ fn scatter_light_aligned(
     scatter_row((group.y * groups.x + group.x) * 64u + lane, true);
 }
 
-fn extinction(index: u32) -> f32 {
-    return min(f32(atomicLoad(&scratch[index])) / build.units_per_extinction, VOLUME_HALF_MAX);
+// The scene's density volume's mean extinction over voxel `v` of this slab (group 0's grid,
+// shaders/common/medium.wgsl), by the same 2x2x2 sub-samples as the particles' means.
+fn density_volume_mean(v: vec3<u32>) -> f32 {
+    if !medium_present() {
+        return 0.0;
+    }
+    let corner = build.origin + vec3<f32>(v + vec3<u32>(0u, 0u, build.slab_z0)) * build.voxel_size;
+    var sum = 0.0;
+    for (var s = 0u; s < 8u; s++) {
+        let f = (vec3<f32>(vec3<u32>(s & 1u, (s >> 1u) & 1u, s >> 2u)) + 0.5) * 0.5;
+        let q = (grid_params().index_from_world * vec4<f32>(corner + f * build.voxel_size, 1.0)).xyz;
+        sum += grid_density_at_index(q);
+    }
+    return grid_params().density_scale_per_m * sum / 8.0;
+}
+
+// Voxel `v` of this slab (flat `index`): the particles' sum and the density volume's mean.
+fn extinction(index: u32, v: vec3<u32>) -> f32 {
+    let particles = f32(atomicLoad(&scratch[index])) / build.units_per_extinction;
+    return min(particles + density_volume_mean(v), VOLUME_HALF_MAX);
 }
 
 // The binary16 bits of v in [0, 65504], rounded to nearest, ties to even (WGSL's pack2x16float
-// needs a capability some adapters lack). Every non-zero sum is at least one fixed-point unit,
-// 2^-14 (1/m) or more, which is binary16's smallest normal: no sum is subnormal.
+// needs a capability some adapters lack). The particles' sums are at least one fixed-point unit,
+// 2^-14 (1/m), binary16's smallest normal; a density volume's thin edges go below it, into
+// binary16's subnormals (multiples of 2^-24, rounded to nearest; 1024 of them is 2^-14 again).
 fn half_bits(v: f32) -> u32 {
     let bits = bitcast<u32>(v);
     let exponent = i32((bits >> 23u) & 0xffu) - 127 + 15;
     if exponent <= 0 {
-        return 0u;
+        return u32(v * 16777216.0 + 0.5);
     }
     let mantissa = bits & 0x7fffffu;
     var half = (u32(exponent) << 10u) | (mantissa >> 13u);
@@ -207,9 +228,9 @@ fn convert(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     let x = id.x * 2u;
     let base = (id.z * build.side + id.y) * build.side;
-    var word = half_bits(extinction(base + x));
+    var word = half_bits(extinction(base + x, vec3<u32>(x, id.y, id.z)));
     if x + 1u < build.side {
-        word |= half_bits(extinction(base + x + 1u)) << 16u;
+        word |= half_bits(extinction(base + x + 1u, vec3<u32>(x + 1u, id.y, id.z))) << 16u;
     }
     staging[(id.z * build.side + id.y) * build.words_per_row + id.x] = word;
 }

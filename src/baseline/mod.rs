@@ -112,9 +112,21 @@ pub fn select(
     let mut out = Vec::new();
     for (select_args, source) in sources {
         let scene_name = source.name.clone();
+        let smoke = (
+            source.volume.is_some(),
+            crate::particles::count(&source) as usize,
+        );
         for entry in shadow::REGISTRY {
             if !techniques.is_empty() && !techniques.iter().any(|t| t == entry.name) {
                 continue;
+            }
+            // A technique that cannot shadow the scene's smoke has no baseline of it (asked
+            // for by name, it is refused in one line).
+            if let Some(refusal) = entry.refusal(smoke.0, smoke.1) {
+                if techniques.is_empty() {
+                    continue;
+                }
+                return Err(refusal.into());
             }
             let folder = dir.join(&scene_name);
             out.push(Baseline {

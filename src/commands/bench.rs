@@ -99,8 +99,7 @@ pub fn run(args: &BenchArgs, adapter: &AdapterPreference) -> anyhow::Result<()> 
         (None, false) => args.particles_list.clone(),
     };
     let techniques = if args.techniques.is_empty() {
-        crate::shadow::REGISTRY
-            .iter()
+        crate::shadow::particle_techniques()
             .map(|e| e.name.to_owned())
             .collect()
     } else {

@@ -81,8 +81,13 @@ pub fn run(args: &InfoArgs, preference: &AdapterPreference) -> anyhow::Result<()
             shadow::Role::Reference => "reference",
             shadow::Role::Contender => "contender",
         };
+        let media = match (e.shadows_particles, e.volume) {
+            (true, shadow::VolumeSupport::Shadows) => "particles+volume",
+            (true, shadow::VolumeSupport::Refuses(_)) => "particles",
+            (false, _) => "volume",
+        };
         println!(
-            "  {:<10} {role:<19} min {} channels (24: {})  {}",
+            "  {:<10} {role:<19} {media:<16} min {} channels (24: {})  {}",
             e.name,
             e.min_channels,
             (e.budget_caption)(24),

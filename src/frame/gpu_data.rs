@@ -12,6 +12,8 @@ pub struct FrameUniforms {
     /// The light's projection for rasterising the occluders' depth map (same view and field of
     /// view as `light_clip_from_world`, near/far around the opaque geometry).
     pub occluder_clip_from_world: [[f32; 4]; 4],
+    /// The inverse of `light_clip_from_world`: a light-space texel's ray (the volume's build).
+    pub world_from_light_clip: [[f32; 4]; 4],
     /// xyz eye position, w near clip (m).
     pub camera_pos: [f32; 4],
     /// xyz unit view direction, w far clip (m).
@@ -36,6 +38,8 @@ pub struct FrameUniforms {
     /// Ground height (m), half the ground's side (m), the exact occluder test's epsilon (m,
     /// [`super::occluders::epsilon_m`]), unused.
     pub ground: [f32; 4],
+    /// The density volume's placement and the frame's marches (`crate::medium::frame`).
+    pub grid: crate::medium::gpu_grid::GridParams,
 }
 
 /// One box of the opaque geometry for the analytic occluder test (`common/occluders_exact.wgsl`):
@@ -107,6 +111,7 @@ pub fn layouts() -> Vec<crate::gpu::MirrorLayout> {
                 world_from_clip,
                 light_clip_from_world,
                 occluder_clip_from_world,
+                world_from_light_clip,
                 camera_pos,
                 camera_forward,
                 viewport,
@@ -118,6 +123,7 @@ pub fn layouts() -> Vec<crate::gpu::MirrorLayout> {
                 background,
                 occluders,
                 ground,
+                grid,
             ]
         ),
         crate::mirror_layout!(
@@ -135,8 +141,8 @@ mod tests {
 
     #[test]
     fn sizes_match_the_wgsl_layouts() {
-        // 4 mat4x4 + 11 vec4.
-        assert_eq!(std::mem::size_of::<FrameUniforms>(), 4 * 64 + 11 * 16);
+        // 5 mat4x4 + 11 vec4 + the grid's parameters (a mat4x4 and 4 vec4).
+        assert_eq!(std::mem::size_of::<FrameUniforms>(), 5 * 64 + 11 * 16 + 128);
         assert_eq!(std::mem::size_of::<ParticleInstance>(), 32);
         assert_eq!(std::mem::size_of::<OpaqueVertex>(), 36);
     }

@@ -70,6 +70,17 @@ impl Shape {
         }
     }
 
+    /// The shape's axis-aligned bounds (min, max).
+    pub fn bounds(&self) -> (DVec3, DVec3) {
+        match *self {
+            Shape::Sphere { center, radius_m } => (
+                center - DVec3::splat(radius_m),
+                center + DVec3::splat(radius_m),
+            ),
+            Shape::Box { min, max } => (min, max),
+        }
+    }
+
     /// Whether `p` lies inside the shape (its boundary included).
     pub fn contains(&self, p: DVec3) -> bool {
         match *self {

@@ -19,11 +19,18 @@ use crate::shaders;
 /// Keep in sync with `GridParams` in shaders/medium/grid.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
-struct GridParams {
-    index_from_world: [[f32; 4]; 4],
-    dims: [u32; 4],
-    density_scale_per_m: f32,
-    _pad: [f32; 3],
+pub struct GridParams {
+    pub index_from_world: [[f32; 4]; 4],
+    /// Voxels along x, y, z (w unused); zero for an empty grid.
+    pub dims: [u32; 4],
+    pub density_scale_per_m: f32,
+    /// The frame's marches ([`super::frame`]); the probes leave them 0.
+    pub eye_steps: u32,
+    pub jitter: f32,
+    pub reference_steps: u32,
+    pub albedo_powder: [f32; 4],
+    pub build_steps: u32,
+    pub _pad: [u32; 3],
 }
 
 /// Keep in sync with `MarchParams` in shaders/medium/grid_march.wgsl.
@@ -43,7 +50,16 @@ pub fn layouts() -> Vec<crate::gpu::MirrorLayout> {
             GridParams,
             "medium/grid_march.wgsl",
             "GridParams",
-            [index_from_world, dims, density_scale_per_m]
+            [
+                index_from_world,
+                dims,
+                density_scale_per_m,
+                eye_steps,
+                jitter,
+                reference_steps,
+                albedo_powder,
+                build_steps
+            ]
         ),
         crate::mirror_layout!(
             MarchParams,
@@ -116,8 +132,10 @@ pub struct ConvergedMarch {
 
 /// A [`DensityGrid`] uploaded: its voxels and its placement.
 pub struct GpuGrid {
-    params: wgpu::Buffer,
-    view: wgpu::TextureView,
+    pub(super) params: wgpu::Buffer,
+    /// What `params` holds (the frame's medium writes its march settings into a copy).
+    pub(super) uniform: GridParams,
+    pub(super) view: wgpu::TextureView,
     /// Bytes the voxels and the parameters take on the device.
     pub bytes: u64,
     /// Voxels along x, y, z (zero for an empty grid).
@@ -190,14 +208,19 @@ impl GpuGrid {
             .to_cols_array_2d(),
             dims: [dims.x, dims.y, dims.z, 0].map(|d| if empty { 0 } else { d }),
             density_scale_per_m: grid.density_scale_per_m as f32,
-            _pad: [0.0; 3],
+            eye_steps: 0,
+            jitter: 0.0,
+            reference_steps: 0,
+            albedo_powder: [0.0; 4],
+            build_steps: 0,
+            _pad: [0; 3],
         };
         let params_buffer = gpu
             .device
             .create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("medium.grid.params"),
                 contents: bytemuck::bytes_of(&params),
-                usage: wgpu::BufferUsages::UNIFORM,
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             });
         ledger.record(
             "medium.grid.params",
@@ -205,6 +228,7 @@ impl GpuGrid {
         );
         Ok(Self {
             params: params_buffer,
+            uniform: params,
             view: texture.create_view(&wgpu::TextureViewDescriptor::default()),
             bytes: ledger.total_bytes() - before,
             dims: if empty { UVec3::ZERO } else { dims },

@@ -204,7 +204,7 @@ impl DensityGrid {
 
     /// The part [t0, t1] of the segment a + t (b - a), t in [0, 1], where the density can be
     /// non-zero: the voxels' box widened by the trilinear ramp's voxel, in index space.
-    fn support(&self, a_index: DVec3, b_index: DVec3) -> Option<(f64, f64)> {
+    pub fn support(&self, a_index: DVec3, b_index: DVec3) -> Option<(f64, f64)> {
         let lo = DVec3::splat(-1.0);
         let hi = self.dims.as_dvec3();
         let d = b_index - a_index;

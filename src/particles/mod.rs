@@ -448,11 +448,15 @@ impl std::fmt::Display for Summary {
 }
 
 /// A scene argument of any command and of the viewer's Open: a particle file (`.ply`, `.csv`:
-/// [`scene_for_file`]), an embedded scene's name or a scene file ([`Scene::open`]); the
+/// [`scene_for_file`]), a volume file (`.vdb`: `crate::medium::scene::scene_for_volume_file`),
+/// an embedded scene's name or a scene file ([`Scene::open`]); the
 /// embedded thesis scene when `None`.
 pub fn open_scene(arg: Option<&Path>) -> anyhow::Result<Scene> {
     Ok(match arg {
         Some(path) if Format::of_path(path).is_some() => scene_for_file(path)?,
+        Some(path) if crate::medium::scene::is_volume_file(path) => {
+            crate::medium::scene::scene_for_volume_file(path)?
+        }
         arg => Scene::load_or_default(arg)?,
     })
 }
@@ -492,22 +496,20 @@ fn framing_extent(bounds: &Summary) -> Result<(f32, Vec3), String> {
     Ok((size, centre))
 }
 
-/// A scene for a bare particle file (`smokeshadow render smoke.ply`, the viewer's Open): the
-/// thesis scene's lighting, shading and shadow settings, its camera and spotlight turned on the
-/// particles. Both keep the thesis scene's directions and are moved out to frame the particles'
-/// bounds as the thesis scene frames its plume; the light's intensity is scaled with its
-/// distance squared, so the smoke receives the thesis' irradiance. The ground is put under the
-/// particles, and the thesis box is left out.
-pub fn scene_for_file(path: &Path) -> Result<Scene, ParticleFileError> {
-    let mut scene = Scene::thesis_plume();
-    let source = ParticleSource {
-        file: path.to_string_lossy().into_owned(),
-        ..ParticleSource::default()
+/// Turns the thesis scene's camera and spotlight on the smoke in the box `min`..`max` (world
+/// metres): both keep the thesis scene's directions and are moved out to frame the box as the
+/// thesis scene frames its plume; the light's intensity is scaled with its distance squared, so
+/// the smoke receives the thesis' irradiance. The ground is put under the box, the thesis box
+/// and emitters are left out. Errs, naming the problem, for a box that cannot be framed in f32.
+pub fn frame_bounds(scene: &mut Scene, min: Vec3, max: Vec3) -> Result<(), String> {
+    let bounds = Summary {
+        count: 1,
+        min,
+        max,
+        min_density_per_m: 0.0,
+        max_density_per_m: 0.0,
     };
-    let particles = source.particles_at(scene.sim.duration_s)?;
-    let bounds = Summary::of(&particles);
-    let (size, centre) =
-        framing_extent(&bounds).map_err(|m| ParticleFileError::invalid(path, m))?;
+    let (size, centre) = framing_extent(&bounds)?;
     // The thesis plume's framing: the camera's and light's offsets from its target, for a
     // plume of this size (between the 5 m the plume looks and the 8.1 m its particles' bounds
     // span at t = 8 s: a bare file's bounds are often a tight box, and get some margin).
@@ -524,7 +526,7 @@ pub fn scene_for_file(path: &Path) -> Result<Scene, ParticleFileError> {
     light.target = centre;
     light.position = centre + light_offset;
     light.intensity *= k * k;
-    scene.ground.height_m = bounds.min.y;
+    scene.ground.height_m = min.y;
     // The ground square is centred on the origin: it reaches under smoke far from it too.
     let reach = 2.0 * (centre.x.abs().max(centre.z.abs()) + size);
     scene.ground.size_m = (scene.ground.size_m * k)
@@ -532,6 +534,26 @@ pub fn scene_for_file(path: &Path) -> Result<Scene, ParticleFileError> {
         .max(reach);
     scene.boxes.clear();
     scene.emitters.clear();
+    Ok(())
+}
+
+/// A scene for a bare particle file (`smokeshadow render smoke.ply`, the viewer's Open): the
+/// thesis scene's lighting, shading and shadow settings, its camera and spotlight turned on the
+/// particles. Both keep the thesis scene's directions and are moved out to frame the particles'
+/// bounds as the thesis scene frames its plume; the light's intensity is scaled with its
+/// distance squared, so the smoke receives the thesis' irradiance. The ground is put under the
+/// particles, and the thesis box is left out.
+pub fn scene_for_file(path: &Path) -> Result<Scene, ParticleFileError> {
+    let source = ParticleSource {
+        file: path.to_string_lossy().into_owned(),
+        ..ParticleSource::default()
+    };
+    let mut scene = Scene::thesis_plume();
+    let particles = source.particles_at(scene.sim.duration_s)?;
+    let bounds = Summary::of(&particles);
+    framing_extent(&bounds)
+        .and_then(|_| frame_bounds(&mut scene, bounds.min, bounds.max))
+        .map_err(|m| ParticleFileError::invalid(path, m))?;
     scene.particles = Some(source);
     scene.name = path
         .file_stem()

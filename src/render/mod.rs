@@ -39,6 +39,8 @@ use rayon::prelude::*;
 
 use crate::frame::occluders::{self, Occluders};
 use crate::gpu::{FragmentTally, Gpu, GpuError, GpuTimer, PassTimes, TargetWrites};
+use crate::medium::eye_pass;
+use crate::medium::frame::FrameMedium;
 use crate::scene::{LightKind, Scene};
 use crate::shaders;
 use crate::shadow::probe::Probe;
@@ -110,6 +112,8 @@ pub struct FrameStats {
 struct TechniquePipelines {
     opaque: wgpu::RenderPipeline,
     lighting: ParticleLighting,
+    /// The eye's march of a density volume, made on the first frame with one.
+    eye: Option<eye_pass::EyePipelines>,
 }
 
 /// What one light space owns: its frame uniforms (the light's projection for this face) and
@@ -125,6 +129,7 @@ impl LightFace {
     fn new(
         gpu: &Gpu,
         frame_layout: &wgpu::BindGroupLayout,
+        medium: &FrameMedium,
         technique: Box<dyn ShadowTechnique>,
     ) -> Result<Self, ShadowError> {
         let frame_buffer = gpu.device.create_buffer(&wgpu::BufferDescriptor {
@@ -139,7 +144,7 @@ impl LightFace {
             crate::scene::DEFAULT_OCCLUDER_RESOLUTION_PX,
         )?;
         let frame_bind_group =
-            frame_bind_group(&gpu.device, frame_layout, &frame_buffer, &occluders);
+            frame_bind_group(&gpu.device, frame_layout, &frame_buffer, &occluders, medium);
         Ok(Self {
             frame_buffer,
             frame_bind_group,
@@ -195,6 +200,11 @@ pub struct Renderer {
     /// targets of the current size and [`ParticleRes`].
     mixed_res: Option<mixed_res::MixedResPipelines>,
     low_res: Option<mixed_res::LowResTargets>,
+    /// The scene's density volume (its voxels in group 0, binding 4; its parameters in the frame's uniforms), and the eye pass' layouts and
+    /// buffers (made on the first frame with a volume, for its size and steps).
+    medium: FrameMedium,
+    eye_layouts: eye_pass::EyeLayouts,
+    eye_targets: Option<eye_pass::EyeTargets>,
 }
 
 impl Renderer {
@@ -209,6 +219,9 @@ impl Renderer {
         let device = &gpu.device;
         // Group 0: the frame's uniforms, then the occluders' map, sampler and boxes.
         let [map_entry, sampler_entry, boxes_entry] = occluders::frame_layout_entries();
+        // Then the density volume's grid and settings (crate::medium::frame).
+        let medium_entries = crate::medium::frame::layout_entries();
+        let medium = FrameMedium::new(gpu).map_err(|e| ShadowError::Volume(e.to_string()))?;
         let frame_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("frame.layout"),
             entries: &[
@@ -225,6 +238,7 @@ impl Renderer {
                 map_entry,
                 sampler_entry,
                 boxes_entry,
+                medium_entries[0],
             ],
         });
         let depth_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
@@ -281,7 +295,7 @@ impl Renderer {
             technique_impl.as_ref(),
             &technique.params,
         );
-        let faces = vec![LightFace::new(gpu, &frame_layout, technique_impl)?];
+        let faces = vec![LightFace::new(gpu, &frame_layout, &medium, technique_impl)?];
 
         let particle_capacity = 1024;
         let particles = particle_buffer(device, particle_capacity);
@@ -323,6 +337,9 @@ impl Renderer {
             built_from: None,
             mixed_res: None,
             low_res: None,
+            medium,
+            eye_layouts: eye_pass::EyeLayouts::new(device),
+            eye_targets: None,
         })
     }
 
@@ -383,8 +400,12 @@ impl Renderer {
         self.faces.truncate(wanted);
         while self.faces.len() < wanted {
             let technique = self.create_technique(gpu, &self.technique_config.clone())?;
-            self.faces
-                .push(LightFace::new(gpu, &self.frame_layout, technique)?);
+            self.faces.push(LightFace::new(
+                gpu,
+                &self.frame_layout,
+                &self.medium,
+                technique,
+            )?);
             self.built_from = None;
         }
         Ok(())
@@ -406,6 +427,7 @@ impl Renderer {
                 })
                 .map_err(|r| r.during(format!("resizing the frame to {width}x{height}")))?;
             self.low_res = None;
+            self.eye_targets = None;
         }
         Ok(())
     }
@@ -623,6 +645,7 @@ impl Renderer {
             self.record_lighting(gpu, &mut encoder, stats.particle_count);
         }
         self.record_opaque(&mut encoder, scene.shading.background);
+        self.record_volume(gpu, &mut encoder)?;
         if owns_particle_pass {
             self.record_owned_particle_pass(
                 gpu,
@@ -647,6 +670,106 @@ impl Renderer {
         self.timer.resolve(&mut encoder);
         gpu.queue.submit([encoder.finish()]);
         Ok(stats)
+    }
+
+    /// Makes the frame's volume the scene's (loading it when its source changed; every face's
+    /// group 0 is made again then), and refuses a technique that cannot shadow it.
+    fn prepare_medium(
+        &mut self,
+        gpu: &Gpu,
+        scene: &Scene,
+        particles: usize,
+    ) -> Result<(), ShadowError> {
+        let entry = shadow::find(&self.technique_config.name)?;
+        if let Some(refusal) = entry.refusal(scene.volume.is_some(), particles) {
+            return Err(refusal);
+        }
+        let changed = self
+            .medium
+            .prepare(gpu, scene.volume.as_ref())
+            .map_err(|e| ShadowError::Volume(e.to_string()))?;
+        if changed {
+            for face in &mut self.faces {
+                face.frame_bind_group = frame_bind_group(
+                    &gpu.device,
+                    &self.frame_layout,
+                    &face.frame_buffer,
+                    &face.occluders,
+                    &self.medium,
+                );
+            }
+            self.built_from = None;
+        }
+        Ok(())
+    }
+
+    /// The eye's march of the density volume over the opaque scene (nothing without one).
+    fn record_volume(
+        &mut self,
+        gpu: &Gpu,
+        encoder: &mut wgpu::CommandEncoder,
+    ) -> Result<(), ShadowError> {
+        let steps = self.medium.eye_steps();
+        if steps == 0 {
+            return Ok(());
+        }
+        let size = self.size();
+        if !self
+            .eye_targets
+            .as_ref()
+            .is_some_and(|t| t.fits(size, steps))
+        {
+            self.eye_targets = Some(
+                eye_pass::EyeTargets::new(
+                    gpu,
+                    &self.eye_layouts,
+                    &self.targets.depth_view,
+                    size,
+                    steps,
+                )
+                .map_err(|e| ShadowError::Volume(format!("the eye's march of the volume: {e}")))?,
+            );
+        }
+        if self.pipelines.eye.is_none() {
+            let technique = self.faces[0].technique.as_ref();
+            let entry = shadow::find(technique.name())?;
+            self.pipelines.eye = Some(eye_pass::EyePipelines::new(
+                &gpu.device,
+                technique.name(),
+                &self.frame_layout,
+                technique.bind_group_layout(),
+                &entry.frame_imports(&self.technique_config.params),
+                &self.eye_layouts,
+            ));
+        }
+        let faces: Vec<_> = self
+            .faces
+            .iter()
+            .map(|f| eye_pass::EyeFace {
+                frame: &f.frame_bind_group,
+                technique: f.technique.bind_group(),
+            })
+            .collect();
+        eye_pass::record(
+            encoder,
+            &mut self.timer,
+            self.pipelines.eye.as_ref().expect("made above"),
+            self.eye_targets.as_ref().expect("made above"),
+            &faces,
+            &self.targets.hdr_view,
+        );
+        Ok(())
+    }
+
+    /// Loads `scene`'s density volume, if it has one and it is not the one loaded, as a frame
+    /// of it does first (so that its grid is there before any frame: `Renderer::medium`).
+    pub fn load_volume(&mut self, gpu: &Gpu, scene: &Scene) -> Result<(), ShadowError> {
+        self.prepare_medium(gpu, scene, 0)
+    }
+
+    /// The frame's density volume, if the scene has one (its grid and settings).
+    pub fn medium(&self) -> &FrameMedium {
+        &self.medium
     }
 
     /// Refuses the options the active technique cannot draw with: a technique that draws the
@@ -989,9 +1112,10 @@ impl Renderer {
         let (width, height) = self.size();
         self.upload_opaque(gpu, scene);
         self.match_light(gpu, &scene.light)?;
+        self.prepare_medium(gpu, scene, particles.len())?;
 
         let camera = CameraMatrices::new(scene, width, height);
-        let lights = LightSpace::faces(&scene.light, particles);
+        let lights = LightSpace::faces_with(&scene.light, particles, self.medium.bounds());
         let reads_occluder_map = shadow::find(&self.technique_config.name).map_or(true, |e| {
             e.reads_occluder_map(&self.technique_config.params)
         });
@@ -1002,12 +1126,19 @@ impl Renderer {
                     &self.frame_layout,
                     &face.frame_buffer,
                     &face.occluders,
+                    &self.medium,
                 );
             }
             gpu.queue.write_buffer(
                 &face.frame_buffer,
                 0,
-                bytemuck::bytes_of(&frame_uniforms(scene, &camera, light, width, height)),
+                bytemuck::bytes_of(&frame_uniforms(
+                    scene,
+                    &camera,
+                    light,
+                    (width, height),
+                    self.medium.frame_params(),
+                )),
             );
         }
 
@@ -1049,6 +1180,7 @@ impl Renderer {
             .then(|| build_key(particles, &scene.light, &lights[0], &self.technique_config));
         if build_key.is_none() || self.built_from != build_key {
             self.built_from = None;
+            let volume = self.medium.bounds();
             match build {
                 // The bench's light pass: once, in the first light space.
                 Some(build) => build(
@@ -1061,6 +1193,7 @@ impl Renderer {
                         particle_count,
                         instances: &self.instances,
                         light: &lights[0],
+                        volume,
                     },
                 )?,
                 None => {
@@ -1075,6 +1208,7 @@ impl Renderer {
                                 particle_count,
                                 instances: &self.instances,
                                 light,
+                                volume,
                             },
                         )?;
                     }
@@ -1440,7 +1574,11 @@ impl TechniquePipelines {
             &imports,
             particle_layouts,
         );
-        Self { opaque, lighting }
+        Self {
+            opaque,
+            lighting,
+            eye: None,
+        }
     }
 }
 
@@ -1448,8 +1586,8 @@ fn frame_uniforms(
     scene: &Scene,
     camera: &CameraMatrices,
     light: &LightSpace,
-    width: u32,
-    height: u32,
+    (width, height): (u32, u32),
+    grid: crate::medium::gpu_grid::GridParams,
 ) -> FrameUniforms {
     let l = &scene.light;
     let (cos_outer, cos_inner) = match l.kind {
@@ -1474,6 +1612,7 @@ fn frame_uniforms(
         world_from_clip: clip_from_world.inverse().to_cols_array_2d(),
         light_clip_from_world: light.clip_from_world.to_cols_array_2d(),
         occluder_clip_from_world: occluder_clip_from_world.to_cols_array_2d(),
+        world_from_light_clip: light.clip_from_world.inverse().to_cols_array_2d(),
         camera_pos: camera.position.extend(scene.camera.near_m).to_array(),
         camera_forward: camera.forward.extend(scene.camera.far_m).to_array(),
         viewport: [
@@ -1505,17 +1644,21 @@ fn frame_uniforms(
             occluders::epsilon_m(l.position, light.far_m),
             0.0,
         ],
+        grid,
     }
 }
 
-/// Group 0: the frame's uniforms and the occluders' map, sampler and boxes.
+/// Group 0: the frame's uniforms, the occluders' map, sampler and boxes, and the density
+/// volume's voxels.
 fn frame_bind_group(
     device: &wgpu::Device,
     layout: &wgpu::BindGroupLayout,
     frame_buffer: &wgpu::Buffer,
     occluders: &Occluders,
+    medium: &FrameMedium,
 ) -> wgpu::BindGroup {
     let [map, sampler, boxes] = occluders.frame_entries();
+    let [grid_density] = medium.bind_entries();
     device.create_bind_group(&wgpu::BindGroupDescriptor {
         label: Some("frame.bind_group"),
         layout,
@@ -1527,6 +1670,7 @@ fn frame_bind_group(
             map,
             sampler,
             boxes,
+            grid_density,
         ],
     })
 }

@@ -27,16 +27,23 @@ use crate::sim::Particle;
 /// The largest difference in T allowed between the GPU reference and the CPU closed form: the
 /// GPU's f32 chord arithmetic and 2^-26 fixed-point sum stay near 1e-5 (tests/techniques.rs).
 pub const TOLERANCE: f64 = 1e-3;
+/// The f64 mirror's march through a density volume: doubled until T at N and 2N steps agree
+/// within this, up to this many steps (a point it cannot converge at reads NaN and fails).
+pub const VOLUME_TOLERANCE: f64 = 1e-5;
+pub const VOLUME_MAX_STEPS: u32 = 1 << 16;
 /// Particle lighting points compared (one per particle, evenly through the list).
 pub const PARTICLE_POINTS: usize = 200;
 /// Lit opaque points compared (evenly through a grid over the image).
 pub const OPAQUE_POINTS: usize = 200;
+/// A density volume's eye samples compared (evenly through those of a grid over the image).
+pub const VOLUME_POINTS: usize = 200;
 
 /// What kind of surface a compared point lies on.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum PointKind {
     Particle,
     Opaque,
+    Volume,
 }
 
 impl PointKind {
@@ -44,6 +51,7 @@ impl PointKind {
         match self {
             Self::Particle => "a particle's lighting point",
             Self::Opaque => "a lit ground or box point",
+            Self::Volume => "an eye sample of the density volume",
         }
     }
 }
@@ -64,6 +72,9 @@ pub struct WorstPoint {
 pub struct ReferenceCheck {
     /// Points compared.
     pub points: usize,
+    /// Of them, eye samples of a density volume (whose optical depth the f64 mirror marches,
+    /// doubling its steps until T agrees within [`VOLUME_TOLERANCE`]).
+    pub volume_points: usize,
     /// Points skipped as knife edges of the occluder test.
     pub knife_edges: usize,
     /// The largest |T_gpu − T_cpu| over the compared points (0 without points).
@@ -78,6 +89,13 @@ impl std::fmt::Display for ReferenceCheck {
             "exact checked against the f64 closed form at {} shaded points: worst |ΔT| {:.1e} (allowed {:.0e})",
             self.points, self.worst_difference, TOLERANCE
         )?;
+        if self.volume_points > 0 {
+            write!(
+                f,
+                " ({} in the density volume; its optical depth by an f64 march doubled until converged)",
+                self.volume_points
+            )?;
+        }
         if self.knife_edges > 0 {
             write!(f, ", {} on an occluder's edge skipped", self.knife_edges)?;
         }
@@ -85,12 +103,13 @@ impl std::fmt::Display for ReferenceCheck {
     }
 }
 
-/// The points of a `width` x `height` frame of `scene` that the check compares, with their kinds.
+/// The points of a `width` x `height` frame of `scene` that the check compares, with their kinds
+/// (`volume`: the frame's density volume, whose eye samples are compared too).
 pub fn check_points(
     scene: &Scene,
     particles: &[Particle],
-    width: u32,
-    height: u32,
+    (width, height): (u32, u32),
+    volume: Option<&crate::medium::grid::DensityGrid>,
 ) -> Vec<(Vec3, PointKind)> {
     let camera = super::CameraMatrices::new(scene, width, height);
     let light = &scene.light;
@@ -120,6 +139,24 @@ pub fn check_points(
             .filter(|&p| reached(p))
             .map(|p| (p, PointKind::Opaque)),
     );
+    if let (Some(grid), Some(spec)) = (volume, &scene.volume) {
+        let samples = super::shaded::volume_eye_points(
+            scene,
+            &camera,
+            grid,
+            (width, height),
+            stride_px,
+            spec.eye_steps,
+        );
+        let keep = samples.len().div_ceil(VOLUME_POINTS).max(1);
+        out.extend(
+            samples
+                .into_iter()
+                .step_by(keep)
+                .filter(|&p| reached(p))
+                .map(|p| (p, PointKind::Volume)),
+        );
+    }
     out
 }
 
@@ -135,24 +172,50 @@ pub fn verify(
     particles: &[Particle],
 ) -> anyhow::Result<ReferenceCheck> {
     let (width, height) = renderer.size();
-    let points = check_points(scene, particles, width, height);
+    let grid = renderer.medium().grid().cloned();
+    let points = check_points(scene, particles, (width, height), grid.as_deref());
     let positions: Vec<Vec3> = points.iter().map(|(p, _)| *p).collect();
     let gpu_t = renderer.probe_with_occluders(gpu, scene, particles, &positions)?;
-    let far_m = LightSpace::faces(&scene.light, particles)[0].far_m;
+    let far_m =
+        LightSpace::faces_with(&scene.light, particles, renderer.medium().bounds())[0].far_m;
     let epsilon_m = occluders::epsilon_m(scene.light.position, far_m);
-    let cpu_t: Vec<Option<f64>> =
-        positions
-            .par_iter()
-            .map(|&p| {
-                match closed_form::occluder_visibility(scene, scene.light.position, p, epsilon_m) {
-                    Visibility::Lit => Some(closed_form::transmittance_of(
-                        closed_form::optical_depth(scene.light.position, p, particles),
-                    )),
-                    Visibility::Blocked => Some(0.0),
-                    Visibility::KnifeEdge => None,
+    let light = scene.light.position;
+    let cpu_t: Vec<Option<f64>> = positions
+        .par_iter()
+        .map(|&p| {
+            match closed_form::occluder_visibility(scene, light, p, epsilon_m) {
+                Visibility::Lit => {
+                    let particles_tau = closed_form::optical_depth(light, p, particles);
+                    // The volume's by the f64 mirror of its march, doubled until converged.
+                    let volume_tau = match &grid {
+                        Some(grid) => -grid
+                            .converged_transmittance(
+                                light.as_dvec3(),
+                                p.as_dvec3(),
+                                1,
+                                VOLUME_MAX_STEPS,
+                                VOLUME_TOLERANCE,
+                            )
+                            .map_or(f64::NAN, |c| c.transmittance)
+                            .ln(),
+                        None => 0.0,
+                    };
+                    Some(closed_form::transmittance_of(particles_tau + volume_tau))
                 }
-            })
-            .collect();
+                Visibility::Blocked => Some(0.0),
+                Visibility::KnifeEdge => None,
+            }
+        })
+        .collect();
+    if let Some(i) = cpu_t.iter().position(|t| t.is_some_and(f64::is_nan)) {
+        let p = positions[i];
+        anyhow::bail!(
+            "the reference's f64 mirror did not converge through the volume at ({:.3}, {:.3}, {:.3}) m within {VOLUME_MAX_STEPS} steps, so no error against `exact` is reported",
+            p.x,
+            p.y,
+            p.z
+        );
+    }
     let check = compare(&points, &gpu_t, &cpu_t);
     match check.worst {
         Some(w) if check.worst_difference > TOLERANCE => Err(anyhow::anyhow!(
@@ -192,6 +255,7 @@ pub fn compare(
 ) -> ReferenceCheck {
     let mut check = ReferenceCheck {
         points: 0,
+        volume_points: 0,
         knife_edges: 0,
         worst_difference: 0.0,
         worst: None,
@@ -202,6 +266,7 @@ pub fn compare(
             continue;
         };
         check.points += 1;
+        check.volume_points += usize::from(kind == PointKind::Volume);
         let difference = (f64::from(gpu) - cpu).abs();
         // NaN from the GPU is the worst of all.
         if difference.is_nan() || difference > check.worst_difference || check.worst.is_none() {

@@ -3,7 +3,10 @@
 //! - every particle's four lighting points (the lighting pass evaluates T at a 2x2 grid across
 //!   each camera-facing billboard, see `shaders/render/particle_lighting.wgsl`);
 //! - the opaque surfaces (ground and boxes) seen through a grid of pixels, where the spotlight
-//!   reaches them (inside its cone, facing it): the points that receive the smoke's shadow.
+//!   reaches them (inside its cone, facing it): the points that receive the smoke's shadow;
+//! - a density volume's eye samples through the same grid of pixels (the middle of each step of
+//!   the eye's march that has density, in front of the opaque surface; the frame jitters them by
+//!   up to half a step), at most [`MAX_VOLUME_POINTS`] of them taken evenly.
 //!
 //! The transmittance at these points comes from [`super::Renderer::probe`]; [`rms_difference`]
 //! turns two sets into the RMS transmittance error the tests, the probe and the sweep report.
@@ -11,6 +14,7 @@
 use glam::{Vec2, Vec3};
 
 use super::CameraMatrices;
+use crate::medium::grid::DensityGrid;
 use crate::scene::Scene;
 use crate::sim::Particle;
 
@@ -18,19 +22,82 @@ use crate::sim::Particle;
 /// with `SHADE_OFFSET` in shaders/render/particle_lighting.wgsl and particles.wgsl.
 pub const SHADE_OFFSET: f32 = 0.5;
 
+/// The most eye samples of a density volume [`shaded_points`] keeps.
+pub const MAX_VOLUME_POINTS: usize = 4096;
+
 /// The shaded points of a `width` x `height` view: particle lighting points, then lit opaque
-/// points sampled every `stride_px` pixels.
+/// points sampled every `stride_px` pixels, then the density volume's eye samples (`volume`:
+/// the frame's grid, `Renderer::medium`) through the same pixels.
 pub fn shaded_points(
     scene: &Scene,
     particles: &[Particle],
-    width: u32,
-    height: u32,
+    (width, height): (u32, u32),
     stride_px: u32,
+    volume: Option<&DensityGrid>,
 ) -> Vec<Vec3> {
     let camera = CameraMatrices::new(scene, width, height);
     let mut points = particle_lighting_points(camera.position, particles);
     points.extend(lit_opaque_points(scene, &camera, width, height, stride_px));
+    if let (Some(grid), Some(spec)) = (volume, &scene.volume) {
+        points.extend(volume_eye_points(
+            scene,
+            &camera,
+            grid,
+            (width, height),
+            stride_px,
+            spec.eye_steps,
+        ));
+    }
     points
+}
+
+/// The middles of the eye's march steps with density through a grid of pixels every
+/// `stride_px`, up to the opaque surface (at most [`MAX_VOLUME_POINTS`], taken evenly).
+pub fn volume_eye_points(
+    scene: &Scene,
+    camera: &CameraMatrices,
+    grid: &DensityGrid,
+    (width, height): (u32, u32),
+    stride_px: u32,
+    eye_steps: u32,
+) -> Vec<Vec3> {
+    let world_from_clip = camera.clip_from_world().inverse();
+    let index_from_world = grid.world_from_index.inverse();
+    let stride = stride_px.max(1) as usize;
+    let mut out = Vec::new();
+    for y in (0..height).step_by(stride) {
+        for x in (0..width).step_by(stride) {
+            let ndc = Vec2::new(
+                (x as f32 + 0.5) / width as f32 * 2.0 - 1.0,
+                1.0 - (y as f32 + 0.5) / height as f32 * 2.0,
+            );
+            let dir = (world_from_clip.project_point3(ndc.extend(1.0)) - camera.position)
+                .normalize()
+                .as_dvec3();
+            let origin = camera.position.as_dvec3();
+            let t_near = f64::from(scene.camera.near_m);
+            let t_far = first_opaque_hit(scene, camera.position, dir.as_vec3())
+                .map_or(f64::from(scene.camera.far_m), |(p, _)| {
+                    p.as_dvec3().distance(origin)
+                });
+            let (a, b) = (origin + t_near * dir, origin + t_far * dir);
+            let Some((s0, s1)) = grid.support(
+                index_from_world.transform_point3(a),
+                index_from_world.transform_point3(b),
+            ) else {
+                continue;
+            };
+            let dt = (s1 - s0) / f64::from(eye_steps.max(1));
+            for i in 0..eye_steps {
+                let p = a.lerp(b, s0 + (f64::from(i) + 0.5) * dt);
+                if grid.density_at_index(index_from_world.transform_point3(p)) > 0.0 {
+                    out.push(p.as_vec3());
+                }
+            }
+        }
+    }
+    let keep = out.len().div_ceil(MAX_VOLUME_POINTS).max(1);
+    out.into_iter().step_by(keep).collect()
 }
 
 /// The owners of [`shaded_points`]' points for [`super::Renderer::probe_shaded`]: particle

@@ -19,6 +19,8 @@ use std::path::{Path, PathBuf};
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
+pub use crate::medium::scene::VolumeSpec;
+
 pub use technique::{OccluderMode, ParamValue, SplatMode, TechniqueParams};
 pub use validate::LIMITS;
 
@@ -50,6 +52,8 @@ pub const TRAIN_PUFFS_TOML: &str = include_str!("../../scenes/train_puffs.toml")
 pub const TRAIN_HAZE_TOML: &str = include_str!("../../scenes/train_haze.toml");
 /// Training: a plume bent by wind, lit from behind.
 pub const TRAIN_BACKLIT_TOML: &str = include_str!("../../scenes/train_backlit.toml");
+/// The procedural cloudscape (`[volume] procedural = "cloud"`), ray marched.
+pub const CLOUD_TOML: &str = include_str!("../../scenes/cloud.toml");
 
 /// The scenes embedded in the binary, by name.
 pub const EMBEDDED: &[(&str, &str)] = &[
@@ -65,6 +69,7 @@ pub const EMBEDDED: &[(&str, &str)] = &[
     ("train_puffs", TRAIN_PUFFS_TOML),
     ("train_haze", TRAIN_HAZE_TOML),
     ("train_backlit", TRAIN_BACKLIT_TOML),
+    ("cloud", CLOUD_TOML),
 ];
 
 /// The training scenes `smokeshadow tune` chooses the techniques' parameters on: none of them is
@@ -163,6 +168,9 @@ pub struct Scene {
     pub emitters: Vec<Emitter>,
     /// Particles from a file instead of the emitters (`[particles]`): then `emitters` is empty.
     pub particles: Option<ParticleSource>,
+    /// A density volume (`[volume]`, `crate::medium::scene`): with no emitter and no
+    /// `[particles]`, the scene's smoke is the volume alone (`emitters` is empty).
+    pub volume: Option<VolumeSpec>,
     pub wind: Wind,
     pub sim: SimClock,
     pub shadow: ShadowSettings,
@@ -189,6 +197,8 @@ struct SceneFile {
     emitters: Vec<Emitter>,
     #[serde(skip_serializing_if = "Option::is_none")]
     particles: Option<ParticleSource>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    volume: Option<VolumeSpec>,
     wind: Wind,
     sim: SimClock,
     shadow: ShadowSettings,
@@ -212,6 +222,8 @@ impl TryFrom<SceneFile> for Scene {
 
     fn try_from(f: SceneFile) -> Result<Self, String> {
         let from_file = f.particles.is_some();
+        // A volume scene has particles only where it names them.
+        let volume_only = f.volume.is_some() && f.emitter.is_none() && f.emitters.is_empty();
         if from_file && (f.emitter.is_some() || !f.emitters.is_empty()) {
             return Err(
                 "both [particles] and an emitter are given: the particles come from \
@@ -220,7 +232,7 @@ impl TryFrom<SceneFile> for Scene {
             );
         }
         let emitters = match (f.emitter, f.emitters.is_empty()) {
-            _ if from_file => Vec::new(),
+            _ if from_file || volume_only => Vec::new(),
             (Some(_), false) => {
                 return Err(
                     "both [emitter] and [[emitters]] are given: use one [emitter] table or an \
@@ -242,6 +254,7 @@ impl TryFrom<SceneFile> for Scene {
             boxes: f.boxes,
             emitters,
             particles: f.particles,
+            volume: f.volume,
             wind: f.wind,
             sim: f.sim,
             shadow: f.shadow,
@@ -267,6 +280,7 @@ impl From<Scene> for SceneFile {
             emitter,
             emitters,
             particles: s.particles,
+            volume: s.volume,
             wind: s.wind,
             sim: s.sim,
             shadow: s.shadow,
@@ -546,6 +560,7 @@ impl Default for Scene {
             boxes: Vec::new(),
             emitters: vec![Emitter::default()],
             particles: None,
+            volume: None,
             wind: Wind::default(),
             sim: SimClock::default(),
             shadow: ShadowSettings::default(),
@@ -741,6 +756,9 @@ impl Scene {
             let path = source.path_at(self.sim.duration_s);
             hasher.update(std::fs::read(path).unwrap_or_default());
         }
+        if let Some(volume) = self.volume.as_ref().filter(|v| !v.file.is_empty()) {
+            hasher.update(std::fs::read(volume.path()).unwrap_or_default());
+        }
         let digest = hasher.finalize();
         digest.iter().map(|b| format!("{b:02x}")).collect()
     }
@@ -786,8 +804,12 @@ impl Scene {
             cause,
         })?;
         let mut scene = Self::from_toml_str(&text, &path.display().to_string())?;
+        let base_dir = path.parent().map(Path::to_owned).unwrap_or_default();
         if let Some(source) = &mut scene.particles {
-            source.base_dir = path.parent().map(Path::to_owned).unwrap_or_default();
+            source.base_dir = base_dir.clone();
+        }
+        if let Some(volume) = &mut scene.volume {
+            volume.base_dir = base_dir;
         }
         Ok(scene)
     }

@@ -197,7 +197,7 @@ pub(super) fn validate(scene: &Scene) -> Result<(), String> {
         );
     }
     match &scene.particles {
-        None if scene.emitters.is_empty() => {
+        None if scene.emitters.is_empty() && scene.volume.is_none() => {
             c.errors
                 .push("emitters: the scene has no emitter: give at least one".to_owned());
         }
@@ -272,6 +272,9 @@ pub(super) fn validate(scene: &Scene) -> Result<(), String> {
     c.each_at_least("shading.ambient", s.ambient, 0.0);
     c.each_at_least("shading.background", s.background, 0.0);
     c.positive("shading.exposure", s.exposure);
+    if let Some(volume) = &scene.volume {
+        c.errors.extend(volume.problems());
+    }
 
     if c.errors.is_empty() {
         Ok(())

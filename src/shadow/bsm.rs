@@ -65,4 +65,6 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     uses_splat: false,
     uses_budget: false,
     owns_particle_pass: false,
+    volume: super::VolumeSupport::Shadows,
+    shadows_particles: true,
 };

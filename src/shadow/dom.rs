@@ -135,4 +135,6 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     uses_splat: true,
     uses_budget: true,
     owns_particle_pass: false,
+    volume: super::VolumeSupport::Shadows,
+    shadows_particles: true,
 };

@@ -112,6 +112,8 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     uses_splat: false,
     uses_budget: true,
     owns_particle_pass: false,
+    volume: super::VOLUME_BUILD_PENDING,
+    shadows_particles: true,
 };
 
 #[cfg(test)]

@@ -123,6 +123,8 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     uses_splat: false,
     uses_budget: false,
     owns_particle_pass: false,
+    volume: super::VolumeSupport::Shadows,
+    shadows_particles: true,
 };
 
 /// Keep in sync with `ExactParams` in shaders/shadow/exact.wgsl and exact_build.wgsl.
@@ -513,7 +515,11 @@ impl Exact {
             slices: 0,
             lighting_order: Vec::new(),
             max_list: 0,
-            loop_budget: ctx.gpu.loop_budget(),
+            // The lookup's march through a density volume takes its share first.
+            loop_budget: ctx
+                .gpu
+                .loop_budget()
+                .map(|b| b.saturating_sub(crate::medium::frame::REFERENCE_LOOP_RESERVE)),
             build_layout,
             lookup_layout,
             lookup_bind_group,

@@ -101,6 +101,8 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     uses_splat: true,
     uses_budget: true,
     owns_particle_pass: false,
+    volume: super::VolumeSupport::Shadows,
+    shadows_particles: true,
 };
 
 pub const SIGMA_ENTRY: TechniqueEntry = TechniqueEntry {
@@ -124,4 +126,6 @@ pub const SIGMA_ENTRY: TechniqueEntry = TechniqueEntry {
     uses_splat: true,
     uses_budget: true,
     owns_particle_pass: false,
+    volume: super::VolumeSupport::Shadows,
+    shadows_particles: true,
 };

@@ -89,6 +89,10 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     uses_splat: false,
     uses_budget: true,
     owns_particle_pass: true,
+    volume: super::VolumeSupport::Refuses(
+        "it draws the particles in half-angle slices; a volume would need its slices of the grid (Kniss 2003), not written",
+    ),
+    shadows_particles: true,
 };
 
 /// Format of the light buffer (accumulated optical depth).

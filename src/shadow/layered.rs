@@ -265,10 +265,21 @@ fn build_outputs_wgsl(targets: u32) -> String {
     let writes: String = (0..targets)
         .map(|i| format!("    out.t{i} = target_values(prepared, {i}u);\n"))
         .collect();
+    let sums: String = (0..targets)
+        .map(|i| format!("        out.t{i} += target_values(prepared, {i}u);\n"))
+        .collect();
     format!(
         "struct BuildOut {{\n{fields}}};\n\n@fragment\nfn fs_build(in: BuildVertexOut) -> BuildOut {{\n    \
          let splat = splat_fragment(in, layered.splat == 1u);\n    \
-         let prepared = prepare_values(splat, in.clip.xy);\n    var out: BuildOut;\n{writes}    return out;\n}}\n"
+         let prepared = prepare_values(splat, in.clip.xy);\n    var out: BuildOut;\n{writes}    return out;\n}}\n\n\
+         // The volume's steps along the texel's light ray (shaders/shadow/volume_splat.wgsl),\n\
+         // summed as their fragments would be (every target blends additively).\n\
+         @fragment\nfn fs_build_volume(in: VolumeVertexOut) -> BuildOut {{\n    \
+         let ray = volume_light_ray(in.ndc);\n    if ray.steps == 0u {{\n        discard;\n    }}\n    \
+         var out: BuildOut;\n    for (var i = 0u; i < ray.steps; i++) {{\n        \
+         let splat = volume_splat(ray, i, layered.splat == 1u);\n        \
+         if splat.optical_depth <= 0.0 {{\n            continue;\n        }}\n        \
+         let prepared = prepare_values(splat, in.clip.xy);\n{sums}    }}\n    return out;\n}}\n"
     )
 }
 
@@ -379,6 +390,8 @@ pub struct Layered {
     target_writes: TargetWrites,
     build_pipeline: wgpu::RenderPipeline,
     build_bind_group: wgpu::BindGroup,
+    /// The density volume's draw into the same targets.
+    volume: VolumeBuild,
     /// The depth channel's pass, for specs that have one.
     depth: Option<DepthPass>,
     lookup_layout: wgpu::BindGroupLayout,
@@ -389,6 +402,7 @@ pub struct Layered {
 struct DepthPass {
     view: wgpu::TextureView,
     pipeline: wgpu::RenderPipeline,
+    volume: VolumeBuild,
     bind_group: wgpu::BindGroup,
 }
 
@@ -563,15 +577,87 @@ pub(crate) fn billboard_pipeline_blends(
     )
 }
 
+/// How a technique draws a density volume into its maps (shaders/shadow/volume_splat.wgsl): a
+/// full-screen triangle whose fragments march their texel's light ray (`fragment_entry`, into
+/// the same targets with the same blends as its particles). Made on the first build with a
+/// volume, so that a particle scene never compiles it.
+pub(crate) struct VolumeBuild {
+    module: wgpu::ShaderModule,
+    label: String,
+    fragment_entry: &'static str,
+    layouts: Vec<wgpu::BindGroupLayout>,
+    targets: Vec<(wgpu::TextureFormat, wgpu::BlendComponent)>,
+    pipeline: Option<wgpu::RenderPipeline>,
+}
+
+impl VolumeBuild {
+    pub(crate) fn new(
+        module: &wgpu::ShaderModule,
+        label: String,
+        fragment_entry: &'static str,
+        layouts: &[&wgpu::BindGroupLayout],
+        targets: &[(wgpu::TextureFormat, wgpu::BlendComponent)],
+    ) -> Self {
+        Self {
+            module: module.clone(),
+            label,
+            fragment_entry,
+            layouts: layouts.iter().map(|l| (*l).clone()).collect(),
+            targets: targets.to_vec(),
+            pipeline: None,
+        }
+    }
+
+    /// Draws the volume into the pass's targets (the pipeline made on first use).
+    pub(crate) fn draw(
+        &mut self,
+        device: &wgpu::Device,
+        pass: &mut wgpu::RenderPass<'_>,
+        frame_bind_group: &wgpu::BindGroup,
+        bind_group: &wgpu::BindGroup,
+    ) {
+        let pipeline = self.pipeline.get_or_insert_with(|| {
+            let layouts: Vec<_> = self.layouts.iter().map(Some).collect();
+            build_pipeline_entries(
+                device,
+                &self.label,
+                &self.module,
+                ("vs_volume", self.fragment_entry),
+                &layouts,
+                &self.targets,
+                false,
+            )
+        });
+        pass.set_pipeline(pipeline);
+        pass.set_bind_group(0, frame_bind_group, &[]);
+        pass.set_bind_group(1, bind_group, &[]);
+        pass.draw(0..3, 0..1);
+    }
+}
+
 /// [`billboard_pipeline_blends`] with its own vertex entry point (one that draws the billboards
 /// of other spheres than the particles', e.g. `dom`'s enlarged ones).
 fn billboard_pipeline_entries(
     device: &wgpu::Device,
     label: &str,
     module: &wgpu::ShaderModule,
+    entries: (&str, &str),
+    layouts: &[Option<&wgpu::BindGroupLayout>],
+    targets: &[(wgpu::TextureFormat, wgpu::BlendComponent)],
+) -> wgpu::RenderPipeline {
+    build_pipeline_entries(device, label, module, entries, layouts, targets, true)
+}
+
+/// A light-space build pipeline: billboards from the particle instances (`instanced`), or a
+/// full-screen triangle without vertex buffers.
+fn build_pipeline_entries(
+    device: &wgpu::Device,
+    label: &str,
+    module: &wgpu::ShaderModule,
     (vertex_entry, fragment_entry): (&str, &str),
     layouts: &[Option<&wgpu::BindGroupLayout>],
     targets: &[(wgpu::TextureFormat, wgpu::BlendComponent)],
+    instanced: bool,
 ) -> wgpu::RenderPipeline {
     let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
         label: Some(label),
@@ -598,7 +684,11 @@ fn billboard_pipeline_entries(
             module,
             entry_point: Some(vertex_entry),
             compilation_options: Default::default(),
-            buffers: &[Some(ParticleInstance::LAYOUT)],
+            buffers: if instanced {
+                &[Some(ParticleInstance::LAYOUT)]
+            } else {
+                &[]
+            },
         },
         primitive: wgpu::PrimitiveState::default(),
         depth_stencil: None,
@@ -727,7 +817,8 @@ impl Layered {
             &format!("{name}.build"),
             &build_shader_source(spec, target_count),
         );
-        let (build_pipeline, build_bind_group, depth) = match &depth_view {
+        let additive: Vec<_> = formats.iter().map(|&f| (f, ADDITIVE)).collect();
+        let (build_pipeline, build_bind_group, volume, depth) = match &depth_view {
             None => (
                 billboard_pipeline(
                     device,
@@ -739,6 +830,13 @@ impl Layered {
                     ADDITIVE,
                 ),
                 params_bind_group,
+                VolumeBuild::new(
+                    &module,
+                    format!("{name}.build.volume"),
+                    "fs_build_volume",
+                    &[ctx.frame_layout, &params_layout],
+                    &additive,
+                ),
                 None,
             ),
             Some(depth_view) => {
@@ -783,9 +881,23 @@ impl Layered {
                         ADDITIVE,
                     ),
                     layer_bind_group,
+                    VolumeBuild::new(
+                        &module,
+                        format!("{name}.build.layers.volume"),
+                        "fs_build_volume",
+                        &[ctx.frame_layout, &layer_layout],
+                        &additive,
+                    ),
                     Some(DepthPass {
                         view: depth_view.clone(),
                         pipeline: depth_pipeline,
+                        volume: VolumeBuild::new(
+                            &module,
+                            format!("{name}.build.depth.volume"),
+                            "fs_depth_volume",
+                            &[ctx.frame_layout, &params_layout],
+                            &[(DEPTH_FORMAT, MIN_BLEND)],
+                        ),
                         bind_group: params_bind_group,
                     }),
                 )
@@ -846,6 +958,7 @@ impl Layered {
             target_writes: TargetWrites::of(&formats),
             build_pipeline,
             build_bind_group,
+            volume,
             depth,
             lookup_layout,
             lookup_bind_group,
@@ -954,7 +1067,7 @@ impl ShadowTechnique for Layered {
             bytemuck::bytes_of(&self.shader_params()),
         );
         let particles = inputs.particles.slice(..);
-        if let Some(depth) = &self.depth {
+        if let Some(depth) = &mut self.depth {
             // The depth where the smoke starts: MIN blending, cleared beyond the far bound.
             let mut pass = inputs
                 .encoder
@@ -978,6 +1091,14 @@ impl ShadowTechnique for Layered {
                         particles,
                         inputs.particle_count,
                     );
+                    if inputs.volume.is_some() {
+                        depth.volume.draw(
+                            &gpu.device,
+                            pass,
+                            inputs.frame_bind_group,
+                            &depth.bind_group,
+                        );
+                    }
                 });
         }
         let attachments: Vec<_> = self
@@ -1006,6 +1127,14 @@ impl ShadowTechnique for Layered {
                     particles,
                     inputs.particle_count,
                 );
+                if inputs.volume.is_some() {
+                    self.volume.draw(
+                        &gpu.device,
+                        pass,
+                        inputs.frame_bind_group,
+                        &self.build_bind_group,
+                    );
+                }
             });
         Ok(())
     }

@@ -13,7 +13,7 @@
 use bytemuck::{Pod, Zeroable};
 
 use super::layered::{
-    billboard_pipeline_blends, cleared_attachment, draw_particles, lookup_group_head,
+    VolumeBuild, billboard_pipeline_blends, cleared_attachment, draw_particles, lookup_group_head,
     lookup_layout_head, map_texture, texture_entry, uniform_group,
 };
 use super::{
@@ -97,6 +97,8 @@ pub struct LightMaps {
     maps: Vec<Map>,
     build_pipeline: wgpu::RenderPipeline,
     build_bind_group: wgpu::BindGroup,
+    /// The density volume's draw into the same maps.
+    volume: VolumeBuild,
     lookup_layout: wgpu::BindGroupLayout,
     lookup_bind_group: wgpu::BindGroup,
     memory: MemoryLedger,
@@ -174,6 +176,13 @@ impl LightMaps {
             &[Some(ctx.frame_layout), Some(&build_layout)],
             &targets,
         );
+        let volume = VolumeBuild::new(
+            &module,
+            format!("{name}.build.volume"),
+            "fs_build_volume",
+            &[ctx.frame_layout, &build_layout],
+            &targets,
+        );
 
         let mut lookup_entries = lookup_layout_head();
         for i in 0..spec.maps.len() {
@@ -201,6 +210,7 @@ impl LightMaps {
             maps,
             build_pipeline,
             build_bind_group,
+            volume,
             lookup_layout,
             lookup_bind_group,
             memory,
@@ -224,7 +234,7 @@ impl ShadowTechnique for LightMaps {
     fn bind_group(&self) -> &wgpu::BindGroup {
         &self.lookup_bind_group
     }
-    fn build(&mut self, _gpu: &Gpu, inputs: BuildInputs<'_>) -> Result<(), ShadowError> {
+    fn build(&mut self, gpu: &Gpu, inputs: BuildInputs<'_>) -> Result<(), ShadowError> {
         let attachments: Vec<_> = self
             .maps
             .iter()
@@ -253,6 +263,14 @@ impl ShadowTechnique for LightMaps {
                     inputs.particles.slice(..),
                     inputs.particle_count,
                 );
+                if inputs.volume.is_some() {
+                    self.volume.draw(
+                        &gpu.device,
+                        pass,
+                        inputs.frame_bind_group,
+                        &self.build_bind_group,
+                    );
+                }
             });
         Ok(())
     }

@@ -81,12 +81,47 @@ impl LightSpace {
     /// The light spaces of `light` this frame: the spotlight's one, or a point light's six
     /// cube faces in [`cube_face`]'s order.
     pub fn faces(light: &Spotlight, particles: &[Particle]) -> Vec<Self> {
-        match light.kind {
+        Self::faces_with(light, particles, None)
+    }
+
+    /// [`LightSpace::faces`] of a scene that also holds a density volume within the world box
+    /// `volume` (min, max): the radial bounds enclose the box too.
+    pub fn faces_with(
+        light: &Spotlight,
+        particles: &[Particle],
+        volume: Option<(Vec3, Vec3)>,
+    ) -> Vec<Self> {
+        let mut faces: Vec<Self> = match light.kind {
             LightKind::Spot => vec![Self::fit(light, particles)],
             LightKind::Point => (0..6)
                 .map(|f| Self::fit_face(light, f, particles))
                 .collect(),
+        };
+        if let Some((lo, hi)) = volume {
+            let (near, far) = crate::medium::frame::box_distances(light.position, lo, hi);
+            for face in &mut faces {
+                face.enclose(near, far, particles.is_empty());
+            }
         }
+        faces
+    }
+
+    /// Widens the radial bounds to [`near`, `far`] as well (replacing them when there are no
+    /// particles), and the projection's planes with them.
+    fn enclose(&mut self, near: f32, far: f32, alone: bool) {
+        let (old_near, old_far) = match alone {
+            true => (f32::INFINITY, 0.0),
+            false => (self.near_m, self.far_m),
+        };
+        let far = far.max(old_far).max(f32::MIN_POSITIVE);
+        let near = near.min(old_near).max(1e-4 * far);
+        let far = far.max(near * (1.0 + 1e-4));
+        let fov = 2.0 * self.tan_half_fov.atan();
+        let z_near = (0.5 * near * (0.5 * fov).cos()).max(1e-6 * far);
+        let proj = Mat4::perspective_rh(fov, 1.0, z_near, 2.0 * far);
+        self.clip_from_world = proj * self.view_from_world;
+        self.near_m = near;
+        self.far_m = far;
     }
 
     /// The spotlight's light space: its cone (the point light's faces: [`LightSpace::faces`]).

@@ -36,6 +36,7 @@ pub mod none;
 pub mod osm;
 pub mod probe;
 pub mod slice_interp;
+pub mod srm;
 pub mod volume;
 
 pub use light_space::LightSpace;
@@ -56,6 +57,21 @@ pub const MAX_CHANNELS: u32 = 32;
 /// Errors in choosing or configuring a technique. Each renders as one line.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum ShadowError {
+    #[error("{technique} cannot shadow this scene's density volume: {why}")]
+    VolumeUnsupported {
+        technique: &'static str,
+        why: &'static str,
+    },
+    #[error("{0}")]
+    Volume(String),
+    #[error(
+        "{technique} cannot shadow this scene's {particles} particles: it marches a density \
+         volume only"
+    )]
+    ParticlesUnsupported {
+        technique: &'static str,
+        particles: usize,
+    },
     #[error("unknown technique \"{name}\"; valid techniques: {valid}")]
     UnknownTechnique { name: String, valid: String },
     #[error("--channels {channels} is out of range for {technique}: allowed {min}..={max}")]
@@ -231,6 +247,9 @@ pub struct BuildInputs<'a> {
     /// The same instances on the CPU, in the buffer's order.
     pub instances: &'a [crate::frame::gpu_data::ParticleInstance],
     pub light: &'a LightSpace,
+    /// The world box (min, max) of the scene's density volume, if it holds one (group 0's
+    /// grid, `crate::medium::frame`): a technique that shadows it builds it into its maps too.
+    pub volume: Option<(glam::Vec3, glam::Vec3)>,
 }
 
 /// What a technique that draws the particles itself (see [`ShadowTechnique::particle_pass`])
@@ -615,9 +634,45 @@ pub struct TechniqueEntry {
     /// is `Some`): such a technique renders them at full resolution only, so the sweep skips
     /// it at a lower `--particle-res` (`tests/mixed_res.rs` holds the two to agree).
     pub owns_particle_pass: bool,
+    /// Whether it shadows a density volume (`[volume]`, `crate::medium`), and if not, why.
+    pub volume: VolumeSupport,
+    /// Whether it shadows particles (`srm` marches the density volume only, and refuses a
+    /// scene with particles).
+    pub shadows_particles: bool,
 }
 
+/// Whether a technique's T(p) includes a scene's density volume.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum VolumeSupport {
+    /// Its maps or its lookup take the volume (`none`: no shadow at all, as for particles).
+    Shadows,
+    /// It does not: the reason, for the one-line refusal.
+    Refuses(&'static str),
+}
+
+/// What techniques whose light-space build does not take the volume yet say.
+pub const VOLUME_BUILD_PENDING: VolumeSupport = VolumeSupport::Refuses(
+    "its maps are built from particles only: the light-space build from a density volume \
+     (issue 26 §3) is not written for it yet",
+);
+
 impl TechniqueEntry {
+    /// Why it cannot shadow a scene whose smoke holds a density volume (`volume`) and
+    /// `particles` particles, if it cannot: the renderer's one-line refusal, which the sweep
+    /// notes instead of measuring.
+    pub fn refusal(&self, volume: bool, particles: usize) -> Option<ShadowError> {
+        if let (true, VolumeSupport::Refuses(why)) = (volume, self.volume) {
+            return Some(ShadowError::VolumeUnsupported {
+                technique: self.name,
+                why,
+            });
+        }
+        (particles > 0 && !self.shadows_particles).then_some(ShadowError::ParticlesUnsupported {
+            technique: self.name,
+            particles,
+        })
+    }
+
     /// Whether its lighting reads the occluders' filtered depth map: with `params.occluders`
     /// = map, and never for the reference, which tests the boxes and the ground exactly (so the
     /// frame draws no map for it).
@@ -655,6 +710,7 @@ pub static REGISTRY: &[TechniqueEntry] = &[
     half_angle::ENTRY,
     esm::ENTRY,
     bsm::ENTRY,
+    srm::ENTRY,
     msm::ENTRY,
     msm::TRIG_ENTRY,
     dsm::ENTRY,
@@ -662,6 +718,12 @@ pub static REGISTRY: &[TechniqueEntry] = &[
     volume::ENTRY,
     exact::ENTRY,
 ];
+
+/// The techniques that shadow particles (every one but those that march a density volume only,
+/// `srm`), in registry order: what a particle scene is rendered and tested with.
+pub fn particle_techniques() -> impl Iterator<Item = &'static TechniqueEntry> {
+    REGISTRY.iter().filter(|e| e.shadows_particles)
+}
 
 /// The technique with `role` (the first, for [`Role::Contender`]).
 fn with_role(role: Role) -> &'static TechniqueEntry {
@@ -852,6 +914,12 @@ pub fn all_shader_modules() -> Vec<(String, String)> {
                 format!("probe[{}, {mode} occluders]", entry.name),
                 probe::source(entry, &params),
             ));
+            if entry.volume == VolumeSupport::Shadows {
+                out.push((
+                    format!("volume_eye[{}, {mode} occluders]", entry.name),
+                    crate::medium::eye_pass::source(&entry.frame_imports(&params)),
+                ));
+            }
         }
         out.extend((entry.extra_shaders)());
     }

@@ -207,6 +207,8 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     uses_splat: true,
     uses_budget: true,
     owns_particle_pass: false,
+    volume: super::VolumeSupport::Shadows,
+    shadows_particles: true,
 };
 
 pub const TRIG_ENTRY: TechniqueEntry = TechniqueEntry {

@@ -238,6 +238,8 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     uses_splat: false,
     uses_budget: true,
     owns_particle_pass: false,
+    volume: super::VolumeSupport::Shadows,
+    shadows_particles: true,
 };
 
 /// Voxels per side for a `resolution_px`² map of `channels` half floats: G = round(cbrt(res² · B)),
@@ -354,9 +356,14 @@ pub struct VoxelPlan {
     pub units_per_extinction: f32,
 }
 
-/// Places a `side`³ grid over `instances` and lists their scatter jobs; `None` when no particle
-/// has a radius and an extinction.
-pub fn plan(instances: &[ParticleInstance], side: u32) -> Option<VoxelPlan> {
+/// Places a `side`³ grid over `instances` and the density volume's box `volume` (min, max), if
+/// the scene has one, and lists the particles' scatter jobs; `None` when there is neither a
+/// particle with a radius and an extinction nor a volume.
+pub fn plan(
+    instances: &[ParticleInstance],
+    side: u32,
+    volume: Option<(glam::Vec3, glam::Vec3)>,
+) -> Option<VoxelPlan> {
     use glam::Vec3;
     let live = |p: &&ParticleInstance| p.center_radius[3] > 0.0 && p.albedo_density[3] > 0.0;
     let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
@@ -369,7 +376,10 @@ pub fn plan(instances: &[ParticleInstance], side: u32) -> Option<VoxelPlan> {
         count += 1;
         max_tau = max_tau.max(p.albedo_density[3]);
     }
-    if count == 0 {
+    if let Some((vlo, vhi)) = volume {
+        lo = lo.min(vlo);
+        hi = hi.max(vhi);
+    } else if count == 0 {
         return None;
     }
     let voxel = (hi - lo).max(Vec3::splat(1e-3)) / (side - 2) as f32;
@@ -538,7 +548,8 @@ impl Volume {
         );
         let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("volume.build.pipeline_layout"),
-            bind_group_layouts: &[Some(&build_layout)],
+            // Group 0 the frame's (the scene's density volume), group 1 the build's own.
+            bind_group_layouts: &[Some(ctx.frame_layout), Some(&build_layout)],
             immediate_size: 0,
         });
         let pipeline = |entry: &str| {
@@ -683,7 +694,7 @@ impl ShadowTechnique for Volume {
 
     fn build(&mut self, gpu: &Gpu, inputs: BuildInputs<'_>) -> Result<(), ShadowError> {
         let device = &gpu.device;
-        let Some(plan) = plan(inputs.instances, self.side) else {
+        let Some(plan) = plan(inputs.instances, self.side, inputs.volume) else {
             // No smoke: the lookup lets all light through and the grid is not read.
             (self.last_jobs, self.last_rows) = (0, 0);
             gpu.queue.write_buffer(
@@ -765,7 +776,8 @@ impl ShadowTechnique for Volume {
                         timestamp_writes: inputs.timer.compute_pass("shadow"),
                     });
                 pass.set_pipeline(pipeline);
-                pass.set_bind_group(0, &bind_group, &[]);
+                pass.set_bind_group(0, inputs.frame_bind_group, &[]);
+                pass.set_bind_group(1, &bind_group, &[]);
                 pass.dispatch_workgroups(groups[0], groups[1], groups[2]);
             }
             inputs.encoder.copy_buffer_to_texture(
@@ -844,7 +856,7 @@ mod tests {
             instance([-50.0, 0.0, 0.0], 1.0, 0.0),
         ];
         let side = 34;
-        let plan = plan(&particles, side).unwrap();
+        let plan = plan(&particles, side, None).unwrap();
         assert_eq!(plan.jobs.len(), 2);
         let voxel = plan.extent / side as f32;
         // The spheres span [-1, 3.5] x [-1, 1.5] x [-1.5, 1]: 32 voxels inside, one each side.
@@ -870,7 +882,7 @@ mod tests {
             }
         }
         assert_eq!(plan.units_per_extinction, MAX_UNITS_PER_EXTINCTION);
-        assert!(super::plan(&particles[2..], side).is_none());
+        assert!(super::plan(&particles[2..], side, None).is_none());
     }
 
     #[test]
@@ -878,7 +890,7 @@ mod tests {
         let many: Vec<_> = (0..100_000)
             .map(|i| instance([i as f32 * 0.01, 0.0, 0.0], 0.1, 50.0))
             .collect();
-        let plan = plan(&many, 16).unwrap();
+        let plan = plan(&many, 16, None).unwrap();
         let units = f64::from(plan.units_per_extinction);
         // The largest sum 100,000 particles of τ = 50 could give, peak included, fits; twice
         // the scale would not.

@@ -194,6 +194,12 @@ fn plan(scene: &Scene, options: &SweepOptions) -> anyhow::Result<(Vec<Plan>, Vec
         .at(options.particle_res[0]),
     ];
     let mut skipped = Vec::new();
+    // What the scene's smoke holds, for the techniques that cannot shadow it (`srm` particles,
+    // `has` a density volume): noted, not measured.
+    let smoke = (
+        scene.volume.is_some(),
+        crate::particles::count(scene) as usize,
+    );
     for name in &options.techniques {
         let entry = shadow::find(name)?;
         if entry.role != shadow::Role::Contender {
@@ -202,6 +208,15 @@ fn plan(scene: &Scene, options: &SweepOptions) -> anyhow::Result<(Vec<Plan>, Vec
                 shadow::frame_baseline().name,
                 shadow::reference().name
             );
+        }
+        if let Some(refusal) = entry.refusal(smoke.0, smoke.1) {
+            skipped.push(SkippedCell {
+                technique: entry.name.to_owned(),
+                channels: first_budget(entry, &options.channels).unwrap_or(options.channels[0]),
+                bytes_per_texel: None,
+                reason: refusal.to_string(),
+            });
+            continue;
         }
         for &b in &options.channels {
             if !(1..=shadow::MAX_CHANNELS).contains(&b) {
@@ -261,6 +276,7 @@ fn plan(scene: &Scene, options: &SweepOptions) -> anyhow::Result<(Vec<Plan>, Vec
                     let entry = shadow::find(name)?;
                     if s > 0 && !entry.uses_splat
                         || particle_res != ParticleRes::Full && entry.owns_particle_pass
+                        || entry.refusal(smoke.0, smoke.1).is_some()
                     {
                         continue;
                     }
@@ -465,7 +481,13 @@ impl<'a> Sweeper<'a> {
             let hdr = crate::gpu::read_texture_rgba16f(gpu, renderer.hdr_texture())?;
             crate::output::write_exr(&dir.join(EXACT_HDR_IMAGE), &hdr)?;
         }
-        let points = shaded_points(scene, &particles, w, h, SHADED_STRIDE_PX);
+        let points = shaded_points(
+            scene,
+            &particles,
+            (w, h),
+            SHADED_STRIDE_PX,
+            renderer.medium().grid().map(|g| &**g),
+        );
         let owners = crate::render::shaded::point_owners(particles.len(), points.len());
         let exact_t = renderer.probe_shaded(gpu, scene, &particles, &points, &owners)?;
         // No error is measured against a reference that disagrees with the closed form.

@@ -278,7 +278,14 @@ impl Case {
             params: scene.shadow.params(1),
         };
         let mut renderer = Renderer::new(gpu, w, h, OUTPUT_FORMAT, &exact)?;
-        let points = shaded_points(&scene, &particles, w, h, crate::sweep::SHADED_STRIDE_PX);
+        renderer.load_volume(gpu, &scene)?;
+        let points = shaded_points(
+            &scene,
+            &particles,
+            (w, h),
+            crate::sweep::SHADED_STRIDE_PX,
+            renderer.medium().grid().map(|g| &**g),
+        );
         let owners = point_owners(particles.len(), points.len());
         let exact_t = renderer.probe_shaded(gpu, &scene, &particles, &points, &owners)?;
         crate::render::reference_check::verify(&mut renderer, gpu, &scene, &particles)?;

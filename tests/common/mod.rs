@@ -80,8 +80,13 @@ impl ReversedOrder {
         let mut behind = scene.clone();
         behind.camera.position = scene.camera.target * 2.0 - scene.camera.position;
         let particles = smokeshadow::sim::simulate(&scene);
-        let points =
-            smokeshadow::render::shaded::shaded_points(&scene, &particles, REDUCED_W, REDUCED_H, 8);
+        let points = smokeshadow::render::shaded::shaded_points(
+            &scene,
+            &particles,
+            (REDUCED_W, REDUCED_H),
+            8,
+            None,
+        );
         Self {
             scene,
             behind,

@@ -1,0 +1,520 @@
+//! A scene's `[volume]`: the density volume it holds, and how it is made into a
+//! [`DensityGrid`] for the frame: an OpenVDB file's float grid, the procedural cloud baked on
+//! the GPU, or a homogeneous sphere or box voxelised (the analytic media, whose closed forms
+//! test the rest).
+//!
+//! ```toml
+//! [volume]
+//! file = "smoke.vdb"          # or: procedural = "cloud", or: shape = "sphere" | "box"
+//! grid = "density"            # the file's float grid
+//! density_scale_per_m = 10.0  # extinction (1/m) per unit of density
+//! translate_m = [0, 0, 0]     # placed after the file's own transform:
+//! scale = 1.0                 #   world = translate + rotate(scale · file world)
+//! rotate_deg = [-90, 0, 0]    # about x, then y, then z (a z-up file's smoke stood up)
+//! albedo = [0.9, 0.9, 0.9]
+//! eye_steps = 128             # the eye's ray march
+//! ```
+
+use std::path::{Path, PathBuf};
+
+use glam::{DAffine3, DVec3, UVec3, Vec3};
+use serde::{Deserialize, Serialize};
+
+use super::analytic::{HomogeneousMedium, Shape};
+use super::cloud::{CloudBaker, CloudNoiseGenerator};
+use super::cloud_noise::CloudParams;
+use super::grid::DensityGrid;
+use super::vdb;
+use crate::gpu::{Gpu, MemoryLedger};
+
+/// The most voxels along any side of a shape's or the cloud's grid (and the least).
+pub const MAX_VOXELS: u32 = 512;
+pub const MIN_VOXELS: u32 = 2;
+/// The most eye steps a march may take.
+pub const MAX_EYE_STEPS: u32 = 4096;
+
+/// Where the volume's density comes from.
+#[derive(Clone, Debug, PartialEq)]
+pub enum VolumeKind<'a> {
+    File(&'a str),
+    Cloud,
+    Sphere,
+    Box,
+}
+
+/// The `[volume]` table of a scene.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct VolumeSpec {
+    /// An OpenVDB file, relative to the scene file's folder.
+    #[serde(skip_serializing_if = "String::is_empty")]
+    pub file: String,
+    /// The file's float grid to read.
+    pub grid: String,
+    /// `cloud`: the slides' and the dissertation's procedural cloud (`[volume.cloud]`).
+    #[serde(skip_serializing_if = "String::is_empty")]
+    pub procedural: String,
+    /// `sphere` (`center_m`, `radius_m`) or `box` (`center_m`, `size_m`): a homogeneous
+    /// medium of density 1, voxelised.
+    #[serde(skip_serializing_if = "String::is_empty")]
+    pub shape: String,
+    /// Extinction per unit of density, 1/m, >= 0 (the file's units; 1 inside a shape; the
+    /// cloud's densest point).
+    pub density_scale_per_m: f32,
+    /// The placement after the source's own: world = translate + rotate(scale · p), the
+    /// rotation about x, then y, then z, degrees.
+    pub translate_m: Vec3,
+    pub scale: f32,
+    pub rotate_deg: Vec3,
+    /// Single-scattering albedo, linear RGB, each in [0, 1].
+    pub albedo: Vec3,
+    /// Steps of the eye's ray march over the part of each ray the grid covers, 1..=4096.
+    pub eye_steps: u32,
+    /// Steps along each light-space texel's ray of the techniques' build from the volume
+    /// (the same for every technique), 1..=4096.
+    pub build_steps: u32,
+    /// Where in each step the eye samples: 0.5 its middle; 1 jitters it per pixel (against
+    /// banding), in [0, 1].
+    pub jitter: f32,
+    /// The slides' powder term (dark edges where little light has scattered in), 0 off .. 1.
+    pub powder: f32,
+    /// A shape's centre and the sphere's radius or the box's sides, metres.
+    pub center_m: Vec3,
+    pub radius_m: f32,
+    pub size_m: Vec3,
+    /// Voxels along the longest side of a shape's or the cloud's grid.
+    pub voxels: u32,
+    /// The procedural cloud's layer.
+    pub cloud: CloudSpec,
+    /// The folder `file` is relative to: the scene file's (not written).
+    #[serde(skip)]
+    pub base_dir: PathBuf,
+}
+
+impl Default for VolumeSpec {
+    fn default() -> Self {
+        Self {
+            file: String::new(),
+            grid: "density".to_owned(),
+            procedural: String::new(),
+            shape: String::new(),
+            density_scale_per_m: 1.0,
+            translate_m: Vec3::ZERO,
+            scale: 1.0,
+            rotate_deg: Vec3::ZERO,
+            albedo: Vec3::splat(0.9),
+            eye_steps: 128,
+            build_steps: 64,
+            jitter: 1.0,
+            powder: 0.0,
+            center_m: Vec3::ZERO,
+            radius_m: 1.0,
+            size_m: Vec3::ONE,
+            voxels: 64,
+            cloud: CloudSpec::default(),
+            base_dir: PathBuf::new(),
+        }
+    }
+}
+
+/// `[volume.cloud]`: the cloud layer (see [`CloudParams`]; its densest extinction is the
+/// volume's `density_scale_per_m`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct CloudSpec {
+    /// The noise's seed.
+    pub seed: u32,
+    pub origin_xz_m: [f32; 2],
+    pub size_xz_m: [f32; 2],
+    pub altitude_m: f32,
+    pub thickness_m: f32,
+    /// Global coverage, 0 (clear) .. 1 (overcast).
+    pub coverage: f32,
+    pub top_fraction: f32,
+    pub shape_period_m: f32,
+    pub detail_period_m: f32,
+    /// How much the coverage map shapes the layer, 0..1.
+    pub coverage_map: f32,
+}
+
+impl Default for CloudSpec {
+    fn default() -> Self {
+        Self {
+            seed: 7,
+            origin_xz_m: [-3000.0, -3000.0],
+            size_xz_m: [6000.0, 6000.0],
+            altitude_m: 1500.0,
+            thickness_m: 1500.0,
+            coverage: 0.6,
+            top_fraction: 1.0,
+            shape_period_m: 4000.0,
+            detail_period_m: 800.0,
+            coverage_map: 1.0,
+        }
+    }
+}
+
+impl CloudSpec {
+    /// The layer's parameters, its density 1 at the densest (the grid's scale gives the unit).
+    pub fn params(&self) -> CloudParams {
+        CloudParams {
+            origin_xz_m: self.origin_xz_m,
+            size_xz_m: self.size_xz_m,
+            altitude_m: self.altitude_m,
+            thickness_m: self.thickness_m,
+            coverage: self.coverage,
+            density_per_m: 1.0,
+            top_fraction: self.top_fraction,
+            shape_period_m: self.shape_period_m,
+            detail_period_m: self.detail_period_m,
+            coverage_map: self.coverage_map,
+        }
+    }
+}
+
+/// Why a scene's volume cannot be made. Each renders as one line naming the field or file.
+#[derive(Debug, thiserror::Error)]
+pub enum VolumeError {
+    #[error("cannot read volume file {path}: {cause}")]
+    Read {
+        path: PathBuf,
+        cause: std::io::Error,
+    },
+    #[error("volume file {path}: {cause}")]
+    Vdb { path: PathBuf, cause: vdb::VdbError },
+    #[error("volume file {path}: {cause}")]
+    Grid {
+        path: PathBuf,
+        cause: super::grid::GridError,
+    },
+    #[error("volume: the procedural cloud: {0}")]
+    Cloud(String),
+    #[error(
+        "volume: its {dims} voxels need {steps} reference steps along the diagonal (two a voxel), \
+         more than the {max} one shader invocation may take beside the particles' walk: use a \
+         coarser grid (volume.voxels, or resample the file)"
+    )]
+    TooFine { dims: UVec3, steps: u32, max: u32 },
+    #[error("volume: cannot upload its grid: {0}")]
+    Upload(String),
+}
+
+impl VolumeSpec {
+    /// Which source the table names (validation has checked that it names exactly one).
+    pub fn kind(&self) -> VolumeKind<'_> {
+        if !self.file.is_empty() {
+            VolumeKind::File(&self.file)
+        } else if self.procedural == "cloud" {
+            VolumeKind::Cloud
+        } else if self.shape == "box" {
+            VolumeKind::Box
+        } else {
+            VolumeKind::Sphere
+        }
+    }
+
+    /// The file's path, relative to the scene file's folder.
+    pub fn path(&self) -> PathBuf {
+        self.base_dir.join(&self.file)
+    }
+
+    /// The scene's placement of the source: world = translate + rotate(scale · p).
+    pub fn placement(&self) -> DAffine3 {
+        let r = self.rotate_deg.as_dvec3();
+        DAffine3::from_translation(self.translate_m.as_dvec3())
+            * DAffine3::from_rotation_z(r.z.to_radians())
+            * DAffine3::from_rotation_y(r.y.to_radians())
+            * DAffine3::from_rotation_x(r.x.to_radians())
+            * DAffine3::from_scale(DVec3::splat(f64::from(self.scale)))
+    }
+
+    /// A shape as its closed form, before the placement (`None` for a file or the cloud).
+    pub fn analytic(&self) -> Option<HomogeneousMedium> {
+        let shape = match self.kind() {
+            VolumeKind::Sphere => Shape::Sphere {
+                center: self.center_m.as_dvec3(),
+                radius_m: f64::from(self.radius_m),
+            },
+            VolumeKind::Box => Shape::Box {
+                min: (self.center_m - 0.5 * self.size_m).as_dvec3(),
+                max: (self.center_m + 0.5 * self.size_m).as_dvec3(),
+            },
+            _ => return None,
+        };
+        Some(HomogeneousMedium {
+            shape,
+            extinction_per_m: f64::from(self.density_scale_per_m),
+        })
+    }
+
+    /// Voxels per axis of a box of `size` with `self.voxels` along its longest side.
+    fn dims_for(&self, size: DVec3) -> UVec3 {
+        let voxel = size.max_element() / f64::from(self.voxels);
+        (size / voxel)
+            .ceil()
+            .as_uvec3()
+            .clamp(UVec3::splat(MIN_VOXELS), UVec3::splat(MAX_VOXELS))
+    }
+
+    /// The volume as a density grid in the world: read, baked or voxelised, then placed.
+    /// The cloud's bake records its transient buffers in `ledger`.
+    pub fn density_grid(
+        &self,
+        gpu: &Gpu,
+        ledger: &mut MemoryLedger,
+    ) -> Result<DensityGrid, VolumeError> {
+        let mut grid = match self.kind() {
+            VolumeKind::File(_) => {
+                let path = self.path();
+                let bytes = std::fs::read(&path).map_err(|cause| VolumeError::Read {
+                    path: path.clone(),
+                    cause,
+                })?;
+                let file = vdb::read_float_grid(&bytes, &self.grid, &vdb::Limits::default())
+                    .map_err(|cause| VolumeError::Vdb {
+                        path: path.clone(),
+                        cause,
+                    })?;
+                DensityGrid::from_vdb(
+                    &file,
+                    DAffine3::IDENTITY,
+                    f64::from(self.density_scale_per_m),
+                )
+                .map_err(|cause| VolumeError::Grid { path, cause })?
+            }
+            VolumeKind::Cloud => {
+                let params = self.cloud.params();
+                params
+                    .validate()
+                    .map_err(|e| VolumeError::Cloud(e.to_string()))?;
+                let size = DVec3::new(
+                    f64::from(params.size_xz_m[0]),
+                    f64::from(params.thickness_m),
+                    f64::from(params.size_xz_m[1]),
+                );
+                let noise = CloudNoiseGenerator::new(gpu)
+                    .generate(gpu, ledger, self.cloud.seed)
+                    .map_err(|e| VolumeError::Cloud(e.to_string()))?;
+                let mut grid = CloudBaker::new(gpu)
+                    .bake(gpu, ledger, &noise, &params, self.dims_for(size))
+                    .map_err(|e| VolumeError::Cloud(e.to_string()))?;
+                grid.density_scale_per_m = f64::from(self.density_scale_per_m);
+                grid
+            }
+            VolumeKind::Sphere | VolumeKind::Box => {
+                let medium = self.analytic().expect("a shape has a closed form");
+                let (min, max) = medium.shape.bounds();
+                // Half a voxel of empty margin on each side, so the edge's ramp is inside.
+                let dims = self.dims_for(max - min);
+                let margin = (max - min) / dims.as_dvec3();
+                let mut grid = DensityGrid::voxelize(&medium, min - margin, max + margin, dims + 2);
+                grid.density_scale_per_m = 1.0;
+                grid
+            }
+        };
+        grid.world_from_index = self.placement() * grid.world_from_index;
+        Ok(grid)
+    }
+
+    /// Range checks; each message names the field as `volume.<field>`.
+    pub fn problems(&self) -> Vec<String> {
+        let mut out = Vec::new();
+        let sources = [
+            !self.file.is_empty(),
+            !self.procedural.is_empty(),
+            !self.shape.is_empty(),
+        ];
+        match sources.iter().filter(|s| **s).count() {
+            0 => out.push(
+                "[volume] names no source: give file = \"….vdb\", procedural = \"cloud\" or \
+                 shape = \"sphere\" | \"box\""
+                    .to_owned(),
+            ),
+            1 => {}
+            _ => out.push(
+                "[volume] names more than one source: give one of file, procedural and shape"
+                    .to_owned(),
+            ),
+        }
+        if !self.procedural.is_empty() && self.procedural != "cloud" {
+            out.push(format!(
+                "volume.procedural = {:?} is unknown: the one procedural volume is \"cloud\"",
+                self.procedural
+            ));
+        }
+        if !self.shape.is_empty() && !matches!(self.shape.as_str(), "sphere" | "box") {
+            out.push(format!(
+                "volume.shape = {:?} is unknown: \"sphere\" or \"box\"",
+                self.shape
+            ));
+        }
+        if self.grid.is_empty() {
+            out.push("volume.grid is empty: name the file's float grid (\"density\")".to_owned());
+        }
+        let mut positive = |field: &str, v: f32| {
+            if !(v.is_finite() && v > 0.0) {
+                out.push(format!("volume.{field} = {v} is out of range: must be > 0"));
+            }
+        };
+        positive("scale", self.scale);
+        positive("radius_m", self.radius_m);
+        for (axis, v) in ["x", "y", "z"].iter().zip(self.size_m.to_array()) {
+            positive(&format!("size_m.{axis}"), v);
+        }
+        if !(self.density_scale_per_m.is_finite() && self.density_scale_per_m >= 0.0) {
+            out.push(format!(
+                "volume.density_scale_per_m = {} is out of range: must be >= 0",
+                self.density_scale_per_m
+            ));
+        }
+        let unit = |field: &str, v: f32, out: &mut Vec<String>| {
+            if !(v.is_finite() && (0.0..=1.0).contains(&v)) {
+                out.push(format!(
+                    "volume.{field} = {v} is out of range: allowed [0, 1]"
+                ));
+            }
+        };
+        unit("jitter", self.jitter, &mut out);
+        unit("powder", self.powder, &mut out);
+        for (c, v) in ["r", "g", "b"].iter().zip(self.albedo.to_array()) {
+            unit(&format!("albedo.{c}"), v, &mut out);
+        }
+        for (field, v) in [
+            ("translate_m", self.translate_m),
+            ("center_m", self.center_m),
+            ("rotate_deg", self.rotate_deg),
+        ] {
+            if !v.is_finite() {
+                out.push(format!("volume.{field} = {v} must be finite"));
+            }
+        }
+        if !(1..=MAX_EYE_STEPS).contains(&self.eye_steps) {
+            out.push(format!(
+                "volume.eye_steps = {} is out of range: allowed 1..={MAX_EYE_STEPS}",
+                self.eye_steps
+            ));
+        }
+        if !(1..=MAX_EYE_STEPS).contains(&self.build_steps) {
+            out.push(format!(
+                "volume.build_steps = {} is out of range: allowed 1..={MAX_EYE_STEPS}",
+                self.build_steps
+            ));
+        }
+        if !(MIN_VOXELS..=MAX_VOXELS).contains(&self.voxels) {
+            out.push(format!(
+                "volume.voxels = {} is out of range: allowed {MIN_VOXELS}..={MAX_VOXELS}",
+                self.voxels
+            ));
+        }
+        if self.procedural == "cloud"
+            && let Err(e) = self.cloud.params().validate()
+        {
+            out.push(format!(
+                "volume.cloud.{} = {} is out of range: allowed {}",
+                e.field.replace(".x", "[0]").replace(".z", "[1]"),
+                e.value,
+                e.allowed
+            ));
+        }
+        out
+    }
+
+    /// A short description for `info` and reports.
+    pub fn summary(&self) -> String {
+        match self.kind() {
+            VolumeKind::File(file) => format!(
+                "volume: grid {:?} of {file}, {} /m per unit",
+                self.grid, self.density_scale_per_m
+            ),
+            VolumeKind::Cloud => format!(
+                "volume: procedural cloud, {:.0}x{:.0} m at {:.0} m, coverage {}, {} /m at its densest",
+                self.cloud.size_xz_m[0],
+                self.cloud.size_xz_m[1],
+                self.cloud.altitude_m,
+                self.cloud.coverage,
+                self.density_scale_per_m
+            ),
+            VolumeKind::Sphere => format!(
+                "volume: homogeneous sphere r = {} m, {} /m",
+                self.radius_m, self.density_scale_per_m
+            ),
+            VolumeKind::Box => format!(
+                "volume: homogeneous box {} m, {} /m",
+                self.size_m, self.density_scale_per_m
+            ),
+        }
+    }
+}
+
+/// Whether `path` names a volume file (`.vdb`) rather than a scene or particle file.
+pub fn is_volume_file(path: &Path) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("vdb"))
+}
+
+/// The optical depth a bare volume file's smoke is given across half its size, at its mean
+/// non-zero density (its `density_scale_per_m`: a file's densities have no unit).
+pub const BARE_FILE_OPTICAL_DEPTH: f64 = 3.0;
+
+/// A scene for a bare volume file (`smokeshadow render smoke.vdb`, the viewer's Open): its
+/// `density` grid placed by the file's transform, framed like a bare particle file
+/// (`crate::particles::frame_bounds`), its density scaled so that half the smoke's size at its
+/// mean non-zero density is [`BARE_FILE_OPTICAL_DEPTH`] deep.
+pub fn scene_for_volume_file(path: &Path) -> anyhow::Result<crate::scene::Scene> {
+    let mut spec = VolumeSpec {
+        file: path.to_string_lossy().into_owned(),
+        ..VolumeSpec::default()
+    };
+    let bytes = std::fs::read(path).map_err(|cause| VolumeError::Read {
+        path: path.to_owned(),
+        cause,
+    })?;
+    let file =
+        vdb::read_float_grid(&bytes, &spec.grid, &vdb::Limits::default()).map_err(|cause| {
+            VolumeError::Vdb {
+                path: path.to_owned(),
+                cause,
+            }
+        })?;
+    let grid = DensityGrid::from_vdb(&file, DAffine3::IDENTITY, 1.0).map_err(|cause| {
+        VolumeError::Grid {
+            path: path.to_owned(),
+            cause,
+        }
+    })?;
+    let Some((lo, hi)) = grid.world_bounds() else {
+        anyhow::bail!(
+            "volume file {}: grid {:?} has no active voxels: there is no smoke to frame",
+            path.display(),
+            spec.grid
+        );
+    };
+    let size = (hi - lo).max_element();
+    let non_zero: Vec<f64> = grid
+        .values
+        .iter()
+        .filter(|v| **v > 0.0)
+        .map(|v| f64::from(*v))
+        .collect();
+    let mean = non_zero.iter().sum::<f64>() / non_zero.len().max(1) as f64;
+    if !(mean > 0.0 && size > 0.0) {
+        anyhow::bail!(
+            "volume file {}: grid {:?} holds no density above 0: there is no smoke to render",
+            path.display(),
+            spec.grid
+        );
+    }
+    spec.density_scale_per_m = (BARE_FILE_OPTICAL_DEPTH / (mean * 0.5 * size)) as f32;
+    let mut scene = crate::scene::Scene::thesis_plume();
+    crate::particles::frame_bounds(&mut scene, lo.as_vec3(), hi.as_vec3())
+        .map_err(|m| anyhow::anyhow!("volume file {}: {m}", path.display()))?;
+    scene.volume = Some(spec);
+    scene.name = path
+        .file_stem()
+        .map_or("volume".into(), |s| s.to_string_lossy().into_owned());
+    scene.description = format!("density volume of {}", path.display());
+    scene
+        .validate()
+        .map_err(|m| anyhow::anyhow!("volume file {}: {m}", path.display()))?;
+    Ok(scene)
+}
