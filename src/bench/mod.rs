@@ -22,6 +22,7 @@
 
 pub mod bound;
 pub mod volume;
+pub mod volume_frames;
 
 use std::collections::BTreeMap;
 use std::path::Path;

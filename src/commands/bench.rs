@@ -20,8 +20,9 @@ pub struct BenchArgs {
     // `--particles N`: the same as a one-count `--particles-list`.
     #[command(flatten)]
     pub particles: ParticlesArg,
-    /// Technique (repeatable; `all`: every contender; default: every registered technique).
-    #[arg(long = "technique", short = 't')]
+    /// Technique (repeatable or comma-separated; `all`: every contender; default: every
+    /// technique that shadows particles).
+    #[arg(long = "technique", short = 't', value_delimiter = ',')]
     pub techniques: Vec<String>,
     /// Channel budget every technique gets, 1..=32 (a technique whose minimum is above it is
     /// recorded as refused).
@@ -59,13 +60,26 @@ pub struct BenchArgs {
     /// each `--grid-sizes`) or an OpenVDB file (its `density` grid): the cloud's noise and
     /// bake, the light march and the eye's march per grid and light step count, as wall times
     /// (`bench_volume.csv`).
+    /// With `-t/--technique` (e.g. `-t esm,bsm,fom,srm`): whole frames of the volume's scene
+    /// per technique (the cloud at each `--coverages`), timed by GPU timestamps, with each
+    /// technique's time over `srm`'s and the coverage from which `srm` is the slower
+    /// (`bench_volume_frames.csv`), instead of the stages.
     #[arg(long, value_name = "cloud|FILE.vdb",
-          conflicts_with_all = ["scene", "techniques", "particles_list", "particle_res", "sort"])]
+          conflicts_with_all = ["scene", "particles_list", "particle_res", "sort"])]
     pub volume: Option<String>,
     /// The cloud's grid edge lengths for `--volume cloud` (a layer of N x N/4 x N voxels).
     #[arg(long, value_delimiter = ',', value_name = "N,...", default_value = "64,128,256",
           value_parser = clap::value_parser!(u32).range(4..=512))]
     pub grid_sizes: Vec<u32>,
+    /// With `--volume` and `-t`: the maps' resolutions (default: the scene's).
+    #[arg(long, value_delimiter = ',', value_name = "N,...",
+          value_parser = clap::value_parser!(u32).range(16..=4096), requires = "volume")]
+    pub shadow_res: Vec<u32>,
+    /// With `--volume` and `-t`: the build's steps along each texel's light ray (default: the
+    /// scene's `volume.build_steps`).
+    #[arg(long, value_delimiter = ',', value_name = "N,...",
+          value_parser = clap::value_parser!(u32).range(1..=4096), requires = "volume")]
+    pub build_steps: Vec<u32>,
     /// The cloud's coverages for `--volume cloud`, 0..1 (the dissertation's coverage axis).
     #[arg(long, value_delimiter = ',', value_name = "C,...", default_value = "0.6",
           value_parser = coverage_fraction)]
@@ -312,6 +326,9 @@ fn label_width(results: &BenchResults) -> usize {
 /// `bench --volume`: the density volume's stages (`crate::bench::volume`).
 fn run_volume(args: &BenchArgs, source: &str, adapter: &AdapterPreference) -> anyhow::Result<()> {
     use crate::bench::volume::{self, VolumeBenchOptions, VolumeSource};
+    if !args.techniques.is_empty() {
+        return run_volume_frames(args, source, adapter);
+    }
     let options = VolumeBenchOptions {
         source: VolumeSource::parse(source),
         grid_sizes: args.grid_sizes.clone(),
@@ -361,6 +378,105 @@ fn run_volume(args: &BenchArgs, source: &str, adapter: &AdapterPreference) -> an
         println!("skipped {line}");
     }
     let path = volume::write_csv(&rows, &args.output)?;
+    println!("wrote {}", path.display());
+    Ok(())
+}
+
+/// `bench --volume SOURCE -t ...`: the volume's frames per technique and coverage.
+fn run_volume_frames(
+    args: &BenchArgs,
+    source: &str,
+    adapter: &AdapterPreference,
+) -> anyhow::Result<()> {
+    use crate::bench::volume_frames::{self, FrameStudy};
+    let (mut scene, coverages) = match source {
+        "cloud" => (
+            crate::scene::Scene::embedded("cloud").expect("the cloud scene is embedded"),
+            args.coverages.iter().map(|&c| Some(c)).collect(),
+        ),
+        path => (
+            crate::medium::scene::scene_for_volume_file(Path::new(path))?,
+            vec![None],
+        ),
+    };
+    if let Some(size) = args.size {
+        scene.output.width_px = size.width;
+        scene.output.height_px = size.height;
+    }
+    let techniques = crate::shadow::expand_all(&args.techniques);
+    for name in &techniques {
+        let entry = crate::shadow::find(name)?;
+        if let Some(refusal) = entry.refusal(true, 0) {
+            anyhow::bail!("{refusal}");
+        }
+    }
+    let build_steps = match args.build_steps.is_empty() {
+        true => vec![scene.volume.as_ref().map_or(64, |v| v.build_steps)],
+        false => args.build_steps.clone(),
+    };
+    let shadow_res = match args.shadow_res.is_empty() {
+        true => vec![scene.shadow.resolution_px],
+        false => args.shadow_res.clone(),
+    };
+    let study = FrameStudy {
+        scene,
+        coverages,
+        techniques,
+        channels: args.channels,
+        shadow_res,
+        build_steps,
+        frames: args.frames,
+        warmup: args.warmup,
+    };
+    let gpu = Gpu::new(adapter)?;
+    let rows = volume_frames::run(&gpu, &study)?;
+    println!(
+        "bench --volume {source}: {}x{} frames of `{}`, {} channels, median of {} after {} warm-up, GPU timestamps, {}",
+        study.scene.output.width_px,
+        study.scene.output.height_px,
+        study.scene.name,
+        study.channels,
+        study.frames,
+        study.warmup,
+        gpu.describe()
+    );
+    println!(
+        "{:>8} {:<10} {:>5} {:>5} {:>8} {:>9} {:>9} {:>9} {:>6} {:>8}",
+        "coverage",
+        "technique",
+        "res",
+        "build",
+        "MiB",
+        "frame ms",
+        "build ms",
+        "eye ms",
+        "/ srm",
+        "RMS T"
+    );
+    for r in &rows {
+        println!(
+            "{:>8} {:<10} {:>5} {:>5} {:>8.2} {:>9.1} {:>9.1} {:>9.1} {:>6} {:>8.5}",
+            r.coverage.map_or(String::new(), |c| format!("{c}")),
+            r.technique,
+            r.shadow_res,
+            r.build_steps,
+            r.bytes as f64 / (1024.0 * 1024.0),
+            r.frame_ms,
+            r.build_ms,
+            r.eye_ms,
+            volume_frames::ratio_to_srm(&rows, r).map_or(String::new(), |x| format!("{x:.2}")),
+            r.rms_t
+        );
+    }
+    if rows.iter().any(|r| r.technique == "srm") && rows.len() > 1 {
+        for (name, coverage) in volume_frames::srm_crossovers(&rows) {
+            match coverage {
+                Some(c) => println!("srm is slower than {name} from coverage {c}"),
+                None => println!("srm is faster than {name} at every coverage measured"),
+            }
+        }
+    }
+    let path = volume_frames::write_csv(&rows, &args.output)?;
     println!("wrote {}", path.display());
     Ok(())
 }

@@ -44,8 +44,24 @@ pub fn run(args: &CompareArgs, adapter: &AdapterPreference) -> anyhow::Result<()
         scene.output.width_px = size.width;
         scene.output.height_px = size.height;
     }
+    // A technique that cannot shadow the scene's smoke (`has` a density volume, `srm`
+    // particles) is noted and left out, as the sweep does.
+    let smoke = (
+        scene.volume.is_some(),
+        crate::particles::count(&scene) as usize,
+    );
+    let mut techniques = Vec::new();
+    for name in crate::shadow::expand_all(&args.techniques) {
+        match crate::shadow::find(&name)?.refusal(smoke.0, smoke.1) {
+            Some(refusal) => println!("skipped {name}: {refusal}"),
+            None => techniques.push(name),
+        }
+    }
+    if techniques.is_empty() {
+        anyhow::bail!("no technique given can shadow {}'s smoke", scene.name);
+    }
     let options = CompareOptions {
-        techniques: crate::shadow::expand_all(&args.techniques),
+        techniques,
         budgets: args.channels.clone(),
         splat: args.splat.unwrap_or(scene.shadow.splat),
     };

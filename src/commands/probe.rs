@@ -58,8 +58,8 @@ pub struct Sample {
     pub transmittance: f32,
     pub exact: f32,
     /// The exact transmittance of the particle model at the point itself, on the CPU
-    /// ([`crate::shadow::closed_form`]): no texels, so `exact - closed_form` is `exact`'s own
-    /// shadow-map error.
+    /// ([`crate::shadow::closed_form`]), times a density volume's by its f64 march doubled
+    /// until converged: no texels, so `exact - closed_form` is `exact`'s own error.
     pub closed_form: f32,
 }
 
@@ -90,7 +90,12 @@ pub fn run(args: &ProbeArgs, adapter: &AdapterPreference) -> anyhow::Result<()> 
     };
     let gpu = Gpu::new(adapter)?;
     let particles = crate::particles::scene_particles(&scene)?;
-    let light = LightSpace::fit(&scene.light, &particles);
+    let (w, h) = (scene.output.width_px, scene.output.height_px);
+    let mut renderer = Renderer::new(&gpu, w, h, OUTPUT_FORMAT, &technique)?;
+    // The light's depth range encloses a density volume too.
+    renderer.load_volume(&gpu, &scene)?;
+    let grid = renderer.medium().grid().cloned();
+    let light = LightSpace::faces_with(&scene.light, &particles, renderer.medium().bounds())[0];
 
     let mut points = vec![args.at];
     if let Some(n) = args.along_light {
@@ -100,8 +105,6 @@ pub fn run(args: &ProbeArgs, adapter: &AdapterPreference) -> anyhow::Result<()> 
             scene.light.position + dir * t
         }));
     }
-    let (w, h) = (scene.output.width_px, scene.output.height_px);
-    let mut renderer = Renderer::new(&gpu, w, h, OUTPUT_FORMAT, &technique)?;
     let t_technique = renderer.probe(&gpu, &scene, &particles, &points)?;
     let channels_used = renderer.technique().channels_used();
     renderer.set_technique(&gpu, &exact)?;
@@ -119,11 +122,12 @@ pub fn run(args: &ProbeArgs, adapter: &AdapterPreference) -> anyhow::Result<()> 
                 depth01: (distance_m - light.near_m) / (light.far_m - light.near_m),
                 transmittance: t,
                 exact: e,
-                closed_form: crate::shadow::closed_form::transmittance(
+                closed_form: crate::render::reference_check::mirror_transmittance(
                     scene.light.position,
                     *p,
                     &particles,
-                ),
+                    grid.as_deref(),
+                ) as f32,
             }
         });
     let at = samples.next().expect("the probed point is always first");

@@ -182,30 +182,13 @@ pub fn verify(
     let light = scene.light.position;
     let cpu_t: Vec<Option<f64>> = positions
         .par_iter()
-        .map(|&p| {
-            match closed_form::occluder_visibility(scene, light, p, epsilon_m) {
-                Visibility::Lit => {
-                    let particles_tau = closed_form::optical_depth(light, p, particles);
-                    // The volume's by the f64 mirror of its march, doubled until converged.
-                    let volume_tau = match &grid {
-                        Some(grid) => -grid
-                            .converged_transmittance(
-                                light.as_dvec3(),
-                                p.as_dvec3(),
-                                1,
-                                VOLUME_MAX_STEPS,
-                                VOLUME_TOLERANCE,
-                            )
-                            .map_or(f64::NAN, |c| c.transmittance)
-                            .ln(),
-                        None => 0.0,
-                    };
-                    Some(closed_form::transmittance_of(particles_tau + volume_tau))
-                }
+        .map(
+            |&p| match closed_form::occluder_visibility(scene, light, p, epsilon_m) {
+                Visibility::Lit => Some(mirror_transmittance(light, p, particles, grid.as_deref())),
                 Visibility::Blocked => Some(0.0),
                 Visibility::KnifeEdge => None,
-            }
-        })
+            },
+        )
         .collect();
     if let Some(i) = cpu_t.iter().position(|t| t.is_some_and(f64::is_nan)) {
         let p = positions[i];
@@ -231,6 +214,31 @@ pub fn verify(
         )),
         _ => Ok(check),
     }
+}
+
+/// The smoke's transmittance from `light` to `p` on the CPU in f64: the particles' closed form
+/// and a density volume's optical depth by its march doubled until T agrees within
+/// [`VOLUME_TOLERANCE`] (NaN where it does not within [`VOLUME_MAX_STEPS`]).
+pub fn mirror_transmittance(
+    light: Vec3,
+    p: Vec3,
+    particles: &[Particle],
+    volume: Option<&crate::medium::grid::DensityGrid>,
+) -> f64 {
+    let particles_tau = closed_form::optical_depth(light, p, particles);
+    let volume_tau = volume.map_or(0.0, |grid| {
+        -grid
+            .converged_transmittance(
+                light.as_dvec3(),
+                p.as_dvec3(),
+                1,
+                VOLUME_MAX_STEPS,
+                VOLUME_TOLERANCE,
+            )
+            .map_or(f64::NAN, |c| c.transmittance)
+            .ln()
+    });
+    closed_form::transmittance_of(particles_tau + volume_tau)
 }
 
 /// [`verify`] when the renderer's technique is the registry's reference, else nothing: the one

@@ -86,12 +86,13 @@ pub const GALLERY: &[&str] = &[
     "thin_sheet",
     "column",
     "ground_fog",
+    "cloud",
     "plume_65k",
 ];
 
-/// The embedded scenes with committed baselines (`baselines/<scene>/`): the thesis experiment.
+/// The embedded scenes with committed baselines (`baselines/<scene>/`): the thesis experiment, and the density volume's cloudscape.
 /// The scaling family is for timing; its smoke is the thesis plume's at other counts.
-pub const BASELINE_SCENES: &[&str] = &["thesis_plume", "thesis_wind"];
+pub const BASELINE_SCENES: &[&str] = &["thesis_plume", "thesis_wind", "cloud"];
 
 /// The embedded scenes' names, comma-separated.
 pub fn embedded_names() -> String {
