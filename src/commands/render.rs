@@ -198,6 +198,18 @@ pub fn run(args: &RenderArgs, adapter: &AdapterPreference) -> anyhow::Result<()>
             res => format!(" at {res} resolution"),
         },
     );
+    if let (Some(grid), Some(spec)) = (renderer.medium().grid(), renderer.medium().spec()) {
+        println!(
+            "volume: {} ({}x{}x{} voxels, {} bytes on the device), {} eye steps, {} build steps",
+            spec.summary().trim_start_matches("volume: "),
+            grid.dims.x,
+            grid.dims.y,
+            grid.dims.z,
+            renderer.medium().bytes(),
+            spec.eye_steps,
+            spec.build_steps
+        );
+    }
     if let Some(check) = check {
         println!("{check}");
     }
