@@ -98,6 +98,28 @@ pub fn show(controller: &mut Controller, ui: &mut egui::Ui) {
                     });
                 });
         }
+        if let Some(v) = &mut s.volume {
+            egui::CollapsingHeader::new("Volume")
+                .default_open(true)
+                .show(ui, |ui| {
+                    ui.label(v.summary());
+                    egui::Grid::new("volume").show(ui, |ui| {
+                        drag(
+                            ui,
+                            "Density scale (1/m)",
+                            &mut v.density_scale_per_m,
+                            0.001,
+                            0.0..=1e4,
+                        );
+                        drag(ui, "Eye steps", &mut v.eye_steps, 1.0, 1.0..=1024.0);
+                        drag(ui, "Build steps", &mut v.build_steps, 1.0, 1.0..=1024.0);
+                        drag(ui, "Powder", &mut v.powder, 0.01, 0.0..=1.0);
+                        if v.procedural == "cloud" {
+                            drag(ui, "Coverage", &mut v.cloud.coverage, 0.01, 0.0..=1.0);
+                        }
+                    });
+                });
+        }
         let w = &mut s.wind;
         egui::CollapsingHeader::new("Wind").show(ui, |ui| {
             egui::Grid::new("wind").show(ui, |ui| {
