@@ -115,6 +115,91 @@ fn fs_fill_split(in: BuildVertexOut) -> @location(0) vec4<f32> {
     return vec4<f32>(0.0);
 }
 
+// The density volume's segments (shaders/shadow/volume_splat.wgsl): each step of the texel's
+// light ray that has density is one segment [t - dt/2, t + dt/2] (metres) of its optical depth,
+// drawn after every particle (its draw index counts on from VOLUME_DRAW_BASE).
+const VOLUME_DRAW_BASE: u32 = 0x80000000u;
+
+fn volume_segment(ray: VolumeRay, i: u32) -> Segment {
+    var out: Segment;
+    let s = volume_splat(ray, i, true);
+    let t = ray.t0 + (f32(i) + 0.5) * ray.dt;
+    let w = max(0.5 * ray.dt, 0.5 * MIN_WIDTH_M);
+    out.z0 = t - w;
+    out.z1 = t + w;
+    out.optical_depth = select(-1.0, s.optical_depth, s.optical_depth > 0.0);
+    out.draw_index = VOLUME_DRAW_BASE + i;
+    return out;
+}
+
+@fragment
+fn fs_count_volume(in: VolumeVertexOut) -> @location(0) vec4<f32> {
+    let ray = volume_light_ray(in.ndc);
+    var n = 0u;
+    for (var i = 0u; i < ray.steps; i++) {
+        n += u32(volume_segment(ray, i).optical_depth >= 0.0);
+    }
+    if n == 0u {
+        discard;
+    }
+    atomicAdd(&counts[texel_index(in.clip)], n);
+    return vec4<f32>(0.0);
+}
+
+// The band texel of a volume fragment, or NO_TEXEL outside the band.
+fn volume_texel(clip: vec4<f32>) -> u32 {
+    let row = u32(clip.y);
+    if row < capture.row_begin || row >= capture.row_end {
+        return NO_TEXEL;
+    }
+    return texel_index(clip);
+}
+
+@fragment
+fn fs_fill_volume(in: VolumeVertexOut) -> @location(0) vec4<f32> {
+    let index = volume_texel(in.clip);
+    let ray = volume_light_ray(in.ndc);
+    if index == NO_TEXEL || ray.steps == 0u {
+        discard;
+    }
+    for (var i = 0u; i < ray.steps; i++) {
+        let segment = volume_segment(ray, i);
+        if segment.optical_depth < 0.0 {
+            continue;
+        }
+        let slot = offsets[index] - capture.band_base + atomicAdd(&counts[index], 1u);
+        if slot < capture.capacity {
+            segments[slot] = segment;
+        }
+    }
+    return vec4<f32>(0.0);
+}
+
+@fragment
+fn fs_fill_split_volume(in: VolumeVertexOut) -> @location(0) vec4<f32> {
+    let index = volume_texel(in.clip);
+    let ray = volume_light_ray(in.ndc);
+    if index == NO_TEXEL || ray.steps == 0u {
+        discard;
+    }
+    let first = offsets[index] - capture.band_base;
+    let count = offsets[index + 1u] - offsets[index];
+    for (var i = 0u; i < ray.steps; i++) {
+        let segment = volume_segment(ray, i);
+        if segment.optical_depth < 0.0 {
+            continue;
+        }
+        let slot = offsets[index] - capture.band_base + atomicAdd(&counts[index], 1u);
+        if first + count <= capture.capacity {
+            let slope = segment_slope(segment);
+            let k = slot - first;
+            set_sort_key(2u * first + k, vec2<f32>(segment.z0, slope));
+            set_sort_key(2u * first + count + k, vec2<f32>(segment.z1, slope));
+        }
+    }
+    return vec4<f32>(0.0);
+}
+
 // The scan's grid is the map (shaders/shadow/grid_scan.wgsl).
 fn scan_side() -> u32 {
     return capture.resolution;

@@ -42,7 +42,7 @@
 use bytemuck::{Pod, Zeroable};
 
 use super::ShadowError;
-use super::layered::{billboard_pipeline, cleared_attachment, draw_particles};
+use super::layered::{VolumeBuild, billboard_pipeline, cleared_attachment, draw_particles};
 use crate::gpu::uniform_entry;
 use crate::gpu::{
     AllocationError, Gpu, GpuTimer, MemoryLedger, ROW_TEXELS, bind_entry, read_buffer,
@@ -234,6 +234,11 @@ pub struct DeepCapture {
     layout: wgpu::BindGroupLayout,
     count_pipeline: wgpu::RenderPipeline,
     fill_pipeline: wgpu::RenderPipeline,
+    /// The density volume's count and fill (shaders/shadow/volume_splat.wgsl), and whether
+    /// this frame's capture draws them.
+    count_volume: VolumeBuild,
+    fill_volume: VolumeBuild,
+    volume: bool,
     scan_rows: wgpu::ComputePipeline,
     scan_total: wgpu::ComputePipeline,
     scan_write: wgpu::ComputePipeline,
@@ -295,6 +300,14 @@ impl Resolve {
         match self {
             Resolve::Nodes => "fs_fill_split",
             Resolve::SegmentsByDepth | Resolve::SegmentsByDraw => "fs_fill",
+        }
+    }
+
+    /// The fill's entry point for a density volume's segments.
+    fn fill_volume_entry(self) -> &'static str {
+        match self {
+            Resolve::Nodes => "fs_fill_split_volume",
+            Resolve::SegmentsByDepth | Resolve::SegmentsByDraw => "fs_fill_volume",
         }
     }
 
@@ -547,6 +560,18 @@ impl DeepCapture {
         };
         let count_pipeline = raster("count", "fs_count");
         let fill_pipeline = raster("fill", resolve.fill_entry());
+        let volume = |what: &str, entry: &'static str| {
+            VolumeBuild::new(
+                device,
+                &module,
+                label(what),
+                entry,
+                &[frame_layout, &layout],
+                &[(DUMMY_FORMAT, super::layered::ADDITIVE)],
+            )
+        };
+        let count_volume = volume("count.volume", "fs_count_volume");
+        let fill_volume = volume("fill.volume", resolve.fill_volume_entry());
         let compute_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some(&label("compute.pipeline_layout")),
             bind_group_layouts: &groups,
@@ -615,6 +640,9 @@ impl DeepCapture {
             layout,
             count_pipeline,
             fill_pipeline,
+            count_volume,
+            fill_volume,
+            volume: false,
             lists,
             last_segment_count: 0,
             last_band_count: 0,
@@ -704,9 +732,13 @@ impl DeepCapture {
         frame_bind_group: &wgpu::BindGroup,
         particles: &wgpu::Buffer,
         particle_count: u32,
+        volume: bool,
         mut after_band: impl FnMut(&mut wgpu::CommandEncoder, &mut GpuTimer, &BandPass<'_>),
     ) -> Result<(), ShadowError> {
         let device = &gpu.device;
+        // The scene's density volume's segments join the particles' (each step of a texel's
+        // light ray with density, `volume.build_steps` of them at most).
+        self.volume = volume;
         self.write_params(&gpu.queue, self.whole_map());
         let mut count_encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
             label: Some(&format!("{}.capture.count.encoder", self.name)),
@@ -891,9 +923,9 @@ impl DeepCapture {
         particles: &wgpu::Buffer,
         particle_count: u32,
     ) {
-        let (what, pipeline) = match fill {
-            Some(_) => ("fill", &self.fill_pipeline),
-            None => ("count", &self.count_pipeline),
+        let (what, pipeline, volume) = match fill {
+            Some(_) => ("fill", &self.fill_pipeline, &self.fill_volume),
+            None => ("count", &self.count_pipeline, &self.count_volume),
         };
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some(&format!("{}.capture.{what}", self.name)),
@@ -917,6 +949,9 @@ impl DeepCapture {
             particles.slice(..),
             particle_count,
         );
+        if self.volume {
+            volume.draw(&mut pass, frame_bind_group, &self.lists.bind_group);
+        }
     }
 }
 

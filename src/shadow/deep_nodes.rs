@@ -346,6 +346,7 @@ impl ShadowTechnique for DeepNodes {
             frame_bind_group,
             inputs.particles,
             inputs.particle_count,
+            inputs.volume.is_some(),
             compress,
         )?;
         if let (Some(encoder), Some(stats)) = (own, &self.stats) {

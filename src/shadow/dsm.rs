@@ -112,7 +112,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     uses_splat: false,
     uses_budget: true,
     owns_particle_pass: false,
-    volume: super::VOLUME_BUILD_PENDING,
+    volume: super::VolumeSupport::Shadows,
     shadows_particles: true,
 };
 

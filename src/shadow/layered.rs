@@ -582,16 +582,18 @@ pub(crate) fn billboard_pipeline_blends(
 /// the same targets with the same blends as its particles). Made on the first build with a
 /// volume, so that a particle scene never compiles it.
 pub(crate) struct VolumeBuild {
+    device: wgpu::Device,
     module: wgpu::ShaderModule,
     label: String,
     fragment_entry: &'static str,
     layouts: Vec<wgpu::BindGroupLayout>,
     targets: Vec<(wgpu::TextureFormat, wgpu::BlendComponent)>,
-    pipeline: Option<wgpu::RenderPipeline>,
+    pipeline: std::sync::OnceLock<wgpu::RenderPipeline>,
 }
 
 impl VolumeBuild {
     pub(crate) fn new(
+        device: &wgpu::Device,
         module: &wgpu::ShaderModule,
         label: String,
         fragment_entry: &'static str,
@@ -599,27 +601,27 @@ impl VolumeBuild {
         targets: &[(wgpu::TextureFormat, wgpu::BlendComponent)],
     ) -> Self {
         Self {
+            device: device.clone(),
             module: module.clone(),
             label,
             fragment_entry,
             layouts: layouts.iter().map(|l| (*l).clone()).collect(),
             targets: targets.to_vec(),
-            pipeline: None,
+            pipeline: std::sync::OnceLock::new(),
         }
     }
 
     /// Draws the volume into the pass's targets (the pipeline made on first use).
     pub(crate) fn draw(
-        &mut self,
-        device: &wgpu::Device,
+        &self,
         pass: &mut wgpu::RenderPass<'_>,
         frame_bind_group: &wgpu::BindGroup,
         bind_group: &wgpu::BindGroup,
     ) {
-        let pipeline = self.pipeline.get_or_insert_with(|| {
+        let pipeline = self.pipeline.get_or_init(|| {
             let layouts: Vec<_> = self.layouts.iter().map(Some).collect();
             build_pipeline_entries(
-                device,
+                &self.device,
                 &self.label,
                 &self.module,
                 ("vs_volume", self.fragment_entry),
@@ -831,6 +833,7 @@ impl Layered {
                 ),
                 params_bind_group,
                 VolumeBuild::new(
+                    device,
                     &module,
                     format!("{name}.build.volume"),
                     "fs_build_volume",
@@ -882,6 +885,7 @@ impl Layered {
                     ),
                     layer_bind_group,
                     VolumeBuild::new(
+                        device,
                         &module,
                         format!("{name}.build.layers.volume"),
                         "fs_build_volume",
@@ -892,6 +896,7 @@ impl Layered {
                         view: depth_view.clone(),
                         pipeline: depth_pipeline,
                         volume: VolumeBuild::new(
+                            device,
                             &module,
                             format!("{name}.build.depth.volume"),
                             "fs_depth_volume",
@@ -1092,12 +1097,9 @@ impl ShadowTechnique for Layered {
                         inputs.particle_count,
                     );
                     if inputs.volume.is_some() {
-                        depth.volume.draw(
-                            &gpu.device,
-                            pass,
-                            inputs.frame_bind_group,
-                            &depth.bind_group,
-                        );
+                        depth
+                            .volume
+                            .draw(pass, inputs.frame_bind_group, &depth.bind_group);
                     }
                 });
         }
@@ -1128,12 +1130,8 @@ impl ShadowTechnique for Layered {
                     inputs.particle_count,
                 );
                 if inputs.volume.is_some() {
-                    self.volume.draw(
-                        &gpu.device,
-                        pass,
-                        inputs.frame_bind_group,
-                        &self.build_bind_group,
-                    );
+                    self.volume
+                        .draw(pass, inputs.frame_bind_group, &self.build_bind_group);
                 }
             });
         Ok(())

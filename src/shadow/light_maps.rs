@@ -177,6 +177,7 @@ impl LightMaps {
             &targets,
         );
         let volume = VolumeBuild::new(
+            device,
             &module,
             format!("{name}.build.volume"),
             "fs_build_volume",
@@ -234,7 +235,7 @@ impl ShadowTechnique for LightMaps {
     fn bind_group(&self) -> &wgpu::BindGroup {
         &self.lookup_bind_group
     }
-    fn build(&mut self, gpu: &Gpu, inputs: BuildInputs<'_>) -> Result<(), ShadowError> {
+    fn build(&mut self, _gpu: &Gpu, inputs: BuildInputs<'_>) -> Result<(), ShadowError> {
         let attachments: Vec<_> = self
             .maps
             .iter()
@@ -264,12 +265,8 @@ impl ShadowTechnique for LightMaps {
                     inputs.particle_count,
                 );
                 if inputs.volume.is_some() {
-                    self.volume.draw(
-                        &gpu.device,
-                        pass,
-                        inputs.frame_bind_group,
-                        &self.build_bind_group,
-                    );
+                    self.volume
+                        .draw(pass, inputs.frame_bind_group, &self.build_bind_group);
                 }
             });
         Ok(())

@@ -650,12 +650,6 @@ pub enum VolumeSupport {
     Refuses(&'static str),
 }
 
-/// What techniques whose light-space build does not take the volume yet say.
-pub const VOLUME_BUILD_PENDING: VolumeSupport = VolumeSupport::Refuses(
-    "its maps are built from particles only: the light-space build from a density volume \
-     (issue 26 §3) is not written for it yet",
-);
-
 impl TechniqueEntry {
     /// Why it cannot shadow a scene whose smoke holds a density volume (`volume`) and
     /// `particles` particles, if it cannot: the renderer's one-line refusal, which the sweep
