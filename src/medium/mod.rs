@@ -20,8 +20,11 @@
 //! - [`eye`]: the eye's front-to-back ray march (`shaders/medium/eye_march.wgsl`) and a probe
 //!   of it at rays, with the light's transmittance by secondary ray marching.
 //!
-//! The eye pass in the frame, the light-space build the techniques share and the scene's `[volume]` come
-//! next, each a file of this folder.
+//! - [`scene`]: the scene's `[volume]` made into a grid (a file, the cloud, a shape), and a bare
+//!   `.vdb` as a scene.
+//! - [`frame`]: the volume in the frame (group 0's voxels, the frame uniforms' `grid`), loaded
+//!   once per source; [`eye_pass`]: the eye's march in the frame and its composite. The
+//!   techniques' shared light-space build from it is `shaders/shadow/volume_splat.wgsl`.
 
 pub mod analytic;
 pub mod cloud;
