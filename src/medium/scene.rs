@@ -218,6 +218,34 @@ impl VolumeSpec {
         self.base_dir.join(&self.file)
     }
 
+    /// The file's bytes: read, or built in ([`EMBEDDED_FILES`]).
+    pub fn file_bytes(&self) -> Result<std::borrow::Cow<'static, [u8]>, VolumeError> {
+        if let Some(name) = self.file.strip_prefix(EMBEDDED_PREFIX) {
+            return EMBEDDED_FILES
+                .iter()
+                .find(|(n, _)| *n == name)
+                .map(|(_, bytes)| std::borrow::Cow::Borrowed(*bytes))
+                .ok_or_else(|| VolumeError::Read {
+                    path: self.file.clone().into(),
+                    cause: std::io::Error::new(
+                        std::io::ErrorKind::NotFound,
+                        format!(
+                            "no embedded volume file {name:?}; embedded: {}",
+                            EMBEDDED_FILES
+                                .iter()
+                                .map(|(n, _)| *n)
+                                .collect::<Vec<_>>()
+                                .join(", ")
+                        ),
+                    ),
+                });
+        }
+        let path = self.path();
+        std::fs::read(&path)
+            .map(std::borrow::Cow::Owned)
+            .map_err(|cause| VolumeError::Read { path, cause })
+    }
+
     /// The scene's placement of the source: world = translate + rotate(scale · p).
     pub fn placement(&self) -> DAffine3 {
         let r = self.rotate_deg.as_dvec3();
@@ -266,10 +294,7 @@ impl VolumeSpec {
         let mut grid = match self.kind() {
             VolumeKind::File(_) => {
                 let path = self.path();
-                let bytes = std::fs::read(&path).map_err(|cause| VolumeError::Read {
-                    path: path.clone(),
-                    cause,
-                })?;
+                let bytes = self.file_bytes()?;
                 let file = vdb::read_float_grid(&bytes, &self.grid, &vdb::Limits::default())
                     .map_err(|cause| VolumeError::Vdb {
                         path: path.clone(),
@@ -445,6 +470,16 @@ impl VolumeSpec {
         }
     }
 }
+
+/// Volume files built into the binary, for the embedded scenes: `file = "embedded:NAME"`.
+/// OpenUSD's smoke test file (tests/data/volumes/README.md: OpenUSD's license).
+pub const EMBEDDED_FILES: &[(&str, &[u8])] = &[(
+    "openusd_smoke_000003.vdb",
+    include_bytes!("../../tests/data/volumes/openusd_smoke_000003.vdb"),
+)];
+
+/// The prefix of an embedded volume file's name.
+pub const EMBEDDED_PREFIX: &str = "embedded:";
 
 /// Whether `path` names a volume file (`.vdb`) rather than a scene or particle file.
 pub fn is_volume_file(path: &Path) -> bool {

@@ -54,6 +54,8 @@ pub const TRAIN_HAZE_TOML: &str = include_str!("../../scenes/train_haze.toml");
 pub const TRAIN_BACKLIT_TOML: &str = include_str!("../../scenes/train_backlit.toml");
 /// The procedural cloudscape (`[volume] procedural = "cloud"`), ray marched.
 pub const CLOUD_TOML: &str = include_str!("../../scenes/cloud.toml");
+/// A real smoke simulation's density grid (OpenUSD's test file, built in), ray marched.
+pub const VDB_SMOKE_TOML: &str = include_str!("../../scenes/vdb_smoke.toml");
 
 /// The scenes embedded in the binary, by name.
 pub const EMBEDDED: &[(&str, &str)] = &[
@@ -70,6 +72,7 @@ pub const EMBEDDED: &[(&str, &str)] = &[
     ("train_haze", TRAIN_HAZE_TOML),
     ("train_backlit", TRAIN_BACKLIT_TOML),
     ("cloud", CLOUD_TOML),
+    ("vdb_smoke", VDB_SMOKE_TOML),
 ];
 
 /// The training scenes `smokeshadow tune` chooses the techniques' parameters on: none of them is
@@ -87,6 +90,7 @@ pub const GALLERY: &[&str] = &[
     "column",
     "ground_fog",
     "cloud",
+    "vdb_smoke",
     "plume_65k",
 ];
 
@@ -758,7 +762,7 @@ impl Scene {
             hasher.update(std::fs::read(path).unwrap_or_default());
         }
         if let Some(volume) = self.volume.as_ref().filter(|v| !v.file.is_empty()) {
-            hasher.update(std::fs::read(volume.path()).unwrap_or_default());
+            hasher.update(volume.file_bytes().unwrap_or_default());
         }
         let digest = hasher.finalize();
         digest.iter().map(|b| format!("{b:02x}")).collect()
