@@ -137,22 +137,27 @@ pub fn show(controller: &mut Controller, ui: &mut egui::Ui) {
             });
         });
         let l = &mut s.light;
+        // The drags reach 100 m, or four times the light's farthest coordinate (a sun over
+        // kilometres of cloud).
+        let reach = (4.0 * f64::from(l.position.abs().max(l.target.abs()).max_element())).max(100.0);
+        let intensity_max = (f64::from(l.intensity) * 4.0).max(1e5);
         egui::CollapsingHeader::new("Light").show(ui, |ui| {
             ui.horizontal(|ui| {
                 ui.radio_value(&mut l.kind, LightKind::Spot, "Spot");
                 ui.radio_value(&mut l.kind, LightKind::Point, "Point (six cube faces)");
             });
             egui::Grid::new("light").show(ui, |ui| {
-                drag(ui, "Position x", &mut l.position.x, 0.05, -100.0..=100.0);
-                drag(ui, "Position y", &mut l.position.y, 0.05, -100.0..=100.0);
-                drag(ui, "Position z", &mut l.position.z, 0.05, -100.0..=100.0);
+                let speed = reach / 2000.0;
+                drag(ui, "Position x", &mut l.position.x, speed, -reach..=reach);
+                drag(ui, "Position y", &mut l.position.y, speed, -reach..=reach);
+                drag(ui, "Position z", &mut l.position.z, speed, -reach..=reach);
                 if l.kind.is_spot() {
-                    drag(ui, "Target x", &mut l.target.x, 0.05, -100.0..=100.0);
-                    drag(ui, "Target y", &mut l.target.y, 0.05, -100.0..=100.0);
-                    drag(ui, "Target z", &mut l.target.z, 0.05, -100.0..=100.0);
+                    drag(ui, "Target x", &mut l.target.x, speed, -reach..=reach);
+                    drag(ui, "Target y", &mut l.target.y, speed, -reach..=reach);
+                    drag(ui, "Target z", &mut l.target.z, speed, -reach..=reach);
                     drag(ui, "Cone (deg)", &mut l.cone_angle_deg, 0.2, 1.0..=79.0);
                 }
-                drag(ui, "Intensity", &mut l.intensity, 1.0, 0.0..=1e5);
+                drag(ui, "Intensity", &mut l.intensity, 1.0, 0.0..=intensity_max);
             });
             ui.label("In the view: drag the yellow ring to aim the light; shift-drag moves the light around its target.");
         });
