@@ -5,7 +5,7 @@
 
 use std::sync::Arc;
 
-use glam::{UVec3, Vec3};
+use glam::Vec3;
 
 use super::gpu_grid::{GpuGrid, GridParams};
 use super::grid::{DensityGrid, steps_per_voxel_length};
@@ -69,12 +69,7 @@ impl FrameMedium {
     /// No volume: one zero voxel bound.
     pub fn new(gpu: &Gpu) -> Result<Self, VolumeError> {
         let mut ledger = MemoryLedger::for_device(&gpu.limits);
-        let empty = DensityGrid {
-            dims: UVec3::ZERO,
-            values: Vec::new(),
-            world_from_index: glam::DAffine3::IDENTITY,
-            density_scale_per_m: 0.0,
-        };
+        let empty = DensityGrid::empty();
         let gpu_grid = GpuGrid::upload(gpu, &mut ledger, &empty)
             .map_err(|e| VolumeError::Upload(e.to_string()))?;
         Ok(Self {
@@ -87,8 +82,9 @@ impl FrameMedium {
     }
 
     /// Makes the frame's volume `spec`'s: reads, bakes or voxelises and uploads its grid when
-    /// its source changed, and writes its march and shading settings. Returns whether the
-    /// bindings changed (group 0 must be made again).
+    /// its source changed, and keeps its march and shading settings for
+    /// [`FrameMedium::frame_params`]. Returns whether the bindings changed (group 0 must be made
+    /// again).
     pub fn prepare(&mut self, gpu: &Gpu, spec: Option<&VolumeSpec>) -> Result<bool, VolumeError> {
         let source = spec.map(grid_source);
         let changed = source != self.source;
@@ -97,12 +93,6 @@ impl FrameMedium {
             let grid = match spec {
                 Some(spec) => Some(spec.density_grid(gpu, &mut ledger)?),
                 None => None,
-            };
-            let empty = DensityGrid {
-                dims: UVec3::ZERO,
-                values: Vec::new(),
-                world_from_index: glam::DAffine3::IDENTITY,
-                density_scale_per_m: 0.0,
             };
             // A new ledger: the grid's bytes only (the bake's transients are gone).
             let mut kept = MemoryLedger::for_device(&gpu.limits);
@@ -115,8 +105,12 @@ impl FrameMedium {
                     max: MAX_REFERENCE_STEPS,
                 });
             }
-            self.gpu_grid = GpuGrid::upload(gpu, &mut kept, grid.as_ref().unwrap_or(&empty))
-                .map_err(|e| VolumeError::Upload(e.to_string()))?;
+            self.gpu_grid = GpuGrid::upload(
+                gpu,
+                &mut kept,
+                grid.as_ref().unwrap_or(&DensityGrid::empty()),
+            )
+            .map_err(|e| VolumeError::Upload(e.to_string()))?;
             self.ledger = kept;
             self.grid = grid.map(Arc::new);
             self.source = source;
@@ -195,6 +189,7 @@ pub fn box_distances(from: Vec3, lo: Vec3, hi: Vec3) -> (f32, f32) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use glam::UVec3;
 
     #[test]
     fn box_distances_are_the_nearest_point_and_farthest_corner() {

@@ -85,6 +85,16 @@ pub struct Converged {
 }
 
 impl DensityGrid {
+    /// No voxels: nothing anywhere (what the frame binds without a volume).
+    pub fn empty() -> Self {
+        Self {
+            dims: UVec3::ZERO,
+            values: Vec::new(),
+            world_from_index: DAffine3::IDENTITY,
+            density_scale_per_m: 0.0,
+        }
+    }
+
     /// The voxels of `medium` sampled at the centres of a grid of `dims` voxels spanning the
     /// world box `min`..`max` (each voxel a cell of that box, its centre its sample).
     pub fn voxelize(medium: &HomogeneousMedium, min: DVec3, max: DVec3, dims: UVec3) -> Self {

@@ -218,6 +218,22 @@ impl VolumeSpec {
         self.base_dir.join(&self.file)
     }
 
+    /// The file's grid placed by the file's own transform, `density_scale_per_m` of extinction
+    /// per unit of density.
+    fn file_grid(&self, density_scale_per_m: f64) -> Result<DensityGrid, VolumeError> {
+        let path = self.path();
+        let bytes = self.file_bytes()?;
+        let file =
+            vdb::read_float_grid(&bytes, &self.grid, &vdb::Limits::default()).map_err(|cause| {
+                VolumeError::Vdb {
+                    path: path.clone(),
+                    cause,
+                }
+            })?;
+        DensityGrid::from_vdb(&file, DAffine3::IDENTITY, density_scale_per_m)
+            .map_err(|cause| VolumeError::Grid { path, cause })
+    }
+
     /// The file's bytes: read, or built in ([`EMBEDDED_FILES`]).
     pub fn file_bytes(&self) -> Result<std::borrow::Cow<'static, [u8]>, VolumeError> {
         if let Some(name) = self.file.strip_prefix(EMBEDDED_PREFIX) {
@@ -292,21 +308,7 @@ impl VolumeSpec {
         ledger: &mut MemoryLedger,
     ) -> Result<DensityGrid, VolumeError> {
         let mut grid = match self.kind() {
-            VolumeKind::File(_) => {
-                let path = self.path();
-                let bytes = self.file_bytes()?;
-                let file = vdb::read_float_grid(&bytes, &self.grid, &vdb::Limits::default())
-                    .map_err(|cause| VolumeError::Vdb {
-                        path: path.clone(),
-                        cause,
-                    })?;
-                DensityGrid::from_vdb(
-                    &file,
-                    DAffine3::IDENTITY,
-                    f64::from(self.density_scale_per_m),
-                )
-                .map_err(|cause| VolumeError::Grid { path, cause })?
-            }
+            VolumeKind::File(_) => self.file_grid(f64::from(self.density_scale_per_m))?,
             VolumeKind::Cloud => {
                 let params = self.cloud.params();
                 params
@@ -500,23 +502,7 @@ pub fn scene_for_volume_file(path: &Path) -> anyhow::Result<crate::scene::Scene>
         file: path.to_string_lossy().into_owned(),
         ..VolumeSpec::default()
     };
-    let bytes = std::fs::read(path).map_err(|cause| VolumeError::Read {
-        path: path.to_owned(),
-        cause,
-    })?;
-    let file =
-        vdb::read_float_grid(&bytes, &spec.grid, &vdb::Limits::default()).map_err(|cause| {
-            VolumeError::Vdb {
-                path: path.to_owned(),
-                cause,
-            }
-        })?;
-    let grid = DensityGrid::from_vdb(&file, DAffine3::IDENTITY, 1.0).map_err(|cause| {
-        VolumeError::Grid {
-            path: path.to_owned(),
-            cause,
-        }
-    })?;
+    let grid = spec.file_grid(1.0)?;
     let Some((lo, hi)) = grid.world_bounds() else {
         anyhow::bail!(
             "volume file {}: grid {:?} has no active voxels: there is no smoke to frame",

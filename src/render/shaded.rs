@@ -57,47 +57,57 @@ pub fn volume_eye_points(
     scene: &Scene,
     camera: &CameraMatrices,
     grid: &DensityGrid,
-    (width, height): (u32, u32),
+    size: (u32, u32),
     stride_px: u32,
     eye_steps: u32,
 ) -> Vec<Vec3> {
-    let world_from_clip = camera.clip_from_world().inverse();
     let index_from_world = grid.world_from_index.inverse();
-    let stride = stride_px.max(1) as usize;
+    let origin = camera.position.as_dvec3();
     let mut out = Vec::new();
-    for y in (0..height).step_by(stride) {
-        for x in (0..width).step_by(stride) {
-            let ndc = Vec2::new(
-                (x as f32 + 0.5) / width as f32 * 2.0 - 1.0,
-                1.0 - (y as f32 + 0.5) / height as f32 * 2.0,
-            );
-            let dir = (world_from_clip.project_point3(ndc.extend(1.0)) - camera.position)
-                .normalize()
-                .as_dvec3();
-            let origin = camera.position.as_dvec3();
-            let t_near = f64::from(scene.camera.near_m);
-            let t_far = first_opaque_hit(scene, camera.position, dir.as_vec3())
-                .map_or(f64::from(scene.camera.far_m), |(p, _)| {
-                    p.as_dvec3().distance(origin)
-                });
-            let (a, b) = (origin + t_near * dir, origin + t_far * dir);
-            let Some((s0, s1)) = grid.support(
-                index_from_world.transform_point3(a),
-                index_from_world.transform_point3(b),
-            ) else {
-                continue;
-            };
-            let dt = (s1 - s0) / f64::from(eye_steps.max(1));
-            for i in 0..eye_steps {
-                let p = a.lerp(b, s0 + (f64::from(i) + 0.5) * dt);
-                if grid.density_at_index(index_from_world.transform_point3(p)) > 0.0 {
-                    out.push(p.as_vec3());
-                }
+    for dir in pixel_rays(camera, size, stride_px) {
+        let t_far = first_opaque_hit(scene, camera.position, dir)
+            .map_or(f64::from(scene.camera.far_m), |(p, _)| {
+                p.as_dvec3().distance(origin)
+            });
+        let dir = dir.as_dvec3();
+        let a = origin + f64::from(scene.camera.near_m) * dir;
+        let b = origin + t_far * dir;
+        let Some((s0, s1)) = grid.support(
+            index_from_world.transform_point3(a),
+            index_from_world.transform_point3(b),
+        ) else {
+            continue;
+        };
+        let dt = (s1 - s0) / f64::from(eye_steps.max(1));
+        for i in 0..eye_steps {
+            let p = a.lerp(b, s0 + (f64::from(i) + 0.5) * dt);
+            if grid.density_at_index(index_from_world.transform_point3(p)) > 0.0 {
+                out.push(p.as_vec3());
             }
         }
     }
     let keep = out.len().div_ceil(MAX_VOLUME_POINTS).max(1);
     out.into_iter().step_by(keep).collect()
+}
+
+/// The unit directions from the camera through the centres of every `stride_px`-th pixel of a
+/// `width` x `height` view, row by row.
+fn pixel_rays(
+    camera: &CameraMatrices,
+    (width, height): (u32, u32),
+    stride_px: u32,
+) -> impl Iterator<Item = Vec3> + '_ {
+    let world_from_clip = camera.clip_from_world().inverse();
+    let stride = stride_px.max(1) as usize;
+    (0..height).step_by(stride).flat_map(move |y| {
+        (0..width).step_by(stride).map(move |x| {
+            let ndc = Vec2::new(
+                (x as f32 + 0.5) / width as f32 * 2.0 - 1.0,
+                1.0 - (y as f32 + 0.5) / height as f32 * 2.0,
+            );
+            (world_from_clip.project_point3(ndc.extend(1.0)) - camera.position).normalize()
+        })
+    })
 }
 
 /// The owners of [`shaded_points`]' points for [`super::Renderer::probe_shaded`]: particle
@@ -148,31 +158,17 @@ pub fn lit_opaque_points(
     height: u32,
     stride_px: u32,
 ) -> Vec<Vec3> {
-    let world_from_clip = camera.clip_from_world().inverse();
     let light = &scene.light;
     let axis = (light.target - light.position).normalize();
     let cos_cone = light.cone_angle_deg.to_radians().cos();
-    let stride = stride_px.max(1) as usize;
-    let mut out = Vec::new();
-    for y in (0..height).step_by(stride) {
-        for x in (0..width).step_by(stride) {
-            let ndc = Vec2::new(
-                (x as f32 + 0.5) / width as f32 * 2.0 - 1.0,
-                1.0 - (y as f32 + 0.5) / height as f32 * 2.0,
-            );
-            let far = world_from_clip.project_point3(ndc.extend(1.0));
-            let dir = (far - camera.position).normalize();
-            let Some((point, normal)) = first_opaque_hit(scene, camera.position, dir) else {
-                continue;
-            };
+    pixel_rays(camera, (width, height), stride_px)
+        .filter_map(|dir| first_opaque_hit(scene, camera.position, dir))
+        .filter(|&(point, normal)| {
             let to_point = (point - light.position).normalize();
-            let faces_light = normal.dot(-to_point) > 0.0;
-            if faces_light && to_point.dot(axis) >= cos_cone {
-                out.push(point);
-            }
-        }
-    }
-    out
+            normal.dot(-to_point) > 0.0 && to_point.dot(axis) >= cos_cone
+        })
+        .map(|(point, _)| point)
+        .collect()
 }
 
 /// The nearest hit of a ray with the ground square or a box: the point and its outward normal.
