@@ -87,6 +87,9 @@ pub struct BenchResults {
     pub adapter: String,
     /// Whether GPU pass times were measured (the adapter has timestamp queries).
     pub gpu_timestamps: bool,
+    /// The round trip of an empty submission ([`crate::gpu::Gpu::clock_floor_ms`]), which every
+    /// frame's wall time pays beyond its passes.
+    pub clock_floor_ms: f64,
     /// Threads of rayon's pool (the simulation and the sort); `RAYON_NUM_THREADS` sets it.
     pub cpu_threads: usize,
     pub counts: Vec<CountResult>,
@@ -266,6 +269,7 @@ pub fn run(gpu: &Gpu, scene: &Scene, options: &BenchOptions) -> anyhow::Result<B
         sorts: options.sorts.clone(),
         adapter: gpu.describe(),
         gpu_timestamps: gpu.has_timestamps(),
+        clock_floor_ms: gpu.clock_floor_ms(),
         cpu_threads: rayon::current_num_threads(),
         counts: Vec::new(),
     };
@@ -463,7 +467,7 @@ impl CellBench<'_> {
             wall.push(start.elapsed().as_secs_f64() * 1e3);
             sort_times.push(stats.sort_ms);
             gpu_total.push(times.total_ms());
-            frame.push(times.total_ms() + stats.sort_ms);
+            frame.push(stats.frame_ms(&times));
             for (name, ms) in times.passes {
                 match passes.iter_mut().find(|(n, _)| *n == name) {
                     Some((_, v)) => v.push(ms),

@@ -161,7 +161,12 @@ fn print_table(results: &BenchResults) {
     if !results.gpu_timestamps {
         println!("  GPU pass times: not available (the adapter has no timestamp queries)");
     }
-    println!("  medians in ms; frame = GPU passes + CPU sort");
+    println!(
+        "  medians in ms; frame = GPU passes + CPU sort; upload = the frame's CPU work after the \
+         sort (gather, upload, recording, a build's CPU preparation) while the GPU waits; wall = \
+         the clock, {:.3} ms of it a submission's round trip",
+        results.clock_floor_ms
+    );
     let passes = results.pass_names();
     let width = label_width(results);
     let mut header = format!(
@@ -229,9 +234,12 @@ fn print_table(results: &BenchResults) {
             // Without timestamp queries there is no GPU time to compare.
             if let Some(m) = cell.measured.as_ref().filter(|_| results.gpu_timestamps) {
                 let what = format!("{} at {} particles", cell.label(), count.particles);
-                if let Some(warning) =
-                    crate::gpu::clock_warning(&what, m.frame_ms.median, m.wall_ms.median)
-                {
+                if let Some(warning) = crate::gpu::clock_warning(
+                    &what,
+                    m.frame_ms.median,
+                    m.wall_ms.median,
+                    results.clock_floor_ms,
+                ) {
                     println!("  {warning}");
                 }
             }

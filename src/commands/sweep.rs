@@ -311,7 +311,14 @@ fn print_table(results: &SweepResults, folder: &Path) {
         if let Some(warning) = results
             .metadata
             .timestamp_queries
-            .then(|| crate::gpu::clock_warning(&what, c.frame_ms.median, c.wall_ms.median))
+            .then(|| {
+                crate::gpu::clock_warning(
+                    &what,
+                    c.frame_ms.median,
+                    c.wall_ms.median,
+                    results.metadata.clock_floor_ms,
+                )
+            })
             .flatten()
         {
             println!("  {warning}");

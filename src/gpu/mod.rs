@@ -148,6 +148,8 @@ pub struct Gpu {
     pub info: wgpu::AdapterInfo,
     pub features: wgpu::Features,
     pub limits: wgpu::Limits,
+    /// [`Gpu::clock_floor_ms`], measured once.
+    clock_floor: std::sync::OnceLock<f64>,
 }
 
 impl Gpu {
@@ -197,7 +199,50 @@ impl Gpu {
             device,
             queue,
             info,
+            clock_floor: std::sync::OnceLock::new(),
         }
+    }
+
+    /// The clock's floor under a frame: the median round trip, in ms, of a submission that
+    /// copies 16 bytes and a readback of them, what every frame's wall time pays beyond its
+    /// GPU work (the submission, the wait, the mapping of the timestamps). On lavapipe it is
+    /// microseconds; on a hardware GPU a few tenths of a millisecond, as much as a whole small
+    /// frame's passes. Measured once per device (nine trips, after one untimed).
+    pub fn clock_floor_ms(&self) -> f64 {
+        *self.clock_floor.get_or_init(|| {
+            let usage = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
+            let source = self.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("clock_floor.source"),
+                size: 16,
+                usage,
+                mapped_at_creation: false,
+            });
+            let readback = self.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("clock_floor.readback"),
+                size: 16,
+                usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+                mapped_at_creation: false,
+            });
+            let mut trips: Vec<f64> = (0..10)
+                .filter_map(|_| {
+                    let start = std::time::Instant::now();
+                    let mut encoder =
+                        self.device
+                            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                                label: Some("clock_floor.encoder"),
+                            });
+                    encoder.copy_buffer_to_buffer(&source, 0, &readback, 0, 16);
+                    self.queue.submit([encoder.finish()]);
+                    readback.slice(..).map_async(wgpu::MapMode::Read, |_| ());
+                    self.wait_idle().ok()?;
+                    readback.unmap();
+                    Some(start.elapsed().as_secs_f64() * 1e3)
+                })
+                .skip(1)
+                .collect();
+            trips.sort_by(f64::total_cmp);
+            trips.get(trips.len() / 2).copied().unwrap_or(0.0)
+        })
     }
 
     /// The loop iterations one shader invocation group may run per dispatch or draw, where the

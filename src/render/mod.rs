@@ -97,6 +97,9 @@ pub struct FrameStats {
     /// Time to sort the particles back to front, milliseconds (CPU wall time of the sorts only:
     /// the frame's, plus a technique's own).
     pub sort_ms: f64,
+    /// The part of `sort_ms` before the frame's GPU clock starts (the frame's one sort): a
+    /// technique's own sort runs after it, so the frame's passes already hold it.
+    pub untimed_sort_ms: f64,
     /// Sorts of every particle this frame: the frame's one, plus one when the technique draws
     /// the particles in an order of its own (`has`, unless the frame sorted along its
     /// half-angle).
@@ -106,6 +109,15 @@ pub struct FrameStats {
     /// The direction light travels to the smoke this frame ([`light_direction`]), which the
     /// half-angle slices against.
     pub light_direction: Vec3,
+}
+
+impl FrameStats {
+    /// The frame's time as `bench`, `sweep` and `render --bench` report it: its GPU passes
+    /// (`times`, from the frame's start after the sort to its last pass, with the CPU work the
+    /// GPU waited for in between) plus the sort before that start.
+    pub fn frame_ms(&self, times: &crate::gpu::PassTimes) -> f64 {
+        times.total_ms() + self.untimed_sort_ms
+    }
 }
 
 /// Pipelines that depend on the technique's lookup shader.
@@ -1151,6 +1163,9 @@ impl Renderer {
         let sort_start = Instant::now();
         let order = sort::back_to_front(particles, camera.position, axis);
         let sort_ms = sort_start.elapsed().as_secs_f64() * 1e3;
+        // The frame's GPU clock starts here, in a submission of its own: everything after the
+        // sort (the gather and upload below, the builds' mid-frame readbacks) is on it.
+        self.timer.begin_frame(gpu);
         self.instances.clear();
         self.instances.par_extend(
             order
@@ -1165,7 +1180,7 @@ impl Renderer {
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                 label: Some("frame.encoder"),
             });
-        self.timer.begin_frame(&mut encoder);
+        self.timer.begin_encoder(&mut encoder);
         for face in &self.faces {
             face.occluders.record(
                 &mut encoder,
@@ -1218,6 +1233,7 @@ impl Renderer {
         }
         let stats = FrameStats {
             sort_ms,
+            untimed_sort_ms: sort_ms,
             sorts: 1,
             particle_count,
             light: lights[0],

@@ -212,6 +212,9 @@ pub struct Machine {
     pub driver: String,
     /// Whether the GPU times come from timestamp queries (if not, they are absent: 0).
     pub timestamp_queries: bool,
+    /// The round trip of an empty submission on it ([`crate::gpu::Gpu::clock_floor_ms`]).
+    #[serde(default)]
+    pub clock_floor_ms: f64,
 }
 
 impl Machine {
@@ -221,6 +224,7 @@ impl Machine {
             backend: format!("{:?}", gpu.info.backend),
             driver: format!("{} {}", gpu.info.driver, gpu.info.driver_info),
             timestamp_queries: gpu.has_timestamps(),
+            clock_floor_ms: gpu.clock_floor_ms(),
         }
     }
 }
@@ -282,6 +286,10 @@ pub struct SweepMetadata {
     pub driver: String,
     /// Whether the GPU times come from timestamp queries (if not, they are absent: 0).
     pub timestamp_queries: bool,
+    /// The largest round trip of an empty submission among the machines
+    /// ([`crate::gpu::Gpu::clock_floor_ms`]): what a frame's wall time pays beyond its passes.
+    #[serde(default)]
+    pub clock_floor_ms: f64,
     pub frames: u32,
     pub warmup: u32,
     /// Light-space tiles per side of the `exact` reference every cell is compared with.

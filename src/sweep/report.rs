@@ -806,6 +806,7 @@ pub(crate) mod tests {
                 backend: "vulkan".into(),
                 driver: "mesa".into(),
                 timestamp_queries: true,
+                clock_floor_ms: 0.0,
                 frames: 30,
                 warmup: 5,
                 exact_tiles: 64,

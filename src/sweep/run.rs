@@ -666,7 +666,7 @@ impl<'a> Sweeper<'a> {
             );
             render_ms.push(times.total_ms() - shadow);
             sort_ms.push(stats.sort_ms);
-            frame_ms.push(times.total_ms() + stats.sort_ms);
+            frame_ms.push(stats.frame_ms(&times));
         }
         if is_frame_baseline {
             self.against.none_frame_ms = timing(&frame_ms).median;
@@ -1285,6 +1285,11 @@ pub(super) fn assemble(
             true => fallback.is_some_and(|m| m.timestamp_queries),
             false => against.iter().all(|a| a.machine.timestamp_queries),
         },
+        clock_floor_ms: against
+            .iter()
+            .map(|a| a.machine.clock_floor_ms)
+            .chain(fallback.map(|m| m.clock_floor_ms))
+            .fold(0.0, f64::max),
         frames,
         warmup,
         exact_tiles: exact.1,
