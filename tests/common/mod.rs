@@ -129,13 +129,19 @@ pub fn luminance(c: [f32; 4]) -> f32 {
     0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]
 }
 
-/// Runs the binary with `args` on the CPU adapter.
+/// Runs the binary with `args` on the tests' adapter (the CPU's, unless
+/// `SMOKESHADOW_TEST_ADAPTER` names another). `SMOKESHADOW_TEST_BIN` runs another build of it
+/// than cargo's (`scripts/gpu-check.sh --prebuilt` on a machine without cargo).
 pub fn smokeshadow(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_smokeshadow"))
+    let bin = std::env::var_os("SMOKESHADOW_TEST_BIN")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from(env!("CARGO_BIN_EXE_smokeshadow")));
+    let adapter = std::env::var("SMOKESHADOW_TEST_ADAPTER").unwrap_or_else(|_| "cpu".to_owned());
+    Command::new(&bin)
         .args(args)
-        .env("SMOKESHADOW_ADAPTER", "cpu")
+        .env("SMOKESHADOW_ADAPTER", adapter)
         .output()
-        .expect("the binary runs")
+        .unwrap_or_else(|e| panic!("the binary {} runs: {e}", bin.display()))
 }
 
 /// A fresh, empty folder for one test's files.
