@@ -30,7 +30,16 @@ fn lattice(world_from_index: DAffine3, dims: UVec3) -> Vec<Vec3> {
     points
 }
 
-/// A voxelised ball, turned and moved off the axes so that every index-to-world term is used.
+/// `grid`'s voxels as a file's grid would hold them: the trilinear field, without the shape's
+/// closed form that a scene's `shape` samples instead (hard-edged, which a march converges to
+/// only as 1/N). These tests hold the march itself, on a smooth field.
+fn trilinear(mut grid: DensityGrid) -> DensityGrid {
+    grid.analytic = None;
+    grid
+}
+
+/// A voxelised ball (its trilinear voxels), turned and moved off the axes so that every
+/// index-to-world term is used.
 fn turned_ball() -> DensityGrid {
     let ball = HomogeneousMedium {
         shape: Shape::Sphere {
@@ -39,12 +48,12 @@ fn turned_ball() -> DensityGrid {
         },
         extinction_per_m: 2.5,
     };
-    let mut grid = DensityGrid::voxelize(
+    let mut grid = trilinear(DensityGrid::voxelize(
         &ball,
         DVec3::ZERO,
         DVec3::splat(2.0),
         UVec3::new(24, 20, 28),
-    );
+    ));
     let placement = DAffine3::from_scale_rotation_translation(
         DVec3::new(1.5, 1.5, 1.5),
         DQuat::from_euler(glam::EulerRot::YXZ, 0.4, -0.3, 0.2),
@@ -99,7 +108,12 @@ fn the_converged_gpu_march_reaches_the_analytic_boxs_closed_form() {
         },
         extinction_per_m: 1.2,
     };
-    let grid = DensityGrid::voxelize(&slab, DVec3::ZERO, DVec3::splat(2.0), UVec3::splat(32));
+    let grid = trilinear(DensityGrid::voxelize(
+        &slab,
+        DVec3::ZERO,
+        DVec3::splat(2.0),
+        UVec3::splat(32),
+    ));
     let uploaded = GpuGrid::upload(&gpu, &mut ledger, &grid).unwrap();
     // A light far above: its rays run almost along z. The points keep a voxel and a half from
     // the box's sides in x and y and away from its top and bottom faces' half-voxel ramps in z
@@ -146,6 +160,7 @@ fn an_empty_grid_casts_no_shadow_and_its_bytes_are_counted() {
         values: Vec::new(),
         world_from_index: DAffine3::IDENTITY,
         density_scale_per_m: 1.0,
+        analytic: None,
     };
     let uploaded = GpuGrid::upload(&gpu, &mut ledger, &empty).unwrap();
     let t = march
@@ -158,12 +173,12 @@ fn an_empty_grid_casts_no_shadow_and_its_bytes_are_counted() {
         )
         .unwrap();
     assert_eq!(t, vec![1.0, 1.0]);
-    // One placeholder voxel (4 bytes) and the 128-byte uniform (the placement, 96 bytes, and
-    // the frame's march settings, 32).
-    assert_eq!(uploaded.bytes, 4 + 128);
+    // One placeholder voxel (4 bytes) and the 160-byte uniform (the placement, 96 bytes, the
+    // frame's march settings, 32, and a shape's closed form, 32).
+    assert_eq!(uploaded.bytes, 4 + 160);
     let grid = turned_ball();
     let uploaded = GpuGrid::upload(&gpu, &mut ledger, &grid).unwrap();
-    assert_eq!(uploaded.bytes, 24 * 20 * 28 * 4 + 128);
+    assert_eq!(uploaded.bytes, 24 * 20 * 28 * 4 + 160);
 }
 
 #[test]
@@ -266,7 +281,12 @@ mod eye {
             shape: Shape::Box { min, max },
             extinction_per_m: 1.7,
         };
-        let grid = DensityGrid::voxelize(&slab, DVec3::ZERO, DVec3::splat(2.0), UVec3::splat(32));
+        let grid = trilinear(DensityGrid::voxelize(
+            &slab,
+            DVec3::ZERO,
+            DVec3::splat(2.0),
+            UVec3::splat(32),
+        ));
         let uploaded = GpuGrid::upload(&gpu, &mut ledger, &grid).unwrap();
         let rays = rays_through(min, max);
         let albedo = Vec3::new(0.9, 0.6, 0.3);

@@ -162,8 +162,9 @@ fn the_real_smoke_marched_on_the_gpu_agrees_with_the_mirror_and_converges() {
     let gpu = common::gpu();
     let mut ledger = MemoryLedger::for_device(&gpu.limits);
     let uploaded = GpuGrid::upload(&gpu, &mut ledger, &medium).unwrap();
-    // The voxels and the 128-byte uniform (the placement and the frame's march settings).
-    assert_eq!(uploaded.bytes, 51 * 49 * 96 * 4 + 128);
+    // The voxels and the 160-byte uniform (the placement, the frame's march settings and a
+    // shape's closed form).
+    assert_eq!(uploaded.bytes, 51 * 49 * 96 * 4 + 160);
     let march = GridMarch::new(&gpu);
     let (n, n2) = (1024, 2048);
     let t_n = march

@@ -15,9 +15,9 @@ const BOX: Vec3 = Vec3::new(2.0, 1.5, 1.0);
 const BOX_CENTER: Vec3 = Vec3::new(0.0, 2.0, 0.0);
 
 /// A homogeneous box straight under a spotlight and straight in front of the camera: the light
-/// ray to a point under the box's centre and the eye ray through the middle pixel run along
-/// the grid's axes, through the box's interior, where the voxelised box integrates exactly to
-/// the box's closed form (each trilinear ramp at a face adds half a cell on either side of it).
+/// ray to a point under the box's centre and the eye ray through the middle pixel run through
+/// the box's interior; every pass samples the box itself (its closed form in the grid's index
+/// space), and `exact` takes its chord in closed form.
 fn box_scene() -> Scene {
     let mut scene = Scene::thesis_plume();
     scene.emitters.clear();
@@ -224,11 +224,18 @@ fn every_technique_that_shadows_a_volume_darkens_beneath_it_and_not_beside_it() 
             entry.name,
             line
         );
-        // Down through the box, the light only falls.
+        // Down through the box, the light only falls, up to what a march towards the light
+        // may misplace: the box is hard-edged, so a midpoint march of N steps over its
+        // support (the box and two voxels on either side, here 2 m) counts up to one step's
+        // optical depth σ·Δ more or less as the point moves. 16 steps (`srm`'s default) is the
+        // fewest any technique takes; the maps' builds take 64.
+        let voxel = BOX.x / 16.0;
+        let step = (BOX.y + 4.0 * voxel) / 16.0;
+        let rise = (SIGMA * step).exp();
         for w in line.windows(2) {
             assert!(
-                w[1] <= w[0] + 2e-3,
-                "{}: T rises downwards: {line:?}",
+                w[1] <= w[0] * rise + 2e-3,
+                "{}: T rises downwards by more than one step of the march: {line:?}",
                 entry.name
             );
         }
@@ -260,11 +267,73 @@ fn the_maps_that_converge_hold_the_volumes_whole_optical_depth_and_shrink_their_
             let sum: f32 = t.iter().zip(&exact).map(|(a, b)| (a - b).powi(2)).sum();
             (sum / t.len() as f32).sqrt()
         };
+        // A homogeneous box's optical depth along a light ray is piecewise linear with two
+        // kinks, which the deep maps hold exactly from their smallest budget: there the error
+        // is the build's sampling, and more channels must not make it worse.
         let (coarse, fine) = (rms(4), rms(24));
         assert!(
-            fine < coarse,
+            fine < coarse || (fine <= coarse + 1e-6 && fine < 5e-3),
             "{}: RMS ΔT {fine} at 24 channels, {coarse} at 4",
             entry.name
         );
     }
+}
+
+#[test]
+fn exact_shadows_a_sphere_by_its_chord_in_closed_form_off_every_axis() {
+    // A homogeneous ball under a point-like spotlight, probed at points whose light rays cut
+    // it off every axis of its grid (whose cells are not cubes: an ellipsoid in index space):
+    // T = exp(-σ·chord), the chord from the ray-sphere quadratic written here.
+    const CENTER: Vec3 = Vec3::new(0.3, 2.1, -0.2);
+    const RADIUS: f32 = 0.9;
+    let mut scene = box_scene();
+    scene.volume = Some(VolumeSpec {
+        shape: "sphere".to_owned(),
+        center_m: CENTER,
+        radius_m: RADIUS,
+        density_scale_per_m: SIGMA,
+        voxels: 12,
+        ..VolumeSpec::default()
+    });
+    scene.validate().unwrap();
+    let light = scene.light.position.as_dvec3();
+    let closed_form = |p: glam::DVec3| -> f64 {
+        let d = p - light;
+        let oc = light - CENTER.as_dvec3();
+        let (a, b) = (d.length_squared(), oc.dot(d));
+        let c = oc.length_squared() - f64::from(RADIUS).powi(2);
+        let disc = b * b - a * c;
+        if disc <= 0.0 {
+            return 1.0;
+        }
+        let (t0, t1) = ((-b - disc.sqrt()) / a, (-b + disc.sqrt()) / a);
+        let inside = (t1.min(1.0) - t0.max(0.0)).max(0.0);
+        (-f64::from(SIGMA) * inside * d.length()).exp()
+    };
+    let points: Vec<Vec3> = (0..24)
+        .map(|i| {
+            let a = i as f32 * 0.61;
+            Vec3::new(
+                0.25 + 0.8 * a.cos(),
+                0.1 + 0.11 * i as f32,
+                -0.1 + 0.7 * a.sin(),
+            )
+        })
+        .collect();
+    let gpu = common::gpu();
+    let config = common::technique("exact", 1, 128, SplatMode::Segment);
+    let t = common::probe_all(&gpu, &scene, &[], &[config], &points).remove(0);
+    let mut shadowed = 0;
+    for (p, t) in points.iter().zip(&t) {
+        let expected = closed_form(p.as_dvec3());
+        shadowed += usize::from(expected < 0.9);
+        assert!(
+            (f64::from(*t) - expected).abs() < 2e-5,
+            "at {p}: exact {t}, closed form {expected}"
+        );
+    }
+    assert!(
+        shadowed >= 8,
+        "only {shadowed} of the points are in the ball's shadow"
+    );
 }

@@ -22,9 +22,14 @@ struct GridParams {
     albedo_powder: vec4<f32>,
     // Steps of the techniques' light-space build along each texel's ray.
     build_steps: u32,
-    _pad0: u32,
+    // A homogeneous shape in index space (src/medium/grid.rs, IndexShape): 0 none (the
+    // voxels), 1 an ellipsoid (shape_a.xyz its centre, shape_b.xyz its radii), 2 a box
+    // (shape_a.xyz to shape_b.xyz); shape_a.w its density.
+    shape_kind: u32,
     _pad1: u32,
     _pad2: u32,
+    shape_a: vec4<f32>,
+    shape_b: vec4<f32>,
 };
 
 fn grid_voxel(i: vec3<i32>) -> f32 {
@@ -35,8 +40,22 @@ fn grid_voxel(i: vec3<i32>) -> f32 {
     return textureLoad(grid_density, i, 0).r;
 }
 
-// The density at index coordinates `q`, trilinear between voxel centres.
+// Whether index point `q` is inside the grid's shape.
+fn grid_shape_contains(q: vec3<f32>) -> bool {
+    let g = grid_params();
+    if g.shape_kind == 1u {
+        let u = (q - g.shape_a.xyz) / g.shape_b.xyz;
+        return dot(u, u) <= 1.0;
+    }
+    return all(q >= g.shape_a.xyz) && all(q <= g.shape_b.xyz);
+}
+
+// The density at index coordinates `q`: the grid's shape's, else trilinear between voxel
+// centres.
 fn grid_density_at_index(q: vec3<f32>) -> f32 {
+    if grid_params().shape_kind != 0u {
+        return select(0.0, grid_params().shape_a.w, grid_shape_contains(q));
+    }
     let base = floor(q);
     let f = q - base;
     let i = vec3<i32>(base);
@@ -70,6 +89,45 @@ fn grid_support(qa: vec3<f32>, qb: vec3<f32>) -> vec2<f32> {
     return vec2<f32>(t0, t1);
 }
 
+// The fraction of the segment qa..qb (index space) inside the grid's shape, 0..1 (the chord of
+// the unit sphere after dividing by the radii, or the box's slabs).
+fn grid_shape_fraction(qa: vec3<f32>, qb: vec3<f32>) -> f32 {
+    let g = grid_params();
+    var t0 = 0.0;
+    var t1 = 1.0;
+    if g.shape_kind == 1u {
+        let o = (qa - g.shape_a.xyz) / g.shape_b.xyz;
+        let d = (qb - qa) / g.shape_b.xyz;
+        let a = dot(d, d);
+        if a == 0.0 {
+            return 0.0;
+        }
+        let b = dot(o, d);
+        let disc = b * b - a * (dot(o, o) - 1.0);
+        if disc <= 0.0 {
+            return 0.0;
+        }
+        let root = sqrt(disc);
+        t0 = max(t0, (-b - root) / a);
+        t1 = min(t1, (-b + root) / a);
+    } else {
+        let d = qb - qa;
+        for (var axis = 0u; axis < 3u; axis++) {
+            if d[axis] == 0.0 {
+                if qa[axis] < g.shape_a[axis] || qa[axis] > g.shape_b[axis] {
+                    return 0.0;
+                }
+                continue;
+            }
+            let u = (g.shape_a[axis] - qa[axis]) / d[axis];
+            let v = (g.shape_b[axis] - qa[axis]) / d[axis];
+            t0 = max(t0, min(u, v));
+            t1 = min(t1, max(u, v));
+        }
+    }
+    return max(t1 - t0, 0.0);
+}
+
 // Optical depth from world point `a` to `b` by the midpoint rule with `steps` steps over the
 // part of the segment where the density can be non-zero (`steps` + 3 loop iterations: the
 // caller keeps it within the adapter's loop budget).
@@ -86,4 +144,16 @@ fn grid_optical_depth(a: vec3<f32>, b: vec3<f32>, steps: u32) -> f32 {
         sum += grid_density_at_index(mix(qa, qb, s.x + (f32(i) + 0.5) * dt));
     }
     return grid_params().density_scale_per_m * sum * dt * length(b - a);
+}
+
+// Optical depth from world point `a` to `b` as the reference takes it: a shape's in closed form
+// (its density times the chord inside it), a grid's by `steps` midpoint steps.
+fn grid_reference_optical_depth(a: vec3<f32>, b: vec3<f32>, steps: u32) -> f32 {
+    let g = grid_params();
+    if g.shape_kind == 0u {
+        return grid_optical_depth(a, b, steps);
+    }
+    let qa = (g.index_from_world * vec4<f32>(a, 1.0)).xyz;
+    let qb = (g.index_from_world * vec4<f32>(b, 1.0)).xyz;
+    return g.density_scale_per_m * g.shape_a.w * grid_shape_fraction(qa, qb) * length(b - a);
 }

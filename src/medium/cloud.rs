@@ -395,6 +395,7 @@ impl CloudBaker {
             values,
             world_from_index: placement,
             density_scale_per_m: 1.0,
+            analytic: None,
         })
     }
 }

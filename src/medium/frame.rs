@@ -207,6 +207,7 @@ mod tests {
             values: vec![0.0; 144],
             world_from_index: glam::DAffine3::IDENTITY,
             density_scale_per_m: 1.0,
+            analytic: None,
         };
         // The diagonal is 13 voxels long.
         assert_eq!(reference_steps(&grid), 26);

@@ -9,7 +9,7 @@ use glam::{Mat4, UVec3, Vec3};
 use thiserror::Error;
 use wgpu::util::DeviceExt;
 
-use super::grid::DensityGrid;
+use super::grid::{DensityGrid, IndexShape, IndexShapeKind};
 use crate::gpu::{
     AllocationError, Gpu, GpuError, MemoryLedger, bind_entry, read_buffer, storage_entry,
     texture_3d_entry, texture_binding, uniform_entry,
@@ -30,7 +30,32 @@ pub struct GridParams {
     pub reference_steps: u32,
     pub albedo_powder: [f32; 4],
     pub build_steps: u32,
-    pub _pad: [u32; 3],
+    /// 0: the voxels; 1: an ellipsoid (`shape_a` its centre, `shape_b` its radii); 2: a box
+    /// (`shape_a` to `shape_b`), in index space, of density `shape_a[3]` ([`IndexShape`]).
+    pub shape_kind: u32,
+    pub _pad: [u32; 2],
+    pub shape_a: [f32; 4],
+    pub shape_b: [f32; 4],
+}
+
+/// The uniform's fields of a grid's shape: (kind, a, b).
+fn shape_fields(shape: Option<&IndexShape>) -> (u32, [f32; 4], [f32; 4]) {
+    let Some(shape) = shape else {
+        return (0, [0.0; 4], [0.0; 4]);
+    };
+    let density = shape.density as f32;
+    match shape.kind {
+        IndexShapeKind::Ellipsoid { center, radii } => (
+            1,
+            center.as_vec3().extend(density).to_array(),
+            radii.as_vec3().extend(0.0).to_array(),
+        ),
+        IndexShapeKind::Box { min, max } => (
+            2,
+            min.as_vec3().extend(density).to_array(),
+            max.as_vec3().extend(0.0).to_array(),
+        ),
+    }
 }
 
 /// Keep in sync with `MarchParams` in shaders/medium/grid_march.wgsl.
@@ -58,7 +83,10 @@ pub fn layouts() -> Vec<crate::gpu::MirrorLayout> {
                 jitter,
                 reference_steps,
                 albedo_powder,
-                build_steps
+                build_steps,
+                shape_kind,
+                shape_a,
+                shape_b
             ]
         ),
         crate::mirror_layout!(
@@ -200,6 +228,7 @@ impl GpuGrid {
             size,
         );
         let index_from_world = grid.world_from_index.inverse();
+        let (shape_kind, shape_a, shape_b) = shape_fields(grid.analytic.as_ref());
         let params = GridParams {
             index_from_world: Mat4::from(glam::Affine3A::from_mat3_translation(
                 index_from_world.matrix3.as_mat3(),
@@ -213,7 +242,10 @@ impl GpuGrid {
             reference_steps: 0,
             albedo_powder: [0.0; 4],
             build_steps: 0,
-            _pad: [0; 3],
+            shape_kind,
+            _pad: [0; 2],
+            shape_a,
+            shape_b,
         };
         let params_buffer = gpu
             .device

@@ -217,7 +217,8 @@ pub fn verify(
 }
 
 /// The smoke's transmittance from `light` to `p` on the CPU in f64: the particles' closed form
-/// and a density volume's optical depth by its march doubled until T agrees within
+/// and a density volume's optical depth, a shape's in closed form, a grid's by its march doubled
+/// until T agrees within
 /// [`VOLUME_TOLERANCE`] (NaN where it does not within [`VOLUME_MAX_STEPS`]).
 pub fn mirror_transmittance(
     light: Vec3,
@@ -227,6 +228,9 @@ pub fn mirror_transmittance(
 ) -> f64 {
     let particles_tau = closed_form::optical_depth(light, p, particles);
     let volume_tau = volume.map_or(0.0, |grid| {
+        if let Some(tau) = grid.closed_form_optical_depth(light.as_dvec3(), p.as_dvec3()) {
+            return tau;
+        }
         -grid
             .converged_transmittance(
                 light.as_dvec3(),
