@@ -8,8 +8,8 @@
 //! the coverage from which `srm` is the slower: ratios within one run, as the issue asks, not
 //! milliseconds to compare across machines. Two more of the dissertation's axes: the maps'
 //! resolution (its generation against total time at 256², 512² and 1024²) and the build's
-//! samples along each texel's ray (its 10-300); `srm`, which has neither, is measured once per
-//! coverage.
+//! samples along each texel's ray (its 10-300); `srm`, which has neither, is measured per count
+//! of its light samples instead (its 1-50), and the ratios are to the first count given.
 
 use std::path::{Path, PathBuf};
 
@@ -34,6 +34,8 @@ pub struct FrameStudy {
     /// The maps' resolutions and the build's steps along each texel's ray.
     pub shadow_res: Vec<u32>,
     pub build_steps: Vec<u32>,
+    /// `srm`'s light samples per lookup (`srm_light_steps`), each a row of its own.
+    pub light_steps: Vec<u32>,
     pub frames: u32,
     pub warmup: u32,
 }
@@ -45,6 +47,8 @@ pub struct FrameRow {
     pub technique: String,
     pub shadow_res: u32,
     pub build_steps: u32,
+    /// `srm`'s light samples per lookup (`None` for a map).
+    pub light_steps: Option<u32>,
     /// Median GPU time of the whole frame, of its build and of the eye's march, ms.
     pub frame_ms: f64,
     pub build_ms: f64,
@@ -103,28 +107,43 @@ pub fn run(gpu: &Gpu, study: &FrameStudy) -> anyhow::Result<Vec<FrameRow>> {
         let exact = renderer.probe(gpu, &base, &[], &points)?;
         let mut cells = Vec::new();
         for name in &study.techniques {
-            let entry = crate::shadow::find(name)?;
-            // A technique without maps is measured once.
-            let once = !entry.uses_budget && entry.name == "srm";
-            for (r, &res) in study.shadow_res.iter().enumerate() {
-                for (b, &steps) in study.build_steps.iter().enumerate() {
-                    if !once || (r == 0 && b == 0) {
-                        cells.push((name.clone(), res, steps));
-                    }
+            // `srm` has no map: once per count of its light samples instead.
+            if name == crate::shadow::srm::ENTRY.name {
+                for &light in &study.light_steps {
+                    cells.push((
+                        name.clone(),
+                        study.shadow_res[0],
+                        study.build_steps[0],
+                        Some(light),
+                    ));
+                }
+                continue;
+            }
+            for &res in &study.shadow_res {
+                for &steps in &study.build_steps {
+                    cells.push((name.clone(), res, steps, None));
                 }
             }
         }
-        for (name, res, steps) in cells {
+        for (name, res, steps, light_steps) in cells {
             let mut scene = base.clone();
             scene.shadow.resolution_px = res;
             if let Some(volume) = scene.volume.as_mut() {
                 volume.build_steps = steps;
             }
+            let mut params = scene.shadow.params(study.channels);
+            if let Some(light) = light_steps {
+                crate::shadow::set_param(
+                    &mut params,
+                    crate::shadow::srm::LIGHT_STEPS.key,
+                    &(light as f32).into(),
+                )?;
+            }
             renderer.set_technique(
                 gpu,
                 &TechniqueConfig {
                     name: name.clone(),
-                    params: scene.shadow.params(study.channels),
+                    params,
                 },
             )?;
             let (mut frame, mut build, mut eye) = (Vec::new(), Vec::new(), Vec::new());
@@ -143,6 +162,7 @@ pub fn run(gpu: &Gpu, study: &FrameStudy) -> anyhow::Result<Vec<FrameRow>> {
                 technique: name.clone(),
                 shadow_res: res,
                 build_steps: steps,
+                light_steps,
                 frame_ms: median(frame),
                 build_ms: median(build),
                 eye_ms: median(eye),
@@ -154,10 +174,11 @@ pub fn run(gpu: &Gpu, study: &FrameStudy) -> anyhow::Result<Vec<FrameRow>> {
     Ok(rows)
 }
 
-/// `row`'s frame time over `srm`'s at the same coverage, when the run has `srm`.
+/// `row`'s frame time over `srm`'s at the same coverage (its first count of light samples),
+/// when the run has `srm`.
 pub fn ratio_to_srm(rows: &[FrameRow], row: &FrameRow) -> Option<f64> {
     rows.iter()
-        .find(|r| r.technique == "srm" && r.coverage == row.coverage)
+        .find(|r| r.technique == crate::shadow::srm::ENTRY.name && r.coverage == row.coverage)
         .map(|srm| row.frame_ms / srm.frame_ms)
 }
 
@@ -198,6 +219,7 @@ pub fn write_csv(rows: &[FrameRow], folder: &Path) -> anyhow::Result<PathBuf> {
         "technique",
         "shadow_res",
         "build_steps",
+        "srm_light_steps",
         "bytes",
         "frame_gpu_ms",
         "build_gpu_ms",
@@ -211,6 +233,7 @@ pub fn write_csv(rows: &[FrameRow], folder: &Path) -> anyhow::Result<PathBuf> {
             r.technique.clone(),
             r.shadow_res.to_string(),
             r.build_steps.to_string(),
+            r.light_steps.map_or(String::new(), |n| n.to_string()),
             r.bytes.to_string(),
             format!("{:.3}", r.frame_ms),
             format!("{:.3}", r.build_ms),
@@ -235,6 +258,7 @@ mod tests {
             technique: technique.to_owned(),
             shadow_res: 512,
             build_steps: 64,
+            light_steps: (technique == "srm").then_some(16),
             frame_ms,
             build_ms: 0.0,
             eye_ms: 0.0,

@@ -84,8 +84,11 @@ pub struct BenchArgs {
     #[arg(long, value_delimiter = ',', value_name = "C,...", default_value = "0.6",
           value_parser = coverage_fraction)]
     pub coverages: Vec<f32>,
-    /// Steps towards the light for `--volume` (the light march's, and per eye sample).
-    #[arg(long, value_delimiter = ',', value_name = "N,...", default_value = "16,64,256",
+    /// Steps towards the light for `--volume` (the light march's, and per eye sample; default
+    /// 16,64,256). With `-t`: `srm`'s light samples per lookup, each a row of its own (default
+    /// its `srm_light_steps`; the dissertation varied 1-50), the ratios to `srm` taken to the
+    /// first.
+    #[arg(long, value_delimiter = ',', value_name = "N,...",
           value_parser = clap::value_parser!(u32).range(1..=16384))]
     pub light_steps: Vec<u32>,
     /// The eye march's steps for `--volume`.
@@ -341,7 +344,10 @@ fn run_volume(args: &BenchArgs, source: &str, adapter: &AdapterPreference) -> an
         source: VolumeSource::parse(source),
         grid_sizes: args.grid_sizes.clone(),
         coverages: args.coverages.clone(),
-        light_steps: args.light_steps.clone(),
+        light_steps: match args.light_steps.is_empty() {
+            true => vec![16, 64, 256],
+            false => args.light_steps.clone(),
+        },
         eye_steps: args.eye_steps,
         frames: args.frames,
         warmup: args.warmup,
@@ -433,6 +439,14 @@ fn run_volume_frames(
         channels: args.channels,
         shadow_res,
         build_steps,
+        light_steps: match args.light_steps.is_empty() {
+            true => vec![
+                crate::shadow::srm::LIGHT_STEPS
+                    .default
+                    .map_or(16, |n| n as u32),
+            ],
+            false => args.light_steps.clone(),
+        },
         frames: args.frames,
         warmup: args.warmup,
     };
@@ -449,11 +463,12 @@ fn run_volume_frames(
         gpu.describe()
     );
     println!(
-        "{:>8} {:<10} {:>5} {:>5} {:>8} {:>9} {:>9} {:>9} {:>6} {:>8}",
+        "{:>8} {:<10} {:>5} {:>5} {:>5} {:>8} {:>9} {:>9} {:>9} {:>6} {:>8}",
         "coverage",
         "technique",
         "res",
         "build",
+        "light",
         "MiB",
         "frame ms",
         "build ms",
@@ -463,11 +478,12 @@ fn run_volume_frames(
     );
     for r in &rows {
         println!(
-            "{:>8} {:<10} {:>5} {:>5} {:>8.2} {:>9.1} {:>9.1} {:>9.1} {:>6} {:>8.5}",
+            "{:>8} {:<10} {:>5} {:>5} {:>5} {:>8.2} {:>9.1} {:>9.1} {:>9.1} {:>6} {:>8.5}",
             r.coverage.map_or(String::new(), |c| format!("{c}")),
             r.technique,
             r.shadow_res,
             r.build_steps,
+            r.light_steps.map_or("-".to_owned(), |n| n.to_string()),
             r.bytes as f64 / (1024.0 * 1024.0),
             r.frame_ms,
             r.build_ms,
