@@ -144,8 +144,8 @@ fn exact_optical_depth(p: vec3<f32>) -> f32 {
 
 // With a density volume, its optical depth too: a shape's in closed form, a grid's by a midpoint
 // march towards the light with the reference's step count, shown to have converged
-// (src/medium/frame.rs: two steps a voxel along the grid's diagonal, within the loop iterations
-// src/shadow/exact.rs leaves it).
+// (src/medium/frame.rs: four steps a voxel along the grid's diagonal, at least two, within the
+// loop iterations src/shadow/exact.rs leaves it).
 fn shadow_transmittance(p: vec3<f32>) -> f32 {
     let volume =
         medium_reference_optical_depth(frame.light_pos.xyz, p, grid_params().reference_steps);
