@@ -4,7 +4,7 @@
 # every table under one folder (README, "On a real GPU").
 #
 #   scripts/gpu-check.sh [-o DIR] [--counts N,N,...] [--tests NAME,...|none] [--cpu]
-#                        [--prebuilt DIR]
+#                        [--prebuilt DIR] [--studies]
 #   scripts/gpu-check.sh --pack DIR [--tests NAME,...]
 #
 # It picks the adapter `smokeshadow info --adapter auto` selects (hardware first) and names it to
@@ -18,7 +18,9 @@
 # the release test binaries here and copies them into DIR; copy DIR and this source tree there
 # (at the same path: a few tests read their data files by the path they were built at) and run
 # `--prebuilt DIR`, which runs those binaries instead of cargo. The bench runs first, then the
-# tests, so a run cut short still leaves the tables.
+# tests, so a run cut short still leaves the tables. `--studies` then measures the rest of the
+# README's GPU tables: every technique at 1920x1080 (65k and 1M particles), the cloud's coverage
+# study and the thesis sweep (about 3 minutes more on an H200).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -31,6 +33,7 @@ cpu=0
 tests="reference,techniques,gpu_render,probe_render,occluders,point_light,moments,slices,volume,volume_scene,mixed_res,shared_sort,particles,scaling"
 prebuilt=""
 pack=""
+studies=0
 # A test binary that hangs (a driver's deadlock) is stopped after this long and reported.
 test_timeout=180
 
@@ -42,7 +45,8 @@ while [ $# -gt 0 ]; do
     --cpu) cpu=1; shift ;;
     --prebuilt) prebuilt="$2"; shift 2 ;;
     --pack) pack="$2"; shift 2 ;;
-    -h | --help) sed -n '2,22p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    --studies) studies=1; shift ;;
+    -h | --help) sed -n '2,25p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) echo "gpu-check: unknown argument '$1' (see --help)" >&2; exit 2 ;;
     esac
 done
@@ -155,6 +159,29 @@ if [ ${#names[@]} -gt 0 ]; then
         status=1
     fi
     grep -E '^(== |test result)|FAILED|TIMED OUT|panicked' "$out/tests.txt" >"$out/tests-summary.txt" || true
+fi
+
+if [ $studies = 1 ]; then
+    # name|what|command arguments (the README's "On a real GPU" tables, one file each). On the
+    # CPU adapter (--cpu, to test this script) smaller: lavapipe takes minutes for the real ones.
+    hd="--size 1920x1080 --particles-list 65536,1000000"
+    coverages="0.1,0.3,0.5,0.7,0.9,1.0"
+    if [ "$cpu" = 1 ]; then
+        hd="--size 640x360 --particles-list $counts --frames 2 --warmup 1"
+        coverages="0.6 --frames 2 --warmup 1"
+    fi
+    for study in \
+        "bench_1920x1080|every technique at a larger frame|bench $hd -o $out/bench_1920x1080" \
+        "volume_coverage|the cloud's coverage study|bench --volume cloud -t esm,bsm,fom,srm --coverages $coverages -o $out/volume_coverage" \
+        "sweep_thesis_plume|the thesis sweep|sweep thesis_plume --techniques all -o $out/sweep_thesis_plume"; do
+        IFS='|' read -r file what cmd <<<"$study"
+        echo "gpu-check: $what on $name"
+        read -ra words <<<"$cmd"
+        if ! "$bin" "${words[@]}" --adapter "$name" >"$out/$file.txt" 2>&1; then
+            status=1
+            echo "gpu-check: $what failed: see $out/$file.txt" >&2
+        fi
+    done
 fi
 
 echo "gpu-check: done in $(($(date +%s) - start)) s, everything under $out/ (status $status)"
