@@ -208,7 +208,12 @@ fn by_light_distance(
         // `as f32` rounds to nearest: step down once more where that rounded up.
         slice_near[slice] = chunk[0].0.next_down();
     }
-    let sorted = keyed.iter().map(|&(_, i)| instances[i as usize]).collect();
+    // On every core: at a million particles a GPU frame waits for this gather (the `upload`
+    // pass of `bench`, docs/studies.md "The frame's clock on a real GPU").
+    let sorted = keyed
+        .par_iter()
+        .map(|&(_, i)| instances[i as usize])
+        .collect();
     (sorted, slice_near, slice_size)
 }
 
