@@ -16,6 +16,7 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 
 use crate::gpu::Gpu;
+use crate::medium::grid::DensityGrid;
 use crate::render::{OUTPUT_FORMAT, OffscreenTarget, RenderOptions, Renderer, TechniqueConfig};
 use crate::scene::Scene;
 
@@ -57,6 +58,44 @@ pub struct FrameRow {
     pub bytes: u64,
     /// RMS of T - T_exact over the frame's shaded points.
     pub rms_t: f64,
+    /// Mean of T - T_exact over the volume's eye samples at its thin edges (extinction below a
+    /// quarter of the samples' 90th percentile) and inside it (above), NaN where there are none:
+    /// positive is brighter than the reference (the dissertation's "ESM and BSM brighter at
+    /// cloud edges", "BSM darker"), as numbers.
+    pub bias_edge: f64,
+    pub bias_inside: f64,
+}
+
+/// Which of `points` are the volume's thin edges (`Some(true)`), its inside (`Some(false)`), or
+/// not in it (`None`): extinction below a quarter of the 90th percentile of the points' non-zero
+/// extinctions is an edge.
+pub fn edge_classes(grid: &DensityGrid, points: &[glam::Vec3]) -> Vec<Option<bool>> {
+    let sigma: Vec<f64> = points
+        .iter()
+        .map(|p| grid.extinction_at(p.as_dvec3()))
+        .collect();
+    let mut inside: Vec<f64> = sigma.iter().copied().filter(|&s| s > 0.0).collect();
+    inside.sort_by(f64::total_cmp);
+    let Some(&p90) = inside.get(inside.len() * 9 / 10) else {
+        return vec![None; points.len()];
+    };
+    sigma
+        .iter()
+        .map(|&s| (s > 0.0).then_some(s < 0.25 * p90))
+        .collect()
+}
+
+/// Mean of `t - exact` over the points whose class is `class`.
+fn mean_bias(t: &[f32], exact: &[f32], classes: &[Option<bool>], class: bool) -> f64 {
+    let (sum, n) = t
+        .iter()
+        .zip(exact)
+        .zip(classes)
+        .filter(|(_, c)| **c == Some(class))
+        .fold((0.0, 0u32), |(s, n), ((&a, &b), _)| {
+            (s + f64::from(a) - f64::from(b), n + 1)
+        });
+    if n == 0 { f64::NAN } else { sum / f64::from(n) }
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -105,6 +144,10 @@ pub fn run(gpu: &Gpu, study: &FrameStudy) -> anyhow::Result<Vec<FrameRow>> {
             renderer.medium().grid().map(|g| &**g),
         );
         let exact = renderer.probe(gpu, &base, &[], &points)?;
+        let classes = match renderer.medium().grid() {
+            Some(grid) => edge_classes(grid, &points),
+            None => vec![None; points.len()],
+        };
         let mut cells = Vec::new();
         for name in &study.techniques {
             // `srm` has no map: once per count of its light samples instead.
@@ -168,6 +211,8 @@ pub fn run(gpu: &Gpu, study: &FrameStudy) -> anyhow::Result<Vec<FrameRow>> {
                 eye_ms: median(eye),
                 bytes: renderer.shadow_bytes().0,
                 rms_t: crate::render::shaded::rms_difference(&t, &exact),
+                bias_edge: mean_bias(&t, &exact, &classes, true),
+                bias_inside: mean_bias(&t, &exact, &classes, false),
             });
         }
     }
@@ -226,6 +271,8 @@ pub fn write_csv(rows: &[FrameRow], folder: &Path) -> anyhow::Result<PathBuf> {
         "eye_gpu_ms",
         "frame_over_srm",
         "rms_t_vs_exact",
+        "bias_t_edge",
+        "bias_t_inside",
     ])?;
     for r in rows {
         csv.write_record([
@@ -240,6 +287,8 @@ pub fn write_csv(rows: &[FrameRow], folder: &Path) -> anyhow::Result<PathBuf> {
             format!("{:.3}", r.eye_ms),
             ratio_to_srm(rows, r).map_or(String::new(), |x| format!("{x:.4}")),
             format!("{:.6}", r.rms_t),
+            format!("{:.6}", r.bias_edge),
+            format!("{:.6}", r.bias_inside),
         ])?;
     }
     let bytes = csv.into_inner().context("writing the CSV")?;
@@ -264,7 +313,44 @@ mod tests {
             eye_ms: 0.0,
             bytes: 0,
             rms_t: 0.0,
+            bias_edge: 0.0,
+            bias_inside: 0.0,
         }
+    }
+
+    #[test]
+    fn thin_edges_are_below_a_quarter_of_the_dense_samples_and_bias_is_signed() {
+        use crate::medium::analytic::{HomogeneousMedium, Shape};
+        // A ball of 1/m whose voxels the trilinear ramp thins at its rim.
+        let ball = HomogeneousMedium {
+            shape: Shape::Sphere {
+                center: glam::DVec3::splat(1.0),
+                radius_m: 0.8,
+            },
+            extinction_per_m: 1.0,
+        };
+        let mut grid = DensityGrid::voxelize(
+            &ball,
+            glam::DVec3::ZERO,
+            glam::DVec3::splat(2.0),
+            glam::UVec3::splat(8),
+        );
+        grid.analytic = None;
+        let points: Vec<glam::Vec3> = [1.0, 1.84, 1.3, 3.0]
+            .map(|x| glam::Vec3::new(x, 1.0, 1.0))
+            .to_vec();
+        let classes = edge_classes(&grid, &points);
+        assert_eq!(classes[0], Some(false), "the centre is inside");
+        assert_eq!(classes[3], None, "outside the ball");
+        assert_eq!(
+            classes[1],
+            Some(true),
+            "{classes:?}: the rim's ramp is an edge"
+        );
+        let t = [0.5, 0.9, 0.6, 1.0];
+        let exact = [0.4, 0.7, 0.6, 1.0];
+        assert!((mean_bias(&t, &exact, &classes, true) - 0.2).abs() < 1e-6);
+        assert!((mean_bias(&t, &exact, &classes, false) - 0.05).abs() < 1e-6);
     }
 
     #[test]

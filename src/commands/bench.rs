@@ -463,7 +463,7 @@ fn run_volume_frames(
         gpu.describe()
     );
     println!(
-        "{:>8} {:<10} {:>5} {:>5} {:>5} {:>8} {:>9} {:>9} {:>9} {:>6} {:>8}",
+        "{:>8} {:<10} {:>5} {:>5} {:>5} {:>8} {:>9} {:>9} {:>9} {:>6} {:>8} {:>9} {:>9}",
         "coverage",
         "technique",
         "res",
@@ -474,11 +474,13 @@ fn run_volume_frames(
         "build ms",
         "eye ms",
         "/ srm",
-        "RMS T"
+        "RMS T",
+        "bias edge",
+        "bias in"
     );
     for r in &rows {
         println!(
-            "{:>8} {:<10} {:>5} {:>5} {:>5} {:>8.2} {:>9.1} {:>9.1} {:>9.1} {:>6} {:>8.5}",
+            "{:>8} {:<10} {:>5} {:>5} {:>5} {:>8.2} {:>9.1} {:>9.1} {:>9.1} {:>6} {:>8.5} {:>+9.4} {:>+9.4}",
             r.coverage.map_or(String::new(), |c| format!("{c}")),
             r.technique,
             r.shadow_res,
@@ -489,7 +491,9 @@ fn run_volume_frames(
             r.build_ms,
             r.eye_ms,
             volume_frames::ratio_to_srm(&rows, r).map_or(String::new(), |x| format!("{x:.2}")),
-            r.rms_t
+            r.rms_t,
+            r.bias_edge,
+            r.bias_inside
         );
     }
     if rows.iter().any(|r| r.technique == "srm") && rows.len() > 1 {
