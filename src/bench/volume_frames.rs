@@ -254,6 +254,97 @@ pub fn srm_crossovers(rows: &[FrameRow]) -> Vec<(String, Option<f32>)> {
         .collect()
 }
 
+/// The charts' files, in the bench's output folder: each technique's frame over `srm`'s against
+/// the coverage (with more than one coverage), and each configuration's RMS T error against its
+/// frame time (every run).
+pub const RATIO_CHART: &str = "bench_volume_frames_over_srm.svg";
+pub const ERROR_CHART: &str = "bench_volume_frames_error.svg";
+
+/// The study's charts as SVG documents: (file name, document).
+pub fn charts(rows: &[FrameRow]) -> anyhow::Result<Vec<(&'static str, String)>> {
+    use crate::sweep::charts::{LogLogSeries, log_log_svg};
+    let mut names: Vec<&str> = Vec::new();
+    for r in rows {
+        if !names.contains(&r.technique.as_str()) {
+            names.push(&r.technique);
+        }
+    }
+    let label = |r: &FrameRow| match r.light_steps {
+        Some(n) => format!("{} ({n} light samples)", r.technique),
+        None => format!(
+            "{} ({}², {} build steps)",
+            r.technique, r.shadow_res, r.build_steps
+        ),
+    };
+    let mut out = Vec::new();
+    let mut coverages: Vec<f32> = rows.iter().filter_map(|r| r.coverage).collect();
+    coverages.dedup();
+    if coverages.len() > 1 {
+        // One line per technique and configuration, over the coverages.
+        let mut series: Vec<LogLogSeries> = Vec::new();
+        for r in rows
+            .iter()
+            .filter(|r| r.technique != crate::shadow::srm::ENTRY.name)
+        {
+            let (Some(c), Some(ratio)) = (r.coverage, ratio_to_srm(rows, r)) else {
+                continue;
+            };
+            let name = label(r);
+            match series.iter_mut().find(|s| s.label == name) {
+                Some(s) => s.points.push((f64::from(c), ratio)),
+                None => series.push(LogLogSeries {
+                    label: name,
+                    points: vec![(f64::from(c), ratio)],
+                }),
+            }
+        }
+        out.push((
+            RATIO_CHART,
+            log_log_svg(
+                "Frame time over srm's against cloud coverage (below 1: the map is faster)",
+                "coverage (log scale)",
+                "frame time / srm's (log scale)",
+                &series,
+            )?,
+        ));
+    }
+    let series: Vec<LogLogSeries> = names
+        .iter()
+        .map(|&name| LogLogSeries {
+            label: name.to_owned(),
+            points: rows
+                .iter()
+                .filter(|r| r.technique == name)
+                .map(|r| (r.frame_ms, r.rms_t))
+                .collect(),
+        })
+        .collect();
+    out.push((
+        ERROR_CHART,
+        log_log_svg(
+            "RMS error of T against exact, against the frame's GPU time (each configuration)",
+            "frame ms (log scale)",
+            "RMS T error (log scale)",
+            &series,
+        )?,
+    ));
+    Ok(out)
+}
+
+/// Writes the study's charts into `folder` (created if missing), atomically; returns their paths.
+pub fn write_charts(rows: &[FrameRow], folder: &Path) -> anyhow::Result<Vec<PathBuf>> {
+    std::fs::create_dir_all(folder)
+        .with_context(|| format!("cannot create {}", folder.display()))?;
+    charts(rows)?
+        .into_iter()
+        .map(|(name, svg)| {
+            let path = folder.join(name);
+            crate::output::write_atomic(&path, svg.as_bytes())?;
+            Ok(path)
+        })
+        .collect()
+}
+
 /// Writes the rows as CSV into `folder` (created if missing), atomically.
 pub fn write_csv(rows: &[FrameRow], folder: &Path) -> anyhow::Result<PathBuf> {
     std::fs::create_dir_all(folder)
@@ -312,7 +403,7 @@ mod tests {
             build_ms: 0.0,
             eye_ms: 0.0,
             bytes: 0,
-            rms_t: 0.0,
+            rms_t: 0.01,
             bias_edge: 0.0,
             bias_inside: 0.0,
         }
@@ -364,6 +455,14 @@ mod tests {
             row(0.5, "fom", 30.0),
         ];
         assert_eq!(ratio_to_srm(&rows, &rows[1]), Some(1.2));
+        // The charts: the ratio over the coverages for each map, and every row's error.
+        let charts = charts(&rows).unwrap();
+        assert_eq!(
+            charts.iter().map(|(n, _)| *n).collect::<Vec<_>>(),
+            vec![RATIO_CHART, ERROR_CHART]
+        );
+        assert!(charts[0].1.contains("esm (512²") && !charts[0].1.contains(">srm"));
+        assert!(charts[1].1.contains("fom") && charts[1].1.contains("srm"));
         assert_eq!(
             srm_crossovers(&rows),
             vec![("esm".to_owned(), Some(0.5)), ("fom".to_owned(), None)]

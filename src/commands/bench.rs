@@ -506,6 +506,9 @@ fn run_volume_frames(
     }
     let path = volume_frames::write_csv(&rows, &args.output)?;
     println!("wrote {}", path.display());
+    for chart in volume_frames::write_charts(&rows, &args.output)? {
+        println!("wrote {}", chart.display());
+    }
     Ok(())
 }
 
