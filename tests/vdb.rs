@@ -294,5 +294,11 @@ fn bench_volume_measures_every_stage_of_a_file_and_of_the_cloud() {
                 assert_eq!(fields[7], "", "{row}");
             }
         }
+        // The sun-step chart: the eye march's time and error over the two light step counts.
+        let chart = std::fs::read_to_string(o.join("bench_volume_light_steps.svg")).unwrap();
+        assert!(
+            chart.starts_with("<svg") && chart.contains("eye march ms"),
+            "{chart}"
+        );
     }
 }

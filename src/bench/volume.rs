@@ -302,6 +302,57 @@ pub fn run(gpu: &Gpu, options: &VolumeBenchOptions) -> anyhow::Result<VolumeBenc
     Ok(VolumeBench { rows, skipped })
 }
 
+/// The sun-step chart's file: for each grid, the eye march's time and its radiance's RMS
+/// difference from the most light steps, against the light steps (the 2018 thesis' experiment).
+pub const LIGHT_STEPS_CHART: &str = "bench_volume_light_steps.svg";
+
+/// Writes [`LIGHT_STEPS_CHART`] into `folder` when the rows hold eye marches at more than one
+/// light step count; returns its path.
+pub fn write_chart(rows: &[VolumeBenchRow], folder: &Path) -> anyhow::Result<Option<PathBuf>> {
+    use crate::sweep::charts::{LogLogSeries, log_log_svg};
+    let marches: Vec<&VolumeBenchRow> = rows
+        .iter()
+        .filter(|r| r.rmse_vs_most_steps.is_some())
+        .collect();
+    let mut series: Vec<LogLogSeries> = Vec::new();
+    for r in &marches {
+        let grid = match r.coverage {
+            Some(c) => format!("{} at coverage {c}", r.grid),
+            None => r.grid.clone(),
+        };
+        let x = f64::from(r.light_steps);
+        for (label, y) in [
+            (format!("{grid}: eye march ms"), r.median_ms),
+            (
+                format!("{grid}: RMSE against the most steps"),
+                r.rmse_vs_most_steps.unwrap_or(f64::NAN),
+            ),
+        ] {
+            match series.iter_mut().find(|s| s.label == label) {
+                Some(s) => s.points.push((x, y)),
+                None => series.push(LogLogSeries {
+                    label,
+                    points: vec![(x, y)],
+                }),
+            }
+        }
+    }
+    if !series.iter().any(|s| s.points.len() > 1) {
+        return Ok(None);
+    }
+    let svg = log_log_svg(
+        "The eye march against the steps towards the light (the 2018 thesis' sun steps)",
+        "light steps (log scale)",
+        "ms, or RMSE of radiance (log scale)",
+        &series,
+    )?;
+    std::fs::create_dir_all(folder)
+        .with_context(|| format!("cannot create {}", folder.display()))?;
+    let path = folder.join(LIGHT_STEPS_CHART);
+    crate::output::write_atomic(&path, svg.as_bytes())?;
+    Ok(Some(path))
+}
+
 /// Writes the rows as CSV into `folder` (created if missing), atomically.
 pub fn write_csv(rows: &[VolumeBenchRow], folder: &Path) -> anyhow::Result<PathBuf> {
     std::fs::create_dir_all(folder)

@@ -393,6 +393,9 @@ fn run_volume(args: &BenchArgs, source: &str, adapter: &AdapterPreference) -> an
     }
     let path = volume::write_csv(&rows, &args.output)?;
     println!("wrote {}", path.display());
+    if let Some(chart) = volume::write_chart(&rows, &args.output)? {
+        println!("wrote {}", chart.display());
+    }
     Ok(())
 }
 
