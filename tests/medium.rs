@@ -179,6 +179,28 @@ fn an_empty_grid_casts_no_shadow_and_its_bytes_are_counted() {
     let grid = turned_ball();
     let uploaded = GpuGrid::upload(&gpu, &mut ledger, &grid).unwrap();
     assert_eq!(uploaded.bytes, 24 * 20 * 28 * 4 + 160);
+    // A shape is sampled in closed form: one placeholder voxel, whatever its grid's size.
+    let mut shape = grid;
+    shape.analytic = DensityGrid::voxelize(
+        &HomogeneousMedium {
+            shape: Shape::Sphere {
+                center: DVec3::splat(1.0),
+                radius_m: 0.8,
+            },
+            extinction_per_m: 2.5,
+        },
+        DVec3::ZERO,
+        DVec3::splat(2.0),
+        UVec3::new(24, 20, 28),
+    )
+    .analytic;
+    let uploaded = GpuGrid::upload(&gpu, &mut ledger, &shape).unwrap();
+    assert_eq!(uploaded.bytes, 4 + 160);
+    assert_eq!(
+        uploaded.dims,
+        UVec3::new(24, 20, 28),
+        "its box still bounds the marches"
+    );
 }
 
 #[test]

@@ -199,12 +199,15 @@ pub fn run(args: &RenderArgs, adapter: &AdapterPreference) -> anyhow::Result<()>
         },
     );
     if let (Some(grid), Some(spec)) = (renderer.medium().grid(), renderer.medium().spec()) {
+        let voxels = format!("{}x{}x{} voxels", grid.dims.x, grid.dims.y, grid.dims.z);
+        // A shape is sampled in closed form: its grid only bounds the marches.
+        let extent = match grid.analytic {
+            Some(_) => format!("in closed form, marched over a box of {voxels}"),
+            None => voxels,
+        };
         println!(
-            "volume: {} ({}x{}x{} voxels, {} bytes on the device), {} eye steps, {} build steps",
+            "volume: {} ({extent}, {} bytes on the device), {} eye steps, {} build steps",
             spec.summary().trim_start_matches("volume: "),
-            grid.dims.x,
-            grid.dims.y,
-            grid.dims.z,
             renderer.medium().bytes(),
             spec.eye_steps,
             spec.build_steps

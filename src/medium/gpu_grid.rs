@@ -189,7 +189,10 @@ impl GpuGrid {
             });
         }
         let empty = dims.min_element() == 0;
-        let size = match empty {
+        // A shape is sampled in closed form ([`IndexShape`]): its voxels are never read, so one
+        // placeholder voxel is bound, as for no grid.
+        let placeholder = empty || grid.analytic.is_some();
+        let size = match placeholder {
             true => wgpu::Extent3d {
                 width: 1,
                 height: 1,
@@ -216,7 +219,7 @@ impl GpuGrid {
             },
         )?;
         let zero = [0.0f32];
-        let voxels: &[f32] = if empty { &zero } else { &grid.values };
+        let voxels: &[f32] = if placeholder { &zero } else { &grid.values };
         gpu.queue.write_texture(
             texture.as_image_copy(),
             bytemuck::cast_slice(voxels),

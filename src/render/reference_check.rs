@@ -73,8 +73,10 @@ pub struct ReferenceCheck {
     /// Points compared.
     pub points: usize,
     /// Of them, eye samples of a density volume (whose optical depth the f64 mirror marches,
-    /// doubling its steps until T agrees within [`VOLUME_TOLERANCE`]).
+    /// doubling its steps until T agrees within [`VOLUME_TOLERANCE`], or takes in closed form
+    /// for a shape: `volume_closed_form`).
     pub volume_points: usize,
+    pub volume_closed_form: bool,
     /// Points skipped as knife edges of the occluder test.
     pub knife_edges: usize,
     /// The largest |T_gpu − T_cpu| over the compared points (0 without points).
@@ -92,8 +94,12 @@ impl std::fmt::Display for ReferenceCheck {
         if self.volume_points > 0 {
             write!(
                 f,
-                " ({} in the density volume; its optical depth by an f64 march doubled until converged)",
-                self.volume_points
+                " ({} in the density volume; its optical depth {})",
+                self.volume_points,
+                match self.volume_closed_form {
+                    true => "in closed form, a shape's chord",
+                    false => "by an f64 march doubled until converged",
+                }
             )?;
         }
         if self.knife_edges > 0 {
@@ -199,7 +205,10 @@ pub fn verify(
             p.z
         );
     }
-    let check = compare(&points, &gpu_t, &cpu_t);
+    let check = ReferenceCheck {
+        volume_closed_form: grid.as_ref().is_some_and(|g| g.analytic.is_some()),
+        ..compare(&points, &gpu_t, &cpu_t)
+    };
     match check.worst {
         Some(w) if check.worst_difference > TOLERANCE => Err(anyhow::anyhow!(
             "the reference `exact` disagrees with the f64 closed form at ({:.6}, {:.6}, {:.6}) m, {}: T = {:.6} on the GPU, {:.6} in closed form (|ΔT| {:.2e} > {:.0e} allowed), so no error against it is reported",
@@ -218,8 +227,8 @@ pub fn verify(
 
 /// The smoke's transmittance from `light` to `p` on the CPU in f64: the particles' closed form
 /// and a density volume's optical depth, a shape's in closed form, a grid's by its march doubled
-/// until T agrees within
-/// [`VOLUME_TOLERANCE`] (NaN where it does not within [`VOLUME_MAX_STEPS`]).
+/// until T agrees within [`VOLUME_TOLERANCE`] (NaN where it does not within
+/// [`VOLUME_MAX_STEPS`]).
 pub fn mirror_transmittance(
     light: Vec3,
     p: Vec3,
@@ -268,6 +277,7 @@ pub fn compare(
     let mut check = ReferenceCheck {
         points: 0,
         volume_points: 0,
+        volume_closed_form: false,
         knife_edges: 0,
         worst_difference: 0.0,
         worst: None,
