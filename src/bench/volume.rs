@@ -310,12 +310,8 @@ pub const LIGHT_STEPS_CHART: &str = "bench_volume_light_steps.svg";
 /// light step count; returns its path.
 pub fn write_chart(rows: &[VolumeBenchRow], folder: &Path) -> anyhow::Result<Option<PathBuf>> {
     use crate::sweep::charts::{LogLogSeries, log_log_svg};
-    let marches: Vec<&VolumeBenchRow> = rows
-        .iter()
-        .filter(|r| r.rmse_vs_most_steps.is_some())
-        .collect();
     let mut series: Vec<LogLogSeries> = Vec::new();
-    for r in &marches {
+    for r in rows.iter().filter(|r| r.rmse_vs_most_steps.is_some()) {
         let grid = match r.coverage {
             Some(c) => format!("{} at coverage {c}", r.grid),
             None => r.grid.clone(),
@@ -328,13 +324,7 @@ pub fn write_chart(rows: &[VolumeBenchRow], folder: &Path) -> anyhow::Result<Opt
                 r.rmse_vs_most_steps.unwrap_or(f64::NAN),
             ),
         ] {
-            match series.iter_mut().find(|s| s.label == label) {
-                Some(s) => s.points.push((x, y)),
-                None => series.push(LogLogSeries {
-                    label,
-                    points: vec![(x, y)],
-                }),
-            }
+            LogLogSeries::push_point(&mut series, label, (x, y));
         }
     }
     if !series.iter().any(|s| s.points.len() > 1) {

@@ -289,14 +289,7 @@ pub fn charts(rows: &[FrameRow]) -> anyhow::Result<Vec<(&'static str, String)>> 
             let (Some(c), Some(ratio)) = (r.coverage, ratio_to_srm(rows, r)) else {
                 continue;
             };
-            let name = label(r);
-            match series.iter_mut().find(|s| s.label == name) {
-                Some(s) => s.points.push((f64::from(c), ratio)),
-                None => series.push(LogLogSeries {
-                    label: name,
-                    points: vec![(f64::from(c), ratio)],
-                }),
-            }
+            LogLogSeries::push_point(&mut series, label(r), (f64::from(c), ratio));
         }
         out.push((
             RATIO_CHART,

@@ -443,11 +443,7 @@ fn run_volume_frames(
         shadow_res,
         build_steps,
         light_steps: match args.light_steps.is_empty() {
-            true => vec![
-                crate::shadow::srm::LIGHT_STEPS
-                    .default
-                    .map_or(16, |n| n as u32),
-            ],
+            true => vec![crate::shadow::srm::DEFAULT_LIGHT_STEPS],
             false => args.light_steps.clone(),
         },
         frames: args.frames,

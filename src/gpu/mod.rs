@@ -205,9 +205,9 @@ impl Gpu {
 
     /// The clock's floor under a frame: the median round trip, in ms, of a submission that
     /// copies 16 bytes and a readback of them, what every frame's wall time pays beyond its
-    /// GPU work (the submission, the wait, the mapping of the timestamps). On lavapipe it is
-    /// microseconds; on a hardware GPU a few tenths of a millisecond, as much as a whole small
-    /// frame's passes. Measured once per device (nine trips, after one untimed).
+    /// GPU work (the submission, the wait, the mapping of the timestamps): 0.04-0.06 ms on an
+    /// H200 (docs/gpu/h200-2026-12-04), against a 0.9 ms frame of 2,500 particles there.
+    /// Measured once per device (nine trips, after one untimed).
     pub fn clock_floor_ms(&self) -> f64 {
         *self.clock_floor.get_or_init(|| {
             let usage = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;

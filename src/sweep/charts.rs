@@ -459,6 +459,19 @@ pub struct LogLogSeries {
     pub points: Vec<(f64, f64)>,
 }
 
+impl LogLogSeries {
+    /// Adds `point` to the series labelled `label` in `series`, a new one at the end if none is.
+    pub fn push_point(series: &mut Vec<LogLogSeries>, label: String, point: (f64, f64)) {
+        match series.iter_mut().find(|s| s.label == label) {
+            Some(s) => s.points.push(point),
+            None => series.push(LogLogSeries {
+                label,
+                points: vec![point],
+            }),
+        }
+    }
+}
+
 /// A line chart on log-log axes as an SVG document, drawn like the sweep's charts: series `i`
 /// gets colour `i` of the palette and marker `i` of the markers (so colours that repeat differ
 /// in shape). Points that are not positive and finite are left out.
