@@ -191,10 +191,10 @@ pub fn run(gpu: &Gpu, study: &FrameStudy) -> anyhow::Result<Vec<FrameRow>> {
             )?;
             let (mut frame, mut build, mut eye) = (Vec::new(), Vec::new(), Vec::new());
             for i in 0..study.warmup + study.frames {
-                renderer.render(gpu, &scene, &[], &options, &target.view)?;
+                let stats = renderer.render(gpu, &scene, &[], &options, &target.view)?;
                 let times = renderer.gpu_times(gpu)?;
                 if i >= study.warmup {
-                    frame.push(times.total_ms());
+                    frame.push(stats.frame_ms(&times));
                     build.push(times.get("shadow").unwrap_or(0.0));
                     eye.push(times.get(crate::medium::eye_pass::PASS_NAME).unwrap_or(0.0));
                 }
