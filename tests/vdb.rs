@@ -302,3 +302,30 @@ fn bench_volume_measures_every_stage_of_a_file_and_of_the_cloud() {
         );
     }
 }
+
+#[test]
+fn the_frame_study_refuses_srm_light_steps_out_of_range_before_rendering() {
+    let out = common::scratch("bench_volume_bad_light_steps");
+    let run = common::smokeshadow(&[
+        "bench",
+        "--volume",
+        "cloud",
+        "-t",
+        "srm",
+        "--light-steps",
+        "8,5000",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(run.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(
+        stderr.starts_with("error: ") && stderr.contains("srm_light_steps = 5000"),
+        "{stderr}"
+    );
+    assert!(
+        !out.join("bench_volume_frames.csv").exists(),
+        "nothing written"
+    );
+}

@@ -435,6 +435,18 @@ fn run_volume_frames(
         true => vec![scene.shadow.resolution_px],
         false => args.shadow_res.clone(),
     };
+    let light_steps = match args.light_steps.is_empty() {
+        true => vec![crate::shadow::srm::DEFAULT_LIGHT_STEPS],
+        false => args.light_steps.clone(),
+    };
+    // Refused before any frame is rendered, as the scene's own parameters are.
+    for &n in &light_steps {
+        crate::shadow::set_param(
+            &mut crate::shadow::TechniqueParams::new(1, 1),
+            crate::shadow::srm::LIGHT_STEPS.key,
+            &(n as f32).into(),
+        )?;
+    }
     let study = FrameStudy {
         scene,
         coverages,
@@ -442,10 +454,7 @@ fn run_volume_frames(
         channels: args.channels,
         shadow_res,
         build_steps,
-        light_steps: match args.light_steps.is_empty() {
-            true => vec![crate::shadow::srm::DEFAULT_LIGHT_STEPS],
-            false => args.light_steps.clone(),
-        },
+        light_steps,
         frames: args.frames,
         warmup: args.warmup,
     };
