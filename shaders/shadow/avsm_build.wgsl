@@ -20,43 +20,70 @@
 // N <= MAX_CHANNELS / 2 = 16 nodes, plus the two one segment inserts before compressing.
 const MAX_NODES: u32 = 18u;
 
-// One texel's transmittance curve while it is built: nodes (z[k], t[k]) sorted by z.
+// The slots with a slot after them (the interior nodes' last possible one).
+const BEFORE_LAST: u32 = 17u;
+const_assert BEFORE_LAST + 1u == MAX_NODES;
+
+// One texel's transmittance curve while it is built: nodes (z[k], t[k]) sorted by z, the first
+// `count` of them meaningful (the others hold leftovers that every step masks out).
+//
+// Every loop over the curve is written out slot by slot (`#unroll`, src/shaders.rs), over the
+// CURVE_NODES slots the budget needs, and selects where a branch, a search or an early exit
+// would go: no element is indexed by a value known only at run time, so the curve stays in
+// registers. (llvmpipe keeps a dynamically indexed private array in memory and moves its
+// elements one lane at a time: loops that searched and shifted by index cost `avsm`'s build on
+// the thesis scene 300 ms against 60 ms.) The results are the CPU mirror's, node for node.
 struct Curve {
     z: array<f32, MAX_NODES>,
     t: array<f32, MAX_NODES>,
     count: u32,
 };
 
+// The slots in use: the budget's N plus the two nodes a segment inserts before its removals
+// (set per pipeline: src/shadow/avsm.rs); the slots past it are left out of every step.
+override CURVE_NODES: u32 = MAX_NODES;
+
 // T of the curve at z: 1 in front of the first node, the last node's T behind the last, linear
-// between.
+// between the nodes k - 1 and k of the first k with z[k] > z.
 fn curve_at(c: ptr<function, Curve>, z: f32) -> f32 {
     let n = (*c).count;
-    if n == 0u || z <= (*c).z[0] {
-        return 1.0;
-    }
-    if z >= (*c).z[n - 1u] {
-        return (*c).t[n - 1u];
-    }
-    var k = 1u;
-    while (*c).z[k] <= z {
-        k++;
-    }
-    let z0 = (*c).z[k - 1u];
-    let z1 = (*c).z[k];
-    return mix((*c).t[k - 1u], (*c).t[k], clamp((z - z0) / max(z1 - z0, 1e-12), 0.0, 1.0));
+    // The bracketing nodes; behind the last node both are the last.
+    var a = vec2<f32>((*c).z[0], (*c).t[0]);
+    var b = a;
+    #unroll k 1..MAX_NODES
+        if k < CURVE_NODES {
+            let node = vec2<f32>((*c).z[k], (*c).t[k]);
+            let inside = k < n && (*c).z[k - 1u] <= z && z < node.x;
+            a = select(a, vec2<f32>((*c).z[k - 1u], (*c).t[k - 1u]), inside);
+            b = select(b, node, inside);
+            let behind = k + 1u == n && z >= node.x;
+            a = select(a, node, behind);
+            b = select(b, node, behind);
+        }
+    #end_unroll
+    // (mix(t, t, u) is t for u in {0, 1}, the only u a = b gives.)
+    let value = mix(a.y, b.y, clamp((z - a.x) / max(b.x - a.x, 1e-12), 0.0, 1.0));
+    return select(select(value, (*c).t[0], n == 1u), 1.0, n == 0u || z <= (*c).z[0]);
 }
 
 // Inserts node (z, t) after every node at depth <= z.
 fn insert_node(c: ptr<function, Curve>, z: f32, t: f32) {
-    var k = (*c).count;
-    while k > 0u && (*c).z[k - 1u] > z {
-        (*c).z[k] = (*c).z[k - 1u];
-        (*c).t[k] = (*c).t[k - 1u];
-        k--;
-    }
-    (*c).z[k] = z;
-    (*c).t[k] = t;
-    (*c).count++;
+    let n = (*c).count;
+    var at = 0u;
+    #unroll k 0..MAX_NODES
+        if k < CURVE_NODES {
+            at += u32(k < n && (*c).z[k] <= z);
+        }
+    #end_unroll
+    #unroll k rev 1..MAX_NODES
+        if k < CURVE_NODES {
+            (*c).z[k] = select(select((*c).z[k], z, k == at), (*c).z[k - 1u], k > at);
+            (*c).t[k] = select(select((*c).t[k], t, k == at), (*c).t[k - 1u], k > at);
+        }
+    #end_unroll
+    (*c).z[0] = select((*c).z[0], z, at == 0u);
+    (*c).t[0] = select((*c).t[0], t, at == 0u);
+    (*c).count = n + 1u;
 }
 
 fn insert_segment(c: ptr<function, Curve>, s: Segment) {
@@ -64,12 +91,14 @@ fn insert_segment(c: ptr<function, Curve>, s: Segment) {
     let t_entry = curve_at(c, s.z0);
     let t_behind = curve_at(c, s.z1) * t_exit;
     let width = max(s.z1 - s.z0, 1e-12);
-    for (var k = 0u; k < (*c).count; k++) {
-        let z = (*c).z[k];
-        if z > s.z0 {
-            (*c).t[k] *= mix(1.0, t_exit, min((z - s.z0) / width, 1.0));
+    let n = (*c).count;
+    #unroll k 0..MAX_NODES
+        if k < CURVE_NODES {
+            let z = (*c).z[k];
+            let ramped = (*c).t[k] * mix(1.0, t_exit, min((z - s.z0) / width, 1.0));
+            (*c).t[k] = select((*c).t[k], ramped, k < n && z > s.z0);
         }
-    }
+    #end_unroll
     insert_node(c, s.z0, t_entry);
     insert_node(c, s.z1, t_behind);
 }
@@ -80,26 +109,30 @@ fn remove_least_area(c: ptr<function, Curve>) {
     let n = (*c).count;
     var best = 1u;
     var best_area = 3.0e38;
-    for (var k = 1u; k + 1u < n; k++) {
-        let za = (*c).z[k - 1u];
-        let ta = (*c).t[k - 1u];
-        let area = abs(((*c).z[k] - za) * ((*c).t[k + 1u] - ta) - ((*c).z[k + 1u] - za) * ((*c).t[k] - ta));
-        if area < best_area {
-            best_area = area;
-            best = k;
+    #unroll k 1..BEFORE_LAST
+        if k + 1u < CURVE_NODES {
+            let za = (*c).z[k - 1u];
+            let ta = (*c).t[k - 1u];
+            let area = abs(((*c).z[k] - za) * ((*c).t[k + 1u] - ta) - ((*c).z[k + 1u] - za) * ((*c).t[k] - ta));
+            let smaller = k + 1u < n && area < best_area;
+            best = select(best, k, smaller);
+            best_area = select(best_area, area, smaller);
         }
-    }
-    for (var k = best; k + 1u < n; k++) {
-        (*c).z[k] = (*c).z[k + 1u];
-        (*c).t[k] = (*c).t[k + 1u];
-    }
+    #end_unroll
+    #unroll k 1..BEFORE_LAST
+        if k + 1u < CURVE_NODES {
+            (*c).z[k] = select((*c).z[k], (*c).z[k + 1u], k >= best);
+            (*c).t[k] = select((*c).t[k], (*c).t[k + 1u], k >= best);
+        }
+    #end_unroll
     (*c).count = n - 1u;
 }
 
-// Segments inserted per round (see src/shadow/deep_capture.rs): one insertion and the removals
-// after it loop about 160 times (curve_at twice, the ramp, two insert_node and two
-// remove_least_area, each over at most MAX_NODES nodes). Keep in sync with `avsm::rounds`.
-const ITERATIONS_PER_SEGMENT: u32 = 200u;
+// Segments inserted per round (see src/shadow/deep_capture.rs): the curve's steps are written
+// out, not looped, so one insertion loops four times at most (the loop over the segments and
+// the removals' `while`: two removals and its exit); twice that, for a margin. Keep in sync
+// with `avsm::rounds`.
+const ITERATIONS_PER_SEGMENT: u32 = 8u;
 
 fn segments_per_round() -> u32 {
     return max(1u, capture.loop_budget / ITERATIONS_PER_SEGMENT);
@@ -129,11 +162,13 @@ fn compress(@builtin(global_invocation_id) id: vec3<u32>) {
     curve.count = 0u;
     if begin > 0u {
         curve.count = u32(nodes[scratch].x);
-        for (var k = 0u; k < curve.count; k++) {
-            let node = nodes[scratch + 1u + k];
-            curve.z[k] = node.x;
-            curve.t[k] = node.y;
-        }
+        #unroll k 0..MAX_NODES
+            if k < CURVE_NODES && k < curve.count {
+                let node = nodes[scratch + 1u + k];
+                curve.z[k] = node.x;
+                curve.t[k] = node.y;
+            }
+        #end_unroll
     }
     for (var i = begin; i < end; i++) {
         insert_segment(&curve, segments[list.first + i]);
@@ -143,9 +178,11 @@ fn compress(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     if end < list.count {
         nodes[scratch] = vec2<f32>(f32(curve.count), 0.0);
-        for (var k = 0u; k < curve.count; k++) {
-            nodes[scratch + 1u + k] = vec2<f32>(curve.z[k], curve.t[k]);
-        }
+        #unroll k 0..MAX_NODES
+            if k < CURVE_NODES && k < curve.count {
+                nodes[scratch + 1u + k] = vec2<f32>(curve.z[k], curve.t[k]);
+            }
+        #end_unroll
         return;
     }
     if curve.count == 0u {
@@ -155,8 +192,16 @@ fn compress(@builtin(global_invocation_id) id: vec3<u32>) {
         }
         return;
     }
-    for (var k = 0u; k < limit; k++) {
-        let j = min(k, curve.count - 1u);
-        out_nodes[out + k] = vec2<f32>(curve.z[j], curve.t[j]);
-    }
+    // The nodes, the last repeated into the free slots.
+    var last = vec2<f32>(0.0);
+    #unroll k 0..MAX_NODES
+        if k < CURVE_NODES {
+            if k < curve.count {
+                last = vec2<f32>(curve.z[k], curve.t[k]);
+            }
+            if k < limit {
+                out_nodes[out + k] = last;
+            }
+        }
+    #end_unroll
 }

@@ -75,13 +75,15 @@ pub const SPEC: DeepNodesSpec = DeepNodesSpec {
     stats_counters: |_| Vec::new(),
     rounds,
     resolve,
+    // The curve's slots: N, and the two nodes a segment inserts before its removals.
+    compress_constants: |n| vec![("CURVE_NODES", f64::from(n + 2))],
 };
 
-/// Loop iterations one segment's insertion and removals take at most (`ITERATIONS_PER_SEGMENT`
-/// in shaders/shadow/avsm_build.wgsl).
-const ITERATIONS_PER_SEGMENT: u32 = 200;
+/// Loop iterations one segment's insertion and removals take, with a margin
+/// (`ITERATIONS_PER_SEGMENT` in shaders/shadow/avsm_build.wgsl: the curve's steps are unrolled).
+const ITERATIONS_PER_SEGMENT: u32 = 8;
 
-/// Rounds of the compression: `loop_budget / 200` segments each.
+/// Rounds of the compression: `loop_budget / 8` segments each.
 fn rounds(max_list: u32, loop_budget: u32) -> u32 {
     let per_round = (loop_budget / ITERATIONS_PER_SEGMENT).max(1);
     max_list.div_ceil(per_round).max(1)

@@ -74,6 +74,8 @@ pub struct DeepNodesSpec {
     pub rounds: fn(max_list: u32, loop_budget: u32) -> u32,
     /// What the capture's resolve leaves for the compression under these parameters.
     pub resolve: fn(&TechniqueParams) -> Resolve,
+    /// The compression's pipeline-overridable constants for N nodes per texel.
+    pub compress_constants: fn(nodes_per_texel: u32) -> Vec<(&'static str, f64)>,
 }
 
 impl DeepNodesSpec {
@@ -232,7 +234,10 @@ impl DeepNodes {
             layout: Some(&pipeline_layout),
             module: &module,
             entry_point: Some("compress"),
-            compilation_options: Default::default(),
+            compilation_options: wgpu::PipelineCompilationOptions {
+                constants: &(spec.compress_constants)(nodes_per_texel),
+                ..Default::default()
+            },
             cache: None,
         });
 

@@ -54,6 +54,7 @@ pub const SPEC: DeepNodesSpec = DeepNodesSpec {
     stats_counters: tolerance_counters,
     rounds,
     resolve: |_| Resolve::Nodes,
+    compress_constants: |_| Vec::new(),
 };
 
 /// Steps of the per-texel search, one greedy fit each (shaders/shadow/dsm_build.wgsl): the fit
