@@ -9,8 +9,8 @@
 //    depth, draw index) into its texel's list (counts, cleared, serve as cursors); for `dsm`,
 //    fs_fill_split writes its start (z0, slope) and its end (z1, slope) to the sort keys (two
 //    read-write storage textures) instead.
-// 4. resolve (heap_build, heap_extract, the two heap passes again, merge_nodes): per texel of
-//    the band, `dsm`'s sorts the starts and the ends each by (depth, slope), and merges both
+// 4. resolve (run_sort and merge_runs for the starts, the same for the ends, merge_nodes): per
+//    texel of the band, `dsm`'s sorts the starts and the ends each by (depth, slope), and merges both
 //    into the nodes (z, Ω(z)) of the piecewise-linear optical depth: between events Ω grows by
 //    the sum of the slopes (optical depth per metre) of the segments open there. The keys are total over what is sorted, so
 //    the nodes do not depend on the order the fragments arrived in. An owner that needs the
@@ -305,11 +305,10 @@ fn sift(base: u32, root_in: u32, n: u32) {
 
 // The resolve, in phases (a dispatch each, or several: rounds), per texel of the band.
 // `dsm`'s (Resolve::Nodes), whose fill wrote each segment's start (z0, slope) and end (z1,
-// slope) to the sort keys: heapsort the starts (build the
-// heap, then move the largest to the end); heapsort the ends (the same two entry points,
-// SORT_LIST set); merge both into the nodes. Only the starts and ends are sorted, two words
-// each: two starts (or ends) with equal keys are equal, so the order is total over what is
-// sorted. `avsm`'s: sort the whole segments (by depth or by draw index) with `insertion_sort`,
+// slope) to the sort keys: merge sort the starts (`run_sort`, `merge_runs`, below), then the
+// ends (the same entry points, SORT_LIST set); merge both into the nodes. Only the starts and
+// ends are sorted, two words each: two starts (or ends) with equal keys are equal, so the order
+// is total over what is sorted. `avsm`'s: sort the whole segments (by depth or by draw index) with `insertion_sort`,
 // then heapsort what it left. O(n log n) whatever the order the fragments arrived in. The
 // heapsorts' sifts are split into rounds of `sifts_per_round()` each, so that no dispatch loops
 // past `capture.loop_budget` (src/shadow/deep_capture.rs mirrors the arithmetic); a texel whose
@@ -489,5 +488,154 @@ fn merge_nodes(@builtin(global_invocation_id) id: vec3<u32>) {
         slope = max(slope + delta, 0.0);
         z_prev = z;
         set_node_texel(starts + k, vec2<f32>(z, omega));
+    }
+}
+
+// `dsm`'s sort of the starts (or the ends, SORT_LIST) by (depth, slope): a merge sort whose
+// first runs are sorted in registers. `run_sort` reads the list in runs of RUN (or RUN / 2)
+// keys, sorts each by insertion into a private array written out slot by slot (`#unroll`, no
+// index known only at run time, so the array stays in registers), and writes it back in place;
+// `merge_runs` then merges pairs of runs, one level a round, between the sort keys and the
+// node textures (free until `merge_nodes` fills them; the same indices): odd levels (round
+// 0, 2, ...) from the keys into the nodes, even levels back. A texel takes the shorter runs
+// when the longer ones would leave it an odd number of levels, so every list ends sorted in
+// the keys after an even number, and each round reads and writes the same textures for every
+// texel. Against the heapsort it replaced (the same order: the keys are total), each key is
+// read and written once a level instead of log2(n) times (the textures' loads and stores are
+// most of a sort's cost on llvmpipe).
+const RUN: u32 = 16u;
+
+struct Runs {
+    // Keys per run, and the merge levels after the runs (even).
+    length: u32,
+    levels: u32,
+};
+
+// ceil(log2(runs)) for runs >= 1.
+fn levels_for(runs: u32) -> u32 {
+    if runs <= 1u {
+        return 0u;
+    }
+    return firstLeadingBit(runs - 1u) + 1u;
+}
+
+// Keep in sync with `merge_levels` in src/shadow/deep_capture.rs.
+fn runs_of(n: u32) -> Runs {
+    let levels = levels_for((n + RUN - 1u) / RUN);
+    if levels % 2u == 0u {
+        return Runs(RUN, levels);
+    }
+    // Halved runs take one level more: ceil(log2(2r - 1)) = ceil(log2(r)) + 1 for r >= 2.
+    return Runs(RUN / 2u, levels + 1u);
+}
+
+fn key_less(a: vec2<f32>, b: vec2<f32>) -> bool {
+    return a.x < b.x || (a.x == b.x && a.y < b.y);
+}
+
+// A run while it is sorted: keys (depth[k], slope[k]), the first `count` in order.
+struct Run {
+    depth: array<f32, RUN>,
+    slope: array<f32, RUN>,
+    count: u32,
+};
+
+// Inserts `key` after every key of the run not after it.
+fn insert_key(run: ptr<function, Run>, key: vec2<f32>) {
+    let n = (*run).count;
+    var at = 0u;
+    #unroll k 0..RUN
+        at += u32(k < n && !key_less(key, vec2<f32>((*run).depth[k], (*run).slope[k])));
+    #end_unroll
+    #unroll k rev 1..RUN
+        (*run).depth[k] = select(select((*run).depth[k], key.x, k == at), (*run).depth[k - 1u], k > at);
+        (*run).slope[k] = select(select((*run).slope[k], key.y, k == at), (*run).slope[k - 1u], k > at);
+    #end_unroll
+    (*run).depth[0] = select((*run).depth[0], key.x, at == 0u);
+    (*run).slope[0] = select((*run).slope[0], key.y, at == 0u);
+    (*run).count = n + 1u;
+}
+
+// Loops: n / (RUN / 2) runs of at most RUN reads each.
+@compute @workgroup_size(8, 8)
+fn run_sort(@builtin(global_invocation_id) id: vec3<u32>) {
+    let list = band_list(id);
+    let n = list.count;
+    if n < 2u {
+        return;
+    }
+    let base = heap_base(list);
+    let runs = runs_of(n);
+    for (var start = 0u; start < n; start += runs.length) {
+        let m = min(runs.length, n - start);
+        var run: Run;
+        run.count = 0u;
+        for (var i = 0u; i < m; i++) {
+            insert_key(&run, sort_key(base + start + i));
+        }
+        #unroll k 0..RUN
+            if k < m {
+                set_sort_key(base + start + k, vec2<f32>(run.depth[k], run.slope[k]));
+            }
+        #end_unroll
+    }
+}
+
+// One merge level (the round's index + 1) of the texel's runs: pairs of sorted runs of
+// `width` keys, merged (stably) from one pair of textures into the other at the same indices.
+// Loops n + n / (2 width) times.
+fn key_from(nodes_side: bool, i: u32) -> vec2<f32> {
+    if nodes_side {
+        return node_texel(i);
+    }
+    return sort_key(i);
+}
+
+fn set_key_to(nodes_side: bool, i: u32, key: vec2<f32>) {
+    if nodes_side {
+        set_node_texel(i, key);
+    } else {
+        set_sort_key(i, key);
+    }
+}
+
+@compute @workgroup_size(8, 8)
+fn merge_runs(@builtin(global_invocation_id) id: vec3<u32>) {
+    let list = band_list(id);
+    let n = list.count;
+    let level = pass_round.index + 1u;
+    let runs = runs_of(n);
+    if level > runs.levels {
+        return;
+    }
+    let base = heap_base(list);
+    // Odd levels read the keys and write the nodes; even levels the other way.
+    let from_nodes = level % 2u == 0u;
+    let width = runs.length << (level - 1u);
+    for (var start = 0u; start < n; start += 2u * width) {
+        var i = start;
+        let i_end = min(start + width, n);
+        var j = i_end;
+        let j_end = min(start + 2u * width, n);
+        var a = key_from(from_nodes, base + i);
+        var b = a;
+        if j < j_end {
+            b = key_from(from_nodes, base + j);
+        }
+        for (var k = start; k < j_end; k++) {
+            // From the first run unless the second's next key is before its next (stable); the
+            // consumed run's next key loaded in its place. No branch on which: lanes that took
+            // from different runs would otherwise run both sides' loads and stores.
+            let take_a = i < i_end && (j >= j_end || !key_less(b, a));
+            set_key_to(!from_nodes, base + k, select(b, a, take_a));
+            i += u32(take_a);
+            j += u32(!take_a);
+            let next = select(j, i, take_a);
+            if next < select(j_end, i_end, take_a) {
+                let key = key_from(from_nodes, base + next);
+                a = select(a, key, take_a);
+                b = select(key, b, take_a);
+            }
+        }
     }
 }

@@ -99,6 +99,19 @@ pub fn sifts_per_round(max_list: u32, loop_budget: u32) -> u32 {
     (loop_budget / depth).max(1)
 }
 
+/// Keys per run of the merge sort of `dsm`'s starts and ends (`RUN` in
+/// shaders/shadow/deep_capture.wgsl).
+const RUN: u32 = 16;
+
+/// The merge levels of a list of `n` keys (mirrors `runs_of` in
+/// shaders/shadow/deep_capture.wgsl): ceil(log2) of its runs of `RUN`, or one more (runs of
+/// `RUN / 2`) to make it even. Never fewer for a longer list, so the longest sets the rounds.
+pub fn merge_levels(n: u32) -> u32 {
+    let runs = n.div_ceil(RUN);
+    let levels = if runs <= 1 { 0 } else { (runs - 1).ilog2() + 1 };
+    levels + levels % 2
+}
+
 /// Rounds of one heapsort phase over lists of at most `max_list`: the build sifts n/2 starts,
 /// the extraction n - 1 ends.
 fn heap_rounds(max_list: u32, loop_budget: u32) -> (u32, u32) {
@@ -263,6 +276,8 @@ enum ResolvePhase {
     Heap(bool),
     /// A single pass looping up to 2n times.
     Single,
+    /// The merge sort's levels, one a round ([`merge_levels`]).
+    Merge,
 }
 
 /// What the resolve leaves in the lists for the owner's pass.
@@ -323,10 +338,10 @@ impl Resolve {
         ];
         // The fill wrote the starts and the ends (`fs_fill_split`).
         const NODES: [(&str, ResolvePhase, SortList); 5] = [
-            ("heap_build", ResolvePhase::Heap(true), Starts),
-            ("heap_extract", ResolvePhase::Heap(false), Starts),
-            ("heap_build", ResolvePhase::Heap(true), Ends),
-            ("heap_extract", ResolvePhase::Heap(false), Ends),
+            ("run_sort", ResolvePhase::Single, Starts),
+            ("merge_runs", ResolvePhase::Merge, Starts),
+            ("run_sort", ResolvePhase::Single, Ends),
+            ("merge_runs", ResolvePhase::Merge, Ends),
             ("merge_nodes", ResolvePhase::Single, Segments),
         ];
         match self {
@@ -867,6 +882,7 @@ impl DeepCapture {
                 ResolvePhase::Heap(true) => build_rounds,
                 ResolvePhase::Heap(false) => extract_rounds,
                 ResolvePhase::Single => 1,
+                ResolvePhase::Merge => merge_levels(self.last_max_list).max(1),
             };
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some(&format!("{}.capture.resolve", self.name)),
@@ -1048,6 +1064,33 @@ mod tests {
             out.push(out.last().unwrap() + c);
         }
         out
+    }
+
+    #[test]
+    fn merge_levels_are_even_enough_and_never_fewer_for_a_longer_list() {
+        let mut before = 0;
+        for n in 0..5_000u32 {
+            let levels = merge_levels(n);
+            assert_eq!(levels % 2, 0, "n {n}: the keys must end where they started");
+            // Runs of RUN, or of RUN / 2 when that makes the levels even: either way enough
+            // levels to merge every run into one.
+            let run = if levels > 0 && (n.div_ceil(RUN) - 1).ilog2() + 1 < levels {
+                RUN / 2
+            } else {
+                RUN
+            };
+            assert!(
+                u64::from(run) << levels >= u64::from(n),
+                "n {n}: {levels} levels"
+            );
+            assert!(levels >= before, "n {n}");
+            before = levels;
+        }
+        assert_eq!(merge_levels(16), 0);
+        assert_eq!(merge_levels(17), 2);
+        assert_eq!(merge_levels(64), 2);
+        assert_eq!(merge_levels(65), 4);
+        assert_eq!(merge_levels(450), 6);
     }
 
     #[test]
