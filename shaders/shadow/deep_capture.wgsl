@@ -495,20 +495,24 @@ fn merge_nodes(@builtin(global_invocation_id) id: vec3<u32>) {
 // first runs are sorted in registers. `run_sort` reads the list in runs of RUN (or RUN / 2)
 // keys, sorts each by insertion into a private array written out slot by slot (`#unroll`, no
 // index known only at run time, so the array stays in registers), and writes it back in place;
-// `merge_runs` then merges pairs of runs, one level a round, between the sort keys and the
-// node textures (free until `merge_nodes` fills them; the same indices): odd levels (round
-// 0, 2, ...) from the keys into the nodes, even levels back. A texel takes the shorter runs
-// when the longer ones would leave it an odd number of levels, so every list ends sorted in
-// the keys after an even number, and each round reads and writes the same textures for every
-// texel. Against the heapsort it replaced (the same order: the keys are total), each key is
-// read and written once a level instead of log2(n) times (the textures' loads and stores are
-// most of a sort's cost on llvmpipe).
+// `merge_runs` then merges groups of four runs (or of two), one pass a round, between the sort
+// keys and the node textures (free until `merge_nodes` fills them; the same indices): odd
+// passes (round 0, 2, ...) from the keys into the nodes, even passes back. A texel takes the
+// shorter runs, or two passes of pairs, when the longer ones or groups of four would leave it
+// an odd number of passes, so every list ends sorted in the keys, and each round reads and
+// writes the same textures for every texel. Against the heapsort it replaced (the same order:
+// the keys are total), each key is read and written once a pass instead of log2(n) times (the
+// textures' loads and stores are most of a sort's cost on llvmpipe), and merging four runs at
+// a time halves the passes again.
 const RUN: u32 = 16u;
 
 struct Runs {
-    // Keys per run, and the merge levels after the runs (even).
+    // Keys per run, the two-run merge levels that join them (even), and the passes that make
+    // those levels: two levels a pass (four runs merged), or one a pass (pairs) for the first
+    // two passes when levels / 2 is odd, so that the passes are even too.
     length: u32,
     levels: u32,
+    passes: u32,
 };
 
 // ceil(log2(runs)) for runs >= 1.
@@ -519,14 +523,26 @@ fn levels_for(runs: u32) -> u32 {
     return firstLeadingBit(runs - 1u) + 1u;
 }
 
-// Keep in sync with `merge_levels` in src/shadow/deep_capture.rs.
+// Keep in sync with `merge_passes` in src/shadow/deep_capture.rs.
 fn runs_of(n: u32) -> Runs {
-    let levels = levels_for((n + RUN - 1u) / RUN);
-    if levels % 2u == 0u {
-        return Runs(RUN, levels);
+    var out = Runs(RUN, levels_for((n + RUN - 1u) / RUN), 0u);
+    if out.levels % 2u == 1u {
+        // Halved runs take one level more: ceil(log2(2r - 1)) = ceil(log2(r)) + 1 for r >= 2.
+        out.length = RUN / 2u;
+        out.levels += 1u;
     }
-    // Halved runs take one level more: ceil(log2(2r - 1)) = ceil(log2(r)) + 1 for r >= 2.
-    return Runs(RUN / 2u, levels + 1u);
+    let fours = out.levels / 2u;
+    out.passes = fours + fours % 2u;
+    return out;
+}
+
+// Runs merged by pass `step` (1-based): 2 in the first two passes of a texel whose levels / 2
+// is odd, else 4.
+fn runs_merged(runs: Runs, step: u32) -> u32 {
+    if (runs.levels / 2u) % 2u == 1u && step <= 2u {
+        return 2u;
+    }
+    return 4u;
 }
 
 fn key_less(a: vec2<f32>, b: vec2<f32>) -> bool {
@@ -581,9 +597,9 @@ fn run_sort(@builtin(global_invocation_id) id: vec3<u32>) {
     }
 }
 
-// One merge level (the round's index + 1) of the texel's runs: pairs of sorted runs of
-// `width` keys, merged (stably) from one pair of textures into the other at the same indices.
-// Loops n + n / (2 width) times.
+// One merge pass (the round's index + 1) over the texel's runs: groups of 4 (or 2) sorted runs
+// of `width` keys, merged (stably: the first run's key on a tie) from one pair of textures into
+// the other at the same indices. Loops n + n / width times at most.
 fn key_from(nodes_side: bool, i: u32) -> vec2<f32> {
     if nodes_side {
         return node_texel(i);
@@ -599,42 +615,82 @@ fn set_key_to(nodes_side: bool, i: u32, key: vec2<f32>) {
     }
 }
 
+// The next key of one run: its index and end, and the key there.
+struct Head {
+    at: u32,
+    end: u32,
+    key: vec2<f32>,
+};
+
+fn head(from_nodes: bool, base: u32, begin: u32, end: u32) -> Head {
+    var h = Head(begin, end, vec2<f32>(0.0));
+    if begin < end {
+        h.key = key_from(from_nodes, base + begin);
+    }
+    return h;
+}
+
+// Whether head `h` holds a key before the best so far (`best_open`: whether there is one).
+fn better(h: Head, best: vec2<f32>, best_open: bool) -> bool {
+    return h.at < h.end && (!best_open || key_less(h.key, best));
+}
+
 @compute @workgroup_size(8, 8)
 fn merge_runs(@builtin(global_invocation_id) id: vec3<u32>) {
     let list = band_list(id);
     let n = list.count;
-    let level = pass_round.index + 1u;
+    let step = pass_round.index + 1u;
     let runs = runs_of(n);
-    if level > runs.levels {
+    if step > runs.passes {
         return;
     }
     let base = heap_base(list);
-    // Odd levels read the keys and write the nodes; even levels the other way.
-    let from_nodes = level % 2u == 0u;
-    let width = runs.length << (level - 1u);
-    for (var start = 0u; start < n; start += 2u * width) {
-        var i = start;
-        let i_end = min(start + width, n);
-        var j = i_end;
-        let j_end = min(start + 2u * width, n);
-        var a = key_from(from_nodes, base + i);
-        var b = a;
-        if j < j_end {
-            b = key_from(from_nodes, base + j);
-        }
-        for (var k = start; k < j_end; k++) {
-            // From the first run unless the second's next key is before its next (stable); the
-            // consumed run's next key loaded in its place. No branch on which: lanes that took
-            // from different runs would otherwise run both sides' loads and stores.
-            let take_a = i < i_end && (j >= j_end || !key_less(b, a));
-            set_key_to(!from_nodes, base + k, select(b, a, take_a));
-            i += u32(take_a);
-            j += u32(!take_a);
-            let next = select(j, i, take_a);
-            if next < select(j_end, i_end, take_a) {
+    // Odd passes read the keys and write the nodes; even passes the other way.
+    let from_nodes = step % 2u == 0u;
+    var width = runs.length;
+    for (var p = 1u; p < step; p++) {
+        width *= runs_merged(runs, p);
+    }
+    let ways = runs_merged(runs, step);
+    for (var start = 0u; start < n; start += ways * width) {
+        let end = min(start + ways * width, n);
+        var h0 = head(from_nodes, base, start, min(start + width, end));
+        var h1 = head(from_nodes, base, h0.end, min(h0.end + width, end));
+        // With pairs the last two runs are empty.
+        let third = select(h1.end, min(h1.end + width, end), ways == 4u);
+        var h2 = head(from_nodes, base, h1.end, third);
+        var h3 = head(from_nodes, base, h2.end, select(h2.end, end, ways == 4u));
+        for (var k = start; k < end; k++) {
+            // The least head, the earliest run's on a tie; no branch on which (lanes that
+            // took from different runs would otherwise run every side's loads and stores).
+            var best = h0.key;
+            var taken = 0u;
+            var open = h0.at < h0.end;
+            let t1 = better(h1, best, open);
+            best = select(best, h1.key, t1);
+            taken = select(taken, 1u, t1);
+            open = open || h1.at < h1.end;
+            let t2 = better(h2, best, open);
+            best = select(best, h2.key, t2);
+            taken = select(taken, 2u, t2);
+            open = open || h2.at < h2.end;
+            let t3 = better(h3, best, open);
+            best = select(best, h3.key, t3);
+            taken = select(taken, 3u, t3);
+            set_key_to(!from_nodes, base + k, best);
+            h0.at += u32(taken == 0u);
+            h1.at += u32(taken == 1u);
+            h2.at += u32(taken == 2u);
+            h3.at += u32(taken == 3u);
+            // The taken run's next key.
+            let next = select(select(select(h0.at, h1.at, taken == 1u), h2.at, taken == 2u), h3.at, taken == 3u);
+            let next_end = select(select(select(h0.end, h1.end, taken == 1u), h2.end, taken == 2u), h3.end, taken == 3u);
+            if next < next_end {
                 let key = key_from(from_nodes, base + next);
-                a = select(a, key, take_a);
-                b = select(key, b, take_a);
+                h0.key = select(h0.key, key, taken == 0u);
+                h1.key = select(h1.key, key, taken == 1u);
+                h2.key = select(h2.key, key, taken == 2u);
+                h3.key = select(h3.key, key, taken == 3u);
             }
         }
     }

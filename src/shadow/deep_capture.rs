@@ -103,13 +103,16 @@ pub fn sifts_per_round(max_list: u32, loop_budget: u32) -> u32 {
 /// shaders/shadow/deep_capture.wgsl).
 const RUN: u32 = 16;
 
-/// The merge levels of a list of `n` keys (mirrors `runs_of` in
-/// shaders/shadow/deep_capture.wgsl): ceil(log2) of its runs of `RUN`, or one more (runs of
-/// `RUN / 2`) to make it even. Never fewer for a longer list, so the longest sets the rounds.
-pub fn merge_levels(n: u32) -> u32 {
+/// The merge passes of a list of `n` keys (mirrors `runs_of` in
+/// shaders/shadow/deep_capture.wgsl): its two-run levels are ceil(log2) of its runs of `RUN`, or
+/// one more (runs of `RUN / 2`) to make them even; a pass makes two levels (four runs merged),
+/// or one for the first two passes when that makes the passes even. Never fewer for a longer
+/// list, so the longest sets the rounds.
+pub fn merge_passes(n: u32) -> u32 {
     let runs = n.div_ceil(RUN);
     let levels = if runs <= 1 { 0 } else { (runs - 1).ilog2() + 1 };
-    levels + levels % 2
+    let fours = (levels + levels % 2) / 2;
+    fours + fours % 2
 }
 
 /// Rounds of one heapsort phase over lists of at most `max_list`: the build sifts n/2 starts,
@@ -276,7 +279,7 @@ enum ResolvePhase {
     Heap(bool),
     /// A single pass looping up to 2n times.
     Single,
-    /// The merge sort's levels, one a round ([`merge_levels`]).
+    /// The merge sort's passes, one a round ([`merge_passes`]).
     Merge,
 }
 
@@ -882,7 +885,7 @@ impl DeepCapture {
                 ResolvePhase::Heap(true) => build_rounds,
                 ResolvePhase::Heap(false) => extract_rounds,
                 ResolvePhase::Single => 1,
-                ResolvePhase::Merge => merge_levels(self.last_max_list).max(1),
+                ResolvePhase::Merge => merge_passes(self.last_max_list).max(1),
             };
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some(&format!("{}.capture.resolve", self.name)),
@@ -1067,30 +1070,42 @@ mod tests {
     }
 
     #[test]
-    fn merge_levels_are_even_enough_and_never_fewer_for_a_longer_list() {
+    fn merge_passes_are_even_and_enough_and_never_fewer_for_a_longer_list() {
         let mut before = 0;
-        for n in 0..5_000u32 {
-            let levels = merge_levels(n);
-            assert_eq!(levels % 2, 0, "n {n}: the keys must end where they started");
-            // Runs of RUN, or of RUN / 2 when that makes the levels even: either way enough
-            // levels to merge every run into one.
-            let run = if levels > 0 && (n.div_ceil(RUN) - 1).ilog2() + 1 < levels {
-                RUN / 2
-            } else {
-                RUN
-            };
+        for n in 0..20_000u32 {
+            let passes = merge_passes(n);
+            assert_eq!(passes % 2, 0, "n {n}: the keys must end where they started");
+            // Runs of RUN, or RUN / 2 when their levels are odd; four runs merged a pass, or
+            // two in the first two passes when levels / 2 is odd.
+            let runs = n.div_ceil(RUN);
+            let mut levels = if runs <= 1 { 0 } else { (runs - 1).ilog2() + 1 };
+            let mut run = RUN;
+            if levels % 2 == 1 {
+                run /= 2;
+                levels += 1;
+            }
+            let merged: u64 = (1..=passes)
+                .map(|p| {
+                    if (levels / 2) % 2 == 1 && p <= 2 {
+                        2
+                    } else {
+                        4
+                    }
+                })
+                .product();
             assert!(
-                u64::from(run) << levels >= u64::from(n),
-                "n {n}: {levels} levels"
+                u64::from(run) * merged >= u64::from(n),
+                "n {n}: {passes} passes"
             );
-            assert!(levels >= before, "n {n}");
-            before = levels;
+            assert!(passes >= before, "n {n}");
+            before = passes;
         }
-        assert_eq!(merge_levels(16), 0);
-        assert_eq!(merge_levels(17), 2);
-        assert_eq!(merge_levels(64), 2);
-        assert_eq!(merge_levels(65), 4);
-        assert_eq!(merge_levels(450), 6);
+        assert_eq!(merge_passes(16), 0);
+        assert_eq!(merge_passes(17), 2);
+        assert_eq!(merge_passes(64), 2);
+        assert_eq!(merge_passes(256), 2);
+        assert_eq!(merge_passes(257), 4);
+        assert_eq!(merge_passes(450), 4);
     }
 
     #[test]
