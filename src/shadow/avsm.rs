@@ -97,9 +97,9 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     budget_caption: |b| format!("{} nodes per texel", nodes_per_texel(b)),
     min_channels: 4,
     // Not in the default sweep: on lavapipe the 10 cells of dsm and avsm on thesis_plume take
-    // about 35 s together (`sweep --techniques dsm,avsm`: 36.8 s with `none` and the reference;
-    // 240 s for 8 cells before their resolve and search got faster, docs/studies.md), half of
-    // what the default sweep costs without them.
+    // about 17 s together (`sweep --techniques dsm,avsm`: 17.8 s with `none` and the reference;
+    // 36.8 s two changes before, 240 s for 8 cells before their resolve and search got faster:
+    // docs/studies.md), a quarter of `sweep --techniques all`.
     in_default_sweep: false,
     in_default_compare: true,
     build_reads_back: true,

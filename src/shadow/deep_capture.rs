@@ -9,7 +9,8 @@
 //! the resolve's compute passes, as the owner asks ([`Resolve`]): for `dsm`, the fill writes each
 //! segment's start (z0, slope) and end (z1, slope) instead, and the resolve sorts both by
 //! (depth, slope) — a total key over what is sorted, so the nodes do not depend on the order the
-//! fragments arrived in — and merges them into nodes, all in read-write storage textures
+//! fragments arrived in; a merge sort: runs of 16 sorted in registers, then four runs merged a
+//! pass ([`merge_passes`]) — and merges them into nodes, all in read-write storage textures
 //! (`KEY_TEXTURES`); for `avsm`, it sorts the segments by (z0, z1, optical depth, draw index)
 //! (`avsm` sorted) or by draw index (`avsm` streaming), which restores the order the particles
 //! were drawn in, the order an engine's interlocked fragment shader would see them.
@@ -33,7 +34,8 @@
 //! texel looping over its list, so they run in **rounds**: dispatches of one pass, each bound
 //! to its round index ([`Rounds`], a uniform at a dynamic offset) and doing a slice of the work
 //! sized so that it loops at most `loop_budget` times ([`Gpu::loop_budget`]: 60,000 on llvmpipe,
-//! unbounded elsewhere, where every pass is one round). The resolve's heapsorts run
+//! unbounded elsewhere, where every pass is one round). `dsm`'s merge sort takes a round per
+//! merge pass (each loops about n times); the resolve's heapsorts (`avsm`'s segments) run
 //! [`sifts_per_round`] sifts a round; a compression says how many rounds it needs
 //! ([`super::deep_nodes::DeepNodesSpec::rounds`]). The single-pass steps (the merge, a greedy
 //! fit) loop 2n times, so a list longer than half the budget is refused
