@@ -918,6 +918,34 @@ fn probe_with_counters(
     (t, renderer.technique().counters())
 }
 
+/// `dsm` at `channels` on the sphere scene's 512² map: T at `points` and its counters, with
+/// `exact`'s T at the same points.
+fn dsm_and_exact(
+    gpu: &Gpu,
+    particles: &[Particle],
+    channels: u32,
+    points: &[Vec3],
+) -> (Vec<f32>, Vec<(&'static str, u64)>, Vec<f32>) {
+    let scene = sphere::scene();
+    let res = scene.shadow.resolution_px;
+    let (dsm, counters) = probe_with_counters(
+        gpu,
+        &scene,
+        particles,
+        &technique("dsm", channels, res, SplatMode::Segment),
+        points,
+    );
+    let exact = probe_all(
+        gpu,
+        &scene,
+        particles,
+        &[technique("exact", 1, res, SplatMode::Segment)],
+        points,
+    )
+    .remove(0);
+    (dsm, counters, exact)
+}
+
 fn counter(counters: &[(&'static str, u64)], name: &str) -> u64 {
     counters
         .iter()
@@ -958,26 +986,8 @@ fn cluster() -> Vec<Particle> {
 
 #[test]
 fn dsm_with_room_for_every_list_keeps_it_whole_and_reports_no_tolerance() {
-    let gpu = gpu();
-    let scene = sphere::scene();
-    let particles = cluster();
     let (points, _) = sphere::samples();
-    let res = scene.shadow.resolution_px;
-    let (dsm, counters) = probe_with_counters(
-        &gpu,
-        &scene,
-        &particles,
-        &technique("dsm", 32, res, SplatMode::Segment),
-        &points,
-    );
-    let exact = probe_all(
-        &gpu,
-        &scene,
-        &particles,
-        &[technique("exact", 1, res, SplatMode::Segment)],
-        &points,
-    )
-    .remove(0);
+    let (dsm, counters, exact) = dsm_and_exact(&gpu(), &cluster(), 32, &points);
     println!("dsm at 16 nodes on seven particles: {counters:?}");
     assert!(counter(&counters, "fitted_texels") > 1000, "{counters:?}");
     assert_eq!(counter(&counters, "lossy_texels"), 0, "{counters:?}");
@@ -1021,25 +1031,8 @@ fn dsm_sorts_long_lists_whatever_order_their_segments_arrive_in() {
             }
         })
         .collect();
-    let gpu = gpu();
-    let scene = sphere::scene();
     let (points, _) = sphere::samples();
-    let res = scene.shadow.resolution_px;
-    let (dsm, counters) = probe_with_counters(
-        &gpu,
-        &scene,
-        &particles,
-        &technique("dsm", 32, res, SplatMode::Segment),
-        &points,
-    );
-    let exact = probe_all(
-        &gpu,
-        &scene,
-        &particles,
-        &[technique("exact", 1, res, SplatMode::Segment)],
-        &points,
-    )
-    .remove(0);
+    let (dsm, counters, exact) = dsm_and_exact(&gpu(), &particles, 32, &points);
     let longest = counter(&counters, "max_texel_list");
     assert!(
         longest > 64,
