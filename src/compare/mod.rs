@@ -62,14 +62,16 @@ pub struct PairFiles {
 }
 
 /// Compares `test` with `reference` and writes the x4 difference and the FLIP map as
-/// `diffs/{stem}_x4.png` and `diffs/{stem}_flip.png` under `dir` (the sweep's comparisons too).
+/// `diffs/{stem}_x4.png` and `diffs/{stem}_flip.png` under `dir` (the sweep's comparisons too,
+/// without SSIM: `ssim`).
 pub fn write_pair(
     dir: &Path,
     reference: &image::RgbImage,
     test: &image::RgbImage,
     stem: &str,
+    ssim: diff::Ssim,
 ) -> anyhow::Result<PairFiles> {
-    let comparison = diff::compare(reference, test)?;
+    let comparison = diff::compare_with(reference, test, ssim)?;
     let difference = format!("diffs/{stem}_x4.png");
     let flip_map = format!("diffs/{stem}_flip.png");
     crate::output::write_png_rgb(
@@ -172,7 +174,7 @@ pub fn run(
     let (exact, _, exact_bytes) = render(&exact_config, &exact_image)?;
 
     let pair = |reference: &image::RgbImage, test: &image::RgbImage, stem: &str| {
-        write_pair(out_dir, reference, test, stem)
+        write_pair(out_dir, reference, test, stem, diff::Ssim::Compute)
     };
 
     let baseline_budget = options.budgets[0];

@@ -101,8 +101,17 @@ pub struct Metrics {
     /// steps, in [0, 1].
     pub visible_share: f64,
     /// Structural similarity (image-compare's MSSIMSimple: 8x8 windows, per RGB channel, the
-    /// lowest channel's score); 1 = identical.
+    /// lowest channel's score); 1 = identical. NaN (`null` in JSON) where it was not asked for
+    /// ([`Ssim::Skip`]).
     pub ssim: f64,
+}
+
+/// Whether [`compare_with`] computes SSIM: a tenth of a comparison's time, which the sweep,
+/// reporting FLIP and RMSE, does not spend.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Ssim {
+    Compute,
+    Skip,
 }
 
 /// The result of [`compare`]: the metrics and the per-pixel FLIP error they pool.
@@ -128,6 +137,15 @@ pub fn finite_or_null<S: serde::Serializer>(value: &f64, serializer: S) -> Resul
 /// viewing distance from a 24" 4K monitor), the pixel statistics and SSIM. Fails when the sizes
 /// differ (the error gives both).
 pub fn compare(reference: &RgbImage, test: &RgbImage) -> Result<Comparison, DiffError> {
+    compare_with(reference, test, Ssim::Compute)
+}
+
+/// [`compare`], with SSIM only when `ssim` asks for it.
+pub fn compare_with(
+    reference: &RgbImage,
+    test: &RgbImage,
+    ssim: Ssim,
+) -> Result<Comparison, DiffError> {
     if reference.dimensions() != test.dimensions() {
         return Err(DiffError::SizeMismatch {
             reference: "reference image".to_owned(),
@@ -147,13 +165,18 @@ pub fn compare(reference: &RgbImage, test: &RgbImage) -> Result<Comparison, Diff
     let flip_map = flip_map.to_vec();
 
     let pixels = pixel_statistics(reference, test);
-    let ssim = image_compare::rgb_similarity_structure(
-        &image_compare::Algorithm::MSSIMSimple,
-        reference,
-        test,
-    )
-    .map_err(|err| DiffError::Ssim(err.to_string()))?
-    .score;
+    let ssim = match ssim {
+        Ssim::Compute => {
+            image_compare::rgb_similarity_structure(
+                &image_compare::Algorithm::MSSIMSimple,
+                reference,
+                test,
+            )
+            .map_err(|err| DiffError::Ssim(err.to_string()))?
+            .score
+        }
+        Ssim::Skip => f64::NAN,
+    };
 
     let metrics = Metrics {
         flip_mean: f64::from(pool.mean()),
@@ -326,6 +349,29 @@ mod tests {
         // All-zero error draws as the LUT's first entry everywhere.
         let heat = flip_heatmap(&c);
         assert!(heat.pixels().all(|p| p == heat.get_pixel(0, 0)));
+    }
+
+    #[test]
+    fn skipping_ssim_changes_nothing_else() {
+        let a = base();
+        let mut b = a.clone();
+        b.get_pixel_mut(1, 1).0[1] = 200;
+        let with = compare(&a, &b).unwrap();
+        let without = compare_with(&a, &b, Ssim::Skip).unwrap();
+        assert!(with.metrics.ssim < 1.0 && without.metrics.ssim.is_nan());
+        let json = serde_json::to_value(&without.metrics).unwrap();
+        assert!(json["ssim"].is_null(), "{json}");
+        assert_eq!(
+            Metrics {
+                ssim: 0.0,
+                ..with.metrics
+            },
+            Metrics {
+                ssim: 0.0,
+                ..without.metrics
+            }
+        );
+        assert_eq!(with.flip_map, without.flip_map);
     }
 
     #[test]

@@ -812,7 +812,8 @@ fn compare(
     test: &image::RgbImage,
     stem: &str,
 ) -> anyhow::Result<(ImageError, String, String)> {
-    let pair = crate::compare::write_pair(dir, reference, test, stem)?;
+    // The sweep reports FLIP and RMSE only.
+    let pair = crate::compare::write_pair(dir, reference, test, stem, crate::diff::Ssim::Skip)?;
     Ok((
         ImageError {
             flip_mean: pair.metrics.flip_mean,
