@@ -394,12 +394,30 @@ fn heap_extract(@builtin(global_invocation_id) id: vec3<u32>) {
 // The first pass of a whole-segment resolve. The fill's atomics hand out a texel's slots in the
 // order its fragments arrive, and where the rasteriser keeps the draw order per pixel (llvmpipe
 // does: one thread shades a tile's primitives in order) that is the order the draw-order resolve
-// wants: an insertion sort then reads each segment once. It gives up after n/4 moves (the list,
+// wants: an insertion sort then reads each segment once (for that resolve only its draw index,
+// `draw_ordered_prefix`, and the sort starts behind the prefix found in order). It gives up
+// after n/4 moves (the list,
 // still a permutation of itself, is left to the heapsort, as most lists of the by-depth resolve
 // are); a list it sorts is marked SORTED in `counts` (the fill's cursors, unused from here on),
-// and the heap passes skip it. At most n + 2·(n/4) + 1 loop iterations, within the loop budget
+// and the heap passes skip it. At most n + 2·(n/4) + 2 loop iterations, within the loop budget
 // for any list the capture accepts (n <= budget/2 - 2).
 const SORTED: u32 = 0xffffffffu;
+
+// How many of a list's first segments are in draw order, read a word a segment (the draw
+// index; the insertion sort reads all four): where the rasteriser keeps the draw order per
+// pixel, the whole list, and then nothing else is read. Loops as many times as it returns (plus
+// one), and the insertion sort goes on from there, so the two together stay within its bound.
+fn draw_ordered_prefix(list: TexelList) -> u32 {
+    var before = 0u;
+    for (var i = 0u; i < list.count; i++) {
+        let draw = segments[list.first + i].draw_index;
+        if i > 0u && draw < before {
+            return i;
+        }
+        before = draw;
+    }
+    return list.count;
+}
 
 @compute @workgroup_size(8, 8)
 fn insertion_sort(@builtin(global_invocation_id) id: vec3<u32>) {
@@ -408,12 +426,17 @@ fn insertion_sort(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     let list = texel_list(index);
+    // The sorted prefix the insertion starts behind.
+    var start = 1u;
+    if SORT_BY_DRAW {
+        start = max(draw_ordered_prefix(list), 1u);
+    }
     var sorted = true;
     var moves = list.count / 4u;
-    if list.count >= 2u {
+    if list.count > start {
         // The largest of the sorted prefix: a segment not before it stays where it is.
-        var last = heap_key(list.first);
-        for (var i = 1u; i < list.count; i++) {
+        var last = heap_key(list.first + start - 1u);
+        for (var i = start; i < list.count; i++) {
             let v = heap_key(list.first + i);
             if !key_before(v, last) {
                 last = v;
