@@ -37,8 +37,14 @@ pub fn source(path: &str) -> Option<&'static str> {
 /// text (which may import further files). Panics on an unknown import: shader sources are part
 /// of the binary and a test composes every one of them.
 pub fn compose(entry: &str, virtuals: &[(&str, &str)]) -> String {
+    compose_after("", entry, virtuals)
+}
+
+/// [`compose`], with `prefix` (e.g. [`u32_constants`]) before the composed text, where its
+/// `#unroll` blocks find their bounds.
+pub fn compose_after(prefix: &str, entry: &str, virtuals: &[(&str, &str)]) -> String {
     let mut seen = BTreeSet::new();
-    let mut out = String::new();
+    let mut out = prefix.to_owned();
     append(entry, virtuals, &mut seen, &mut out);
     expand_unrolls(&out)
 }
@@ -95,6 +101,15 @@ fn expand_unrolls(source: &str) -> String {
         }
     }
     out
+}
+
+/// `const NAME: u32 = Vu;` lines for `constants`, to compose before a shader that bounds its
+/// `#unroll` blocks by them.
+pub fn u32_constants(constants: &[(&str, u32)]) -> String {
+    constants
+        .iter()
+        .map(|(name, value)| format!("const {name}: u32 = {value}u;\n"))
+        .collect()
 }
 
 /// An `#unroll` bound: a number, or the value of `const NAME: u32 = Nu;` in `source`.

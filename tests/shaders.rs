@@ -101,7 +101,7 @@ fn every_rust_mirror_matches_nagas_reflection_of_its_wgsl_struct() {
     };
     let imports = smokeshadow::shadow::frame_baseline().frame_imports(&params);
     for m in &mirrors {
-        let text = compose(m.wgsl_file, &imports);
+        let text = compose(m.wgsl_file, &imports.pairs());
         let module = naga::front::wgsl::parse_str(&text)
             .unwrap_or_else(|e| panic!("{}: {}", m.wgsl_file, e.emit_to_string(&text)));
         let (members, span) = module

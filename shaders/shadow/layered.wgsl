@@ -58,20 +58,6 @@ fn layered_target(index: u32, uv: vec2<f32>) -> vec4<f32> {
     return textureSampleLevel(layered_rest, layered_sampler, uv, 0.0);
 }
 
-// Every packed channel, bilinearly filtered (channels beyond `packed` in the last target are 0).
-fn layered_channels(uv: vec2<f32>) -> array<f32, 32> {
-    var c: array<f32, 32>;
-    let targets = (layered.packed + 3u) / 4u;
-    for (var t = 0u; t < targets; t++) {
-        let v = layered_target(t, uv);
-        c[4u * t] = v.x;
-        c[4u * t + 1u] = v.y;
-        c[4u * t + 2u] = v.z;
-        c[4u * t + 3u] = v.w;
-    }
-    return c;
-}
-
 // Bilinearly filtered packed channel `channel`.
 fn layered_channel(channel: u32, uv: vec2<f32>) -> f32 {
     return layered_target(channel / 4u, uv)[channel % 4u];

@@ -1,7 +1,7 @@
 // `msm` lookup: b0 and N power moments b0·E[z^k] of the depth z = 2d − 1 (channels 0..N); the
 // optical depth in front of the point is bounded by the Hamburger moment problem
 // (moments.wgsl), T = clamp(exp(−b0·A), 0, 1).
-#import shadow/layered.wgsl
+#import shadow/layered_channels.wgsl
 #import shadow/moments.wgsl
 
 fn msm_setting() -> MomentSetting {

@@ -2,7 +2,7 @@
 // φ = d(2π − θ) (channels 0, then the real and imaginary part of each); the optical depth in
 // front of the point is bounded by the Toeplitz moment problem (moments.wgsl),
 // T = clamp(exp(−b0·A), 0, 1).
-#import shadow/layered.wgsl
+#import shadow/layered_channels.wgsl
 #import shadow/moments.wgsl
 
 fn tmsm_setting() -> MomentSetting {

@@ -750,7 +750,7 @@ impl Renderer {
                 technique.name(),
                 &self.frame_layout,
                 technique.bind_group_layout(),
-                &entry.frame_imports(&self.technique_config.params),
+                &entry.frame_imports(&self.technique_config.params).pairs(),
                 &self.eye_layouts,
             ));
         }
@@ -1562,6 +1562,7 @@ impl TechniquePipelines {
         let name = technique.name();
         let entry = shadow::find(name).expect("a live technique is registered");
         let imports = entry.frame_imports(params);
+        let imports = imports.pairs();
         let opaque_module = shaders::module(
             device,
             &format!("opaque[{name}]"),

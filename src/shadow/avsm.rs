@@ -109,6 +109,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     compresses_captured_lists: true,
     memory: |c| SPEC.memory(c),
     lookup_shader: "shadow/avsm.wgsl",
+    lookup_constants: super::no_lookup_constants,
     extra_shaders: || SPEC.build_shaders(),
     create: |ctx, params| Ok(Box::new(DeepNodes::new(ctx, &SPEC, params)?)),
     uses_splat: false,

@@ -60,6 +60,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
         transient_bytes: 0,
     },
     lookup_shader: "shadow/bsm.wgsl",
+    lookup_constants: super::no_lookup_constants,
     extra_shaders: || SPEC.build_shaders(),
     create: |ctx, params| Ok(Box::new(LightMaps::new(ctx, &SPEC, params)?)),
     uses_splat: false,

@@ -113,6 +113,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
         }
     },
     lookup_shader: "shadow/exact.wgsl",
+    lookup_constants: super::no_lookup_constants,
     extra_shaders: || {
         vec![(
             "exact.build".to_owned(),

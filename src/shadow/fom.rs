@@ -96,6 +96,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     compresses_captured_lists: false,
     memory: |c| coefficient_memory(&FOM, c),
     lookup_shader: "shadow/fom.wgsl",
+    lookup_constants: |p| super::layered::lookup_constants(&FOM, p),
     extra_shaders: || FOM.all_build_shaders(),
     create: |ctx, params| Ok(Box::new(Layered::new(ctx, &FOM, params)?)),
     uses_splat: true,
@@ -120,6 +121,7 @@ pub const SIGMA_ENTRY: TechniqueEntry = TechniqueEntry {
     compresses_captured_lists: false,
     memory: |c| coefficient_memory(&FOM_SIGMA, c),
     lookup_shader: "shadow/fom.wgsl",
+    lookup_constants: |p| super::layered::lookup_constants(&FOM_SIGMA, p),
     // Same build shaders as `fom`: the σ-factors apply at lookup.
     extra_shaders: Vec::new,
     create: |ctx, params| Ok(Box::new(Layered::new(ctx, &FOM_SIGMA, params)?)),

@@ -79,6 +79,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
         }
     },
     lookup_shader: "shadow/has.wgsl",
+    lookup_constants: super::no_lookup_constants,
     extra_shaders: || {
         vec![(
             "has.build".to_owned(),
@@ -312,7 +313,7 @@ impl HalfAngle {
             "has",
             ctx.frame_layout,
             &lookup_layout,
-            &ENTRY.frame_imports(params),
+            &ENTRY.frame_imports(params).pairs(),
             ctx.particle_layouts,
         );
 

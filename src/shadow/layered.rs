@@ -90,7 +90,12 @@ impl LayeredSpec {
             .map(|targets| {
                 (
                     format!("{}.build[{targets} targets]", self.name),
-                    build_shader_source(self, targets),
+                    // (A budget that packs about that many targets.)
+                    build_shader_source(
+                        self,
+                        targets,
+                        &super::TechniqueParams::new(4 * targets, 512),
+                    ),
                 )
             })
             .collect()
@@ -283,9 +288,28 @@ fn build_outputs_wgsl(targets: u32) -> String {
     )
 }
 
-/// The full build shader of `spec` for `targets` render targets.
-pub fn build_shader_source(spec: &LayeredSpec, targets: u32) -> String {
-    shaders::compose(spec.build_shader, &[])
+/// The lookup's compile-time constants ([`super::TechniqueEntry::lookup_constants`]): the
+/// count (slices, layers, harmonics) and the packed targets `layered_channels` reads.
+pub fn lookup_constants(
+    spec: &LayeredSpec,
+    params: &super::TechniqueParams,
+) -> Vec<(&'static str, u32)> {
+    let plan = (spec.plan)(params.channels);
+    vec![
+        ("LAYERED_COUNT", plan.count),
+        ("LAYERED_TARGETS", plan.packed.div_ceil(4)),
+    ]
+}
+
+/// The full build shader of `spec` for `targets` render targets, after the lookup's constants
+/// for `params` (the build shaders import their lookups).
+pub fn build_shader_source(
+    spec: &LayeredSpec,
+    targets: u32,
+    params: &super::TechniqueParams,
+) -> String {
+    let constants = shaders::u32_constants(&lookup_constants(spec, params));
+    shaders::compose_after(&constants, spec.build_shader, &[])
         .replace("//{{BUILD_OUTPUTS}}", &build_outputs_wgsl(targets))
 }
 
@@ -817,7 +841,7 @@ impl Layered {
         let module = shaders::module(
             device,
             &format!("{name}.build"),
-            &build_shader_source(spec, target_count),
+            &build_shader_source(spec, target_count, params),
         );
         let additive: Vec<_> = formats.iter().map(|&f| (f, ADDITIVE)).collect();
         let (build_pipeline, build_bind_group, volume, depth) = match &depth_view {

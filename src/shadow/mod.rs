@@ -620,6 +620,10 @@ pub struct TechniqueEntry {
     pub memory: fn(&MemoryCase<'_>) -> MemoryUse,
     /// Path (under `shaders/`) of the lookup shader defining group 1 and `shadow_transmittance`.
     pub lookup_shader: &'static str,
+    /// Compile-time constants of the lookup for these parameters, composed before it as
+    /// `const NAME: u32 = V;` (the layered maps' channel counts): bounds its `#unroll` blocks
+    /// can write their loops out to, so that their arrays stay in registers on llvmpipe.
+    pub lookup_constants: fn(&TechniqueParams) -> Vec<(&'static str, u32)>,
     /// Every other WGSL module the technique compiles, composed: (label, source). The naga test
     /// validates them all, for every budget.
     pub extra_shaders: fn() -> Vec<(String, String)>,
@@ -675,23 +679,44 @@ impl TechniqueEntry {
     }
 
     /// The virtual imports the lighting shaders are composed with for this technique with
-    /// `params`: its lookup (`shadow_transmittance`) and the occluders' visibility, tested
-    /// exactly against the boxes and the ground, or read from their filtered depth map
+    /// `params`: its lookup (`shadow_transmittance`) after its constants
+    /// ([`TechniqueEntry::lookup_constants`]), and the occluders' visibility, tested exactly
+    /// against the boxes and the ground, or read from their filtered depth map
     /// ([`TechniqueEntry::reads_occluder_map`], `src/frame/occluders.rs`).
-    pub fn frame_imports(&self, params: &TechniqueParams) -> [(&'static str, &'static str); 2] {
-        let lookup = crate::shaders::source(self.lookup_shader)
+    pub fn frame_imports(&self, params: &TechniqueParams) -> FrameImports {
+        let source = crate::shaders::source(self.lookup_shader)
             .expect("registered lookup shader is embedded");
+        let mut lookup = crate::shaders::u32_constants(&(self.lookup_constants)(params));
+        lookup.push_str(source);
         let occluders = if self.reads_occluder_map(params) {
             "common/occluders_map.wgsl"
         } else {
             "common/occluders_exact.wgsl"
         };
         let occluders = crate::shaders::source(occluders).expect("occluder shaders are embedded");
+        FrameImports { lookup, occluders }
+    }
+}
+
+/// A technique's lookup and occluder imports ([`TechniqueEntry::frame_imports`]).
+pub struct FrameImports {
+    lookup: String,
+    occluders: &'static str,
+}
+
+impl FrameImports {
+    /// As [`crate::shaders::compose`] takes virtual imports.
+    pub fn pairs(&self) -> [(&'static str, &str); 2] {
         [
-            (crate::shaders::SHADOW_TECHNIQUE, lookup),
-            (crate::shaders::OCCLUDERS, occluders),
+            (crate::shaders::SHADOW_TECHNIQUE, &self.lookup),
+            (crate::shaders::OCCLUDERS, self.occluders),
         ]
     }
+}
+
+/// [`TechniqueEntry::lookup_constants`] for a lookup with none.
+pub fn no_lookup_constants(_: &TechniqueParams) -> Vec<(&'static str, u32)> {
+    Vec::new()
 }
 
 /// Every technique, in the order lists and reports show them.
@@ -901,7 +926,7 @@ pub fn all_shader_modules() -> Vec<(String, String)> {
             for frame_shader in ["render/opaque.wgsl", "render/particle_lighting.wgsl"] {
                 out.push((
                     format!("{frame_shader}[{}, {mode} occluders]", entry.name),
-                    compose(frame_shader, &entry.frame_imports(&params)),
+                    compose(frame_shader, &entry.frame_imports(&params).pairs()),
                 ));
             }
             out.push((
@@ -911,7 +936,7 @@ pub fn all_shader_modules() -> Vec<(String, String)> {
             if entry.volume == VolumeSupport::Shadows {
                 out.push((
                     format!("volume_eye[{}, {mode} occluders]", entry.name),
-                    crate::medium::eye_pass::source(&entry.frame_imports(&params)),
+                    crate::medium::eye_pass::source(&entry.frame_imports(&params).pairs()),
                 ));
             }
         }

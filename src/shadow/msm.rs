@@ -202,6 +202,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     compresses_captured_lists: false,
     memory: |c| memory(power_plan)(c),
     lookup_shader: "shadow/msm.wgsl",
+    lookup_constants: |p| super::layered::lookup_constants(&MSM, p),
     extra_shaders: || MSM.all_build_shaders(),
     create: |ctx, params| Ok(Box::new(Layered::new(ctx, &MSM, params)?)),
     uses_splat: true,
@@ -225,6 +226,7 @@ pub const TRIG_ENTRY: TechniqueEntry = TechniqueEntry {
     params: &[TRIG_BIAS, TRIG_OVERESTIMATION, WRAPPING_ZONE],
     memory: |c| memory(trig_plan)(c),
     lookup_shader: "shadow/tmsm.wgsl",
+    lookup_constants: |p| super::layered::lookup_constants(&TMSM, p),
     extra_shaders: || TMSM.all_build_shaders(),
     create: |ctx, params| Ok(Box::new(Layered::new(ctx, &TMSM, params)?)),
     // The Toeplitz matrix of trigonometric moments is well conditioned: the shared bound holds.

@@ -26,6 +26,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
         transient_bytes: 0,
     },
     lookup_shader: "shadow/none.wgsl",
+    lookup_constants: super::no_lookup_constants,
     extra_shaders: Vec::new,
     create: |ctx, params| Ok(Box::new(NoShadow::new(ctx, params)?)),
     uses_splat: false,

@@ -76,6 +76,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
         transient_bytes: 0,
     },
     lookup_shader: "shadow/osm.wgsl",
+    lookup_constants: |p| super::layered::lookup_constants(&SPEC, p),
     extra_shaders: || SPEC.all_build_shaders(),
     create: |ctx, params| Ok(Box::new(Layered::new(ctx, &SPEC, params)?)),
     uses_splat: true,

@@ -157,5 +157,5 @@ impl PendingProbe {
 /// The composed probe shader for a technique: its lookup and its occluders' visibility, as the
 /// lighting shaders are composed ([`super::TechniqueEntry::frame_imports`]).
 pub fn source(entry: &super::TechniqueEntry, params: &super::TechniqueParams) -> String {
-    shaders::compose("shadow/probe.wgsl", &entry.frame_imports(params))
+    shaders::compose("shadow/probe.wgsl", &entry.frame_imports(params).pairs())
 }

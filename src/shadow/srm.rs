@@ -56,6 +56,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
         transient_bytes: 0,
     },
     lookup_shader: "shadow/srm.wgsl",
+    lookup_constants: super::no_lookup_constants,
     extra_shaders: Vec::new,
     create: |ctx, params| Ok(Box::new(Srm::new(ctx, params)?)),
     uses_splat: false,

@@ -228,6 +228,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
         }
     },
     lookup_shader: "shadow/volume.wgsl",
+    lookup_constants: super::no_lookup_constants,
     extra_shaders: || {
         vec![(
             "volume.build".to_owned(),
