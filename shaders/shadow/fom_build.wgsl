@@ -10,7 +10,6 @@
 // sines and cosines of the harmonics by rotation (`rotate` in fom.wgsl).
 fn prepare_values(splat: Splat, pixel: vec2<f32>) -> array<f32, 32> {
     var c: array<f32, 32>;
-    let n = layered.count;
     let od2 = 2.0 * splat.optical_depth;
     c[0] = od2;
     let width = splat.z1 - splat.z0;
@@ -18,11 +17,12 @@ fn prepare_values(splat: Splat, pixel: vec2<f32>) -> array<f32, 32> {
         let z = 0.5 * (splat.z0 + splat.z1);
         let turn = vec2<f32>(cos(TAU * z), sin(TAU * z));
         var cs = turn;
-        for (var k = 1u; k <= n; k++) {
-            c[k] = od2 * cs.x;
-            c[n + k] = od2 * cs.y;
+        // Written out over the budget's LAYERED_COUNT harmonics (constant indices: registers).
+        #unroll j 0..LAYERED_COUNT
+            c[j + 1u] = od2 * cs.x;
+            c[LAYERED_COUNT + j + 1u] = od2 * cs.y;
             cs = rotate(cs, turn);
-        }
+        #end_unroll
         return c;
     }
     // Mean of cos / sin of 2πkz over [z0, z1]: (sin 2πkz1 - sin 2πkz0) / (2πk·width) and
@@ -31,13 +31,14 @@ fn prepare_values(splat: Splat, pixel: vec2<f32>) -> array<f32, 32> {
     let turn1 = vec2<f32>(cos(TAU * splat.z1), sin(TAU * splat.z1));
     var cs0 = turn0;
     var cs1 = turn1;
-    for (var k = 1u; k <= n; k++) {
+    #unroll j 0..LAYERED_COUNT
+        let k = j + 1u;
         let scale = od2 / (TAU * f32(k) * width);
         c[k] = scale * (cs1.y - cs0.y);
-        c[n + k] = scale * (cs0.x - cs1.x);
+        c[LAYERED_COUNT + k] = scale * (cs0.x - cs1.x);
         cs0 = rotate(cs0, turn0);
         cs1 = rotate(cs1, turn1);
-    }
+    #end_unroll
     return c;
 }
 

@@ -14,11 +14,13 @@ fn prepare_values(splat: Splat, pixel: vec2<f32>) -> array<f32, 32> {
     // h_k = Σ_j x0^j x1^(k−j) = x1·h_(k−1) + x0^k.
     var h = 1.0;
     var x0k = 1.0;
-    for (var k = 1u; k <= layered.count; k++) {
+    // Written out over the budget's LAYERED_COUNT moments (constant indices: registers).
+    #unroll j 0..LAYERED_COUNT
+        let k = j + 1u;
         x0k *= x0;
         h = x1 * h + x0k;
         c[k] = a * h / f32(k + 1u);
-    }
+    #end_unroll
     return c;
 }
 

@@ -20,7 +20,9 @@ fn prepare_values(splat: Splat, pixel: vec2<f32>) -> array<f32, 32> {
     let turn_half = c_polar(1.0, half);
     var at_mid = turn_mid;
     var at_half = turn_half;
-    for (var k = 1u; k <= layered.count; k++) {
+    // Written out over the budget's LAYERED_COUNT moments (constant indices: registers).
+    #unroll j 0..LAYERED_COUNT
+        let k = j + 1u;
         let x = f32(k) * half;
         let sinc = select(at_half.y / x, 1.0, abs(x) < 1e-4);
         let v = a * sinc * at_mid;
@@ -28,7 +30,7 @@ fn prepare_values(splat: Splat, pixel: vec2<f32>) -> array<f32, 32> {
         c[2u * k] = v.y;
         at_mid = c_mul(at_mid, turn_mid);
         at_half = c_mul(at_half, turn_half);
-    }
+    #end_unroll
     return c;
 }
 
