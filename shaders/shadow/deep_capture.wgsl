@@ -219,9 +219,10 @@ override SORT_LIST: u32 = LIST_SEGMENTS;
 // Whether the segments are sorted by draw index alone rather than by depth.
 override SORT_BY_DRAW: bool = false;
 
-// A sorted element: a segment (z0, z1, optical depth) and its draw index, or a start or an end
-// (depth, slope, 0) and 0. (The index stays a u32: its bits as a float would be a denormal,
-// which a GPU may flush.)
+// An element of the whole-segment sorts (the insertion sort and the heapsort): a segment's
+// (z0, z1, optical depth) and its draw index. (The index stays a u32: its bits as a float would
+// be a denormal, which a GPU may flush.) `dsm`'s starts and ends have their own merge sort,
+// below.
 struct HeapItem {
     key: vec3<f32>,
     draw_index: u32,
@@ -245,28 +246,18 @@ fn key_before(a: HeapItem, b: HeapItem) -> bool {
     return a.draw_index < b.draw_index;
 }
 
-// (A start or an end is two words in the sort keys' textures, not a segment's four in a
-// storage buffer: llvmpipe moves a storage buffer's words one lane at a time, and those moves
-// are most of a sort's cost.)
 fn heap_key(i: u32) -> HeapItem {
-    if SORT_LIST != LIST_SEGMENTS {
-        return HeapItem(vec3<f32>(sort_key(i), 0.0), 0u);
-    }
     let s = segments[i];
     return HeapItem(vec3<f32>(s.z0, s.z1, s.optical_depth), s.draw_index);
 }
 
 fn set_heap_key(i: u32, item: HeapItem) {
-    if SORT_LIST != LIST_SEGMENTS {
-        set_sort_key(i, item.key.xy);
-    } else {
-        segments[i] = Segment(item.key.x, item.key.y, item.key.z, item.draw_index);
-    }
+    segments[i] = Segment(item.key.x, item.key.y, item.key.z, item.draw_index);
 }
 
-// Where the sorted list starts: the segments at `first`; the starts at 2·first and the ends
-// after them in the sort keys.
-fn heap_base(list: TexelList) -> u32 {
+// Where the list SORT_LIST names starts: the segments at `first`; the starts at 2·first and the
+// ends after them in the sort keys.
+fn list_base(list: TexelList) -> u32 {
     if SORT_LIST == LIST_ENDS {
         return 2u * list.first + list.count;
     }
@@ -370,7 +361,7 @@ fn heap_list(id: vec3<u32>) -> TexelList {
 @compute @workgroup_size(8, 8)
 fn heap_build(@builtin(global_invocation_id) id: vec3<u32>) {
     let list = heap_list(id);
-    let base = heap_base(list);
+    let base = list_base(list);
     let r = build_range(list.count);
     for (var start = r.x; start > r.y; start--) {
         sift(base, start - 1u, list.count);
@@ -381,7 +372,7 @@ fn heap_build(@builtin(global_invocation_id) id: vec3<u32>) {
 @compute @workgroup_size(8, 8)
 fn heap_extract(@builtin(global_invocation_id) id: vec3<u32>) {
     let list = heap_list(id);
-    let base = heap_base(list);
+    let base = list_base(list);
     let r = extract_range(list.count);
     for (var end = r.x; end > r.y; end--) {
         let top = heap_key(base);
@@ -603,7 +594,7 @@ fn run_sort(@builtin(global_invocation_id) id: vec3<u32>) {
     if n < 2u {
         return;
     }
-    let base = heap_base(list);
+    let base = list_base(list);
     let runs = runs_of(n);
     for (var start = 0u; start < n; start += runs.length) {
         let m = min(runs.length, n - start);
@@ -667,7 +658,7 @@ fn merge_runs(@builtin(global_invocation_id) id: vec3<u32>) {
     if step > runs.passes {
         return;
     }
-    let base = heap_base(list);
+    let base = list_base(list);
     // Odd passes read the keys and write the nodes; even passes the other way.
     let from_nodes = step % 2u == 0u;
     var width = runs.length;
