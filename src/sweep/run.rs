@@ -593,18 +593,24 @@ impl<'a> Sweeper<'a> {
         Ok(image)
     }
 
-    /// Times, images and compares one cell; `record: false` (only for `none`) measures the
-    /// frame baseline for this process's ratios without writing its image.
-    ///
-    /// The transmittance probe comes first: it builds the maps once (compiling the build's
-    /// shaders), and the warm-up frames reuse them, so that a technique whose build takes
-    /// seconds pays for it once before the timed frames rather than once per warm-up frame. The
-    /// timed frames build their maps every frame. The image comparisons run on every core after
-    /// the timing, when nothing else runs.
+    /// Times, images and compares one cell, start to end ([`Sweeper::prepare`],
+    /// [`Sweeper::time`], [`PendingCell::finish`]); `record: false` (only for `none`) measures
+    /// the frame baseline for this process's ratios without writing its image.
     fn measure(&mut self, plan: &Plan, key: String, record: bool) -> anyhow::Result<CellResult> {
+        let prepared = self.prepare(plan)?;
+        self.time(plan, prepared, key, record)?.finish()
+    }
+
+    /// Everything a cell does before its timed frames: the technique, the transmittance probe
+    /// and the warm-up frames.
+    ///
+    /// The probe comes first: it builds the maps once (compiling the build's shaders), and the
+    /// warm-up frames reuse them, so that a technique whose build takes seconds pays for it once
+    /// before the timed frames rather than once per warm-up frame. None of it is timed, so the
+    /// previous cell's comparisons may run beside it ([`Sweeper::time`]).
+    fn prepare(&mut self, plan: &Plan) -> anyhow::Result<Prepared> {
         self.renderer.set_technique(self.gpu, &plan.config)?;
-        let is_frame_baseline = plan.config.name == shadow::frame_baseline().name;
-        let probed = if is_frame_baseline {
+        let probed = if plan.config.name == shadow::frame_baseline().name {
             None
         } else {
             Some(self.renderer.probe_shaded(
@@ -637,6 +643,27 @@ impl<'a> Sweeper<'a> {
             }
             self.gpu.wait_idle()?;
         }
+        Ok(Prepared {
+            probed,
+            particle_fragments,
+        })
+    }
+
+    /// Times the cell `prepare` readied (which must be the last one it readied), reads its
+    /// image, renders the baselines it is compared with when this process has not got them,
+    /// and starts the comparisons and file writes on a thread of their own: the last GPU work of
+    /// the cell is done when this returns. The timed frames build their maps every frame.
+    ///
+    /// A sweep finishes the returned cell after preparing the next one and before timing it, so
+    /// that the comparisons (CPU work on every core) overlap only untimed work.
+    fn time(
+        &mut self,
+        plan: &Plan,
+        prepared: Prepared,
+        key: String,
+        record: bool,
+    ) -> anyhow::Result<PendingCell> {
+        let is_frame_baseline = plan.config.name == shadow::frame_baseline().name;
         let options = plan.options();
         let (mut shadow_ms, mut render_ms, mut sort_ms, mut frame_ms, mut wall_ms) =
             (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
@@ -683,14 +710,6 @@ impl<'a> Sweeper<'a> {
             )),
             false => None,
         };
-        let dir = self.dir;
-        let write_images = || -> anyhow::Result<()> {
-            crate::output::write_png_rgb(&dir.join(&image_path), &image)?;
-            if let Some((path, hdr)) = &hdr {
-                crate::output::write_exr(&dir.join(path), hdr)?;
-            }
-            Ok(())
-        };
 
         let mut cell = CellResult {
             technique: plan.config.name.clone(),
@@ -710,14 +729,14 @@ impl<'a> Sweeper<'a> {
             wall_ms: timing(&wall_ms),
             particles_ms: timing(&particles_ms),
             upsample_ms: timing(&upsample_ms),
-            particle_fragments,
+            particle_fragments: prepared.particle_fragments,
             frames_timed: frame_ms.len() as u32,
             overhead_ratio: None,
             shadow_ratio: None,
             vs_own_24: None,
             vs_exact: None,
             vs_full_res: None,
-            rms_transmittance_error: probed.map(|t| rms_difference(&t, &self.exact_t)),
+            rms_transmittance_error: prepared.probed.map(|t| rms_difference(&t, &self.exact_t)),
             image: image_path.clone(),
             diff_own_24: None,
             flip_own_24: None,
@@ -728,79 +747,118 @@ impl<'a> Sweeper<'a> {
             measured_against: Some(self.against.clone()),
         };
         with_ratios(&mut cell, None);
-        if is_frame_baseline {
-            if record {
-                write_images()?;
-            }
-            return Ok(cell);
-        }
         // The 24-channel cell is its own baseline: zero error by definition, no difference
         // images to look at. The others need it, from this process, disk or rendered now (the
-        // last GPU work).
-        let own = if plan.config.params.channels == BASELINE_CHANNELS {
-            self.own_images.insert(plan.name.clone(), image.clone());
-            None
-        } else {
-            Some(self.own_baseline(plan)?)
+        // last GPU work). Likewise a full-resolution cell is its own full-resolution image.
+        let (own, full_res) = match is_frame_baseline {
+            true => (None, None),
+            false => {
+                let own = match plan.config.params.channels == BASELINE_CHANNELS {
+                    true => {
+                        self.own_images.insert(plan.name.clone(), image.clone());
+                        None
+                    }
+                    false => Some(self.own_baseline(plan)?),
+                };
+                let full_res = match plan.particle_res {
+                    ParticleRes::Full => None,
+                    _ => Some(self.full_res_baseline(plan)?),
+                };
+                (own, full_res)
+            }
         };
-        // Likewise a full-resolution cell is its own full-resolution image.
-        let full_res = match plan.particle_res {
-            ParticleRes::Full => None,
-            _ => Some(self.full_res_baseline(plan)?),
-        };
-        let ((written, vs_exact), vs_own) = rayon::join(
-            || {
-                rayon::join(write_images, || {
-                    compare(
-                        dir,
-                        &self.exact_image,
-                        &image,
-                        &format!("{}_vs_exact", plan.name),
+        let exact = (!is_frame_baseline).then(|| self.exact_image.clone());
+        let dir = self.dir.to_path_buf();
+        let name = plan.name.clone();
+        let comparisons = std::thread::spawn(move || -> anyhow::Result<CellResult> {
+            let write_images = || -> anyhow::Result<()> {
+                if !record {
+                    return Ok(());
+                }
+                crate::output::write_png_rgb(&dir.join(&image_path), &image)?;
+                if let Some((path, hdr)) = &hdr {
+                    crate::output::write_exr(&dir.join(path), hdr)?;
+                }
+                Ok(())
+            };
+            let Some(exact) = exact else {
+                write_images()?;
+                return Ok(cell);
+            };
+            let ((written, vs_exact), (vs_own, vs_full_res)) = rayon::join(
+                || {
+                    rayon::join(write_images, || {
+                        compare(&dir, &exact, &image, &format!("{name}_vs_exact"))
+                    })
+                },
+                || {
+                    rayon::join(
+                        || {
+                            own.as_ref()
+                                .map(|own| compare(&dir, own, &image, &format!("{name}_vs_own_24")))
+                        },
+                        || {
+                            full_res.as_ref().map(|full| {
+                                compare(&dir, full, &image, &format!("{name}_vs_full_res"))
+                            })
+                        },
                     )
-                })
-            },
-            || {
-                rayon::join(
-                    || {
-                        own.as_ref().map(|own| {
-                            compare(dir, own, &image, &format!("{}_vs_own_24", plan.name))
-                        })
-                    },
-                    || {
-                        full_res.as_ref().map(|full| {
-                            compare(dir, full, &image, &format!("{}_vs_full_res", plan.name))
-                        })
-                    },
-                )
-            },
-        );
-        let (vs_own, vs_full_res) = vs_own;
-        cell.vs_full_res = Some(match vs_full_res.transpose()? {
-            Some((error, _, _)) => error,
-            None => ImageError {
-                flip_mean: 0.0,
-                rmse: 0.0,
-            },
-        });
-        written?;
-        let (vs_exact, x4, flip) = vs_exact?;
-        cell.vs_exact = Some(vs_exact);
-        cell.diff_exact = Some(x4);
-        cell.flip_exact = Some(flip);
-        match vs_own.transpose()? {
-            None => {
-                cell.vs_own_24 = Some(ImageError {
+                },
+            );
+            cell.vs_full_res = Some(match vs_full_res.transpose()? {
+                Some((error, _, _)) => error,
+                None => ImageError {
                     flip_mean: 0.0,
                     rmse: 0.0,
-                })
+                },
+            });
+            written?;
+            let (vs_exact, x4, flip) = vs_exact?;
+            cell.vs_exact = Some(vs_exact);
+            cell.diff_exact = Some(x4);
+            cell.flip_exact = Some(flip);
+            match vs_own.transpose()? {
+                None => {
+                    cell.vs_own_24 = Some(ImageError {
+                        flip_mean: 0.0,
+                        rmse: 0.0,
+                    })
+                }
+                Some((vs_own, x4, flip)) => {
+                    cell.vs_own_24 = Some(vs_own);
+                    cell.diff_own_24 = Some(x4);
+                    cell.flip_own_24 = Some(flip);
+                }
             }
-            Some((vs_own, x4, flip)) => {
-                cell.vs_own_24 = Some(vs_own);
-                cell.diff_own_24 = Some(x4);
-                cell.flip_own_24 = Some(flip);
-            }
+            Ok(cell)
+        });
+        Ok(PendingCell {
+            name: plan.name.clone(),
+            comparisons,
+        })
+    }
+}
+
+/// What [`Sweeper::prepare`] measured before a cell's timed frames.
+struct Prepared {
+    /// T at the shaded points (not for `none`).
+    probed: Option<Vec<f32>>,
+    particle_fragments: Option<u64>,
+}
+
+/// A timed cell whose image writes and comparisons run on their own thread.
+struct PendingCell {
+    name: String,
+    comparisons: std::thread::JoinHandle<anyhow::Result<CellResult>>,
+}
+
+impl PendingCell {
+    /// Waits for the comparisons: the finished cell.
+    fn finish(self) -> anyhow::Result<CellResult> {
+        match self.comparisons.join() {
+            Ok(cell) => cell,
+            Err(_) => anyhow::bail!("the comparisons of cell {} stopped (a panic)", self.name),
         }
-        Ok(cell)
     }
 }
 
@@ -1173,38 +1231,61 @@ pub fn run(
                 scene_dir,
             )
         };
+        // A finished cell: recorded, counted, and the tables kept current, so a sweep stopped
+        // here leaves consistent results.
+        let keep = |cell: CellResult, cells: &mut Vec<CellResult>| -> anyhow::Result<()> {
+            cells.push(cell);
+            if options.shard.is_none() {
+                write_results(&metadata_now(cells), scene_dir)?;
+            }
+            Ok(())
+        };
+        let finish = |pending: PendingCell,
+                      progress: &mut Progress,
+                      cells: &mut Vec<CellResult>|
+         -> anyhow::Result<()> {
+            let record = scene_dir.join(format!("cells/{}.json", pending.name));
+            let cell = pending.finish()?;
+            crate::output::write_atomic(&record, serde_json::to_string_pretty(&cell)?.as_bytes())?;
+            progress.finish(summary(&cell));
+            keep(cell, cells)
+        };
+        // The cell whose comparisons are running: finished once the next cell is prepared
+        // (they overlap only its untimed work), or before a reused cell takes its place.
+        let mut pending: Option<PendingCell> = None;
         for o in own {
-            progress.start(&o.plan.name);
-            let cell = match &o.reused {
+            match &o.reused {
                 Some(cell) => {
+                    if let Some(p) = pending.take() {
+                        finish(p, &mut progress, &mut cells)?;
+                    }
+                    progress.start(&o.plan.name);
                     progress.finish(format!("{}: done earlier, reused", o.plan.name));
                     reused += 1;
                     // The budgets it answers are this run's (they do not change what it measured).
-                    CellResult {
+                    let cell = CellResult {
                         byte_budgets: o.plan.byte_budgets.clone(),
                         channel_axis: o.plan.channel_axis,
                         ..cell.clone()
-                    }
+                    };
+                    keep(cell, &mut cells)?;
                 }
                 None => {
                     let sw = sweeper
                         .as_mut()
                         .expect("a scene with cells to measure has a sweeper");
-                    let cell = sw.measure(o.plan, o.key.clone(), true)?;
-                    crate::output::write_atomic(
-                        &scene_dir.join(format!("cells/{}.json", o.plan.name)),
-                        serde_json::to_string_pretty(&cell)?.as_bytes(),
-                    )?;
-                    progress.finish(summary(&cell));
+                    let prepared = sw.prepare(o.plan);
+                    if let Some(p) = pending.take() {
+                        finish(p, &mut progress, &mut cells)?;
+                    }
+                    progress.start(&o.plan.name);
+                    pending = Some(sw.time(o.plan, prepared?, o.key.clone(), true)?);
                     measured += 1;
-                    cell
                 }
-            };
-            cells.push(cell);
-            if options.shard.is_none() {
-                // Keep the tables current, so a sweep stopped here leaves consistent results.
-                write_results(&metadata_now(&cells), scene_dir)?;
             }
+        }
+        if let Some(p) = pending.take() {
+            finish(p, &mut progress, &mut cells)?;
         }
         drop(sweeper);
         if options.shard.is_none() {
