@@ -72,9 +72,10 @@ pub struct SweepArgs {
     /// maps once (they reuse its maps; the first frame compiles the lighting's shaders).
     #[arg(long, default_value_t = SweepOptions::default().warmup)]
     pub warmup: u32,
-    /// Stop timing a cell after this many seconds of timed frames (but after at least 3, or 2
-    /// when each took longer than this), so slow techniques do not hold the sweep;
-    /// `frames_timed` says how many it took.
+    /// Time a cell's frames for at most this many seconds: no frame starts that, as long as the
+    /// cell's average, would end past them (but at least 3 frames, or 2 when each took longer
+    /// than this), so slow techniques do not hold the sweep; `frames_timed` says how many it
+    /// took.
     #[arg(long, default_value_t = SweepOptions::default().cell_seconds, value_parser = positive_seconds)]
     pub cell_seconds: f64,
     /// Output size as WIDTHxHEIGHT (default: the scene's).

@@ -39,7 +39,7 @@ pub struct SweepOptions {
     /// Timed frames per cell (medians over these) and untimed warm-up frames before them.
     pub frames: u32,
     pub warmup: u32,
-    /// Seconds of timed frames after which a cell stops early (after at least
+    /// Seconds of timed frames a cell keeps within ([`timed_enough`]: after at least
     /// `MIN_TIMED_FRAMES`, or `MIN_SLOW_FRAMES` of frames each longer than this), so a slow
     /// technique does not hold the sweep: its medians are over fewer frames, and the cell says
     /// how many (`frames_timed`).
@@ -89,18 +89,18 @@ pub const MIN_TIMED_FRAMES: u32 = 3;
 pub const MIN_SLOW_FRAMES: u32 = 2;
 
 /// Whether a cell has timed enough frames (`frame_s`, wall seconds each) after `elapsed_s` of
-/// timing: `frames` of them, or `cell_seconds` of timing over at least [`MIN_TIMED_FRAMES`]
-/// frames, or over [`MIN_SLOW_FRAMES`] when each of them alone took longer than `cell_seconds`.
+/// timing: `frames` of them; or at least [`MIN_TIMED_FRAMES`], once one more frame, as long as
+/// the frames so far took on average, would take the timing past `cell_seconds`; or
+/// [`MIN_SLOW_FRAMES`] when each of them alone took longer than `cell_seconds`.
 pub fn timed_enough(frame_s: &[f64], elapsed_s: f64, frames: u32, cell_seconds: f64) -> bool {
     let n = frame_s.len() as u32;
     if n >= frames {
         return true;
     }
-    if elapsed_s < cell_seconds {
-        return false;
+    if n >= MIN_TIMED_FRAMES {
+        return elapsed_s + elapsed_s / f64::from(n) > cell_seconds;
     }
-    let slow = frame_s.iter().all(|&s| s > cell_seconds);
-    n >= MIN_TIMED_FRAMES || (slow && n >= MIN_SLOW_FRAMES)
+    n >= MIN_SLOW_FRAMES && frame_s.iter().all(|&s| s > cell_seconds)
 }
 
 /// The budget every cell's "own baseline" uses (the thesis' baselines).
@@ -1565,11 +1565,16 @@ mod tests {
     use super::*;
 
     #[test]
-    fn cells_time_three_frames_or_two_slow_ones_once_their_seconds_are_spent() {
-        // Before the seconds are spent: keep timing, up to `frames`.
-        assert!(!timed_enough(&[0.1; 5], 0.45, 20, 0.5));
-        assert!(timed_enough(&[0.1; 20], 1.9, 20, 0.5));
-        // After: at least three frames ...
+    fn cells_time_three_frames_or_two_slow_ones_within_their_seconds() {
+        // Timing goes on while one more frame of the average so far fits in the seconds, up to
+        // `frames`.
+        assert!(!timed_enough(&[0.1; 4], 0.4, 20, 0.5));
+        assert!(timed_enough(&[0.1; 5], 0.5, 20, 0.5));
+        assert!(!timed_enough(&[0.02; 19], 0.38, 20, 0.5));
+        assert!(timed_enough(&[0.02; 20], 0.4, 20, 0.5));
+        // Four frames of 0.12 s: a fifth would end at 0.6 s.
+        assert!(timed_enough(&[0.12; 4], 0.48, 20, 0.5));
+        // At least three frames, whatever the seconds ...
         assert!(!timed_enough(&[0.3, 0.3], 0.6, 20, 0.5));
         assert!(timed_enough(&[0.3, 0.3, 0.3], 0.9, 20, 0.5));
         // ... or two when each of them took longer than the seconds on its own.
