@@ -39,7 +39,7 @@ pub struct SweepOptions {
     /// Timed frames per cell (medians over these) and untimed warm-up frames before them.
     pub frames: u32,
     pub warmup: u32,
-    /// Seconds of timed frames a cell keeps within ([`timed_enough`]: after at least
+    /// Seconds of timed frames a cell keeps within (`timed_enough`: after at least
     /// `MIN_TIMED_FRAMES`, or `MIN_SLOW_FRAMES` of frames each longer than this), so a slow
     /// technique does not hold the sweep: its medians are over fewer frames, and the cell says
     /// how many (`frames_timed`).
