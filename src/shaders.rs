@@ -9,7 +9,9 @@
 //!
 //! A block between `#unroll NAME A..B` (or `#unroll NAME rev A..B`, descending) and
 //! `#end_unroll` is written out once per `NAME` in `A..B` as `{ const NAME = 5u; ... }`; a bound
-//! is a number or the name of a `const NAME: u32 = 18u;` of the composed source. Loops over a
+//! is a number, the name of an enclosing block's index, or the name of a `const NAME: u32 = 18u;`
+//! of the composed source, with `+N` or `-N` after it or not (`#unroll k i+1..ROOTS+1` inside
+//! `#unroll i 0..ROOTS+1`: blocks nest, and an empty range writes nothing). Loops over a
 //! small private array whose index is the counter are written this way so that every index is
 //! a constant: llvmpipe does not unroll them itself, and keeps a dynamically indexed private
 //! array in memory, moving its elements one lane at a time (3x the cost of `avsm`'s build).
@@ -54,8 +56,19 @@ pub fn compose_after(prefix: &str, entry: &str, virtuals: &[(&str, &str)]) -> St
 /// composes every one of them.
 fn expand_unrolls(source: &str) -> String {
     let mut out = String::with_capacity(source.len());
-    let mut lines = source.lines();
-    while let Some(line) = lines.next() {
+    let lines: Vec<&str> = source.lines().collect();
+    expand_lines(&lines, &[], source, &mut out);
+    out
+}
+
+/// Writes `lines` out into `out`, each `#unroll` block once per index, its body written out the
+/// same way with the block's index known to it (`outer`: the enclosing blocks' names and
+/// indices, innermost last).
+fn expand_lines(lines: &[&str], outer: &[(&str, u32)], source: &str, out: &mut String) {
+    let mut at = 0;
+    while at < lines.len() {
+        let line = lines[at];
+        at += 1;
         let Some(spec) = line.trim().strip_prefix("#unroll ") else {
             out.push_str(line);
             out.push('\n');
@@ -73,25 +86,32 @@ fn expand_unrolls(source: &str) -> String {
         let Some((from, to)) = range.split_once("..") else {
             malformed()
         };
-        let (from, to) = (unroll_bound(from, source), unroll_bound(to, source));
-        let mut body = Vec::new();
+        let (from, to) = (
+            unroll_bound(from, outer, source),
+            unroll_bound(to, outer, source),
+        );
+        // The body: up to the `#end_unroll` that closes this block.
+        let mut depth = 0;
+        let body_start = at;
         loop {
-            match lines.next() {
-                Some(l) if l.trim() == "#end_unroll" => break,
-                Some(l) if l.trim().starts_with("#unroll ") => {
-                    panic!("nested `{}` inside `{}`", l.trim(), line.trim())
-                }
-                Some(l) => body.push(l),
-                None => panic!("`{}` has no #end_unroll", line.trim()),
+            let Some(l) = lines.get(at) else {
+                panic!("`{}` has no #end_unroll", line.trim())
+            };
+            at += 1;
+            match l.trim() {
+                "#end_unroll" if depth == 0 => break,
+                "#end_unroll" => depth -= 1,
+                t if t.starts_with("#unroll ") => depth += 1,
+                _ => {}
             }
         }
+        let body = &lines[body_start..at - 1];
         let indent = &line[..line.len() - line.trim_start().len()];
         let mut emit = |k: u32| {
             out.push_str(&format!("{indent}{{\n{indent}    const {name} = {k}u;\n"));
-            for l in &body {
-                out.push_str(l);
-                out.push('\n');
-            }
+            let mut inner = outer.to_vec();
+            inner.push((name, k));
+            expand_lines(body, &inner, source, out);
             out.push_str(&format!("{indent}}}\n"));
         };
         if reverse {
@@ -100,7 +120,6 @@ fn expand_unrolls(source: &str) -> String {
             (from..to).for_each(&mut emit);
         }
     }
-    out
 }
 
 /// `const NAME: u32 = Vu;` lines for `constants`, to compose before a shader that bounds its
@@ -112,17 +131,37 @@ pub fn u32_constants(constants: &[(&str, u32)]) -> String {
         .collect()
 }
 
-/// An `#unroll` bound: a number, or the value of `const NAME: u32 = Nu;` in `source`.
-fn unroll_bound(word: &str, source: &str) -> u32 {
-    if let Ok(n) = word.parse() {
-        return n;
-    }
-    let declaration = format!("const {word}: u32 = ");
-    source
-        .lines()
-        .find_map(|l| l.trim().strip_prefix(&declaration))
-        .and_then(|rest| rest.strip_suffix("u;")?.parse().ok())
-        .unwrap_or_else(|| panic!("#unroll bound `{word}` is neither a number nor a u32 const"))
+/// An `#unroll` bound: a number, an enclosing block's name, or the value of
+/// `const NAME: u32 = Nu;` in `source`, with `+N` or `-N` after it or not (`j+1`, `SLOTS-1`).
+fn unroll_bound(word: &str, outer: &[(&str, u32)], source: &str) -> u32 {
+    let (term, offset) = match word.find(['+', '-']) {
+        Some(at) => {
+            let n: i64 = word[at + 1..]
+                .parse()
+                .unwrap_or_else(|_| panic!("#unroll bound `{word}`: no number after its sign"));
+            (&word[..at], if &word[at..at + 1] == "-" { -n } else { n })
+        }
+        None => (word, 0),
+    };
+    let value = term.parse().ok().or_else(|| {
+        outer
+            .iter()
+            .rev()
+            .find(|(name, _)| *name == term)
+            .map(|&(_, k)| k)
+    });
+    let value = value.unwrap_or_else(|| {
+        let declaration = format!("const {term}: u32 = ");
+        source
+            .lines()
+            .find_map(|l| l.trim().strip_prefix(&declaration))
+            .and_then(|rest| rest.strip_suffix("u;")?.parse().ok())
+            .unwrap_or_else(|| {
+                panic!("#unroll bound `{word}` is neither a number, an enclosing #unroll nor a u32 const")
+            })
+    });
+    u32::try_from(i64::from(value) + offset)
+        .unwrap_or_else(|_| panic!("#unroll bound `{word}` is below 0"))
 }
 
 fn append<'a>(
@@ -202,13 +241,46 @@ mod tests {
     }
 
     #[test]
+    fn nested_unrolls_bound_theirs_by_the_enclosing_index() {
+        // A triangle: i in 0..N, k in i+1..N, and an empty inner range for the last i.
+        let source = "const N: u32 = 3u;\n#unroll i 0..N\n#unroll k i+1..N\nf(i, k);\n#end_unroll\n#end_unroll\n#unroll j 1..N-1\ng(j);\n#end_unroll\n";
+        let text = expand_unrolls(source);
+        let consts: Vec<&str> = text
+            .lines()
+            .filter(|l| l.trim().starts_with("const ") && !l.contains(": u32"))
+            .map(str::trim)
+            .collect();
+        assert_eq!(
+            consts,
+            [
+                "const i = 0u;",
+                "const k = 1u;",
+                "const k = 2u;",
+                "const i = 1u;",
+                "const k = 2u;",
+                "const i = 2u;",
+                "const j = 1u;"
+            ]
+        );
+        assert_eq!(text.matches("f(i, k);").count(), 3);
+        assert_eq!(text.matches("g(j);").count(), 1);
+        assert_eq!(text.matches('{').count(), text.matches('}').count());
+    }
+
+    #[test]
+    #[should_panic(expected = "is below 0")]
+    fn an_unroll_bound_below_zero_is_refused() {
+        expand_unrolls("#unroll k 0..1\n#unroll j 0..k-1\nx;\n#end_unroll\n#end_unroll\n");
+    }
+
+    #[test]
     #[should_panic(expected = "has no #end_unroll")]
     fn an_unclosed_unroll_is_refused() {
         expand_unrolls("#unroll k 0..2\nx;\n");
     }
 
     #[test]
-    #[should_panic(expected = "neither a number nor a u32 const")]
+    #[should_panic(expected = "neither a number, an enclosing #unroll nor a u32 const")]
     fn an_unknown_unroll_bound_is_refused() {
         expand_unrolls("#unroll k 0..MISSING\nx;\n#end_unroll\n");
     }
