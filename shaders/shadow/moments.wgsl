@@ -3,6 +3,12 @@
 // moments. The CPU mirror, with the derivation, is src/shadow/moment_math.rs; keep the two in
 // step. Complex numbers are vec2<f32> (re, im); power moments are complex with im = 0, so one
 // code path serves both families.
+//
+// The budget's MOMENT_ROOTS (n) and LAYERED_COUNT (the moments) are constants composed before
+// the lookup (src/shadow/layered.rs, `lookup_constants`): every loop over the small arrays below
+// is written out over them (`#unroll`, src/shaders.rs), so that each index is a constant and the
+// arrays stay in registers; where fewer roots are finite than n, the written-out steps past them
+// are guarded off.
 #import common/lighting.wgsl
 
 // Most roots the closed-form root finding handles (a quartic).
@@ -87,11 +93,11 @@ fn moment_quartic(a: vec2<f32>, b: vec2<f32>, c: vec2<f32>, d: vec2<f32>) -> arr
     let r = d - c_mul(a, c) / 4.0 + c_mul(a2, b) / 16.0 - 3.0 * c_mul(a2, a2) / 256.0;
     let resolvent = moment_cubic(p, (c_mul(p, p) - 4.0 * r) / 4.0, -c_mul(q, q) / 8.0);
     var m = resolvent[0];
-    for (var i = 1u; i < 3u; i++) {
+    #unroll i 1..3
         if dot(resolvent[i], resolvent[i]) > dot(m, m) {
             m = resolvent[i];
         }
-    }
+    #end_unroll
     let s = c_sqrt(2.0 * m);
     if dot(s, s) == 0.0 {
         return array<vec2<f32>, 4>(-shift, -shift, -shift, -shift);
@@ -113,23 +119,32 @@ struct MomentRoots {
     count: u32,
 };
 
-// Roots of Σ coefficients[k] x^k of degree at most `degree` (2..=4): leading coefficients that
-// vanish lower the degree (roots at infinity are dropped); the rest in closed form, polished by
-// two Newton steps.
-fn moment_roots(coefficients: array<vec2<f32>, 5>, degree: u32) -> MomentRoots {
+// Roots of Σ coefficients[k] x^k of degree at most MOMENT_ROOTS (2..=4): leading coefficients
+// that vanish lower the degree (roots at infinity are dropped); the rest in closed form, polished
+// by two Newton steps.
+fn moment_roots(coefficients: array<vec2<f32>, 5>) -> MomentRoots {
     var a = coefficients;
     var largest = 0.0;
-    for (var k = 0u; k <= degree; k++) {
+    #unroll k 0..MOMENT_ROOTS+1
         largest = max(largest, length(a[k]));
-    }
-    var n = degree;
-    while n > 1u && length(a[n]) <= MOMENT_VANISHING_LEAD * largest {
-        n -= 1u;
-    }
-    let lead = a[n];
-    for (var k = 0u; k <= n; k++) {
-        a[k] = c_div(a[k], lead);
-    }
+    #end_unroll
+    var n = MOMENT_ROOTS;
+    #unroll m rev 2..MOMENT_ROOTS+1
+        if n == m && length(a[m]) <= MOMENT_VANISHING_LEAD * largest {
+            n = m - 1u;
+        }
+    #end_unroll
+    var lead = a[1];
+    #unroll m 2..MOMENT_ROOTS+1
+        if n == m {
+            lead = a[m];
+        }
+    #end_unroll
+    #unroll k 0..MOMENT_ROOTS+1
+        if k <= n {
+            a[k] = c_div(a[k], lead);
+        }
+    #end_unroll
     var out: MomentRoots;
     out.count = n;
     if n == 1u {
@@ -146,28 +161,31 @@ fn moment_roots(coefficients: array<vec2<f32>, 5>, degree: u32) -> MomentRoots {
     } else {
         out.roots = moment_quartic(a[3], a[2], a[1], a[0]);
     }
-    for (var i = 0u; i < n; i++) {
-        var x = out.roots[i];
-        for (var step = 0u; step < 2u; step++) {
-            var value = vec2<f32>(0.0);
-            var slope = vec2<f32>(0.0);
-            for (var k = 0u; k <= n; k++) {
-                slope = c_mul(slope, x) + value;
-                value = c_mul(value, x) + a[n - k];
-            }
-            if dot(slope, slope) > 0.0 {
-                x -= c_div(value, slope);
-            }
+    #unroll i 0..MOMENT_ROOTS
+        if i < n {
+            var x = out.roots[i];
+            #unroll step 0..2
+                var value = vec2<f32>(0.0);
+                var slope = vec2<f32>(0.0);
+                // Horner from a[n] down to a[0].
+                #unroll k rev 0..MOMENT_ROOTS+1
+                    if k <= n {
+                        slope = c_mul(slope, x) + value;
+                        value = c_mul(value, x) + a[k];
+                    }
+                #end_unroll
+                if dot(slope, slope) > 0.0 {
+                    x -= c_div(value, slope);
+                }
+            #end_unroll
+            out.roots[i] = x;
         }
-        out.roots[i] = x;
-    }
+    #end_unroll
     return out;
 }
 
 // How a reconstruction is set (from the technique's parameters).
 struct MomentSetting {
-    // Roots n (2..=4): power maps hold 2n moments, trigonometric ones n.
-    roots: u32,
     // Trigonometric moments (else power).
     trigonometric: bool,
     // β: the pull towards the uniform distribution's moments.
@@ -219,61 +237,58 @@ fn moment_transmittance(s: MomentSetting, b0: f32, weighted: array<vec2<f32>, 9>
     if depth01 >= 1.0 {
         return clamp(exp(-b0), 0.0, 1.0);
     }
-    let n = s.roots;
-    let size = n + 1u;
-    let count = select(2u * n, n, s.trigonometric);
-    // Biased normalised moments, b[0] = 1.
+    // Biased normalised moments, b[0] = 1 (power maps hold 2n moments, trigonometric ones n:
+    // LAYERED_COUNT either way).
     var b: array<vec2<f32>, 9>;
     b[0] = vec2<f32>(1.0, 0.0);
-    for (var k = 1u; k <= count; k++) {
+    #unroll k 1..LAYERED_COUNT+1
         b[k] = (1.0 - s.bias) * weighted[k] / b0 + vec2<f32>(s.bias * moment_uniform(s, k), 0.0);
-    }
-    // A = L D Lᴴ of the Hankel (power: A_ij = b[i + j]) or Toeplitz (A_ij = b[i − j], conjugated
-    // above the diagonal) matrix.
+    #end_unroll
+    // A = L D Lᴴ of the (n + 1)² Hankel (power: A_ij = b[i + j]) or Toeplitz (A_ij = b[i − j],
+    // conjugated above the diagonal) matrix.
     var l: array<vec2<f32>, 25>;
     var d: array<f32, 5>;
-    for (var j = 0u; j < size; j++) {
+    #unroll j 0..MOMENT_ROOTS+1
         var dj = select(b[2u * j].x, 1.0, s.trigonometric);
-        for (var k = 0u; k < j; k++) {
+        #unroll k 0..j
             dj -= dot(l[j * 5u + k], l[j * 5u + k]) * d[k];
-        }
+        #end_unroll
         d[j] = dj;
-        for (var i = j + 1u; i < size; i++) {
+        #unroll i j+1..MOMENT_ROOTS+1
             var sum = select(b[i + j], b[i - j], s.trigonometric);
-            for (var k = 0u; k < j; k++) {
+            #unroll k 0..j
                 sum -= c_mul(l[i * 5u + k], c_conj(l[j * 5u + k])) * d[k];
-            }
+            #end_unroll
             l[i * 5u + j] = sum / dj;
-        }
-    }
+        #end_unroll
+    #end_unroll
     // Solve A c = (1, z0, …, z0ⁿ).
     let z0 = moment_node(s, depth01);
     var c: array<vec2<f32>, 5>;
     c[0] = vec2<f32>(1.0, 0.0);
-    for (var k = 1u; k < size; k++) {
+    #unroll k 1..MOMENT_ROOTS+1
         c[k] = c_mul(c[k - 1u], z0);
-    }
-    for (var i = 1u; i < size; i++) {
-        for (var k = 0u; k < i; k++) {
+    #end_unroll
+    #unroll i 1..MOMENT_ROOTS+1
+        #unroll k 0..i
             c[i] -= c_mul(l[i * 5u + k], c[k]);
-        }
-    }
-    for (var i = 0u; i < size; i++) {
+        #end_unroll
+    #end_unroll
+    #unroll i 0..MOMENT_ROOTS+1
         c[i] /= d[i];
-    }
-    for (var ii = 0u; ii < size; ii++) {
-        let i = size - 1u - ii;
-        for (var k = i + 1u; k < size; k++) {
+    #end_unroll
+    #unroll i rev 0..MOMENT_ROOTS+1
+        #unroll k i+1..MOMENT_ROOTS+1
             c[i] -= c_mul(c_conj(l[k * 5u + i]), c[k]);
-        }
-    }
+        #end_unroll
+    #end_unroll
     // The kernel polynomial (conjugated coefficients for trigonometric moments) and its roots.
     if s.trigonometric {
-        for (var k = 0u; k < size; k++) {
+        #unroll k 0..MOMENT_ROOTS+1
             c[k] = c_conj(c[k]);
-        }
+        #end_unroll
     }
-    let roots = moment_roots(c, n);
+    let roots = moment_roots(c);
     // The polynomial through (z0, η) and (each finite root, its weight), of degree one less than
     // the nodes: Newton's divided differences.
     let finite = roots.count;
@@ -282,35 +297,54 @@ fn moment_transmittance(s: MomentSetting, b0: f32, weighted: array<vec2<f32>, 9>
     var dd: array<vec2<f32>, 5>;
     nodes[0] = z0;
     dd[0] = vec2<f32>(s.overestimation, 0.0);
-    for (var i = 0u; i < finite; i++) {
-        nodes[i + 1u] = roots.roots[i];
-        dd[i + 1u] = vec2<f32>(moment_root_weight(s, roots.roots[i], z0), 0.0);
-    }
-    for (var level = 1u; level < nodes_count; level++) {
-        for (var ii = 0u; ii < nodes_count - level; ii++) {
-            let i = nodes_count - 1u - ii;
-            dd[i] = c_div(dd[i] - dd[i - 1u], nodes[i] - nodes[i - level]);
+    #unroll i 0..MOMENT_ROOTS
+        if i < finite {
+            nodes[i + 1u] = roots.roots[i];
+            dd[i + 1u] = vec2<f32>(moment_root_weight(s, roots.roots[i], z0), 0.0);
         }
-    }
-    // Its monomial coefficients (Horner on the Newton form), integrated against the moments.
+    #end_unroll
+    #unroll level 1..MOMENT_ROOTS+1
+        #unroll i rev level..MOMENT_ROOTS+1
+            if i < nodes_count {
+                dd[i] = c_div(dd[i] - dd[i - 1u], nodes[i] - nodes[i - level]);
+            }
+        #end_unroll
+    #end_unroll
+    // Its monomial coefficients (Horner on the Newton form, from node finite − 1 down to node
+    // 0), integrated against the moments.
     var poly: array<vec2<f32>, 5>;
-    poly[0] = dd[finite];
-    var len = 1u;
-    for (var kk = 0u; kk < finite; kk++) {
-        let k = finite - 1u - kk;
-        var next: array<vec2<f32>, 5>;
-        for (var i = 0u; i < len; i++) {
-            next[i + 1u] += poly[i];
-            next[i] -= c_mul(poly[i], nodes[k]);
+    poly[0] = dd[0];
+    #unroll m 1..MOMENT_ROOTS+1
+        if m == finite {
+            poly[0] = dd[m];
         }
-        next[0] += dd[k];
-        poly = next;
-        len += 1u;
-    }
+    #end_unroll
+    #unroll kk 0..MOMENT_ROOTS
+        if kk < finite {
+            // Node k = finite − 1 − kk and its difference.
+            var node = nodes[0];
+            var difference = dd[0];
+            #unroll m 1..MOMENT_ROOTS
+                if m + kk + 1u == finite {
+                    node = nodes[m];
+                    difference = dd[m];
+                }
+            #end_unroll
+            var next: array<vec2<f32>, 5>;
+            #unroll i 0..kk+1
+                next[i + 1u] += poly[i];
+                next[i] -= c_mul(poly[i], node);
+            #end_unroll
+            next[0] += difference;
+            poly = next;
+        }
+    #end_unroll
     var share = 0.0;
-    for (var k = 0u; k < nodes_count; k++) {
-        share += c_mul(poly[k], b[k]).x;
-    }
+    #unroll k 0..MOMENT_ROOTS+1
+        if k < nodes_count {
+            share += c_mul(poly[k], b[k]).x;
+        }
+    #end_unroll
     // A reconstruction that broke down (NaN from a singular matrix) counts nothing in front.
     share = select(0.0, clamp(share, 0.0, 1.0), share == share);
     return clamp(exp(-b0 * share), 0.0, 1.0);
@@ -327,12 +361,12 @@ fn moment_map_transmittance(p: vec3<f32>, setting: MomentSetting) -> f32 {
     }
     var c = layered_channels(l.uv);
     var weighted: array<vec2<f32>, 9>;
-    for (var k = 1u; k <= layered.count; k++) {
+    #unroll k 1..LAYERED_COUNT+1
         if setting.trigonometric {
             weighted[k] = vec2<f32>(c[2u * k - 1u], c[2u * k]);
         } else {
             weighted[k] = vec2<f32>(c[k], 0.0);
         }
-    }
+    #end_unroll
     return moment_transmittance(setting, c[0], weighted, l.depth01);
 }

@@ -5,7 +5,7 @@
 #import shadow/moments.wgsl
 
 fn msm_setting() -> MomentSetting {
-    return MomentSetting(layered.count / 2u, false, layered.moment_bias, layered.moment_overestimation, 0.0);
+    return MomentSetting(false, layered.moment_bias, layered.moment_overestimation, 0.0);
 }
 
 fn shadow_transmittance(p: vec3<f32>) -> f32 {

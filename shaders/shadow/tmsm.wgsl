@@ -6,7 +6,7 @@
 #import shadow/moments.wgsl
 
 fn tmsm_setting() -> MomentSetting {
-    return MomentSetting(layered.count, true, layered.moment_bias, layered.moment_overestimation, layered.wrapping_zone_rad);
+    return MomentSetting(true, layered.moment_bias, layered.moment_overestimation, layered.wrapping_zone_rad);
 }
 
 fn shadow_transmittance(p: vec3<f32>) -> f32 {

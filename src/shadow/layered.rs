@@ -79,6 +79,9 @@ pub struct MomentParams {
     pub bias: &'static ParamSpec,
     /// η, the share of the weight at the receiver's depth counted in front of it.
     pub overestimation: &'static ParamSpec,
+    /// Trigonometric moments (`tmsm`: n roots from n moments), else power moments (`msm`: n
+    /// roots from 2n).
+    pub trigonometric: bool,
     /// θ, the wrapping zone of trigonometric moments.
     pub wrapping_zone: Option<&'static ParamSpec>,
 }
@@ -289,16 +292,25 @@ fn build_outputs_wgsl(targets: u32) -> String {
 }
 
 /// The lookup's compile-time constants ([`super::TechniqueEntry::lookup_constants`]): the
-/// count (slices, layers, harmonics) and the packed targets `layered_channels` reads.
+/// count (slices, layers, harmonics, moments) and the packed targets `layered_channels` reads;
+/// for moment maps also the roots n their reconstruction finds (shaders/shadow/moments.wgsl).
 pub fn lookup_constants(
     spec: &LayeredSpec,
     params: &super::TechniqueParams,
 ) -> Vec<(&'static str, u32)> {
     let plan = (spec.plan)(params.channels);
-    vec![
+    let mut constants = vec![
         ("LAYERED_COUNT", plan.count),
         ("LAYERED_TARGETS", plan.packed.div_ceil(4)),
-    ]
+    ];
+    if let Some(moments) = &spec.moments {
+        let roots = match moments.trigonometric {
+            true => plan.count,
+            false => plan.count / 2,
+        };
+        constants.push(("MOMENT_ROOTS", roots));
+    }
+    constants
 }
 
 /// The full build shader of `spec` for `targets` render targets, after the lookup's constants

@@ -144,6 +144,7 @@ pub const MSM: LayeredSpec = LayeredSpec {
     moments: Some(MomentParams {
         bias: &BIAS,
         overestimation: &OVERESTIMATION,
+        trigonometric: false,
         wrapping_zone: None,
     }),
     precision: PrecisionSpec::Fixed(Precision::Single),
@@ -161,6 +162,7 @@ pub const TMSM: LayeredSpec = LayeredSpec {
     moments: Some(MomentParams {
         bias: &TRIG_BIAS,
         overestimation: &TRIG_OVERESTIMATION,
+        trigonometric: true,
         wrapping_zone: Some(&WRAPPING_ZONE),
     }),
     channel_name: |c: u32, _| match c {
