@@ -8,7 +8,7 @@
 // 2. convert: the slab's sums as half floats, two voxels a word, rows padded for the copy into
 //    the 3D texture.
 // Loops per invocation: the search (among the jobs of the row's block of VOLUME_ROWS_PER_BLOCK
-// rows, a constant composed before this file: at most 9 steps) and at most G <= 1023 voxels
+// rows: at most 9 steps) and at most G <= 1023 voxels
 // of 8 sub-samples: within llvmpipe's 65,535 iterations. Keep `VolumeBuild` and `VolumeJob` in
 // sync with src/shadow/volume.rs.
 
@@ -81,7 +81,8 @@ fn light_ray_extinction(at: vec3<f32>, job: VolumeJob) -> f32 {
 @group(1) @binding(2) var<storage, read_write> scratch: array<atomic<u32>>;
 @group(1) @binding(3) var<storage, read_write> staging: array<u32>;
 // For each block of VOLUME_ROWS_PER_BLOCK rows the job of its first row, then the last job
-// (src/shadow/volume.rs, `VoxelPlan::row_blocks`).
+// (src/shadow/volume.rs, `VoxelPlan::row_blocks`; keep in sync with ROWS_PER_BLOCK there).
+const VOLUME_ROWS_PER_BLOCK: u32 = 256u;
 @group(1) @binding(4) var<storage, read> row_blocks: array<u32>;
 
 fn unpack3(v: u32) -> vec3<u32> {

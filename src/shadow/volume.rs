@@ -193,18 +193,15 @@ const LOOKUP_BYTES: u64 = std::mem::size_of::<VolumeParams>() as u64;
 const BUILD_BYTES: u64 = std::mem::size_of::<VolumeBuild>() as u64;
 /// Jobs the buffer holds at first.
 const MIN_JOB_CAPACITY: u32 = 1024;
-/// Rows of the scatter per entry of the row-block table ([`VoxelPlan::row_blocks`]).
+/// Rows of the scatter per entry of the row-block table ([`VoxelPlan::row_blocks`]);
+/// `VOLUME_ROWS_PER_BLOCK` in shaders/shadow/volume_build.wgsl.
 pub const ROWS_PER_BLOCK: u32 = 256;
 /// Entries the row-block table holds at first (u32 each).
 const MIN_BLOCK_CAPACITY: u32 = 1024;
 
-/// The build shader, composed after its constants.
+/// The build shader, composed.
 fn build_shader() -> String {
-    shaders::compose_after(
-        &shaders::u32_constants(&[("VOLUME_ROWS_PER_BLOCK", ROWS_PER_BLOCK)]),
-        "shadow/volume_build.wgsl",
-        &[],
-    )
+    shaders::compose("shadow/volume_build.wgsl", &[])
 }
 
 pub const ENTRY: TechniqueEntry = TechniqueEntry {
@@ -1059,6 +1056,10 @@ mod tests {
         let source = shaders::source("shadow/volume_build.wgsl").unwrap();
         assert!(source.contains(&format!(
             "const VOLUME_SUBSAMPLES: u32 = {SUBSAMPLES_PER_AXIS}u;"
+        )));
+        // And finds a row's particle in the blocks the CPU's table has.
+        assert!(source.contains(&format!(
+            "const VOLUME_ROWS_PER_BLOCK: u32 = {ROWS_PER_BLOCK}u;"
         )));
     }
 }
