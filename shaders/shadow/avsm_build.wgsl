@@ -17,31 +17,24 @@
 @group(2) @binding(0) var<uniform> deep: DeepParams;
 @group(2) @binding(1) var<storage, read_write> out_nodes: array<vec2<f32>>;
 
-// N <= MAX_CHANNELS / 2 = 16 nodes, plus the two one segment inserts before compressing.
-const MAX_NODES: u32 = 18u;
-
-// The slots with a slot after them (the interior nodes' last possible one).
-const BEFORE_LAST: u32 = 17u;
-const_assert BEFORE_LAST + 1u == MAX_NODES;
+// The curve's slots, CURVE_NODES: the budget's N plus the two nodes a segment inserts before its
+// removals, a constant composed before this file (src/shadow/avsm.rs, `compress_constants`).
+const_assert CURVE_NODES >= 4u;
 
 // One texel's transmittance curve while it is built: nodes (z[k], t[k]) sorted by z, the first
 // `count` of them meaningful (the others hold leftovers that every step masks out).
 //
-// Every loop over the curve is written out slot by slot (`#unroll`, src/shaders.rs), over the
-// CURVE_NODES slots the budget needs, and selects where a branch, a search or an early exit
+// Every loop over the curve is written out slot by slot (`#unroll`, src/shaders.rs), over its
+// CURVE_NODES slots, and selects where a branch, a search or an early exit
 // would go: no element is indexed by a value known only at run time, so the curve stays in
 // registers. (llvmpipe keeps a dynamically indexed private array in memory and moves its
 // elements one lane at a time: loops that searched and shifted by index cost `avsm`'s build on
 // the thesis scene 300 ms against 60 ms.) The results are the CPU mirror's, node for node.
 struct Curve {
-    z: array<f32, MAX_NODES>,
-    t: array<f32, MAX_NODES>,
+    z: array<f32, CURVE_NODES>,
+    t: array<f32, CURVE_NODES>,
     count: u32,
 };
-
-// The slots in use: the budget's N plus the two nodes a segment inserts before its removals
-// (set per pipeline: src/shadow/avsm.rs); the slots past it are left out of every step.
-override CURVE_NODES: u32 = MAX_NODES;
 
 // T of the curve at z: 1 in front of the first node, the last node's T behind the last, linear
 // between the nodes k - 1 and k of the first k with z[k] > z.
@@ -50,16 +43,14 @@ fn curve_at(c: ptr<function, Curve>, z: f32) -> f32 {
     // The bracketing nodes; behind the last node both are the last.
     var a = vec2<f32>((*c).z[0], (*c).t[0]);
     var b = a;
-    #unroll k 1..MAX_NODES
-        if k < CURVE_NODES {
-            let node = vec2<f32>((*c).z[k], (*c).t[k]);
-            let inside = k < n && (*c).z[k - 1u] <= z && z < node.x;
-            a = select(a, vec2<f32>((*c).z[k - 1u], (*c).t[k - 1u]), inside);
-            b = select(b, node, inside);
-            let behind = k + 1u == n && z >= node.x;
-            a = select(a, node, behind);
-            b = select(b, node, behind);
-        }
+    #unroll k 1..CURVE_NODES
+        let node = vec2<f32>((*c).z[k], (*c).t[k]);
+        let inside = k < n && (*c).z[k - 1u] <= z && z < node.x;
+        a = select(a, vec2<f32>((*c).z[k - 1u], (*c).t[k - 1u]), inside);
+        b = select(b, node, inside);
+        let behind = k + 1u == n && z >= node.x;
+        a = select(a, node, behind);
+        b = select(b, node, behind);
     #end_unroll
     // (mix(t, t, u) is t for u in {0, 1}, the only u a = b gives.)
     let value = mix(a.y, b.y, clamp((z - a.x) / max(b.x - a.x, 1e-12), 0.0, 1.0));
@@ -70,16 +61,12 @@ fn curve_at(c: ptr<function, Curve>, z: f32) -> f32 {
 fn insert_node(c: ptr<function, Curve>, z: f32, t: f32) {
     let n = (*c).count;
     var at = 0u;
-    #unroll k 0..MAX_NODES
-        if k < CURVE_NODES {
-            at += u32(k < n && (*c).z[k] <= z);
-        }
+    #unroll k 0..CURVE_NODES
+        at += u32(k < n && (*c).z[k] <= z);
     #end_unroll
-    #unroll k rev 1..MAX_NODES
-        if k < CURVE_NODES {
-            (*c).z[k] = select(select((*c).z[k], z, k == at), (*c).z[k - 1u], k > at);
-            (*c).t[k] = select(select((*c).t[k], t, k == at), (*c).t[k - 1u], k > at);
-        }
+    #unroll k rev 1..CURVE_NODES
+        (*c).z[k] = select(select((*c).z[k], z, k == at), (*c).z[k - 1u], k > at);
+        (*c).t[k] = select(select((*c).t[k], t, k == at), (*c).t[k - 1u], k > at);
     #end_unroll
     (*c).z[0] = select((*c).z[0], z, at == 0u);
     (*c).t[0] = select((*c).t[0], t, at == 0u);
@@ -92,12 +79,10 @@ fn insert_segment(c: ptr<function, Curve>, s: Segment) {
     let t_behind = curve_at(c, s.z1) * t_exit;
     let width = max(s.z1 - s.z0, 1e-12);
     let n = (*c).count;
-    #unroll k 0..MAX_NODES
-        if k < CURVE_NODES {
-            let z = (*c).z[k];
-            let ramped = (*c).t[k] * mix(1.0, t_exit, min((z - s.z0) / width, 1.0));
-            (*c).t[k] = select((*c).t[k], ramped, k < n && z > s.z0);
-        }
+    #unroll k 0..CURVE_NODES
+        let z = (*c).z[k];
+        let ramped = (*c).t[k] * mix(1.0, t_exit, min((z - s.z0) / width, 1.0));
+        (*c).t[k] = select((*c).t[k], ramped, k < n && z > s.z0);
     #end_unroll
     insert_node(c, s.z0, t_entry);
     insert_node(c, s.z1, t_behind);
@@ -109,21 +94,17 @@ fn remove_least_area(c: ptr<function, Curve>) {
     let n = (*c).count;
     var best = 1u;
     var best_area = 3.0e38;
-    #unroll k 1..BEFORE_LAST
-        if k + 1u < CURVE_NODES {
-            let za = (*c).z[k - 1u];
-            let ta = (*c).t[k - 1u];
-            let area = abs(((*c).z[k] - za) * ((*c).t[k + 1u] - ta) - ((*c).z[k + 1u] - za) * ((*c).t[k] - ta));
-            let smaller = k + 1u < n && area < best_area;
-            best = select(best, k, smaller);
-            best_area = select(best_area, area, smaller);
-        }
+    #unroll k 1..CURVE_NODES-1
+        let za = (*c).z[k - 1u];
+        let ta = (*c).t[k - 1u];
+        let area = abs(((*c).z[k] - za) * ((*c).t[k + 1u] - ta) - ((*c).z[k + 1u] - za) * ((*c).t[k] - ta));
+        let smaller = k + 1u < n && area < best_area;
+        best = select(best, k, smaller);
+        best_area = select(best_area, area, smaller);
     #end_unroll
-    #unroll k 1..BEFORE_LAST
-        if k + 1u < CURVE_NODES {
-            (*c).z[k] = select((*c).z[k], (*c).z[k + 1u], k >= best);
-            (*c).t[k] = select((*c).t[k], (*c).t[k + 1u], k >= best);
-        }
+    #unroll k 1..CURVE_NODES-1
+        (*c).z[k] = select((*c).z[k], (*c).z[k + 1u], k >= best);
+        (*c).t[k] = select((*c).t[k], (*c).t[k + 1u], k >= best);
     #end_unroll
     (*c).count = n - 1u;
 }
@@ -162,8 +143,8 @@ fn compress(@builtin(global_invocation_id) id: vec3<u32>) {
     curve.count = 0u;
     if begin > 0u {
         curve.count = u32(nodes[scratch].x);
-        #unroll k 0..MAX_NODES
-            if k < CURVE_NODES && k < curve.count {
+        #unroll k 0..CURVE_NODES
+            if k < curve.count {
                 let node = nodes[scratch + 1u + k];
                 curve.z[k] = node.x;
                 curve.t[k] = node.y;
@@ -178,8 +159,8 @@ fn compress(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     if end < list.count {
         nodes[scratch] = vec2<f32>(f32(curve.count), 0.0);
-        #unroll k 0..MAX_NODES
-            if k < CURVE_NODES && k < curve.count {
+        #unroll k 0..CURVE_NODES
+            if k < curve.count {
                 nodes[scratch + 1u + k] = vec2<f32>(curve.z[k], curve.t[k]);
             }
         #end_unroll
@@ -194,14 +175,12 @@ fn compress(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     // The nodes, the last repeated into the free slots.
     var last = vec2<f32>(0.0);
-    #unroll k 0..MAX_NODES
-        if k < CURVE_NODES {
-            if k < curve.count {
-                last = vec2<f32>(curve.z[k], curve.t[k]);
-            }
-            if k < limit {
-                out_nodes[out + k] = last;
-            }
+    #unroll k 0..CURVE_NODES
+        if k < curve.count {
+            last = vec2<f32>(curve.z[k], curve.t[k]);
+        }
+        if k < limit {
+            out_nodes[out + k] = last;
         }
     #end_unroll
 }

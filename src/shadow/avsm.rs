@@ -76,7 +76,7 @@ pub const SPEC: DeepNodesSpec = DeepNodesSpec {
     rounds,
     resolve,
     // The curve's slots: N, and the two nodes a segment inserts before its removals.
-    compress_constants: |n| vec![("CURVE_NODES", f64::from(n + 2))],
+    compress_constants: |n| vec![("CURVE_NODES", n + 2)],
 };
 
 /// Loop iterations one segment's insertion and removals take, with a margin

@@ -74,23 +74,35 @@ pub struct DeepNodesSpec {
     pub rounds: fn(max_list: u32, loop_budget: u32) -> u32,
     /// What the capture's resolve leaves for the compression under these parameters.
     pub resolve: fn(&TechniqueParams) -> Resolve,
-    /// The compression's pipeline-overridable constants for N nodes per texel.
-    pub compress_constants: fn(nodes_per_texel: u32) -> Vec<(&'static str, f64)>,
+    /// The compression's compile-time constants for N nodes per texel, composed before its
+    /// shader (`const NAME: u32 = V;`, which its `#unroll` blocks may be bounded by).
+    pub compress_constants: fn(nodes_per_texel: u32) -> Vec<(&'static str, u32)>,
 }
 
 impl DeepNodesSpec {
-    /// The capture's and the compression's shaders, composed, for the naga test.
+    /// The capture's and the compression's shaders, composed, for the naga test: the
+    /// compression at the fewest nodes per texel a budget gives (2, at 4 channels) and the most.
     pub fn build_shaders(&self) -> Vec<(String, String)> {
-        vec![
-            (
-                format!("{}.capture", self.name),
-                shaders::compose("shadow/deep_capture.wgsl", &[]),
-            ),
-            (
-                format!("{}.compress", self.name),
-                shaders::compose(self.build_shader, &[]),
-            ),
-        ]
+        let mut out = vec![(
+            format!("{}.capture", self.name),
+            shaders::compose("shadow/deep_capture.wgsl", &[]),
+        )];
+        for n in [nodes_per_texel(4), nodes_per_texel(super::MAX_CHANNELS)] {
+            out.push((
+                format!("{}.compress.{n}_nodes", self.name),
+                self.compress_shader(n),
+            ));
+        }
+        out
+    }
+
+    /// The compression shader for N nodes per texel, after its constants.
+    fn compress_shader(&self, nodes_per_texel: u32) -> String {
+        shaders::compose_after(
+            &shaders::u32_constants(&(self.compress_constants)(nodes_per_texel)),
+            self.build_shader,
+            &[],
+        )
     }
 
     /// Bytes of the statistics buffer (none without statistics).
@@ -217,7 +229,7 @@ impl DeepNodes {
         let module = shaders::module(
             device,
             &label("compress"),
-            &shaders::compose(spec.build_shader, &[]),
+            &spec.compress_shader(nodes_per_texel),
         );
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some(&label("compress.pipeline_layout")),
@@ -234,10 +246,7 @@ impl DeepNodes {
             layout: Some(&pipeline_layout),
             module: &module,
             entry_point: Some("compress"),
-            compilation_options: wgpu::PipelineCompilationOptions {
-                constants: &(spec.compress_constants)(nodes_per_texel),
-                ..Default::default()
-            },
+            compilation_options: Default::default(),
             cache: None,
         });
 
