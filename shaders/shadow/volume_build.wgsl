@@ -18,14 +18,14 @@ struct VolumeBuild {
     // The grid's corner (m) and voxels per side.
     origin: vec3<f32>,
     side: u32,
-    // One voxel's size per axis (m), and the jobs.
+    // One voxel's size per axis (m), and the (particle, row) pairs.
     voxel_size: vec3<f32>,
-    job_count: u32,
-    // (particle, row) pairs; this slab's first z-slice and its slices; staging words per row.
     total_rows: u32,
+    // This slab's first z-slice and its slices; staging words per row.
     slab_z0: u32,
     slab_depth: u32,
     words_per_row: u32,
+    _pad0: u32,
     // The light (m), for the light-aligned field; fixed-point units per 1/m of extinction.
     light_pos: vec3<f32>,
     units_per_extinction: f32,
