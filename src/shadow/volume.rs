@@ -469,10 +469,9 @@ pub struct Volume {
     slab_params: Vec<wgpu::Buffer>,
     scratch: wgpu::Buffer,
     staging: wgpu::Buffer,
-    jobs: wgpu::Buffer,
-    job_capacity: u32,
-    row_blocks: wgpu::Buffer,
-    block_capacity: u32,
+    /// The frame's jobs, and its row-block table.
+    jobs: GrowingBuffer,
+    row_blocks: GrowingBuffer,
     build_layout: wgpu::BindGroupLayout,
     scatter: wgpu::ComputePipeline,
     /// The conversion for scenes without a density volume, and with one.
@@ -556,13 +555,19 @@ impl Volume {
             device,
             &storage_descriptor("volume.staging", depth64 * side64 * staging_pitch(side)),
         )?;
-        let jobs = memory.buffer_transient(
+        let jobs = GrowingBuffer::new(
+            &mut memory,
             device,
-            &storage_descriptor("volume.jobs", u64::from(MIN_JOB_CAPACITY) * JOB_BYTES),
+            "volume.jobs",
+            JOB_BYTES,
+            MIN_JOB_CAPACITY,
         )?;
-        let row_blocks = memory.buffer_transient(
+        let row_blocks = GrowingBuffer::new(
+            &mut memory,
             device,
-            &storage_descriptor("volume.row_blocks", u64::from(MIN_BLOCK_CAPACITY) * 4),
+            "volume.row_blocks",
+            4,
+            MIN_BLOCK_CAPACITY,
         )?;
 
         let compute = wgpu::ShaderStages::COMPUTE;
@@ -654,9 +659,7 @@ impl Volume {
             scratch,
             staging,
             jobs,
-            job_capacity: MIN_JOB_CAPACITY,
             row_blocks,
-            block_capacity: MIN_BLOCK_CAPACITY,
             build_layout,
             lookup_layout,
             lookup_bind_group,
@@ -666,41 +669,55 @@ impl Volume {
             last_rows: 0,
         })
     }
+}
 
-    /// Grows the job buffer to hold `count` jobs (a power of two, or exactly `count` where a
-    /// power of two would not fit one binding).
-    fn reserve_jobs(&mut self, device: &wgpu::Device, count: u32) -> Result<(), ShadowError> {
-        if count <= self.job_capacity {
-            return Ok(());
-        }
-        let mut capacity = count.next_power_of_two();
-        if u64::from(capacity) * JOB_BYTES > self.binding_limit {
-            capacity = count;
-        }
-        self.memory.forget("volume.jobs");
-        self.jobs = self.memory.buffer_transient(
+/// A transient storage buffer of elements that grows with the frame.
+struct GrowingBuffer {
+    label: &'static str,
+    element_bytes: u64,
+    buffer: wgpu::Buffer,
+    /// Elements it holds.
+    capacity: u32,
+}
+
+impl GrowingBuffer {
+    fn new(
+        memory: &mut MemoryLedger,
+        device: &wgpu::Device,
+        label: &'static str,
+        element_bytes: u64,
+        capacity: u32,
+    ) -> Result<Self, ShadowError> {
+        let buffer = memory.buffer_transient(
             device,
-            &storage_descriptor("volume.jobs", u64::from(capacity) * JOB_BYTES),
+            &storage_descriptor(label, u64::from(capacity) * element_bytes),
         )?;
-        self.job_capacity = capacity;
-        Ok(())
+        Ok(Self {
+            label,
+            element_bytes,
+            buffer,
+            capacity,
+        })
     }
 
-    /// Grows the row-block table to hold `count` entries, as [`Volume::reserve_jobs`] does.
-    fn reserve_blocks(&mut self, device: &wgpu::Device, count: u32) -> Result<(), ShadowError> {
-        if count <= self.block_capacity {
+    /// Grows it to hold `count` elements (a power of two, or exactly `count` where a power of
+    /// two would not fit one binding of `binding_limit` bytes).
+    fn reserve(
+        &mut self,
+        memory: &mut MemoryLedger,
+        device: &wgpu::Device,
+        binding_limit: u64,
+        count: u32,
+    ) -> Result<(), ShadowError> {
+        if count <= self.capacity {
             return Ok(());
         }
         let mut capacity = count.next_power_of_two();
-        if u64::from(capacity) * 4 > self.binding_limit {
+        if u64::from(capacity) * self.element_bytes > binding_limit {
             capacity = count;
         }
-        self.memory.forget("volume.row_blocks");
-        self.row_blocks = self.memory.buffer_transient(
-            device,
-            &storage_descriptor("volume.row_blocks", u64::from(capacity) * 4),
-        )?;
-        self.block_capacity = capacity;
+        memory.forget(self.label);
+        *self = Self::new(memory, device, self.label, self.element_bytes, capacity)?;
         Ok(())
     }
 }
@@ -736,8 +753,8 @@ impl ShadowTechnique for Volume {
         vec![
             ("grid_side", u64::from(self.side)),
             ("slab_depth", u64::from(self.slab_depth)),
-            ("job_capacity", u64::from(self.job_capacity)),
-            ("block_capacity", u64::from(self.block_capacity)),
+            ("job_capacity", u64::from(self.jobs.capacity)),
+            ("block_capacity", u64::from(self.row_blocks.capacity)),
             ("voxelised_particles", u64::from(self.last_jobs)),
             ("voxel_rows", self.last_rows),
             ("volume_steps", u64::from(self.steps)),
@@ -767,13 +784,22 @@ impl ShadowTechnique for Volume {
             limit: u64::from(u32::MAX),
         })?;
         let count = plan.jobs.len() as u32;
-        self.reserve_jobs(device, count)?;
-        self.reserve_blocks(device, plan.row_blocks.len() as u32)?;
+        self.jobs
+            .reserve(&mut self.memory, device, self.binding_limit, count)?;
+        self.row_blocks.reserve(
+            &mut self.memory,
+            device,
+            self.binding_limit,
+            plan.row_blocks.len() as u32,
+        )?;
         (self.last_jobs, self.last_rows) = (count, plan.rows);
         gpu.queue
-            .write_buffer(&self.jobs, 0, bytemuck::cast_slice(&plan.jobs));
-        gpu.queue
-            .write_buffer(&self.row_blocks, 0, bytemuck::cast_slice(&plan.row_blocks));
+            .write_buffer(&self.jobs.buffer, 0, bytemuck::cast_slice(&plan.jobs));
+        gpu.queue.write_buffer(
+            &self.row_blocks.buffer,
+            0,
+            bytemuck::cast_slice(&plan.row_blocks),
+        );
         gpu.queue.write_buffer(
             &self.lookup_params,
             0,
@@ -812,10 +838,10 @@ impl ShadowTechnique for Volume {
                 layout: &self.build_layout,
                 entries: &[
                     bind_entry(0, slab),
-                    bind_entry(1, &self.jobs),
+                    bind_entry(1, &self.jobs.buffer),
                     bind_entry(2, &self.scratch),
                     bind_entry(3, &self.staging),
-                    bind_entry(4, &self.row_blocks),
+                    bind_entry(4, &self.row_blocks.buffer),
                 ],
             });
             inputs.encoder.clear_buffer(&self.scratch, 0, None);
