@@ -79,11 +79,17 @@ pub struct MomentParams {
     pub bias: &'static ParamSpec,
     /// η, the share of the weight at the receiver's depth counted in front of it.
     pub overestimation: &'static ParamSpec,
-    /// Trigonometric moments (`tmsm`: n roots from n moments), else power moments (`msm`: n
-    /// roots from 2n).
-    pub trigonometric: bool,
-    /// θ, the wrapping zone of trigonometric moments.
+    /// θ, the wrapping zone of trigonometric moments: set exactly for them
+    /// ([`MomentParams::trigonometric`]).
     pub wrapping_zone: Option<&'static ParamSpec>,
+}
+
+impl MomentParams {
+    /// Trigonometric moments (`tmsm`: n roots from n moments), the ones with a wrapping zone;
+    /// else power moments (`msm`: n roots from 2n).
+    pub fn trigonometric(&self) -> bool {
+        self.wrapping_zone.is_some()
+    }
 }
 
 impl LayeredSpec {
@@ -304,7 +310,7 @@ pub fn lookup_constants(
         ("LAYERED_TARGETS", plan.packed.div_ceil(4)),
     ];
     if let Some(moments) = &spec.moments {
-        let roots = match moments.trigonometric {
+        let roots = match moments.trigonometric() {
             true => plan.count,
             false => plan.count / 2,
         };

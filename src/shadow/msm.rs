@@ -144,7 +144,6 @@ pub const MSM: LayeredSpec = LayeredSpec {
     moments: Some(MomentParams {
         bias: &BIAS,
         overestimation: &OVERESTIMATION,
-        trigonometric: false,
         wrapping_zone: None,
     }),
     precision: PrecisionSpec::Fixed(Precision::Single),
@@ -162,7 +161,6 @@ pub const TMSM: LayeredSpec = LayeredSpec {
     moments: Some(MomentParams {
         bias: &TRIG_BIAS,
         overestimation: &TRIG_OVERESTIMATION,
-        trigonometric: true,
         wrapping_zone: Some(&WRAPPING_ZONE),
     }),
     channel_name: |c: u32, _| match c {
