@@ -428,7 +428,8 @@ struct Sweeper<'a> {
     points: Vec<glam::Vec3>,
     owners: Vec<u32>,
     exact_t: Vec<f32>,
-    exact_image: image::RgbImage,
+    /// Shared with each cell's comparison thread.
+    exact_image: std::sync::Arc<image::RgbImage>,
     /// Recorded in every cell measured here (`none_frame_ms` is NaN until `none` ran).
     against: MeasuredAgainst,
     /// The planned cells' settings keys by name: an image on disk stands in for a technique's
@@ -522,7 +523,7 @@ impl<'a> Sweeper<'a> {
             points,
             owners,
             exact_t,
-            exact_image,
+            exact_image: std::sync::Arc::new(exact_image),
             against,
             keys,
             own_images: BTreeMap::new(),
@@ -767,7 +768,7 @@ impl<'a> Sweeper<'a> {
                 (own, full_res)
             }
         };
-        let exact = (!is_frame_baseline).then(|| self.exact_image.clone());
+        let exact = (!is_frame_baseline).then(|| std::sync::Arc::clone(&self.exact_image));
         let dir = self.dir.to_path_buf();
         let name = plan.name.clone();
         let comparisons = std::thread::spawn(move || -> anyhow::Result<CellResult> {
@@ -1231,7 +1232,7 @@ pub fn run(
                 scene_dir,
             )
         };
-        // A finished cell: recorded, counted, and the tables kept current, so a sweep stopped
+        // A finished cell joins the tables, rewritten at once (unsharded) so that a sweep stopped
         // here leaves consistent results.
         let keep = |cell: CellResult, cells: &mut Vec<CellResult>| -> anyhow::Result<()> {
             cells.push(cell);
