@@ -7,17 +7,17 @@
 //    exclusive prefix sum of the counts -> list offsets (offsets[res²] = total).
 // 3. fs_fill: every fragment of the current band of rows writes its segment (z0, z1, optical
 //    depth, draw index) into its texel's list (counts, cleared, serve as cursors); for `dsm`,
-//    fs_fill_split writes its start (z0, slope) and its end (z1, slope) to the sort keys (two
-//    read-write storage textures) instead.
-// 4. resolve (run_sort and merge_runs for the starts, the same for the ends, merge_nodes): per
-//    texel of the band, `dsm`'s sorts the starts and the ends each by (depth, slope), and merges both
-//    into the nodes (z, Ω(z)) of the piecewise-linear optical depth: between events Ω grows by
-//    the sum of the slopes (optical depth per metre) of the segments open there. The keys are total over what is sorted, so
-//    the nodes do not depend on the order the fragments arrived in. An owner that needs the
-//    segments themselves has them sorted whole (an insertion sort that gives up early, then a
-//    heapsort of the lists it left): by (z0, z1, optical depth, draw index), or with
-//    SORT_BY_DRAW by draw index, which puts each texel's list back in the order the particles
-//    were drawn, whatever order the fill's atomics wrote it in.
+//    fs_fill_split writes two events instead, its start (z0, slope) and its end (z1, -slope), to
+//    the sort keys (two read-write storage textures).
+// 4. resolve (run_sort, merge_runs): per texel of the band, `dsm`'s sorts its events by depth
+//    and turns them into the nodes (z, Ω(z)) of the piecewise-linear optical depth as its last
+//    pass writes them: between events Ω grows by the sum of the slopes (optical depth per metre)
+//    of the segments open there. The keys are total over what is sorted, so the nodes do not
+//    depend on the order the fragments arrived in. An owner that needs the segments themselves
+//    has them sorted whole (an insertion sort that gives up early, then a heapsort of the lists
+//    it left): by (z0, z1, optical depth, draw index), or with SORT_BY_DRAW by draw index, which
+//    puts each texel's list back in the order the particles were drawn, whatever order the
+//    fill's atomics wrote it in.
 #import shadow/layered_build.wgsl
 #import shadow/deep_capture_lists.wgsl
 #import shadow/grid_scan.wgsl
@@ -94,8 +94,9 @@ fn fs_fill(in: BuildVertexOut) -> @location(0) vec4<f32> {
 }
 
 // The fill of a resolve into nodes (`dsm`'s): each segment goes straight to the sort keys,
-// split into its start (z0, slope) and its end (z1, slope) (the end's place needs the texel's
-// count: the offsets give it); nothing reads the segments. (A compute pass that split the
+// split into two events, its start (z0, slope) and its end (z1, -slope): where the optical
+// depth's slope rises and where it falls back, side by side at twice its slot; nothing reads
+// the segments. (A compute pass that split the
 // stored segments instead cost 50-150 ms more of `dsm`'s frame on the thesis scene.)
 @fragment
 fn fs_fill_split(in: BuildVertexOut) -> @location(0) vec4<f32> {
@@ -104,13 +105,10 @@ fn fs_fill_split(in: BuildVertexOut) -> @location(0) vec4<f32> {
     if at.index == NO_TEXEL {
         discard;
     }
-    let first = offsets[at.index] - capture.band_base;
-    let count = offsets[at.index + 1u] - offsets[at.index];
-    if first + count <= capture.capacity {
+    if at.slot < capture.capacity {
         let slope = segment_slope(segment);
-        let i = at.slot - first;
-        set_sort_key(2u * first + i, vec2<f32>(segment.z0, slope));
-        set_sort_key(2u * first + count + i, vec2<f32>(segment.z1, slope));
+        set_sort_key(2u * at.slot, vec2<f32>(segment.z0, slope));
+        set_sort_key(2u * at.slot + 1u, vec2<f32>(segment.z1, -slope));
     }
     return vec4<f32>(0.0);
 }
@@ -182,19 +180,16 @@ fn fs_fill_split_volume(in: VolumeVertexOut) -> @location(0) vec4<f32> {
     if index == NO_TEXEL || ray.steps == 0u {
         discard;
     }
-    let first = offsets[index] - capture.band_base;
-    let count = offsets[index + 1u] - offsets[index];
     for (var i = 0u; i < ray.steps; i++) {
         let segment = volume_segment(ray, i);
         if segment.optical_depth < 0.0 {
             continue;
         }
         let slot = offsets[index] - capture.band_base + atomicAdd(&counts[index], 1u);
-        if first + count <= capture.capacity {
+        if slot < capture.capacity {
             let slope = segment_slope(segment);
-            let k = slot - first;
-            set_sort_key(2u * first + k, vec2<f32>(segment.z0, slope));
-            set_sort_key(2u * first + count + k, vec2<f32>(segment.z1, slope));
+            set_sort_key(2u * slot, vec2<f32>(segment.z0, slope));
+            set_sort_key(2u * slot + 1u, vec2<f32>(segment.z1, -slope));
         }
     }
     return vec4<f32>(0.0);
@@ -209,19 +204,12 @@ fn segment_slope(s: Segment) -> f32 {
     return s.optical_depth / (s.z1 - s.z0);
 }
 
-// Which list a sort pipeline sorts (set per pipeline: src/shadow/deep_capture.rs, `Resolve`):
-// the texel's segments whole, or its starts or its ends, which `fs_fill_split` writes to the
-// sort keys.
-const LIST_SEGMENTS: u32 = 0u;
-const LIST_STARTS: u32 = 1u;
-const LIST_ENDS: u32 = 2u;
-override SORT_LIST: u32 = LIST_SEGMENTS;
 // Whether the segments are sorted by draw index alone rather than by depth.
 override SORT_BY_DRAW: bool = false;
 
 // An element of the whole-segment sorts (the insertion sort and the heapsort): a segment's
 // (z0, z1, optical depth) and its draw index. (The index stays a u32: its bits as a float would
-// be a denormal, which a GPU may flush.) `dsm`'s starts and ends have their own merge sort,
+// be a denormal, which a GPU may flush.) `dsm`'s events have their own merge sort,
 // below.
 struct HeapItem {
     key: vec3<f32>,
@@ -255,18 +243,6 @@ fn set_heap_key(i: u32, item: HeapItem) {
     segments[i] = Segment(item.key.x, item.key.y, item.key.z, item.draw_index);
 }
 
-// Where the list SORT_LIST names starts: the segments at `first`; the starts at 2·first and the
-// ends after them in the sort keys.
-fn list_base(list: TexelList) -> u32 {
-    if SORT_LIST == LIST_ENDS {
-        return 2u * list.first + list.count;
-    }
-    if SORT_LIST == LIST_STARTS {
-        return 2u * list.first;
-    }
-    return list.first;
-}
-
 // Sifts element `root_in` down the max-heap [base, base + n). Each level reads its two children
 // once and writes one element (storage reads are most of a sort's cost on llvmpipe).
 fn sift(base: u32, root_in: u32, n: u32) {
@@ -296,10 +272,9 @@ fn sift(base: u32, root_in: u32, n: u32) {
 
 // The resolve, in phases (a dispatch each, or several: rounds), per texel of the band.
 // `dsm`'s (Resolve::Nodes), whose fill wrote each segment's start (z0, slope) and end (z1,
-// slope) to the sort keys: merge sort the starts (`run_sort`, `merge_runs`, below), then the
-// ends (the same entry points, SORT_LIST set); merge both into the nodes. Only the starts and
-// ends are sorted, two words each: two starts (or ends) with equal keys are equal, so the order
-// is total over what is sorted. `avsm`'s: sort the whole segments (by depth or by draw index) with `insertion_sort`,
+// -slope) to the sort keys: merge sort these events (`run_sort`, `merge_runs`, below), the last
+// pass turning them into the nodes. Only the events are sorted, two words each: two events with
+// equal keys are equal, so the order is total over what is sorted. `avsm`'s: sort the whole segments (by depth or by draw index) with `insertion_sort`,
 // then heapsort what it left. O(n log n) whatever the order the fragments arrived in. The
 // heapsorts' sifts are split into rounds of `sifts_per_round()` each, so that no dispatch loops
 // past `capture.loop_budget` (src/shadow/deep_capture.rs mirrors the arithmetic); a texel whose
@@ -361,7 +336,7 @@ fn heap_list(id: vec3<u32>) -> TexelList {
 @compute @workgroup_size(8, 8)
 fn heap_build(@builtin(global_invocation_id) id: vec3<u32>) {
     let list = heap_list(id);
-    let base = list_base(list);
+    let base = list.first;
     let r = build_range(list.count);
     for (var start = r.x; start > r.y; start--) {
         sift(base, start - 1u, list.count);
@@ -372,7 +347,7 @@ fn heap_build(@builtin(global_invocation_id) id: vec3<u32>) {
 @compute @workgroup_size(8, 8)
 fn heap_extract(@builtin(global_invocation_id) id: vec3<u32>) {
     let list = heap_list(id);
-    let base = list_base(list);
+    let base = list.first;
     let r = extract_range(list.count);
     for (var end = r.x; end > r.y; end--) {
         let top = heap_key(base);
@@ -391,7 +366,7 @@ fn heap_extract(@builtin(global_invocation_id) id: vec3<u32>) {
 // still a permutation of itself, is left to the heapsort, as most lists of the by-depth resolve
 // are); a list it sorts is marked SORTED in `counts` (the fill's cursors, unused from here on),
 // and the heap passes skip it. At most n + 2·(n/4) + 2 loop iterations, within the loop budget
-// for any list the capture accepts (n <= budget/2 - 2).
+// for any list the capture accepts (n < budget/2: src/shadow/deep_capture.rs, `longest_list`).
 const SORTED: u32 = 0xffffffffu;
 
 // How many of a list's first segments are in draw order, read a word a segment (the draw
@@ -461,72 +436,37 @@ fn insertion_sort(@builtin(global_invocation_id) id: vec3<u32>) {
     }
 }
 
-// Merges the sorted starts and ends (the sort keys) into the node textures' [2·first, 2·first +
-// 2n). The next start and the next end are held, each loaded once.
-@compute @workgroup_size(8, 8)
-fn merge_nodes(@builtin(global_invocation_id) id: vec3<u32>) {
-    let list = band_list(id);
-    let first = list.first;
-    let n = list.count;
-    if n == 0u {
-        return;
-    }
-    let starts = 2u * first;
-    let ends = starts + n;
-    var i = 0u;
-    var j = 0u;
-    var omega = 0.0;
-    var slope = 0.0;
-    var start = sort_key(starts);
-    var end = sort_key(ends);
-    var z_prev = start.x;
-    for (var k = 0u; k < 2u * n; k++) {
-        var z: f32;
-        var delta: f32;
-        if i < n && (j >= n || start.x <= end.x) {
-            z = start.x;
-            delta = start.y;
-            i++;
-            if i < n {
-                start = sort_key(starts + i);
-            }
-        } else {
-            z = end.x;
-            delta = -end.y;
-            j++;
-            if j < n {
-                end = sort_key(ends + j);
-            }
-        }
-        omega += slope * (z - z_prev);
-        slope = max(slope + delta, 0.0);
-        z_prev = z;
-        set_node_texel(starts + k, vec2<f32>(z, omega));
-    }
-}
-
-// `dsm`'s sort of the starts (or the ends, SORT_LIST) by (depth, slope): a merge sort whose
-// first runs are sorted in registers. `run_sort` reads the list in runs of RUN (or RUN / 2)
-// keys, sorts each by insertion into a private array written out slot by slot (`#unroll`, no
-// index known only at run time, so the array stays in registers), and writes it back in place;
-// `merge_runs` then merges groups of four runs (or of two), one pass a round, between the sort
-// keys and the node textures (free until `merge_nodes` fills them; the same indices): odd
-// passes (round 0, 2, ...) from the keys into the nodes, even passes back. A texel takes the
-// shorter runs, or two passes of pairs, when the longer ones or groups of four would leave it
-// an odd number of passes, so every list ends sorted in the keys, and each round reads and
-// writes the same textures for every texel. Against the heapsort it replaced (the same order:
-// the keys are total), each key is read and written once a pass instead of log2(n) times (the
-// textures' loads and stores are most of a sort's cost on llvmpipe), and merging four runs at
-// a time halves the passes again.
+// `dsm`'s sort of a texel's 2n events (`fs_fill_split`) by depth, starts before ends at one
+// depth: a merge sort whose first runs are sorted in registers and whose last pass turns the
+// events into the nodes (z, Ω(z)) (`next_node`). `run_sort` reads the list in runs of RUN keys,
+// sorts each by insertion into a private array written out slot by slot (`#unroll`, no index
+// known only at run time, so the array stays in registers) and writes it out; `merge_runs` then
+// merges groups of up to WAYS runs, one pass a round, between the two sides of the key textures
+// (the sort keys and, `node_side()` further on, the nodes: which side is an index offset, not a
+// branch). A texel's passes alternate between the sides, arranged so that its last one writes
+// the nodes: `run_sort` writes its runs to the keys when the texel's merge passes are odd in
+// number, else to the nodes, and a list of a single run needs no merge, so `run_sort` writes its
+// nodes. Against the heapsort it replaced (the same order: the keys are total), each key is read
+// and written once a pass instead of log2(n) times (the textures' loads and stores are most of
+// a sort's cost on llvmpipe); merging eight runs a pass instead of four, and sorting the starts
+// and ends as one list instead of two then merging them, took the sort and merge of the thesis
+// frame from 177 to 128 ms on lavapipe. Each merge group's heads are loaded outside the loop
+// over its keys: llvmpipe runs an `if` body inside a loop for every iteration, its lanes masked
+// off or not (four runs a pass with each group started inside the one loop: 94 ms; outside: 81).
+// The passes loop 2n + ceil(2n / RUN) times at most, within the budget for any list the capture
+// accepts (`longest_list` in src/shadow/deep_capture.rs).
 const RUN: u32 = 16u;
 
+// Runs merged at most by one pass, and the two-run levels that makes.
+const WAYS: u32 = 8u;
+const WAY_LEVELS: u32 = 3u;
+
 struct Runs {
-    // Keys per run, the two-run merge levels that join them (even), and the passes that make
-    // those levels: two levels a pass (four runs merged), or one a pass (pairs) for the first
-    // two passes when levels / 2 is odd, so that the passes are even too.
-    length: u32,
+    // Two-run merge levels over the list's runs of RUN keys, and the passes that make them:
+    // WAY_LEVELS a pass (WAYS runs merged), the first pass the rest (1 to WAY_LEVELS).
     levels: u32,
     passes: u32,
+    first: u32,
 };
 
 // ceil(log2(runs)) for runs >= 1.
@@ -538,29 +478,51 @@ fn levels_for(runs: u32) -> u32 {
 }
 
 // Keep in sync with `merge_passes` in src/shadow/deep_capture.rs.
-fn runs_of(n: u32) -> Runs {
-    var out = Runs(RUN, levels_for((n + RUN - 1u) / RUN), 0u);
-    if out.levels % 2u == 1u {
-        // Halved runs take one level more: ceil(log2(2r - 1)) = ceil(log2(r)) + 1 for r >= 2.
-        out.length = RUN / 2u;
-        out.levels += 1u;
-    }
-    let fours = out.levels / 2u;
-    out.passes = fours + fours % 2u;
-    return out;
+fn runs_of(keys: u32) -> Runs {
+    let levels = levels_for((keys + RUN - 1u) / RUN);
+    let passes = (levels + WAY_LEVELS - 1u) / WAY_LEVELS;
+    return Runs(levels, passes, levels + WAY_LEVELS - WAY_LEVELS * max(passes, 1u));
 }
 
-// Runs merged by pass `step` (1-based): 2 in the first two passes of a texel whose levels / 2
-// is odd, else 4.
+// Keys per run before pass `step` (1-based): the levels the passes before it made.
+fn run_width(runs: Runs, step: u32) -> u32 {
+    if step == 1u {
+        return RUN;
+    }
+    return RUN << (runs.first + WAY_LEVELS * (step - 2u));
+}
+
+// Runs merged by pass `step`.
 fn runs_merged(runs: Runs, step: u32) -> u32 {
-    if (runs.levels / 2u) % 2u == 1u && step <= 2u {
-        return 2u;
-    }
-    return 4u;
+    return 1u << select(WAY_LEVELS, runs.first, step == 1u);
 }
 
+// Whether pass `step` of a texel (0: `run_sort`) writes to the node textures: its last one does.
+fn writes_nodes(runs: Runs, step: u32) -> bool {
+    return (runs.passes - step) % 2u == 0u;
+}
+
+// Events by depth; at one depth the larger change of slope first (starts before ends). A total
+// order: two events with equal keys are equal.
 fn key_less(a: vec2<f32>, b: vec2<f32>) -> bool {
-    return a.x < b.x || (a.x == b.x && a.y < b.y);
+    return a.x < b.x || (a.x == b.x && a.y > b.y);
+}
+
+// The optical depth while a texel's events are turned into nodes in depth order: between
+// events Ω grows by the sum of the slopes (optical depth per metre) of the segments open there.
+struct Nodes {
+    omega: f32,
+    slope: f32,
+    z: f32,
+};
+
+// The node (z, Ω(z)) at `event` (its depth and change of slope), the one after `acc`'s last.
+// The slope is kept from dipping below 0 by the rounding of its sum.
+fn next_node(acc: ptr<function, Nodes>, event: vec2<f32>) -> vec2<f32> {
+    (*acc).omega += (*acc).slope * (event.x - (*acc).z);
+    (*acc).slope = max((*acc).slope + event.y, 0.0);
+    (*acc).z = event.x;
+    return vec2<f32>(event.x, (*acc).omega);
 }
 
 // A run while it is sorted: keys (depth[k], slope[k]), the first `count` in order.
@@ -586,18 +548,29 @@ fn insert_key(run: ptr<function, Run>, key: vec2<f32>) {
     (*run).count = n + 1u;
 }
 
-// Loops: n / (RUN / 2) runs of at most RUN reads each.
+// The key or node at `i` on one side of the key textures.
+fn key_from(nodes_side: bool, i: u32) -> vec2<f32> {
+    return key_at(i + select(0u, node_side(), nodes_side));
+}
+
+fn set_key_to(nodes_side: bool, i: u32, key: vec2<f32>) {
+    set_key_at(i + select(0u, node_side(), nodes_side), key);
+}
+
+// Each run of RUN events sorted in registers and written out, or for a list of one run its nodes.
 @compute @workgroup_size(8, 8)
 fn run_sort(@builtin(global_invocation_id) id: vec3<u32>) {
     let list = band_list(id);
-    let n = list.count;
-    if n < 2u {
+    let n = 2u * list.count;
+    if n == 0u {
         return;
     }
-    let base = list_base(list);
+    let base = 2u * list.first;
     let runs = runs_of(n);
-    for (var start = 0u; start < n; start += runs.length) {
-        let m = min(runs.length, n - start);
+    let to_nodes = writes_nodes(runs, 0u);
+    var nodes = Nodes(0.0, 0.0, 0.0);
+    for (var start = 0u; start < n; start += RUN) {
+        let m = min(RUN, n - start);
         var run: Run;
         run.count = 0u;
         for (var i = 0u; i < m; i++) {
@@ -605,106 +578,83 @@ fn run_sort(@builtin(global_invocation_id) id: vec3<u32>) {
         }
         #unroll k 0..RUN
             if k < m {
-                set_sort_key(base + start + k, vec2<f32>(run.depth[k], run.slope[k]));
+                let key = vec2<f32>(run.depth[k], run.slope[k]);
+                // A single run is the whole list, in order: its nodes.
+                let node = next_node(&nodes, key);
+                set_key_to(to_nodes, base + start + k, select(key, node, runs.passes == 0u));
             }
         #end_unroll
     }
 }
 
-// One merge pass (the round's index + 1) over the texel's runs: groups of 4 (or 2) sorted runs
-// of `width` keys, merged (stably: the first run's key on a tie) from one pair of textures into
-// the other at the same indices. Loops n + n / width times at most.
-fn key_from(nodes_side: bool, i: u32) -> vec2<f32> {
-    if nodes_side {
-        return node_texel(i);
-    }
-    return sort_key(i);
-}
-
-fn set_key_to(nodes_side: bool, i: u32, key: vec2<f32>) {
-    if nodes_side {
-        set_node_texel(i, key);
-    } else {
-        set_sort_key(i, key);
-    }
-}
-
-// The next key of one run: its index and end, and the key there.
-struct Head {
-    at: u32,
-    end: u32,
-    key: vec2<f32>,
-};
-
-fn head(from_nodes: bool, base: u32, begin: u32, end: u32) -> Head {
-    var h = Head(begin, end, vec2<f32>(0.0));
-    if begin < end {
-        h.key = key_from(from_nodes, base + begin);
-    }
-    return h;
-}
-
-// Whether head `h` holds a key before the best so far (`best_open`: whether there is one).
-fn better(h: Head, best: vec2<f32>, best_open: bool) -> bool {
-    return h.at < h.end && (!best_open || key_less(h.key, best));
-}
-
+// One merge pass (the round's index + 1) over the texel's runs: groups of WAYS (or fewer) sorted
+// runs of `run_width` keys, merged (stably: the first run's key on a tie) from one side of the
+// key textures to the other at the same indices; the texel's last pass writes its nodes. One
+// loop over the events, which starts each group's runs when it reaches it. The runs' next keys
+// are held in registers (every index below is a constant), each loaded once.
 @compute @workgroup_size(8, 8)
 fn merge_runs(@builtin(global_invocation_id) id: vec3<u32>) {
     let list = band_list(id);
-    let n = list.count;
+    let n = 2u * list.count;
     let step = pass_round.index + 1u;
     let runs = runs_of(n);
     if step > runs.passes {
         return;
     }
-    let base = list_base(list);
-    // Odd passes read the keys and write the nodes; even passes the other way.
-    let from_nodes = step % 2u == 0u;
-    var width = runs.length;
-    for (var p = 1u; p < step; p++) {
-        width *= runs_merged(runs, p);
-    }
+    let base = 2u * list.first;
+    let to_nodes = writes_nodes(runs, step);
+    let from_nodes = !to_nodes;
+    let last = step == runs.passes;
+    let width = run_width(runs, step);
     let ways = runs_merged(runs, step);
-    for (var start = 0u; start < n; start += ways * width) {
-        let end = min(start + ways * width, n);
-        var h0 = head(from_nodes, base, start, min(start + width, end));
-        var h1 = head(from_nodes, base, h0.end, min(h0.end + width, end));
-        // With pairs the last two runs are empty.
-        let third = select(h1.end, min(h1.end + width, end), ways == 4u);
-        var h2 = head(from_nodes, base, h1.end, third);
-        var h3 = head(from_nodes, base, h2.end, select(h2.end, end, ways == 4u));
-        for (var k = start; k < end; k++) {
-            // The least head, the earliest run's on a tie; no branch on which (lanes that
-            // took from different runs would otherwise run every side's loads and stores).
-            var best = h0.key;
+    var nodes = Nodes(0.0, 0.0, 0.0);
+    // Each run's next index and end, and its key there.
+    var at: array<u32, WAYS>;
+    var end: array<u32, WAYS>;
+    var depth: array<f32, WAYS>;
+    var slope: array<f32, WAYS>;
+    for (var group = 0u; group < n; group += ways * width) {
+        let group_end = min(group + ways * width, n);
+        var begin = group;
+        #unroll w 0..WAYS
+            at[w] = begin;
+            end[w] = select(begin, min(begin + width, group_end), w < ways);
+            if begin < end[w] {
+                let key = key_from(from_nodes, base + begin);
+                depth[w] = key.x;
+                slope[w] = key.y;
+            }
+            begin = end[w];
+        #end_unroll
+        for (var k = group; k < group_end; k++) {
+            // The least next key, the earliest run's on a tie; no branch on which (lanes that took
+            // from different runs would otherwise run every side's loads and stores).
+            var best = vec2<f32>(depth[0], slope[0]);
             var taken = 0u;
-            var open = h0.at < h0.end;
-            let t1 = better(h1, best, open);
-            best = select(best, h1.key, t1);
-            taken = select(taken, 1u, t1);
-            open = open || h1.at < h1.end;
-            let t2 = better(h2, best, open);
-            best = select(best, h2.key, t2);
-            taken = select(taken, 2u, t2);
-            open = open || h2.at < h2.end;
-            let t3 = better(h3, best, open);
-            best = select(best, h3.key, t3);
-            taken = select(taken, 3u, t3);
-            set_key_to(!from_nodes, base + k, best);
-            h0.at += u32(taken == 0u);
-            h1.at += u32(taken == 1u);
-            h2.at += u32(taken == 2u);
-            h3.at += u32(taken == 3u);
+            var open = at[0] < end[0];
+            #unroll w 1..WAYS
+                let candidate = vec2<f32>(depth[w], slope[w]);
+                let better = at[w] < end[w] && (!open || key_less(candidate, best));
+                best = select(best, candidate, better);
+                taken = select(taken, w, better);
+                open = open || at[w] < end[w];
+            #end_unroll
+            let node = next_node(&nodes, best);
+            set_key_to(to_nodes, base + k, select(best, node, last));
             // The taken run's next key.
-            let next = select(select(select(h0.at, h1.at, taken == 1u), h2.at, taken == 2u), h3.at, taken == 3u);
-            let next_end = select(select(select(h0.end, h1.end, taken == 1u), h2.end, taken == 2u), h3.end, taken == 3u);
+            var next = 0u;
+            var next_end = 0u;
+            #unroll w 0..WAYS
+                at[w] += u32(taken == w);
+                next = select(next, at[w], taken == w);
+                next_end = select(next_end, end[w], taken == w);
+            #end_unroll
             if next < next_end {
                 let key = key_from(from_nodes, base + next);
-                h0.key = select(h0.key, key, taken == 0u);
-                h1.key = select(h1.key, key, taken == 1u);
-                h2.key = select(h2.key, key, taken == 2u);
-                h3.key = select(h3.key, key, taken == 3u);
+                #unroll w 0..WAYS
+                    depth[w] = select(depth[w], key.x, taken == w);
+                    slope[w] = select(slope[w], key.y, taken == w);
+                #end_unroll
             }
         }
     }

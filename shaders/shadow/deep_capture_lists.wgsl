@@ -50,38 +50,47 @@ struct Segment {
 @group(1) @binding(2) var<storage, read_write> offsets: array<u32>;
 @group(1) @binding(3) var<storage, read_write> segments: array<Segment>;
 @group(1) @binding(4) var<storage, read_write> nodes: array<vec2<f32>>;
-// A resolve into nodes (`dsm`'s) keeps its keys and nodes in read-write storage textures of
+// A resolve into nodes (`dsm`'s) keeps its keys and nodes in two read-write storage textures of
 // one R32Float each, row textures (shaders/common/rows.wgsl) in the nodes' index space
 // (src/shadow/deep_capture.rs, SORT_KEY_FORMAT, says why textures; 1x1 placeholders for the
-// others): the sort keys, a texel's starts (z0, slope) at [2·first, 2·first + n) and its ends
-// (z1, slope) at [2·first + n, 2·first + 2n), depths in one texture and slopes in the other;
-// and the merged nodes (z, Ω(z)) at [2·first, 2·first + 2n), depths and values.
-@group(1) @binding(6) var node_depths: texture_storage_2d<r32float, read_write>;
-@group(1) @binding(7) var sort_depths: texture_storage_2d<r32float, read_write>;
-@group(1) @binding(8) var sort_slopes: texture_storage_2d<r32float, read_write>;
-@group(1) @binding(9) var node_values: texture_storage_2d<r32float, read_write>;
+// others), depths in one and values in the other: the sort keys, a texel's events, its
+// segments' starts (z0, slope) and ends (z1, -slope), at [2·first, 2·first + 2n); the nodes (z,
+// Ω(z)) at the same indices `node_side()` further on. (The sort passes use both sides, so that
+// which side a texel's pass reads is an offset, never a branch.)
+@group(1) @binding(6) var key_depths: texture_storage_2d<r32float, read_write>;
+@group(1) @binding(7) var key_values: texture_storage_2d<r32float, read_write>;
 @group(3) @binding(0) var<uniform> pass_round: Round;
 
-fn node_texel(i: u32) -> vec2<f32> {
+// Where the nodes start in the key textures: after the band's 2·capacity sort keys.
+fn node_side() -> u32 {
+    return 2u * capture.capacity;
+}
+
+fn key_at(i: u32) -> vec2<f32> {
     let texel = row_texel(i);
-    return vec2<f32>(textureLoad(node_depths, texel).x, textureLoad(node_values, texel).x);
+    return vec2<f32>(textureLoad(key_depths, texel).x, textureLoad(key_values, texel).x);
+}
+
+fn set_key_at(i: u32, key: vec2<f32>) {
+    let texel = row_texel(i);
+    textureStore(key_depths, texel, vec4<f32>(key.x));
+    textureStore(key_values, texel, vec4<f32>(key.y));
+}
+
+fn node_texel(i: u32) -> vec2<f32> {
+    return key_at(node_side() + i);
 }
 
 fn set_node_texel(i: u32, node: vec2<f32>) {
-    let texel = row_texel(i);
-    textureStore(node_depths, texel, vec4<f32>(node.x));
-    textureStore(node_values, texel, vec4<f32>(node.y));
+    set_key_at(node_side() + i, node);
 }
 
 fn sort_key(i: u32) -> vec2<f32> {
-    let texel = row_texel(i);
-    return vec2<f32>(textureLoad(sort_depths, texel).x, textureLoad(sort_slopes, texel).x);
+    return key_at(i);
 }
 
 fn set_sort_key(i: u32, key: vec2<f32>) {
-    let texel = row_texel(i);
-    textureStore(sort_depths, texel, vec4<f32>(key.x));
-    textureStore(sort_slopes, texel, vec4<f32>(key.y));
+    set_key_at(i, key);
 }
 
 // One texel's list: segments [first, first + count), nodes [2·first, 2·first + 2·count).

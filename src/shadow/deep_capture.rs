@@ -6,12 +6,12 @@
 //! Four passes, all in shaders/shadow/deep_capture.wgsl: a count raster pass over the
 //! light-space billboards (atomic count per texel), a prefix scan into list offsets, a fill pass
 //! writing each fragment's segment (z0, z1, optical depth, draw index) into its texel's list, and
-//! the resolve's compute passes, as the owner asks ([`Resolve`]): for `dsm`, the fill writes each
-//! segment's start (z0, slope) and end (z1, slope) instead, and the resolve sorts both by
-//! (depth, slope) — a total key over what is sorted, so the nodes do not depend on the order the
-//! fragments arrived in; a merge sort: runs of 16 sorted in registers, then four runs merged a
-//! pass ([`merge_passes`]) — and merges them into nodes, all in read-write storage textures
-//! (`KEY_TEXTURES`); for `avsm`, it sorts the segments by (z0, z1, optical depth, draw index)
+//! the resolve's compute passes, as the owner asks ([`Resolve`]): for `dsm`, the fill writes two
+//! events of each segment instead, its start (z0, slope) and its end (z1, −slope), and the
+//! resolve sorts them by depth — a total key over what is sorted, so the nodes do not depend on
+//! the order the fragments arrived in; a merge sort: runs of 16 sorted in registers, then four
+//! runs merged a pass ([`merge_passes`]) — whose last pass turns them into the nodes (z, Ω(z)),
+//! all in read-write storage textures (`KEY_TEXTURES`); for `avsm`, it sorts the segments by (z0, z1, optical depth, draw index)
 //! (`avsm` sorted) or by draw index (`avsm` streaming), which restores the order the particles
 //! were drawn in, the order an engine's interlocked fragment shader would see them.
 //! The counts are read back before the fill so the lists can grow to hold the frame (a CPU–GPU
@@ -35,11 +35,12 @@
 //! to its round index ([`Rounds`], a uniform at a dynamic offset) and doing a slice of the work
 //! sized so that it loops at most `loop_budget` times ([`Gpu::loop_budget`]: 60,000 on llvmpipe,
 //! unbounded elsewhere, where every pass is one round). `dsm`'s merge sort takes a round per
-//! merge pass (each loops about n times); the resolve's heapsorts (`avsm`'s segments) run
-//! [`sifts_per_round`] sifts a round; a compression says how many rounds it needs
-//! ([`super::deep_nodes::DeepNodesSpec::rounds`]). The single-pass steps (the merge, a greedy
-//! fit) loop 2n times, so a list longer than half the budget is refused
-//! ([`ShadowError::TexelListTooLong`]); the counter `max_texel_list` reports the longest.
+//! merge pass (each loops about 2n times over a list's 2n events); the resolve's heapsorts
+//! (`avsm`'s segments) run [`sifts_per_round`] sifts a round; a compression says how many rounds
+//! it needs ([`super::deep_nodes::DeepNodesSpec::rounds`]). The single-pass steps (the run sort,
+//! a greedy fit) loop a little over 2n times, so a list longer than [`longest_list`] (a little
+//! under half the budget) is refused ([`ShadowError::TexelListTooLong`]); the counter
+//! `max_texel_list` reports the longest.
 
 use bytemuck::{Pod, Zeroable};
 
@@ -101,20 +102,28 @@ pub fn sifts_per_round(max_list: u32, loop_budget: u32) -> u32 {
     (loop_budget / depth).max(1)
 }
 
-/// Keys per run of the merge sort of `dsm`'s starts and ends (`RUN` in
-/// shaders/shadow/deep_capture.wgsl).
+/// Keys per run of the merge sort of `dsm`'s events (`RUN` in shaders/shadow/deep_capture.wgsl).
 const RUN: u32 = 16;
+/// The two-run levels one merge pass makes (`WAY_LEVELS`: eight runs merged).
+const WAY_LEVELS: u32 = 3;
 
-/// The merge passes of a list of `n` keys (mirrors `runs_of` in
-/// shaders/shadow/deep_capture.wgsl): its two-run levels are ceil(log2) of its runs of `RUN`, or
-/// one more (runs of `RUN / 2`) to make them even; a pass makes two levels (four runs merged),
-/// or one for the first two passes when that makes the passes even. Never fewer for a longer
-/// list, so the longest sets the rounds.
+/// The merge passes of the events of a list of `n` segments (mirrors `runs_of` in
+/// shaders/shadow/deep_capture.wgsl): the 2n events' two-run levels are ceil(log2) of their
+/// runs of `RUN`, and a pass makes two (four runs merged), or one in the first pass when they
+/// are odd. Never fewer for a longer list, so the longest sets the rounds.
 pub fn merge_passes(n: u32) -> u32 {
-    let runs = n.div_ceil(RUN);
+    let runs = (2 * n).div_ceil(RUN);
     let levels = if runs <= 1 { 0 } else { (runs - 1).ilog2() + 1 };
-    let fours = (levels + levels % 2) / 2;
-    fours + fours % 2
+    levels.div_ceil(WAY_LEVELS)
+}
+
+/// The longest texel list a capture accepts under `loop_budget`: its costliest single pass,
+/// `dsm`'s run sort, loops 2n + ceil(2n / RUN) times over the 2n events of a list of n (the
+/// merge passes and a greedy fit loop fewer, `avsm`'s insertion sort 1.5n), and one dispatch
+/// must stay within the budget.
+pub fn longest_list(loop_budget: u32) -> u32 {
+    let events = u64::from(loop_budget.saturating_sub(1)) * u64::from(RUN) / u64::from(RUN + 1);
+    u32::try_from(events / 2).unwrap_or(u32::MAX)
 }
 
 /// Rounds of one heapsort phase over lists of at most `max_list`: the build sifts n/2 starts,
@@ -126,37 +135,32 @@ fn heap_rounds(max_list: u32, loop_budget: u32) -> (u32, u32) {
         max_list.saturating_sub(1).div_ceil(c).max(1),
     )
 }
-/// The textures of a resolve into nodes (`dsm`'s): the sort keys (its starts' and ends'
-/// depths and slopes) and the merged nodes (depths and values), four read-write storage
-/// textures of one `R32Float` a key or node (WebGPU allows read-write storage textures of
-/// 32-bit single-channel formats only), row textures ([`ROW_TEXELS`] a row) in the nodes' index
-/// space (two a segment). llvmpipe moves a storage texture's texels for all the lanes of a SIMD
-/// group at once and a storage buffer's words lane by lane: heapsorting 16,384 lists of 128 keys
-/// took 260 ms in a buffer and 110 ms in two such textures. In binding order: node depths (6),
-/// sort depths (7), sort slopes (8), node values (9).
-const KEY_TEXTURES: [&str; 4] = ["node_depths", "sort_depths", "sort_slopes", "node_values"];
-const KEY_BINDINGS: [u32; 4] = [6, 7, 8, 9];
+/// The textures of a resolve into nodes (`dsm`'s): the sort keys (its events' depths and
+/// changes of slope) and, after them, the nodes (depths and values), which the merge passes also
+/// use (which side a pass reads is then an index offset: no branch); two read-write storage
+/// textures of one `R32Float` a key or node (WebGPU allows read-write storage textures of 32-bit
+/// single-channel formats only), row textures ([`ROW_TEXELS`] a row) of four texels a segment.
+/// llvmpipe moves a storage texture's texels for all the lanes of a SIMD group at once and a
+/// storage buffer's words lane by lane: heapsorting 16,384 lists of 128 keys took 260 ms in a
+/// buffer and 110 ms in two such textures. In binding order: depths (6), values (7).
+const KEY_TEXTURES: [&str; 2] = ["key_depths", "key_values"];
+const KEY_BINDINGS: [u32; 2] = [6, 7];
 const SORT_KEY_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Float;
 const SORT_KEY_BYTES: u64 = 4;
 
-/// The key textures' texels for lists of `capacity` segments: two a segment for a resolve into
-/// nodes, else one (a placeholder for the binding).
+/// The key textures' texels for lists of `capacity` segments: four a segment for a resolve into
+/// nodes (two events, each a sort key and a node), else one (a placeholder for the binding).
 fn node_texel_count(capacity: u64, node_texels: bool) -> u64 {
     match node_texels {
-        true => 2 * capacity,
+        true => 4 * capacity,
         false => 1,
     }
 }
 
-/// A read-write key texture at `binding` ([`KEY_TEXTURES`]): the sort keys are also the fill's
-/// (fragment stage), the nodes the compute passes' only, so the fragment stage binds two storage
-/// textures of WebGPU's minimum four a stage.
+/// A read-write key texture at `binding` ([`KEY_TEXTURES`]), for the fill (fragment stage) and
+/// the compute passes.
 fn key_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
-    let sort_key = binding == KEY_BINDINGS[1] || binding == KEY_BINDINGS[2];
-    let visibility = match sort_key {
-        true => wgpu::ShaderStages::FRAGMENT | wgpu::ShaderStages::COMPUTE,
-        false => wgpu::ShaderStages::COMPUTE,
-    };
+    let visibility = wgpu::ShaderStages::FRAGMENT | wgpu::ShaderStages::COMPUTE;
     wgpu::BindGroupLayoutEntry {
         binding,
         visibility,
@@ -177,7 +181,7 @@ const DUMMY_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R8Unorm;
 /// The bytes a capture at `resolution_px` with lists for `segment_capacity` segments allocates:
 /// a 32-byte uniform, the 64 KiB round uniform, counts, offsets (+1 for the total), row sums
 /// (+1), an R8 raster target, and for `avsm` 16 + 16 bytes of segment and node storage per
-/// segment, for `dsm` (`node_texels`) the four key textures (`KEY_TEXTURES`), 2 x capacity
+/// segment, for `dsm` (`node_texels`) the two key textures (`KEY_TEXTURES`), 4 x capacity
 /// texels of 4 bytes each in whole rows: 32 bytes a segment (the others' are placeholders).
 pub fn bytes(resolution_px: u32, segment_capacity: u64, node_texels: bool) -> u64 {
     let texels = u64::from(resolution_px) * u64::from(resolution_px);
@@ -214,14 +218,15 @@ fn node_buffer_bytes(segment_capacity: u64, node_texels: bool) -> u64 {
 }
 
 /// The most segments one band may hold: `avsm`'s segments and nodes (16 bytes a segment each)
-/// within one storage binding, and `dsm`'s keys (two texels a segment) within the key textures'
-/// rows. Both owners band by both bounds, though `dsm` binds no buffer of segments: the bands
+/// within one storage binding, and `dsm`'s keys and nodes (four texels a segment) within the key
+/// textures' rows. Both owners band by both bounds, though `dsm` binds no buffer of segments: the bands
 /// stay the same for both, and so does the test that holds banded maps to whole ones
 /// (tests/techniques.rs).
 fn max_band_segments(gpu: &Gpu) -> u32 {
     let binding =
         gpu.limits.max_storage_buffer_binding_size / SEGMENT_BYTES.max(NODE_BYTES_PER_SEGMENT);
-    let texture = u64::from(gpu.limits.max_texture_dimension_2d) * u64::from(ROW_TEXELS) / 2;
+    let texture = u64::from(gpu.limits.max_texture_dimension_2d) * u64::from(ROW_TEXELS)
+        / node_texel_count(1, true);
     u32::try_from(binding.min(texture)).unwrap_or(u32::MAX)
 }
 
@@ -233,7 +238,7 @@ struct Lists {
     _nodes: wgpu::Buffer,
     /// The key textures ([`KEY_TEXTURES`]; 1x1 placeholders unless the resolve is into nodes),
     /// held with the bind group.
-    _keys: [wgpu::Texture; 4],
+    _keys: [wgpu::Texture; 2],
     /// Whether the resolve is into nodes.
     node_texels: bool,
     bind_group: wgpu::BindGroup,
@@ -297,14 +302,6 @@ pub enum Resolve {
     SegmentsByDraw,
 }
 
-/// Which list a resolve's sort pass sorts (the shader's `SORT_LIST`).
-#[derive(Clone, Copy, Debug)]
-enum SortList {
-    Segments = 0,
-    Starts = 1,
-    Ends = 2,
-}
-
 impl Resolve {
     /// Whether the resolve is into nodes, kept with the sort keys in the key textures
     /// (`KEY_TEXTURES`; `node_texel` in shaders/shadow/deep_capture_lists.wgsl): llvmpipe
@@ -331,23 +328,20 @@ impl Resolve {
         }
     }
 
-    /// The phases in order: entry point, kind, and the list its sort passes sort.
-    fn phases(self) -> &'static [(&'static str, ResolvePhase, SortList)] {
-        use SortList::*;
+    /// The phases in order: entry point and kind.
+    fn phases(self) -> &'static [(&'static str, ResolvePhase)] {
         // Whole segments: an insertion sort that gives up early, then the heapsort for the
         // lists it left.
-        const SEGMENTS: [(&str, ResolvePhase, SortList); 3] = [
-            ("insertion_sort", ResolvePhase::Single, Segments),
-            ("heap_build", ResolvePhase::Heap(true), Segments),
-            ("heap_extract", ResolvePhase::Heap(false), Segments),
+        const SEGMENTS: [(&str, ResolvePhase); 3] = [
+            ("insertion_sort", ResolvePhase::Single),
+            ("heap_build", ResolvePhase::Heap(true)),
+            ("heap_extract", ResolvePhase::Heap(false)),
         ];
-        // The fill wrote the starts and the ends (`fs_fill_split`).
-        const NODES: [(&str, ResolvePhase, SortList); 5] = [
-            ("run_sort", ResolvePhase::Single, Starts),
-            ("merge_runs", ResolvePhase::Merge, Starts),
-            ("run_sort", ResolvePhase::Single, Ends),
-            ("merge_runs", ResolvePhase::Merge, Ends),
-            ("merge_nodes", ResolvePhase::Single, Segments),
+        // The fill wrote the events (`fs_fill_split`); the merge sort's last pass writes the
+        // nodes.
+        const NODES: [(&str, ResolvePhase); 2] = [
+            ("run_sort", ResolvePhase::Single),
+            ("merge_runs", ResolvePhase::Merge),
         ];
         match self {
             Resolve::Nodes => &NODES,
@@ -425,7 +419,7 @@ impl Rounds {
     }
 
     /// Dispatches rounds 0..count of the pass's pipeline over `groups`, each bound to its index.
-    /// (No pass needs more than `MAX_ROUNDS`: lists are refused beyond half the loop budget,
+    /// (No pass needs more than `MAX_ROUNDS`: lists are refused beyond nearly half the loop budget,
     /// where avsm, the pass with the most, takes 100.)
     pub fn dispatch(&self, pass: &mut wgpu::ComputePass<'_>, count: u32, groups: (u32, u32)) {
         debug_assert!(count <= MAX_ROUNDS, "{count} rounds");
@@ -557,8 +551,6 @@ impl DeepCapture {
                 storage_entry(5, wgpu::ShaderStages::COMPUTE, false),
                 key_entry(KEY_BINDINGS[0]),
                 key_entry(KEY_BINDINGS[1]),
-                key_entry(KEY_BINDINGS[2]),
-                key_entry(KEY_BINDINGS[3]),
             ],
         });
         let module = shaders::module(
@@ -627,11 +619,8 @@ impl DeepCapture {
         let resolve = resolve
             .phases()
             .iter()
-            .map(|&(entry, phase, list)| {
-                let constants = [
-                    ("SORT_LIST", f64::from(list as u8)),
-                    ("SORT_BY_DRAW", by_draw),
-                ];
+            .map(|&(entry, phase)| {
+                let constants = [("SORT_BY_DRAW", by_draw)];
                 (phase, pipeline(entry, &round_layout, &constants))
             })
             .collect();
@@ -800,8 +789,7 @@ impl DeepCapture {
             .collect();
         self.last_max_list = counts.iter().copied().max().unwrap_or(0);
         let row_offsets = row_offsets(&counts, self.resolution as usize);
-        // The single-pass steps loop 2n times (and a round must make progress).
-        let longest_allowed = self.loop_budget / 2 - 2;
+        let longest_allowed = longest_list(self.loop_budget);
         if self.last_max_list > longest_allowed {
             return Err(ShadowError::TexelListTooLong {
                 technique: self.name,
@@ -1027,7 +1015,7 @@ impl Lists {
                 ),
             )?);
         }
-        let keys: [wgpu::Texture; 4] = keys.try_into().expect("four key textures");
+        let keys: [wgpu::Texture; 2] = keys.try_into().expect("two key textures");
         let key_views = keys
             .each_ref()
             .map(|t| t.create_view(&wgpu::TextureViewDescriptor::default()));
@@ -1043,8 +1031,6 @@ impl Lists {
                 bind_entry(5, row_sums),
                 texture_binding(KEY_BINDINGS[0], &key_views[0]),
                 texture_binding(KEY_BINDINGS[1], &key_views[1]),
-                texture_binding(KEY_BINDINGS[2], &key_views[2]),
-                texture_binding(KEY_BINDINGS[3], &key_views[3]),
             ],
         });
         Ok(Self {
@@ -1072,42 +1058,50 @@ mod tests {
     }
 
     #[test]
-    fn merge_passes_are_even_and_enough_and_never_fewer_for_a_longer_list() {
+    fn merge_passes_are_enough_and_never_fewer_for_a_longer_list() {
         let mut before = 0;
         for n in 0..20_000u32 {
             let passes = merge_passes(n);
-            assert_eq!(passes % 2, 0, "n {n}: the keys must end where they started");
-            // Runs of RUN, or RUN / 2 when their levels are odd; four runs merged a pass, or
-            // two in the first two passes when levels / 2 is odd.
-            let runs = n.div_ceil(RUN);
-            let mut levels = if runs <= 1 { 0 } else { (runs - 1).ilog2() + 1 };
-            let mut run = RUN;
-            if levels % 2 == 1 {
-                run /= 2;
-                levels += 1;
-            }
-            let merged: u64 = (1..=passes)
-                .map(|p| {
-                    if (levels / 2) % 2 == 1 && p <= 2 {
-                        2
-                    } else {
-                        4
-                    }
-                })
-                .product();
+            // The 2n events in runs of RUN; eight runs merged a pass (WAY_LEVELS levels), the
+            // first pass the levels left over.
+            let runs = (2 * n).div_ceil(RUN);
+            let levels = if runs <= 1 { 0 } else { (runs - 1).ilog2() + 1 };
+            let first = levels + WAY_LEVELS - WAY_LEVELS * passes.max(1);
+            assert!((1..=WAY_LEVELS).contains(&first) || passes == 0, "n {n}");
+            let merged_levels = (1..=passes)
+                .map(|p| if p == 1 { first } else { WAY_LEVELS })
+                .sum::<u32>();
             assert!(
-                u64::from(run) * merged >= u64::from(n),
+                u64::from(RUN) << merged_levels >= 2 * u64::from(n),
+                "n {n}: {passes} passes"
+            );
+            // And no pass more than that needs: one pass fewer would leave two runs at least.
+            assert!(
+                passes == 0 || u64::from(RUN) << (merged_levels - first) < 2 * u64::from(n),
                 "n {n}: {passes} passes"
             );
             assert!(passes >= before, "n {n}");
             before = passes;
         }
-        assert_eq!(merge_passes(16), 0);
-        assert_eq!(merge_passes(17), 2);
-        assert_eq!(merge_passes(64), 2);
-        assert_eq!(merge_passes(256), 2);
-        assert_eq!(merge_passes(257), 4);
-        assert_eq!(merge_passes(450), 4);
+        assert_eq!(merge_passes(8), 0);
+        assert_eq!(merge_passes(9), 1);
+        assert_eq!(merge_passes(64), 1);
+        assert_eq!(merge_passes(65), 2);
+        assert_eq!(merge_passes(450), 2);
+        assert_eq!(merge_passes(512), 2);
+        assert_eq!(merge_passes(513), 3);
+    }
+
+    #[test]
+    fn the_longest_list_sorts_within_the_loop_budget() {
+        for budget in [60_000u32, 65_535, 1 << 30] {
+            let n = u64::from(longest_list(budget));
+            let loops = |n: u64| 2 * n + (2 * n).div_ceil(u64::from(RUN));
+            assert!(loops(n) <= u64::from(budget), "budget {budget}: {n}");
+            // A list two longer would not fit (the limit is not needlessly low).
+            assert!(loops(n + 2) > u64::from(budget), "budget {budget}: {n}");
+        }
+        assert_eq!(longest_list(60_000), 28_234);
     }
 
     #[test]

@@ -1,10 +1,11 @@
 //! CPU mirrors of the deep shadow map passes, in the same f32 arithmetic and order as the
 //! shaders, so that a test can tell a compression bug from a build or lookup bug:
 //! - [`sort_segments`] and [`optical_depth_nodes`]: the deep capture's resolve
-//!   (shaders/shadow/deep_capture.wgsl): segments by (z0, z1, optical depth), merged into the
-//!   nodes (z, Ω(z)) of the piecewise-linear optical depth;
+//!   (shaders/shadow/deep_capture.wgsl): segments by (z0, z1, optical depth) (`avsm`'s), and
+//!   their starts and ends by depth, turned into the nodes (z, Ω(z)) of the piecewise-linear
+//!   optical depth (`dsm`'s);
 //! - [`greedy_fit`] and [`dsm_compress`]: `dsm`'s error-bounded greedy fit (Lokovic & Veach
-//!   2000) and the per-texel bisection of its tolerance (shaders/shadow/dsm_build.wgsl);
+//!   2000) and the per-texel search for its tolerance (shaders/shadow/dsm_build.wgsl);
 //! - [`AvsmCurve`] and [`avsm_compress`]: `avsm`'s insertion (in draw order or sorted, as its
 //!   list comes) and least-area removal (Salvi et al. 2010; shaders/shadow/avsm_build.wgsl);
 //! - [`evaluate`]: one texel's lookup (shaders/shadow/deep_nodes.wgsl).
@@ -53,30 +54,27 @@ pub fn sort_segments(segments: &mut [Segment]) {
     });
 }
 
-/// The nodes (z, Ω(z)) of sorted segments' optical depth, two per segment: every start and end
-/// is an event where the sum of the open segments' slopes changes.
-pub fn optical_depth_nodes(sorted: &[Segment]) -> Vec<Node> {
-    let mut ends: Vec<(f32, f32)> = sorted.iter().map(|s| (s.z1, s.slope())).collect();
-    ends.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
-    let n = sorted.len();
-    let (mut i, mut j) = (0, 0);
-    let (mut omega, mut slope) = (0.0f32, 0.0f32);
-    let mut z_prev = sorted.first().map_or(0.0, |s| s.z0);
-    let mut out = Vec::with_capacity(2 * n);
-    while i < n || j < n {
-        let (z, delta) = if i < n && (j >= n || sorted[i].z0 <= ends[j].0) {
-            i += 1;
-            (sorted[i - 1].z0, sorted[i - 1].slope())
-        } else {
-            j += 1;
-            (ends[j - 1].0, -ends[j - 1].1)
-        };
-        omega += slope * (z - z_prev);
-        slope = (slope + delta).max(0.0);
-        z_prev = z;
-        out.push(Node::new(z, omega));
-    }
-    out
+/// The nodes (z, Ω(z)) of segments' optical depth, two per segment, in any order: every start
+/// and end is an event where the sum of the open segments' slopes changes. The events are taken
+/// in the resolve's order (`key_less` in shaders/shadow/deep_capture.wgsl): by depth, and at one
+/// depth the larger change of slope first, so starts before ends.
+pub fn optical_depth_nodes(segments: &[Segment]) -> Vec<Node> {
+    let mut events: Vec<(f32, f32)> = segments
+        .iter()
+        .flat_map(|s| [(s.z0, s.slope()), (s.z1, -s.slope())])
+        .collect();
+    let before = |a: f32, b: f32| a.partial_cmp(&b).unwrap_or(std::cmp::Ordering::Equal);
+    events.sort_by(|a, b| before(a.0, b.0).then(before(b.1, a.1)));
+    let (mut omega, mut slope, mut z_prev) = (0.0f32, 0.0f32, 0.0f32);
+    events
+        .into_iter()
+        .map(|(z, delta)| {
+            omega += slope * (z - z_prev);
+            slope = (slope + delta).max(0.0);
+            z_prev = z;
+            Node::new(z, omega)
+        })
+        .collect()
 }
 
 /// An unbounded slope, for the feasible interval before it has met a node.
