@@ -109,20 +109,25 @@ fn greedy_fit(base: u32, n: u32, eps: f32, limit: u32, write: bool, out: u32) ->
     return count;
 }
 
-// The search for ε in steps of one greedy fit each, run in rounds (see src/shadow/deep_capture.rs):
-// step 0 fits at ε = 0 (and the texel is done when that fits); the next `deep.bisection_steps`
-// steps bisect [lo, hi] = [0, Ω_max]; the last writes the fit at ε = hi. ε = Ω_max needs no fit
-// to know it fits: Ω rises from 0 at the first node to Ω_max at the last, so every node's
-// feasible slopes from the first, [(Ω - ε)/dz, (Ω + ε)/dz], hold 0 (Ω - ε <= 0 <= Ω + ε holds
-// in floats too), and the fit is one segment, 2 nodes, within any budget the technique accepts
-// (at least 4 channels: N >= 2). Between rounds the search's state lives in the texel's first
-// two sort keys (nothing reads them after the resolve): (lo, hi), (mode, 0).
+// The search for ε in steps of one greedy fit each, run in rounds (see src/shadow/deep_capture.rs),
+// over the grid of multiples of the grain g = Ω_max / 2^deep.bisection_steps: the smallest
+// multiple of g whose fit takes at most N nodes. The first step fits at ε = 0 (the texel is done
+// when that fits); then ε doubles from g until a fit takes at most N nodes (a fit at small ε that
+// fails stops after N nodes, early in the list: these steps are cheap), or reaches Ω_max, which
+// needs no fit to know it fits: Ω rises from 0 at the first node to Ω_max at the last, so every
+// node's feasible slopes from the first, [(Ω - ε)/dz, (Ω + ε)/dz], hold 0 (Ω - ε <= 0 <= Ω + ε
+// holds in floats too), and the fit is one segment, 2 nodes, within any budget the technique
+// accepts (at least 4 channels: N >= 2); then bisection narrows the bracket [lo, hi] it found
+// (lo fails, hi fits; its width a power-of-two multiple of g, so every midpoint is a multiple of
+// g, exact in floats) to one grain; the last step writes the fit at ε = hi. The bisection of
+// [0, Ω_max] that this replaced found the same ε with every fit above it run over the whole
+// list. Between rounds the search's state lives in the texel's first two sort keys (nothing
+// reads them after the resolve): (lo, hi), (mode, 0).
+const MODE_START: f32 = 0.0;
 const MODE_BISECT: f32 = 1.0;
-const MODE_EXACT: f32 = 2.0;
-
-fn total_steps() -> u32 {
-    return 2u + deep.bisection_steps;
-}
+const MODE_FINAL: f32 = 2.0;
+const MODE_GROW: f32 = 3.0;
+const MODE_DONE: f32 = 4.0;
 
 // Greedy fits per round: each loops at most 2n times; the last step adds N-long loops. Keep in
 // sync with `dsm::rounds`.
@@ -184,43 +189,48 @@ fn compress(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     let per_round = fits_per_round();
-    let first_step = pass_round.index * per_round;
-    let total = total_steps();
-    if first_step >= total {
-        return;
-    }
+    let omega_max = node_texel(base + n - 1u).y;
+    let grain = ldexp(omega_max, -i32(deep.bisection_steps));
     var lo = 0.0;
-    var hi = node_texel(base + n - 1u).y;
-    var mode = MODE_BISECT;
+    var hi = 0.0;
+    var mode = MODE_START;
     // Between rounds the search's state waits in the texel's first sort keys, which nothing
     // reads after the resolve: (lo, hi), then (mode, 0).
-    if first_step > 0u {
+    if pass_round.index > 0u {
         let bounds = sort_key(base);
         lo = bounds.x;
         hi = bounds.y;
         mode = sort_key(base + 1u).x;
+        if mode == MODE_DONE {
+            return;
+        }
     }
     for (var k = 0u; k < per_round; k++) {
-        let step = first_step + k;
-        if step >= total {
+        if mode == MODE_FINAL {
+            finish(base, n, hi, limit, out);
+            mode = MODE_DONE;
             break;
         }
-        if step == 0u {
-            if greedy_fit(base, n, 0.0, limit, false, out) <= limit {
-                mode = MODE_EXACT;
-                hi = 0.0;
-            }
-        } else if step + 1u < total {
-            if mode == MODE_BISECT {
-                let mid = 0.5 * (lo + hi);
-                if greedy_fit(base, n, mid, limit, false, out) <= limit {
-                    hi = mid;
-                } else {
-                    lo = mid;
-                }
+        let eps = select(select(hi, 0.5 * (lo + hi), mode == MODE_BISECT), 0.0, mode == MODE_START);
+        let fits = greedy_fit(base, n, eps, limit, false, out) <= limit;
+        if mode == MODE_START {
+            lo = 0.0;
+            hi = select(grain, 0.0, fits);
+            mode = select(MODE_GROW, MODE_FINAL, fits);
+        } else if mode == MODE_GROW {
+            if fits {
+                mode = MODE_BISECT;
+            } else {
+                lo = hi;
+                hi = min(2.0 * hi, omega_max);
+                mode = select(MODE_GROW, MODE_BISECT, hi >= omega_max);
             }
         } else {
-            finish(base, n, hi, limit, out);
+            lo = select(eps, lo, fits);
+            hi = select(hi, eps, fits);
+        }
+        if mode == MODE_BISECT && hi - lo <= grain {
+            mode = MODE_FINAL;
         }
     }
     set_sort_key(base, vec2<f32>(lo, hi));

@@ -143,9 +143,10 @@ pub struct DsmFit {
 }
 
 /// `dsm`'s compression of one texel's optical depth nodes to at most `limit` (≥ 2): the list
-/// itself when it fits, else the fit at ε = 0 when that fits, else the fit at the smallest ε
-/// that fits found by `steps` bisection steps over [0, Ω_max] (a fit within Ω_max is one flat
-/// segment).
+/// itself when it fits, else the fit at ε = 0 when that fits, else the fit at the smallest
+/// multiple of the grain g = Ω_max / 2^`steps` that fits, searched as the GPU does: ε doubles
+/// from g until it fits (or reaches Ω_max, where the fit is one flat segment), then bisection
+/// narrows the bracket to one grain.
 pub fn dsm_compress(nodes: &[Node], limit: usize, steps: u32) -> DsmFit {
     if nodes.len() <= limit {
         return DsmFit {
@@ -157,10 +158,18 @@ pub fn dsm_compress(nodes: &[Node], limit: usize, steps: u32) -> DsmFit {
     let mut eps = 0.0;
     if !fits(0.0) {
         // Ω_max fits without trying: one flat segment (shaders/shadow/dsm_build.wgsl says why).
-        let mut hi = nodes[nodes.len() - 1].value;
-        debug_assert!(limit < 2 || fits(hi), "a fit within Ω_max is one segment");
-        let mut lo = 0.0;
-        for _ in 0..steps {
+        let omega_max = nodes[nodes.len() - 1].value;
+        debug_assert!(
+            limit < 2 || fits(omega_max),
+            "a fit within Ω_max is one segment"
+        );
+        let grain = omega_max / (1u64 << steps) as f32;
+        let (mut lo, mut hi) = (0.0, grain);
+        while hi < omega_max && !fits(hi) {
+            lo = hi;
+            hi = (2.0 * hi).min(omega_max);
+        }
+        while hi - lo > grain {
             let mid = 0.5 * (lo + hi);
             if fits(mid) {
                 hi = mid;
@@ -338,7 +347,7 @@ mod tests {
     }
 
     #[test]
-    fn the_bisection_finds_the_smallest_tolerance_for_the_budget() {
+    fn the_search_finds_the_smallest_tolerance_for_the_budget() {
         // Two nodes: one line from (0, 0) to z = 4 with slope m, off by |m - 1|, |2m - 2|,
         // |3m - 2| and |4m - 2| at the inner nodes; the largest is smallest at m = 2/3, where
         // 2|m - 1| = |4m - 2| = 2/3.
@@ -346,6 +355,10 @@ mod tests {
         assert!((fit.tolerance - 2.0 / 3.0).abs() < 1e-5, "{fit:?}");
         assert_eq!(fit.nodes.len(), 2);
         assert!((fit.nodes[1].value - 8.0 / 3.0).abs() < 1e-4, "{fit:?}");
+        // On a coarse grain (Ω_max / 2^4 = 0.125) it is the smallest multiple that fits.
+        let coarse = dsm_compress(&ramp_then_flat(), 2, 4);
+        assert_eq!(coarse.tolerance, 0.75, "{coarse:?}");
+        assert!(greedy_fit(&ramp_then_flat(), 0.625, 2).len() > 2);
         // Three nodes hold it exactly; five hold the list as it is.
         let three = dsm_compress(&ramp_then_flat(), 3, 20);
         assert_eq!((three.tolerance, three.nodes.len()), (0.0, 3));

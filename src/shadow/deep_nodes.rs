@@ -60,8 +60,9 @@ pub struct DeepNodesSpec {
     pub name: &'static str,
     /// Its compression shader (entry point `compress`), under `shaders/`.
     pub build_shader: &'static str,
-    /// Bisection steps of a per-texel search the compression runs (`dsm`'s tolerance); 0 when
-    /// it runs none.
+    /// The grain of a per-texel search the compression runs (`dsm`'s tolerance, searched to
+    /// Ω_max / 2^steps: as fine as that many steps of bisection over [0, Ω_max]); 0 when it
+    /// runs none.
     pub bisection_steps: u32,
     /// Words of statistics the compression accumulates in group 2, binding 2 (cleared before
     /// each build, read back after it: a second CPU–GPU sync); 0 for none, and no binding.
