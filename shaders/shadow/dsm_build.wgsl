@@ -110,24 +110,31 @@ fn greedy_fit(base: u32, n: u32, eps: f32, limit: u32, write: bool, out: u32) ->
 }
 
 // The search for ε in steps of one greedy fit each, run in rounds (see src/shadow/deep_capture.rs),
-// over the grid of multiples of the grain g = Ω_max / 2^deep.bisection_steps: the smallest
-// multiple of g whose fit takes at most N nodes. The first step fits at ε = 0 (the texel is done
-// when that fits); then ε doubles from g until a fit takes at most N nodes (a fit at small ε that
-// fails stops after N nodes, early in the list: these steps are cheap), or reaches Ω_max, which
-// needs no fit to know it fits: Ω rises from 0 at the first node to Ω_max at the last, so every
+// over the grid of multiples of the grain g = Ω_max / 2^S (S = deep.bisection_steps): the
+// smallest multiple of g whose fit takes at most N nodes. The first step fits at ε = 0 (the
+// texel is done when that fits). Then a binary search over the powers of two g·2^k, k in 0..S,
+// finds the bracket [g·2^(k-1), g·2^k] (or [0, g]) whose bottom fails and top fits: g·2^S = Ω_max
+// needs no fit to know it fits (Ω rises from 0 at the first node to Ω_max at the last, so every
 // node's feasible slopes from the first, [(Ω - ε)/dz, (Ω + ε)/dz], hold 0 (Ω - ε <= 0 <= Ω + ε
 // holds in floats too), and the fit is one segment, 2 nodes, within any budget the technique
-// accepts (at least 4 channels: N >= 2); then bisection narrows the bracket [lo, hi] it found
-// (lo fails, hi fits; its width a power-of-two multiple of g, so every midpoint is a multiple of
-// g, exact in floats) to one grain; the last step writes the fit at ε = hi. The bisection of
-// [0, Ω_max] that this replaced found the same ε with every fit above it run over the whole
-// list. Between rounds the search's state lives in the texel's first two sort keys (nothing
-// reads them after the resolve): (lo, hi), (mode, 0).
+// accepts (at least 4 channels: N >= 2)); about log2(S + 1) fits, those below ε stopping early
+// (a fit that fails stops after N vertices). Then bisection narrows the bracket to one grain
+// (its width a power-of-two multiple of g, so every midpoint is a multiple of g, exact in
+// floats), and the last step writes the fit at ε = hi. Twelve steps of bisection over [0,
+// Ω_max], which this replaced, ran every fit above ε over the whole list. Between rounds the
+// search's state lives in the texel's first two sort keys (nothing reads them after the
+// resolve): (lo, hi) (while searching the powers, their exponents: k = -1 stands for ε = 0),
+// then (mode, 0).
 const MODE_START: f32 = 0.0;
 const MODE_BISECT: f32 = 1.0;
 const MODE_FINAL: f32 = 2.0;
-const MODE_GROW: f32 = 3.0;
+const MODE_POWERS: f32 = 3.0;
 const MODE_DONE: f32 = 4.0;
+
+// The tolerance g·2^k for exponent k of the powers' search (k = -1: 0).
+fn power_eps(grain: f32, k: f32) -> f32 {
+    return select(ldexp(grain, i32(k)), 0.0, k < 0.0);
+}
 
 // Greedy fits per round: each loops at most 2n times; the last step adds N-long loops. Keep in
 // sync with `dsm::rounds`.
@@ -211,23 +218,35 @@ fn compress(@builtin(global_invocation_id) id: vec3<u32>) {
             mode = MODE_DONE;
             break;
         }
-        let eps = select(select(hi, 0.5 * (lo + hi), mode == MODE_BISECT), 0.0, mode == MODE_START);
+        // The powers' search tries the middle exponent (lo < mid < hi: hi - lo >= 2 there).
+        let mid_power = floor(0.5 * (lo + hi));
+        var eps = 0.5 * (lo + hi);
+        if mode == MODE_START {
+            eps = 0.0;
+        } else if mode == MODE_POWERS {
+            eps = power_eps(grain, mid_power);
+        }
         let fits = greedy_fit(base, n, eps, limit, false, out) <= limit;
         if mode == MODE_START {
-            lo = 0.0;
-            hi = select(grain, 0.0, fits);
-            mode = select(MODE_GROW, MODE_FINAL, fits);
-        } else if mode == MODE_GROW {
+            // Exponents: -1 (ε = 0) fails, S (Ω_max) fits.
+            lo = -1.0;
+            hi = f32(deep.bisection_steps);
+            mode = select(MODE_POWERS, MODE_FINAL, fits);
             if fits {
-                mode = MODE_BISECT;
-            } else {
-                lo = hi;
-                hi = min(2.0 * hi, omega_max);
-                mode = select(MODE_GROW, MODE_BISECT, hi >= omega_max);
+                hi = 0.0;
             }
+        } else if mode == MODE_POWERS {
+            lo = select(mid_power, lo, fits);
+            hi = select(hi, mid_power, fits);
         } else {
             lo = select(eps, lo, fits);
             hi = select(hi, eps, fits);
+        }
+        if mode == MODE_POWERS && hi - lo <= 1.0 {
+            // The bracket between neighbouring powers, in ε.
+            lo = power_eps(grain, lo);
+            hi = power_eps(grain, hi);
+            mode = MODE_BISECT;
         }
         if mode == MODE_BISECT && hi - lo <= grain {
             mode = MODE_FINAL;

@@ -144,9 +144,10 @@ pub struct DsmFit {
 
 /// `dsm`'s compression of one texel's optical depth nodes to at most `limit` (≥ 2): the list
 /// itself when it fits, else the fit at ε = 0 when that fits, else the fit at the smallest
-/// multiple of the grain g = Ω_max / 2^`steps` that fits, searched as the GPU does: ε doubles
-/// from g until it fits (or reaches Ω_max, where the fit is one flat segment), then bisection
-/// narrows the bracket to one grain.
+/// multiple of the grain g = Ω_max / 2^`steps` that fits, searched as the GPU does: a binary
+/// search over the powers g·2^k (k = -1 standing for ε = 0, k = `steps` for Ω_max, where the fit
+/// is one flat segment) for neighbouring ones that fail and fit, then bisection between them to
+/// one grain.
 pub fn dsm_compress(nodes: &[Node], limit: usize, steps: u32) -> DsmFit {
     if nodes.len() <= limit {
         return DsmFit {
@@ -164,11 +165,23 @@ pub fn dsm_compress(nodes: &[Node], limit: usize, steps: u32) -> DsmFit {
             "a fit within Ω_max is one segment"
         );
         let grain = omega_max / (1u64 << steps) as f32;
-        let (mut lo, mut hi) = (0.0, grain);
-        while hi < omega_max && !fits(hi) {
-            lo = hi;
-            hi = (2.0 * hi).min(omega_max);
+        let power = |k: i32| {
+            if k < 0 {
+                0.0
+            } else {
+                grain * (1u64 << k) as f32
+            }
+        };
+        let (mut k_lo, mut k_hi) = (-1i32, steps as i32);
+        while k_hi - k_lo > 1 {
+            let mid = (k_lo + k_hi).div_euclid(2);
+            if fits(power(mid)) {
+                k_hi = mid;
+            } else {
+                k_lo = mid;
+            }
         }
+        let (mut lo, mut hi) = (power(k_lo), power(k_hi));
         while hi - lo > grain {
             let mid = 0.5 * (lo + hi);
             if fits(mid) {

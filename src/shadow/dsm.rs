@@ -43,12 +43,15 @@ use super::{Role, TechniqueEntry};
 
 /// The grain of the per-texel tolerance: ε is the smallest multiple of Ω_max / 2^12 whose fit
 /// takes at most N nodes (0.1% of the ray's optical depth; the mean ε is a few percent of it at
-/// 24 channels), searched by doubling from the grain, then bisection (shaders/shadow/dsm_build.wgsl).
-/// Twelve steps of bisection over [0, Ω_max] found it before, with every fit above it run over
-/// the whole list: the search took 158 ms of the thesis frame instead of 135 (lavapipe), and where
-/// a texel's count of nodes is not monotone in ε, a larger ε (mean 32.0e-3 against 31.7e-3, images
-/// within FLIP 0.0003). 20 steps, as before that, cost the frame 18% more (2.29 s against 1.89 s
-/// then) for images within FLIP 0.0006.
+/// 24 channels), searched over the powers of two first, then by bisection between two of them
+/// (shaders/shadow/dsm_build.wgsl). Twelve steps of bisection over [0, Ω_max] found it before,
+/// with every fit above it run over the whole list. The search's pass on the thesis frame
+/// (lavapipe, ms, before -> after): 24 channels 164 -> 134, 16: 160 -> 134, 12: 157 -> 144, 8:
+/// 170 -> 162, 6: 153 -> 181 (at 3 nodes a texel ε is a large part of Ω_max, and the
+/// bisection between powers takes nearly as many steps as it did over [0, Ω_max]). Where a
+/// texel's count of nodes is not monotone in ε it can stop at a smaller ε (mean 32.0e-3 against
+/// 31.7e-3 at 24 channels, images within FLIP 0.0003). 20 steps, as before that, cost the
+/// frame 18% more (2.29 s against 1.89 s then) for images within FLIP 0.0006.
 pub const BISECTION_STEPS: u32 = 12;
 
 pub const SPEC: DeepNodesSpec = DeepNodesSpec {
@@ -63,9 +66,10 @@ pub const SPEC: DeepNodesSpec = DeepNodesSpec {
 };
 
 /// Steps of the per-texel search, one greedy fit each (shaders/shadow/dsm_build.wgsl), at most:
-/// the fit at ε = 0, the doubling of ε from Ω_max / 2^steps (up to `BISECTION_STEPS` fits), the
-/// bisection of the bracket it leaves (one step fewer), the final fit.
-const SEARCH_STEPS: u32 = 2 * BISECTION_STEPS + 1;
+/// the fit at ε = 0, the binary search over the exponents -1..=`BISECTION_STEPS` of the powers
+/// of two (ceil(log2(steps + 1)) fits: the bit length of `BISECTION_STEPS`), the bisection of the
+/// bracket it leaves (at most `BISECTION_STEPS` - 1), the final fit.
+const SEARCH_STEPS: u32 = BISECTION_STEPS + 1 + (u32::BITS - BISECTION_STEPS.leading_zeros());
 
 /// Rounds of the compression: a greedy fit over 2n nodes loops at most 2n times, so a round
 /// takes `loop_budget / (2 max_list + 20)` steps (`fits_per_round` in the shader).
