@@ -6,18 +6,16 @@
 // 2. scan_rows, scan_total, scan_write (shaders/shadow/grid_scan.wgsl, shared with `exact`):
 //    exclusive prefix sum of the counts -> list offsets (offsets[res²] = total).
 // 3. fs_fill: every fragment of the current band of rows writes its segment (z0, z1, optical
-//    depth, draw index) into its texel's list (counts, cleared, serve as cursors); for `dsm`,
-//    fs_fill_split writes two events instead, its start (z0, slope) and its end (z1, -slope), to
-//    the sort keys (two read-write storage textures).
-// 4. resolve (run_sort, merge_runs): per texel of the band, `dsm`'s sorts its events by depth
-//    and turns them into the nodes (z, Ω(z)) of the piecewise-linear optical depth as its last
-//    pass writes them: between events Ω grows by the sum of the slopes (optical depth per metre)
-//    of the segments open there. The keys are total over what is sorted, so the nodes do not
-//    depend on the order the fragments arrived in. An owner that needs the segments themselves
-//    has them sorted whole (an insertion sort that gives up early, then a heapsort of the lists
-//    it left): by (z0, z1, optical depth, draw index), or with SORT_BY_DRAW by draw index, which
-//    puts each texel's list back in the order the particles were drawn, whatever order the
-//    fill's atomics wrote it in.
+//    depth, draw index) into its texel's list (counts, cleared, serve as cursors).
+// 4. resolve (run_sort, merge_runs): per texel of the band, `dsm`'s sorts its segments' events,
+//    their starts (z0, slope) and ends (z1, -slope), by depth and turns them into the nodes (z,
+//    Ω(z)) of the piecewise-linear optical depth as its last pass writes them: between events Ω
+//    grows by the sum of the slopes (optical depth per metre) of the segments open there. The
+//    keys are total over what is sorted, so the nodes do not depend on the order the fragments
+//    arrived in. An owner that needs the segments themselves has them sorted whole (an insertion
+//    sort that gives up early, then a heapsort of the lists it left): by (z0, z1, optical depth,
+//    draw index), or with SORT_BY_DRAW by draw index, which puts each texel's list back in the
+//    order the particles were drawn, whatever order the fill's atomics wrote it in.
 #import shadow/layered_build.wgsl
 #import shadow/deep_capture_lists.wgsl
 #import shadow/grid_scan.wgsl
@@ -93,26 +91,6 @@ fn fs_fill(in: BuildVertexOut) -> @location(0) vec4<f32> {
     return vec4<f32>(0.0);
 }
 
-// The fill of a resolve into nodes (`dsm`'s): each segment goes straight to the sort keys,
-// split into two events, its start (z0, slope) and its end (z1, -slope): where the optical
-// depth's slope rises and where it falls back, side by side at twice its slot; nothing reads
-// the segments. (A compute pass that split the
-// stored segments instead cost 50-150 ms more of `dsm`'s frame on the thesis scene.)
-@fragment
-fn fs_fill_split(in: BuildVertexOut) -> @location(0) vec4<f32> {
-    let segment = fragment_segment(in);
-    let at = fill_slot(in, segment);
-    if at.index == NO_TEXEL {
-        discard;
-    }
-    if at.slot < capture.capacity {
-        let slope = segment_slope(segment);
-        set_sort_key(2u * at.slot, vec2<f32>(segment.z0, slope));
-        set_sort_key(2u * at.slot + 1u, vec2<f32>(segment.z1, -slope));
-    }
-    return vec4<f32>(0.0);
-}
-
 // The density volume's segments (shaders/shadow/volume_splat.wgsl): each step of the texel's
 // light ray that has density is one segment [t - dt/2, t + dt/2] (metres) of its optical depth,
 // drawn after every particle (its draw index counts on from VOLUME_DRAW_BASE).
@@ -168,28 +146,6 @@ fn fs_fill_volume(in: VolumeVertexOut) -> @location(0) vec4<f32> {
         let slot = offsets[index] - capture.band_base + atomicAdd(&counts[index], 1u);
         if slot < capture.capacity {
             segments[slot] = segment;
-        }
-    }
-    return vec4<f32>(0.0);
-}
-
-@fragment
-fn fs_fill_split_volume(in: VolumeVertexOut) -> @location(0) vec4<f32> {
-    let index = volume_texel(in.clip);
-    let ray = volume_light_ray(in.ndc);
-    if index == NO_TEXEL || ray.steps == 0u {
-        discard;
-    }
-    for (var i = 0u; i < ray.steps; i++) {
-        let segment = volume_segment(ray, i);
-        if segment.optical_depth < 0.0 {
-            continue;
-        }
-        let slot = offsets[index] - capture.band_base + atomicAdd(&counts[index], 1u);
-        if slot < capture.capacity {
-            let slope = segment_slope(segment);
-            set_sort_key(2u * slot, vec2<f32>(segment.z0, slope));
-            set_sort_key(2u * slot + 1u, vec2<f32>(segment.z1, -slope));
         }
     }
     return vec4<f32>(0.0);
@@ -436,23 +392,26 @@ fn insertion_sort(@builtin(global_invocation_id) id: vec3<u32>) {
     }
 }
 
-// `dsm`'s sort of a texel's 2n events (`fs_fill_split`) by depth, starts before ends at one
+// `dsm`'s sort of the 2n events of a texel's n segments by depth, starts before ends at one
 // depth: a merge sort whose first runs are sorted in registers and whose last pass turns the
-// events into the nodes (z, Ω(z)) (`next_node`). `run_sort` reads the list in runs of RUN keys,
-// sorts each by insertion into a private array written out slot by slot (`#unroll`, no index
-// known only at run time, so the array stays in registers) and writes it out; `merge_runs` then
-// merges groups of up to WAYS runs, one pass a round, between the two sides of the key textures
-// (the sort keys and, `node_side()` further on, the nodes: which side is an index offset, not a
-// branch). A texel's passes alternate between the sides, arranged so that its last one writes
-// the nodes: `run_sort` writes its runs to the keys when the texel's merge passes are odd in
-// number, else to the nodes, and a list of a single run needs no merge, so `run_sort` writes its
-// nodes. Against the heapsort it replaced (the same order: the keys are total), each key is read
-// and written once a pass instead of log2(n) times (the textures' loads and stores are most of
-// a sort's cost on llvmpipe); merging eight runs a pass instead of four, and sorting the starts
-// and ends as one list instead of two then merging them, took the sort and merge of the thesis
-// frame from 177 to 128 ms on lavapipe. Each merge group's heads are loaded outside the loop
-// over its keys: llvmpipe runs an `if` body inside a loop for every iteration, its lanes masked
-// off or not (four runs a pass with each group started inside the one loop: 94 ms; outside: 81).
+// events into the nodes (z, Ω(z)) (`next_node`). `run_sort` reads the segments in runs of RUN
+// events (RUN / 2 segments), sorts each by insertion into a private array written out slot by
+// slot (`#unroll`, no index known only at run time, so the array stays in registers) and writes
+// it out; `merge_runs` then merges groups of up to WAYS runs, one pass a round, between the two
+// sides of the key textures (the sort keys and, `node_side()` further on, the nodes: which side
+// is an index offset, not a branch). A texel's passes alternate between the sides, arranged so
+// that its last one writes the nodes: `run_sort` writes its runs to the keys when the texel's
+// merge passes are odd in number, else to the nodes, and a list of a single run needs no merge,
+// so `run_sort` writes its nodes. Against the heapsort it replaced (the same order: the keys are
+// total), each key is read and written once a pass instead of log2(n) times (the textures' loads
+// and stores are most of a sort's cost on llvmpipe); merging eight runs a pass instead of four,
+// and sorting the starts and ends as one list instead of two then merging them, took the sort and
+// merge of the thesis frame from 177 to 128 ms on lavapipe. Each merge group's heads are loaded
+// outside the loop over its keys: llvmpipe runs an `if` body inside a loop for every iteration,
+// its lanes masked off or not (four runs a pass with each group started inside the one loop: 94
+// ms; outside: 81). The fill stores whole segments, one 16-byte store a fragment, which
+// `run_sort` splits into events as it reads them: the fill writing both events to the key
+// textures instead (four texture stores) took 65 ms against 41, for a run sort of 54 against 63.
 // The passes loop 2n + ceil(2n / RUN) times at most, within the budget for any list the capture
 // accepts (`longest_list` in src/shadow/deep_capture.rs).
 const RUN: u32 = 16u;
@@ -573,8 +532,12 @@ fn run_sort(@builtin(global_invocation_id) id: vec3<u32>) {
         let m = min(RUN, n - start);
         var run: Run;
         run.count = 0u;
-        for (var i = 0u; i < m; i++) {
-            insert_key(&run, sort_key(base + start + i));
+        // The run's segments, two events each (m is even).
+        for (var i = 0u; i < m; i += 2u) {
+            let segment = segments[list.first + (start + i) / 2u];
+            let slope = segment_slope(segment);
+            insert_key(&run, vec2<f32>(segment.z0, slope));
+            insert_key(&run, vec2<f32>(segment.z1, -slope));
         }
         #unroll k 0..RUN
             if k < m {

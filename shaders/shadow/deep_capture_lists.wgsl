@@ -1,13 +1,13 @@
 // The per-texel segment lists of a deep capture (src/shadow/deep_capture.rs), as its own passes
 // and the compression passes that read them declare them in group 1. Texel i's segments are
-// segments[offsets[i] .. offsets[i + 1]) (for `avsm`; `dsm`'s fill writes only the sort keys,
-// below). After the resolve, for `dsm`, its nodes (z, Ω(z)) of the piecewise-linear optical
-// depth are node_texel(2·offsets[i] .. 2·offsets[i + 1]); for `avsm` the segments
-// are sorted by (z0, z1, optical depth), or by draw index alone for its default insertion in
-// draw order (the resolve's `SORT_BY_DRAW`). The lists hold one band of rows at a time (rows
-// [row_begin, row_end), whose first segment is offsets' band_base), so every index into them
-// is relative to band_base, and the per-texel passes cover the band's rows only. Every storage
-// binding is read_write because the capture's bind group layout is shared by all of its passes.
+// segments[offsets[i] .. offsets[i + 1]). After the resolve, for `dsm`, its nodes (z, Ω(z)) of
+// the piecewise-linear optical depth are node_texel(2·offsets[i] .. 2·offsets[i + 1]); for `avsm`
+// the segments are sorted by (z0, z1, optical depth), or by draw index alone for its default
+// insertion in draw order (the resolve's `SORT_BY_DRAW`). The lists hold one band of rows at a
+// time (rows [row_begin, row_end), whose first segment is offsets' band_base), so every index
+// into them is relative to band_base, and the per-texel passes cover the band's rows only. Every
+// storage binding is read_write because the capture's bind group layout is shared by all of its
+// passes.
 // Keep `CaptureParams` in sync with src/shadow/deep_capture.rs.
 
 #import common/rows.wgsl
@@ -54,9 +54,9 @@ struct Segment {
 // one R32Float each, row textures (shaders/common/rows.wgsl) in the nodes' index space
 // (src/shadow/deep_capture.rs, SORT_KEY_FORMAT, says why textures; 1x1 placeholders for the
 // others), depths in one and values in the other: the sort keys, a texel's events, its
-// segments' starts (z0, slope) and ends (z1, -slope), at [2·first, 2·first + 2n); the nodes (z,
-// Ω(z)) at the same indices `node_side()` further on. (The sort passes use both sides, so that
-// which side a texel's pass reads is an offset, never a branch.)
+// segments' starts (z0, slope) and ends (z1, -slope) as the resolve sorts them, at [2·first,
+// 2·first + 2n); the nodes (z, Ω(z)) at the same indices `node_side()` further on. (The sort
+// passes use both sides, so that which side a texel's pass reads is an offset, never a branch.)
 @group(1) @binding(6) var key_depths: texture_storage_2d<r32float, read_write>;
 @group(1) @binding(7) var key_values: texture_storage_2d<r32float, read_write>;
 @group(3) @binding(0) var<uniform> pass_round: Round;

@@ -6,14 +6,15 @@
 //! Four passes, all in shaders/shadow/deep_capture.wgsl: a count raster pass over the
 //! light-space billboards (atomic count per texel), a prefix scan into list offsets, a fill pass
 //! writing each fragment's segment (z0, z1, optical depth, draw index) into its texel's list, and
-//! the resolve's compute passes, as the owner asks ([`Resolve`]): for `dsm`, the fill writes two
-//! events of each segment instead, its start (z0, slope) and its end (z1, −slope), and the
-//! resolve sorts them by depth — a total key over what is sorted, so the nodes do not depend on
-//! the order the fragments arrived in; a merge sort: runs of 16 sorted in registers, then four
-//! runs merged a pass ([`merge_passes`]) — whose last pass turns them into the nodes (z, Ω(z)),
-//! all in read-write storage textures (`KEY_TEXTURES`); for `avsm`, it sorts the segments by (z0, z1, optical depth, draw index)
-//! (`avsm` sorted) or by draw index (`avsm` streaming), which restores the order the particles
-//! were drawn in, the order an engine's interlocked fragment shader would see them.
+//! the resolve's compute passes, as the owner asks ([`Resolve`]): for `dsm`, it splits each
+//! segment into two events, its start (z0, slope) and its end (z1, −slope), and sorts them by
+//! depth — a total key over what is sorted, so the nodes do not depend on the order the
+//! fragments arrived in; a merge sort: runs of 16 sorted in registers, then eight runs merged a
+//! pass ([`merge_passes`]) — whose last pass turns them into the nodes (z, Ω(z)), all in
+//! read-write storage textures (`KEY_TEXTURES`); for `avsm`, it sorts the segments by (z0, z1,
+//! optical depth, draw index) (`avsm` sorted) or by draw index (`avsm` streaming), which
+//! restores the order the particles were drawn in, the order an engine's interlocked fragment
+//! shader would see them.
 //! The counts are read back before the fill so the lists can grow to hold the frame (a CPU–GPU
 //! sync per build).
 //! A compression pass then binds [`DeepCapture::layout`] as its group 1
@@ -157,13 +158,11 @@ fn node_texel_count(capacity: u64, node_texels: bool) -> u64 {
     }
 }
 
-/// A read-write key texture at `binding` ([`KEY_TEXTURES`]), for the fill (fragment stage) and
-/// the compute passes.
+/// A read-write key texture at `binding` ([`KEY_TEXTURES`]), for the compute passes.
 fn key_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
-    let visibility = wgpu::ShaderStages::FRAGMENT | wgpu::ShaderStages::COMPUTE;
     wgpu::BindGroupLayoutEntry {
         binding,
-        visibility,
+        visibility: wgpu::ShaderStages::COMPUTE,
         ty: wgpu::BindingType::StorageTexture {
             access: wgpu::StorageTextureAccess::ReadWrite,
             format: SORT_KEY_FORMAT,
@@ -180,9 +179,10 @@ const DUMMY_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R8Unorm;
 
 /// The bytes a capture at `resolution_px` with lists for `segment_capacity` segments allocates:
 /// a 32-byte uniform, the 64 KiB round uniform, counts, offsets (+1 for the total), row sums
-/// (+1), an R8 raster target, and for `avsm` 16 + 16 bytes of segment and node storage per
-/// segment, for `dsm` (`node_texels`) the two key textures (`KEY_TEXTURES`), 4 x capacity
-/// texels of 4 bytes each in whole rows: 32 bytes a segment (the others' are placeholders).
+/// (+1), an R8 raster target, 16 bytes of segment storage per segment, and for `avsm` 16 bytes of
+/// node storage per segment, for `dsm` (`node_texels`) the two key textures (`KEY_TEXTURES`), 4
+/// x capacity texels of 4 bytes each in whole rows: 32 bytes a segment (the others'
+/// are placeholders).
 pub fn bytes(resolution_px: u32, segment_capacity: u64, node_texels: bool) -> u64 {
     let texels = u64::from(resolution_px) * u64::from(resolution_px);
     let (width, height) = row_texture_size(node_texel_count(segment_capacity, node_texels));
@@ -192,19 +192,15 @@ pub fn bytes(resolution_px: u32, segment_capacity: u64, node_texels: bool) -> u6
         + (texels + 1) * 4
         + (u64::from(resolution_px) + 1) * 4
         + texels
-        + segment_buffer_bytes(segment_capacity, node_texels)
+        + segment_buffer_bytes(segment_capacity)
         + node_buffer_bytes(segment_capacity, node_texels)
         + u64::from(width) * u64::from(height) * KEY_TEXTURES.len() as u64 * SORT_KEY_BYTES
 }
 
-/// The segments buffer's bytes: [`SEGMENT_BYTES`] a segment of capacity, or for a resolve into
-/// nodes (`node_texels`: `dsm`'s, whose fill writes each segment's start and end to the sort
-/// keys and stores no segment) one segment, a placeholder for the binding.
-fn segment_buffer_bytes(segment_capacity: u64, node_texels: bool) -> u64 {
-    match node_texels {
-        true => SEGMENT_BYTES,
-        false => segment_capacity * SEGMENT_BYTES,
-    }
+/// The segments buffer's bytes: [`SEGMENT_BYTES`] a segment of capacity (every fill stores the
+/// segments; `dsm`'s run sort splits them into events as it reads them).
+fn segment_buffer_bytes(segment_capacity: u64) -> u64 {
+    segment_capacity * SEGMENT_BYTES
 }
 
 /// The nodes buffer's bytes: [`NODE_BYTES_PER_SEGMENT`] a segment of capacity (`avsm` keeps its
@@ -310,22 +306,6 @@ impl Resolve {
     /// per greedy fit.
     pub fn node_texels(self) -> bool {
         self == Resolve::Nodes
-    }
-
-    /// The fill's entry point: `dsm`'s writes each segment's start and end to the sort keys.
-    fn fill_entry(self) -> &'static str {
-        match self {
-            Resolve::Nodes => "fs_fill_split",
-            Resolve::SegmentsByDepth | Resolve::SegmentsByDraw => "fs_fill",
-        }
-    }
-
-    /// The fill's entry point for a density volume's segments.
-    fn fill_volume_entry(self) -> &'static str {
-        match self {
-            Resolve::Nodes => "fs_fill_split_volume",
-            Resolve::SegmentsByDepth | Resolve::SegmentsByDraw => "fs_fill_volume",
-        }
     }
 
     /// The phases in order: entry point and kind.
@@ -571,7 +551,7 @@ impl DeepCapture {
             )
         };
         let count_pipeline = raster("count", "fs_count");
-        let fill_pipeline = raster("fill", resolve.fill_entry());
+        let fill_pipeline = raster("fill", "fs_fill");
         let volume = |what: &str, entry: &'static str| {
             VolumeBuild::new(
                 device,
@@ -583,7 +563,7 @@ impl DeepCapture {
             )
         };
         let count_volume = volume("count.volume", "fs_count_volume");
-        let fill_volume = volume("fill.volume", resolve.fill_volume_entry());
+        let fill_volume = volume("fill.volume", "fs_fill_volume");
         let compute_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some(&label("compute.pipeline_layout")),
             bind_group_layouts: &groups,
@@ -991,10 +971,7 @@ impl Lists {
         }
         let segments = memory.buffer_transient(
             device,
-            &storage_descriptor(
-                &segments_label,
-                segment_buffer_bytes(u64::from(capacity), node_texels),
-            ),
+            &storage_descriptor(&segments_label, segment_buffer_bytes(u64::from(capacity))),
         )?;
         let nodes = memory.buffer_transient(
             device,
