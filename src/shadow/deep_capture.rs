@@ -110,8 +110,8 @@ const WAY_LEVELS: u32 = 3;
 
 /// The merge passes of the events of a list of `n` segments (mirrors `runs_of` in
 /// shaders/shadow/deep_capture.wgsl): the 2n events' two-run levels are ceil(log2) of their
-/// runs of `RUN`, and a pass makes two (four runs merged), or one in the first pass when they
-/// are odd. Never fewer for a longer list, so the longest sets the rounds.
+/// runs of `RUN`, and a pass makes `WAY_LEVELS` of them (eight runs merged), the first pass
+/// what is left over. Never fewer for a longer list, so the longest sets the rounds.
 pub fn merge_passes(n: u32) -> u32 {
     let runs = (2 * n).div_ceil(RUN);
     let levels = if runs <= 1 { 0 } else { (runs - 1).ilog2() + 1 };
@@ -289,8 +289,8 @@ enum ResolvePhase {
 /// What the resolve leaves in the lists for the owner's pass.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Resolve {
-    /// Segments sorted by depth and merged into the nodes (z, Ω(z)) of the texel's optical
-    /// depth (`dsm`).
+    /// Segments' starts and ends sorted by depth into the nodes (z, Ω(z)) of the texel's
+    /// optical depth (`dsm`).
     Nodes,
     /// Segments sorted by (z0, z1, optical depth) only (`avsm`'s sorted insertion).
     SegmentsByDepth,
@@ -317,8 +317,8 @@ impl Resolve {
             ("heap_build", ResolvePhase::Heap(true)),
             ("heap_extract", ResolvePhase::Heap(false)),
         ];
-        // The fill wrote the events (`fs_fill_split`); the merge sort's last pass writes the
-        // nodes.
+        // The run sort splits each segment into its two events as it reads them; the merge
+        // sort's last pass writes the nodes.
         const NODES: [(&str, ResolvePhase); 2] = [
             ("run_sort", ResolvePhase::Single),
             ("merge_runs", ResolvePhase::Merge),
