@@ -66,6 +66,7 @@ fn node_side() -> u32 {
     return 2u * capture.capacity;
 }
 
+// The key (or node) at index `i` of the key textures.
 fn key_at(i: u32) -> vec2<f32> {
     let texel = row_texel(i);
     return vec2<f32>(textureLoad(key_depths, texel).x, textureLoad(key_values, texel).x);
@@ -77,20 +78,9 @@ fn set_key_at(i: u32, key: vec2<f32>) {
     textureStore(key_values, texel, vec4<f32>(key.y));
 }
 
+// Node `i` of the resolved nodes (z, Ω(z)).
 fn node_texel(i: u32) -> vec2<f32> {
     return key_at(node_side() + i);
-}
-
-fn set_node_texel(i: u32, node: vec2<f32>) {
-    set_key_at(node_side() + i, node);
-}
-
-fn sort_key(i: u32) -> vec2<f32> {
-    return key_at(i);
-}
-
-fn set_sort_key(i: u32, key: vec2<f32>) {
-    set_key_at(i, key);
 }
 
 // One texel's list: segments [first, first + count), nodes [2·first, 2·first + 2·count).

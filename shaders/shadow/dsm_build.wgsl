@@ -204,10 +204,10 @@ fn compress(@builtin(global_invocation_id) id: vec3<u32>) {
     // Between rounds the search's state waits in the texel's first sort keys, which nothing
     // reads after the resolve: (lo, hi), then (mode, 0).
     if pass_round.index > 0u {
-        let bounds = sort_key(base);
+        let bounds = key_at(base);
         lo = bounds.x;
         hi = bounds.y;
-        mode = sort_key(base + 1u).x;
+        mode = key_at(base + 1u).x;
         if mode == MODE_DONE {
             return;
         }
@@ -235,12 +235,11 @@ fn compress(@builtin(global_invocation_id) id: vec3<u32>) {
             if fits {
                 hi = 0.0;
             }
-        } else if mode == MODE_POWERS {
-            lo = select(mid_power, lo, fits);
-            hi = select(hi, mid_power, fits);
         } else {
-            lo = select(eps, lo, fits);
-            hi = select(hi, eps, fits);
+            // What was tried (an exponent while searching the powers) bounds the bracket.
+            let tried = select(eps, mid_power, mode == MODE_POWERS);
+            lo = select(tried, lo, fits);
+            hi = select(hi, tried, fits);
         }
         if mode == MODE_POWERS && hi - lo <= 1.0 {
             // The bracket between neighbouring powers, in ε.
@@ -252,6 +251,6 @@ fn compress(@builtin(global_invocation_id) id: vec3<u32>) {
             mode = MODE_FINAL;
         }
     }
-    set_sort_key(base, vec2<f32>(lo, hi));
-    set_sort_key(base + 1u, vec2<f32>(mode, 0.0));
+    set_key_at(base, vec2<f32>(lo, hi));
+    set_key_at(base + 1u, vec2<f32>(mode, 0.0));
 }
