@@ -38,7 +38,7 @@
 //! unbounded elsewhere, where every pass is one round). `dsm`'s merge sort takes a round per
 //! merge pass (each loops about 2n times over a list's 2n events); the resolve's heapsorts
 //! (`avsm`'s segments) run [`sifts_per_round`] sifts a round; a compression says how many rounds
-//! it needs ([`super::deep_nodes::DeepNodesSpec::rounds`]). The single-pass steps (the run sort,
+//! it needs ([`super::deep_nodes::DeepNodesSpec::rounds`]). The single-pass steps (a merge pass,
 //! a greedy fit) loop a little over 2n times, so a list longer than [`longest_list`] (a little
 //! under half the budget) is refused ([`ShadowError::TexelListTooLong`]); the counter
 //! `max_texel_list` reports the longest.
@@ -118,10 +118,11 @@ pub fn merge_passes(n: u32) -> u32 {
     levels.div_ceil(WAY_LEVELS)
 }
 
-/// The longest texel list a capture accepts under `loop_budget`: its costliest single pass,
-/// `dsm`'s run sort, loops 2n + ceil(2n / RUN) times over the 2n events of a list of n (the
-/// merge passes and a greedy fit loop fewer, `avsm`'s insertion sort 1.5n), and one dispatch
-/// must stay within the budget.
+/// The longest texel list a capture accepts under `loop_budget`: one dispatch must stay within
+/// the budget, and 2n + ceil(2n / RUN) bounds every single pass over a list of n segments (2n
+/// events): a merge pass loops once per event and once per group of at least two runs, the run
+/// sort once per segment and once per run, a greedy fit 2n + N + 1 times (N <= 16 nodes, under
+/// ceil(2n / RUN) for any list near the limit), `avsm`'s insertion sort 1.5n.
 pub fn longest_list(loop_budget: u32) -> u32 {
     let events = u64::from(loop_budget.saturating_sub(1)) * u64::from(RUN) / u64::from(RUN + 1);
     u32::try_from(events / 2).unwrap_or(u32::MAX)
@@ -213,11 +214,11 @@ fn node_buffer_bytes(segment_capacity: u64, node_texels: bool) -> u64 {
     }
 }
 
-/// The most segments one band may hold: `avsm`'s segments and nodes (16 bytes a segment each)
-/// within one storage binding, and `dsm`'s keys and nodes (four texels a segment) within the key
-/// textures' rows. Both owners band by both bounds, though `dsm` binds no buffer of segments: the bands
-/// stay the same for both, and so does the test that holds banded maps to whole ones
-/// (tests/techniques.rs).
+/// The most segments one band may hold: the segments (16 bytes each, and `avsm`'s nodes as
+/// many) within one storage binding, and `dsm`'s keys and nodes (four texels a segment) within
+/// the key textures' rows. Both owners band by both bounds, though `dsm` binds no buffer of
+/// nodes: the bands stay the same for both, and so does the test that holds banded maps to whole
+/// ones (tests/techniques.rs).
 fn max_band_segments(gpu: &Gpu) -> u32 {
     let binding =
         gpu.limits.max_storage_buffer_binding_size / SEGMENT_BYTES.max(NODE_BYTES_PER_SEGMENT);
