@@ -395,9 +395,11 @@ fn insertion_sort(@builtin(global_invocation_id) id: vec3<u32>) {
 // `dsm`'s sort of the 2n events of a texel's n segments by depth, starts before ends at one
 // depth: a merge sort whose first runs are sorted in registers and whose last pass turns the
 // events into the nodes (z, Ω(z)) (`next_node`). `run_sort` reads the segments in runs of RUN
-// events (RUN / 2 segments), sorts each by insertion into a private array written out slot by
-// slot (`#unroll`, no index known only at run time, so the array stays in registers) and writes
-// it out; `merge_runs` then merges groups of up to WAYS runs, one pass a round, between the two
+// events (RUN / 2 segments), sorts each in a private array with a bitonic network (`#unroll`:
+// every index a constant, so the array stays in registers; 80 compare-exchanges, where an
+// insertion sort ran 16 compares and 32 selects an event: run sort 62 -> 55 ms on the thesis
+// frame; the network alone costs 2 ms of it, the loads and stores the rest, so runs of 32 (68 ms,
+// merges 79 -> 65) or 64 (119 ms) gain nothing) and writes it out; `merge_runs` then merges groups of up to WAYS runs, one pass a round, between the two
 // sides of the key textures (the sort keys and, `node_side()` further on, the nodes: which side
 // is an index offset, not a branch). A texel's passes alternate between the sides, arranged so
 // that its last one writes the nodes: `run_sort` writes its runs to the keys when the texel's
@@ -484,28 +486,12 @@ fn next_node(acc: ptr<function, Nodes>, event: vec2<f32>) -> vec2<f32> {
     return vec2<f32>(event.x, (*acc).omega);
 }
 
-// A run while it is sorted: keys (depth[k], slope[k]), the first `count` in order.
-struct Run {
-    depth: array<f32, RUN>,
-    slope: array<f32, RUN>,
-    count: u32,
-};
-
-// Inserts `key` after every key of the run not after it.
-fn insert_key(run: ptr<function, Run>, key: vec2<f32>) {
-    let n = (*run).count;
-    var at = 0u;
-    #unroll k 0..RUN
-        at += u32(k < n && !key_less(key, vec2<f32>((*run).depth[k], (*run).slope[k])));
-    #end_unroll
-    #unroll k rev 1..RUN
-        (*run).depth[k] = select(select((*run).depth[k], key.x, k == at), (*run).depth[k - 1u], k > at);
-        (*run).slope[k] = select(select((*run).slope[k], key.y, k == at), (*run).slope[k - 1u], k > at);
-    #end_unroll
-    (*run).depth[0] = select((*run).depth[0], key.x, at == 0u);
-    (*run).slope[0] = select((*run).slope[0], key.y, at == 0u);
-    (*run).count = n + 1u;
-}
+// log2(RUN): the bitonic network's stages.
+const RUN_BITS: u32 = 4u;
+// A run's segments: two events each.
+const RUN_SEGMENTS: u32 = 8u;
+// The depth of the keys that pad a short run: after every event's.
+const PAD_DEPTH: f32 = 3.4028235e38;
 
 // The key or node at `i` on one side of the key textures.
 fn key_from(nodes_side: bool, i: u32) -> vec2<f32> {
@@ -528,23 +514,39 @@ fn run_sort(@builtin(global_invocation_id) id: vec3<u32>) {
     let runs = runs_of(n);
     let to_nodes = writes_nodes(runs, 0u);
     var nodes = Nodes(0.0, 0.0, 0.0);
+    let last_segment = list.first + list.count - 1u;
     for (var start = 0u; start < n; start += RUN) {
         let m = min(RUN, n - start);
-        var run: Run;
-        run.count = 0u;
-        // The run's segments, two events each (m is even).
-        for (var i = 0u; i < m; i += 2u) {
-            let segment = segments[list.first + (start + i) / 2u];
+        // The run's segments, two events each (m is even); keys past its end are padding.
+        var keys: array<vec2<f32>, RUN>;
+        #unroll h 0..RUN_SEGMENTS
+            let segment = segments[min(list.first + start / 2u + h, last_segment)];
             let slope = segment_slope(segment);
-            insert_key(&run, vec2<f32>(segment.z0, slope));
-            insert_key(&run, vec2<f32>(segment.z1, -slope));
-        }
+            let real = 2u * h < m;
+            keys[2u * h] = select(vec2<f32>(PAD_DEPTH, 0.0), vec2<f32>(segment.z0, slope), real);
+            keys[2u * h + 1u] = select(vec2<f32>(PAD_DEPTH, 0.0), vec2<f32>(segment.z1, -slope), real);
+        #end_unroll
+        // Bitonic sorting network: stage p merges bitonic runs of 2^p keys, each step q
+        // compare-exchanges keys 2^(p-1-q) apart, ascending where bit p of i is clear.
+        #unroll p 1..RUN_BITS+1
+            #unroll q 0..p
+                #unroll i 0..RUN
+                    if (i ^ (1u << (p - 1u - q))) > i {
+                        let l = i ^ (1u << (p - 1u - q));
+                        let x = keys[i];
+                        let y = keys[l];
+                        let swap = select(key_less(x, y), key_less(y, x), (i & (1u << p)) == 0u);
+                        keys[i] = select(x, y, swap);
+                        keys[l] = select(y, x, swap);
+                    }
+                #end_unroll
+            #end_unroll
+        #end_unroll
         #unroll k 0..RUN
             if k < m {
-                let key = vec2<f32>(run.depth[k], run.slope[k]);
                 // A single run is the whole list, in order: its nodes.
-                let node = next_node(&nodes, key);
-                set_key_to(to_nodes, base + start + k, select(key, node, runs.passes == 0u));
+                let node = next_node(&nodes, keys[k]);
+                set_key_to(to_nodes, base + start + k, select(keys[k], node, runs.passes == 0u));
             }
         #end_unroll
     }
