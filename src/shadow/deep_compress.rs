@@ -107,8 +107,9 @@ pub fn greedy_fit(nodes: &[Node], eps: f32, limit: usize) -> Vec<Node> {
         let dz = p.z - origin.z;
         let (mut new_lo, mut new_hi) = (lo, hi);
         if dz > 0.0 {
-            new_lo = lo.max((p.value - eps - origin.value) / dz);
-            new_hi = hi.min((p.value + eps - origin.value) / dz);
+            let r = 1.0 / dz;
+            new_lo = lo.max((p.value - eps - origin.value) * r);
+            new_hi = hi.min((p.value + eps - origin.value) * r);
         } else if (p.value - origin.value).abs() > eps {
             (new_lo, new_hi) = (ANY_SLOPE, -ANY_SLOPE);
         }
