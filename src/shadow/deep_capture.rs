@@ -121,8 +121,9 @@ pub fn merge_passes(n: u32) -> u32 {
 /// The longest texel list a capture accepts under `loop_budget`: one dispatch must stay within
 /// the budget, and 2n + ceil(2n / RUN) bounds every single pass over a list of n segments (2n
 /// events): a merge pass loops once per event and once per group of at least two runs, the run
-/// sort once per run (its loads and sorting network are unrolled), a greedy fit 2n + N + 1 times (N <= 16 nodes, under
-/// ceil(2n / RUN) for any list near the limit), `avsm`'s insertion sort 1.5n.
+/// sort once per run (its loads and sorting network are unrolled), a greedy fit 2n + N + 2
+/// times (N <= 16 nodes, under ceil(2n / RUN) for any list near the limit), `avsm`'s insertion
+/// sort 1.5n.
 pub fn longest_list(loop_budget: u32) -> u32 {
     let events = u64::from(loop_budget.saturating_sub(1)) * u64::from(RUN) / u64::from(RUN + 1);
     u32::try_from(events / 2).unwrap_or(u32::MAX)

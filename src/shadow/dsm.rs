@@ -71,8 +71,11 @@ pub const SPEC: DeepNodesSpec = DeepNodesSpec {
 /// bracket it leaves (at most `BISECTION_STEPS` - 1), the final fit.
 const SEARCH_STEPS: u32 = BISECTION_STEPS + 1 + (u32::BITS - BISECTION_STEPS.leading_zeros());
 
-/// Rounds of the compression: a greedy fit over 2n nodes loops at most 2n times, so a round
-/// takes `loop_budget / (2 max_list + 20)` steps (`fits_per_round` in the shader).
+/// Rounds of the compression: a greedy fit over 2n nodes loops at most 2n + N + 2 times (each
+/// node once, a look again after each closed segment, at most N + 1 of them, and the pass that
+/// stops it; N <= 16), the final fit with its padding of the unused nodes at most 2n + N - 1
+/// (it fits: at most N nodes), so a round takes `loop_budget / (2 max_list + 20)` steps
+/// (`fits_per_round` in the shader).
 fn rounds(max_list: u32, loop_budget: u32) -> u32 {
     let per_round = (loop_budget / (2 * max_list + 20)).max(1);
     SEARCH_STEPS.div_ceil(per_round)
