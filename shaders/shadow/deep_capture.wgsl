@@ -398,11 +398,12 @@ fn insertion_sort(@builtin(global_invocation_id) id: vec3<u32>) {
 // events (RUN / 2 segments), sorts each in a private array with a bitonic network (`#unroll`:
 // every index a constant, so the array stays in registers; 80 compare-exchanges, where an
 // insertion sort ran 16 compares and 32 selects an event: run sort 62 -> 55 ms on the thesis
-// frame; the network alone costs 2 ms of it, the loads and stores the rest, so runs of 32 (68 ms,
-// merges 79 -> 65) or 64 (119 ms) gain nothing) and writes it out; `merge_runs` then merges groups of up to WAYS runs, one pass a round, between the two
-// sides of the key textures (the sort keys and, `node_side()` further on, the nodes: which side
-// is an index offset, not a branch). A texel's passes alternate between the sides, arranged so
-// that its last one writes the nodes: `run_sort` writes its runs to the keys when the texel's
+// frame; the network alone costs 2 ms of it, the loads and stores the rest, so runs of 32 (68
+// ms, merges 79 -> 65) or 64 (119 ms) gain nothing) and writes it out; `merge_runs` then merges
+// groups of up to WAYS runs, one pass a round, between the two sides of the key textures (the
+// sort keys and, `node_side()` further on, the nodes: which side is an index offset, not a
+// branch). A texel's passes alternate between the sides, arranged so that its last one writes
+// the nodes: `run_sort` writes its runs to the keys when the texel's
 // merge passes are odd in number, else to the nodes, and a list of a single run needs no merge,
 // so `run_sort` writes its nodes. Against the heapsort it replaced (the same order: the keys are
 // total), each key is read and written once a pass instead of log2(n) times (the textures' loads
@@ -523,8 +524,9 @@ fn run_sort(@builtin(global_invocation_id) id: vec3<u32>) {
             let segment = segments[min(list.first + start / 2u + h, last_segment)];
             let slope = segment_slope(segment);
             let real = 2u * h < m;
-            keys[2u * h] = select(vec2<f32>(PAD_DEPTH, 0.0), vec2<f32>(segment.z0, slope), real);
-            keys[2u * h + 1u] = select(vec2<f32>(PAD_DEPTH, 0.0), vec2<f32>(segment.z1, -slope), real);
+            let pad = vec2<f32>(PAD_DEPTH, 0.0);
+            keys[2u * h] = select(pad, vec2<f32>(segment.z0, slope), real);
+            keys[2u * h + 1u] = select(pad, vec2<f32>(segment.z1, -slope), real);
         #end_unroll
         // Bitonic sorting network: stage p merges bitonic runs of 2^p keys, each step q
         // compare-exchanges keys 2^(p-1-q) apart, ascending where bit p of i is clear.
