@@ -208,12 +208,25 @@ fn compress(@builtin(global_invocation_id) id: vec3<u32>) {
             return;
         }
     }
-    for (var k = 0u; k < per_round; k++) {
-        if mode == MODE_FINAL {
-            finish(base, n, hi, limit, out);
-            mode = MODE_DONE;
+    // The search's fits, then the final fit outside their loop: every lane of a SIMD group that
+    // has its ε by then writes its fit in the same pass over the lists. (A final fit inside the
+    // loop ran once for each step at which some lane of the group finished: the search 107 -> 91
+    // ms on the thesis frame.) llvmpipe counts loop iterations per SIMD group, whichever lanes
+    // run them, so a group's fits in one dispatch, the search's in lockstep and then the final
+    // one, stay within `per_round`: at most per_round - 1 search fits, and with one fit a
+    // round, search fits in even rounds and final fits in odd ones (`dsm::rounds`).
+    var search_fits = per_round - 1u;
+    var may_finish = true;
+    if per_round == 1u {
+        search_fits = 1u - pass_round.index % 2u;
+        may_finish = search_fits == 0u;
+    }
+    var steps = 0u;
+    loop {
+        if steps >= search_fits || mode == MODE_FINAL {
             break;
         }
+        steps++;
         // The powers' search tries the middle exponent (lo < mid < hi: hi - lo >= 2 there).
         let mid_power = floor(0.5 * (lo + hi));
         var eps = 0.5 * (lo + hi);
@@ -246,6 +259,10 @@ fn compress(@builtin(global_invocation_id) id: vec3<u32>) {
         if mode == MODE_BISECT && hi - lo <= grain {
             mode = MODE_FINAL;
         }
+    }
+    if mode == MODE_FINAL && may_finish {
+        finish(base, n, hi, limit, out);
+        mode = MODE_DONE;
     }
     set_key_at(base, vec2<f32>(lo, hi));
     set_key_at(base + 1u, vec2<f32>(mode, 0.0));

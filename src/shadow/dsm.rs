@@ -74,11 +74,20 @@ const SEARCH_STEPS: u32 = BISECTION_STEPS + 1 + (u32::BITS - BISECTION_STEPS.lea
 /// Rounds of the compression: a greedy fit over 2n nodes loops at most 2n + N + 2 times (each
 /// node once, a look again after each closed segment, at most N + 1 of them, and the pass that
 /// stops it; N <= 16), the final fit with its padding of the unused nodes at most 2n + N - 1
-/// (it fits: at most N nodes), so a round takes `loop_budget / (2 max_list + 20)` steps
-/// (`fits_per_round` in the shader).
+/// (it fits: at most N nodes), so a round has room for `per_round` = `loop_budget / (2
+/// max_list + 20)` fits (`fits_per_round` in the shader). llvmpipe counts a SIMD group's loop
+/// iterations, whichever of its lanes run them, so a round's fits are the group's: at most
+/// per_round - 1 search fits in lockstep, then the final fit of every lane that has its ε. The
+/// search fits (`SEARCH_STEPS` - 1) take ceil((SEARCH_STEPS - 1) / (per_round - 1)) rounds, the
+/// final fit in the round of the last; with room for one fit a round, search fits run in even
+/// rounds and final fits in odd ones.
 fn rounds(max_list: u32, loop_budget: u32) -> u32 {
     let per_round = (loop_budget / (2 * max_list + 20)).max(1);
-    SEARCH_STEPS.div_ceil(per_round)
+    let search_fits = SEARCH_STEPS - 1;
+    match per_round {
+        1 => 2 * search_fits,
+        _ => search_fits.div_ceil(per_round - 1),
+    }
 }
 
 /// The counters from the compression's statistics words (see `STAT_*` in dsm_build.wgsl): the
@@ -150,5 +159,45 @@ mod tests {
             ]
         );
         assert_eq!(tolerance_counters(&[0; 5])[1], ("mean_tolerance_e6", 0));
+    }
+
+    /// The rounds give every texel its search and its final fit, with no SIMD group running more
+    /// than `per_round` fits in one round: the shader's schedule (dsm_build.wgsl, `compress`)
+    /// replayed for a group of texels needing 0 to `SEARCH_STEPS` - 1 search fits.
+    #[test]
+    fn rounds_hold_every_search_and_final_fit_within_the_loop_budget() {
+        let budget = 60_000;
+        for max_list in [10, 500, 2_000, 5_325, 9_000, 14_990, 15_000, 28_234] {
+            let per_round = (budget / (2 * max_list + 20)).max(1);
+            let rounds = rounds(max_list, budget);
+            // (search fits still needed, finished) per lane.
+            let mut lanes: Vec<(u32, bool)> = (0..SEARCH_STEPS).map(|s| (s, false)).collect();
+            for round in 0..rounds {
+                let (search_fits, may_finish) = match per_round {
+                    1 => (1 - round % 2, round % 2 == 1),
+                    _ => (per_round - 1, true),
+                };
+                let mut group_searched = 0;
+                let mut group_finished = false;
+                for lane in lanes.iter_mut().filter(|l| !l.1) {
+                    let fits = lane.0.min(search_fits);
+                    lane.0 -= fits;
+                    group_searched = group_searched.max(fits);
+                    if lane.0 == 0 && may_finish {
+                        lane.1 = true;
+                        group_finished = true;
+                    }
+                }
+                let group_fits = group_searched + u32::from(group_finished);
+                assert!(
+                    group_fits <= per_round,
+                    "max_list {max_list}, round {round}"
+                );
+            }
+            assert!(
+                lanes.iter().all(|l| l.1),
+                "max_list {max_list}: {rounds} rounds leave {lanes:?}"
+            );
+        }
     }
 }
