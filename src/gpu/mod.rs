@@ -247,8 +247,10 @@ impl Gpu {
 
     /// The loop iterations one shader invocation group may run per dispatch or draw, where the
     /// adapter bounds them: llvmpipe ends every loop after 65,535 iterations, all of a shader's
-    /// loops together, silently (the loop just exits). [`LLVMPIPE_LOOP_BUDGET`] there; `None`
-    /// elsewhere.
+    /// loops together, silently (the loop just exits). The count is per SIMD group (its lanes
+    /// run in lockstep: an iteration any lane runs counts once for all, and loops that
+    /// different lanes run one after the other add up), not per lane (Mesa's
+    /// `lp_exec_endloop`). [`LLVMPIPE_LOOP_BUDGET`] there; `None` elsewhere.
     pub fn loop_budget(&self) -> Option<u32> {
         self.info
             .name
