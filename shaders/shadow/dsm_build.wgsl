@@ -210,7 +210,7 @@ fn compress(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     // The search's fits, then the final fit outside their loop: every lane of a SIMD group that
     // has its ε by then writes its fit in the same pass over the lists. (A final fit inside the
-    // loop ran once for each step at which some lane of the group finished: the search 107 -> 91
+    // loop ran once for each step at which some lane of the group finished: the search 107 -> 94
     // ms on the thesis frame.) llvmpipe counts loop iterations per SIMD group, whichever lanes
     // run them, so a group's fits in one dispatch, the search's in lockstep and then the final
     // one, stay within `per_round`: at most per_round - 1 search fits, and with one fit a

@@ -181,10 +181,10 @@ const DUMMY_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R8Unorm;
 
 /// The bytes a capture at `resolution_px` with lists for `segment_capacity` segments allocates:
 /// a 32-byte uniform, the 64 KiB round uniform, counts, offsets (+1 for the total), row sums
-/// (+1), an R8 raster target, 16 bytes of segment storage per segment, and for `avsm` 16 bytes of
-/// node storage per segment, for `dsm` (`node_texels`) the two key textures (`KEY_TEXTURES`), 4
-/// x capacity texels of 4 bytes each in whole rows: 32 bytes a segment (the others'
-/// are placeholders).
+/// (+1), an R8 raster target, 16 bytes of segment storage per segment, and for `avsm` 16 bytes
+/// of node storage per segment, for `dsm` (`node_texels`) the two key textures
+/// (`KEY_TEXTURES`), 4 x capacity texels of 4 bytes each in whole rows: 32 bytes a segment (the
+/// others' are placeholders).
 pub fn bytes(resolution_px: u32, segment_capacity: u64, node_texels: bool) -> u64 {
     let texels = u64::from(resolution_px) * u64::from(resolution_px);
     let (width, height) = row_texture_size(node_texel_count(segment_capacity, node_texels));
@@ -401,8 +401,8 @@ impl Rounds {
     }
 
     /// Dispatches rounds 0..count of the pass's pipeline over `groups`, each bound to its index.
-    /// (No pass needs more than `MAX_ROUNDS`: lists are refused beyond nearly half the loop budget,
-    /// where avsm, the pass with the most, takes 100.)
+    /// (No pass needs more than `MAX_ROUNDS`: lists are refused beyond nearly half the loop
+    /// budget, where avsm, the pass with the most, takes 100.)
     pub fn dispatch(&self, pass: &mut wgpu::ComputePass<'_>, count: u32, groups: (u32, u32)) {
         debug_assert!(count <= MAX_ROUNDS, "{count} rounds");
         for r in 0..count.min(MAX_ROUNDS) {

@@ -5,8 +5,8 @@
 //! Lokovic & Veach's error-bounded greedy fit to at most N = floor(B / 2) nodes (depth, Ω) of
 //! 32-bit floats, choosing per texel the smallest tolerance ε (a multiple of Ω_max / 2^12) that
 //! fits in N. The fit stays within ±ε of Ω at every depth, and since dT/dΩ = −T, within ε of T
-//! too. With enough
-//! nodes for a texel's whole list it is copied as is (ε = 0): the uncompressed deep shadow map.
+//! too. With enough nodes for a texel's whole list it is copied as is (ε = 0): the uncompressed
+//! deep shadow map.
 //!
 //! The lookup (shaders/shadow/dsm.wgsl) evaluates Ω in each of the four texels around a point,
 //! blends them bilinearly and returns exp(−Ω).
@@ -82,12 +82,16 @@ const SEARCH_STEPS: u32 = BISECTION_STEPS + 1 + (u32::BITS - BISECTION_STEPS.lea
 /// final fit in the round of the last; with room for one fit a round, search fits run in even
 /// rounds and final fits in odd ones.
 fn rounds(max_list: u32, loop_budget: u32) -> u32 {
-    let per_round = (loop_budget / (2 * max_list + 20)).max(1);
     let search_fits = SEARCH_STEPS - 1;
-    match per_round {
+    match fits_per_round(max_list, loop_budget) {
         1 => 2 * search_fits,
-        _ => search_fits.div_ceil(per_round - 1),
+        per_round => search_fits.div_ceil(per_round - 1),
     }
+}
+
+/// The greedy fits a round has room for (`fits_per_round` in the shader; [`rounds`] says why).
+fn fits_per_round(max_list: u32, loop_budget: u32) -> u32 {
+    (loop_budget / (2 * max_list + 20)).max(1)
 }
 
 /// The counters from the compression's statistics words (see `STAT_*` in dsm_build.wgsl): the
@@ -168,7 +172,7 @@ mod tests {
     fn rounds_hold_every_search_and_final_fit_within_the_loop_budget() {
         let budget = 60_000;
         for max_list in [10, 500, 2_000, 5_325, 9_000, 14_990, 15_000, 28_234] {
-            let per_round = (budget / (2 * max_list + 20)).max(1);
+            let per_round = fits_per_round(max_list, budget);
             let rounds = rounds(max_list, budget);
             // (search fits still needed, finished) per lane.
             let mut lanes: Vec<(u32, bool)> = (0..SEARCH_STEPS).map(|s| (s, false)).collect();
