@@ -424,11 +424,12 @@ const WAYS: u32 = 8u;
 const WAY_LEVELS: u32 = 3u;
 
 struct Runs {
-    // Two-run merge levels over the list's runs of RUN keys, and the passes that make them:
-    // WAY_LEVELS a pass (WAYS runs merged), the first pass the rest (1 to WAY_LEVELS).
+    // Two-run merge levels over the list's runs of RUN keys, the passes that make them (WAY_LEVELS
+    // a pass, WAYS runs merged, the last pass the rest: 1 to WAY_LEVELS), and the levels of the
+    // last.
     levels: u32,
     passes: u32,
-    first: u32,
+    last: u32,
 };
 
 // ceil(log2(runs)) for runs >= 1.
@@ -443,20 +444,24 @@ fn levels_for(runs: u32) -> u32 {
 fn runs_of(keys: u32) -> Runs {
     let levels = levels_for((keys + RUN - 1u) / RUN);
     let passes = (levels + WAY_LEVELS - 1u) / WAY_LEVELS;
-    return Runs(levels, passes, levels + WAY_LEVELS - WAY_LEVELS * max(passes, 1u));
+    return Runs(levels, passes, levels - WAY_LEVELS * (max(passes, 1u) - 1u));
 }
 
-// Keys per run before pass `step` (1-based): the levels the passes before it made.
-fn run_width(runs: Runs, step: u32) -> u32 {
-    if step == 1u {
-        return RUN;
-    }
-    return RUN << (runs.first + WAY_LEVELS * (step - 2u));
+// Keys per run before pass `step` (1-based): RUN · WAYS^(step - 1), whatever the list's length.
+// Every texel's pass `step` therefore merges groups of the same width, RUN · WAYS^step, at the
+// same indices (a texel's last pass one group, its whole list, within that width), so the lanes
+// of a SIMD group walk their groups in step: the pass loops, per group of invocations, no more
+// than for its longest list (llvmpipe's loop limit counts per group: `longest_list` in
+// src/shadow/deep_capture.rs). (Merging the leftover levels first instead would give texels of
+// different lengths groups of different widths, and a SIMD group up to 9% more iterations than
+// its longest list.)
+fn run_width(step: u32) -> u32 {
+    return RUN << (WAY_LEVELS * (step - 1u));
 }
 
-// Runs merged by pass `step`.
+// Runs merged by pass `step`: WAYS, the last pass what is left.
 fn runs_merged(runs: Runs, step: u32) -> u32 {
-    return 1u << select(WAY_LEVELS, runs.first, step == 1u);
+    return 1u << select(WAY_LEVELS, runs.last, step == runs.passes);
 }
 
 // Whether pass `step` of a texel (0: `run_sort`) writes to the node textures: its last one does.
@@ -556,8 +561,8 @@ fn run_sort(@builtin(global_invocation_id) id: vec3<u32>) {
 
 // One merge pass (the round's index + 1) over the texel's runs: groups of WAYS (or fewer) sorted
 // runs of `run_width` keys, merged (stably: the first run's key on a tie) from one side of the
-// key textures to the other at the same indices; the texel's last pass writes its nodes. One
-// loop over the events, which starts each group's runs when it reaches it. The runs' next keys
+// key textures to the other at the same indices; the texel's last pass writes its nodes. A loop
+// over the groups, each group's heads loaded before a loop over its keys. The runs' next keys
 // are held in registers (every index below is a constant), each loaded once.
 @compute @workgroup_size(8, 8)
 fn merge_runs(@builtin(global_invocation_id) id: vec3<u32>) {
@@ -572,7 +577,7 @@ fn merge_runs(@builtin(global_invocation_id) id: vec3<u32>) {
     let to_nodes = writes_nodes(runs, step);
     let from_nodes = !to_nodes;
     let last = step == runs.passes;
-    let width = run_width(runs, step);
+    let width = run_width(step);
     let ways = runs_merged(runs, step);
     var nodes = Nodes(0.0, 0.0, 0.0);
     // Each run's next index and end, and its key there.

@@ -110,7 +110,7 @@ const WAY_LEVELS: u32 = 3;
 
 /// The merge passes of the events of a list of `n` segments (mirrors `runs_of` in
 /// shaders/shadow/deep_capture.wgsl): the 2n events' two-run levels are ceil(log2) of their
-/// runs of `RUN`, and a pass makes `WAY_LEVELS` of them (eight runs merged), the first pass
+/// runs of `RUN`, and a pass makes `WAY_LEVELS` of them (eight runs merged), the last pass
 /// what is left over. Never fewer for a longer list, so the longest sets the rounds.
 pub fn merge_passes(n: u32) -> u32 {
     let runs = (2 * n).div_ceil(RUN);
@@ -120,7 +120,9 @@ pub fn merge_passes(n: u32) -> u32 {
 
 /// The longest texel list a capture accepts under `loop_budget`: one dispatch must stay within
 /// the budget, and 2n + ceil(2n / RUN) bounds every single pass over a list of n segments (2n
-/// events): a merge pass loops once per event and once per group of at least two runs, the run
+/// events): a merge pass loops once per event and once per group of at least two runs (for a
+/// SIMD group of invocations too, whose lanes' lists differ in length: every list's pass cuts
+/// its groups at the same indices, so the longest list's loops cover the others'), the run
 /// sort once per run (its loads and sorting network are unrolled), a greedy fit 2n + N + 2
 /// times (N <= 16 nodes, under ceil(2n / RUN) for any list near the limit), `avsm`'s insertion
 /// sort 1.5n.
@@ -1042,13 +1044,13 @@ mod tests {
         for n in 0..20_000u32 {
             let passes = merge_passes(n);
             // The 2n events in runs of RUN; eight runs merged a pass (WAY_LEVELS levels), the
-            // first pass the levels left over.
+            // last pass the levels left over.
             let runs = (2 * n).div_ceil(RUN);
             let levels = if runs <= 1 { 0 } else { (runs - 1).ilog2() + 1 };
-            let first = levels + WAY_LEVELS - WAY_LEVELS * passes.max(1);
-            assert!((1..=WAY_LEVELS).contains(&first) || passes == 0, "n {n}");
+            let last = levels - WAY_LEVELS * (passes.max(1) - 1);
+            assert!((1..=WAY_LEVELS).contains(&last) || passes == 0, "n {n}");
             let merged_levels = (1..=passes)
-                .map(|p| if p == 1 { first } else { WAY_LEVELS })
+                .map(|p| if p == passes { last } else { WAY_LEVELS })
                 .sum::<u32>();
             assert!(
                 u64::from(RUN) << merged_levels >= 2 * u64::from(n),
@@ -1056,7 +1058,7 @@ mod tests {
             );
             // And no pass more than that needs: one pass fewer would leave two runs at least.
             assert!(
-                passes == 0 || u64::from(RUN) << (merged_levels - first) < 2 * u64::from(n),
+                passes == 0 || u64::from(RUN) << (merged_levels - last) < 2 * u64::from(n),
                 "n {n}: {passes} passes"
             );
             assert!(passes >= before, "n {n}");
@@ -1081,6 +1083,63 @@ mod tests {
             assert!(loops(n + 2) > u64::from(budget), "budget {budget}: {n}");
         }
         assert_eq!(longest_list(60_000), 28_234);
+    }
+
+    /// The widths (events) of the groups merge pass `step` (1-based) merges in a list of
+    /// `events`, as `merge_runs` in shaders/shadow/deep_capture.wgsl walks them: `run_width`
+    /// times `runs_merged`, the last group cut at the list's end; none once the list is sorted.
+    fn merge_groups(events: u32, step: u32) -> Vec<u32> {
+        let passes = merge_passes(events / 2);
+        if step > passes {
+            return Vec::new();
+        }
+        let runs = events.div_ceil(RUN);
+        let levels = if runs <= 1 { 0 } else { (runs - 1).ilog2() + 1 };
+        let last = levels - WAY_LEVELS * (passes - 1);
+        let width = RUN << (WAY_LEVELS * (step - 1));
+        let ways = 1 << if step == passes { last } else { WAY_LEVELS };
+        let group = ways * width;
+        (0..events.div_ceil(group))
+            .map(|g| group.min(events - g * group))
+            .collect()
+    }
+
+    #[test]
+    fn a_merge_pass_loops_for_a_simd_group_no_more_than_for_its_longest_list() {
+        // llvmpipe counts loop iterations per SIMD group of invocations, all lanes together: a
+        // loop whose lanes have different trip counts runs max(lanes) times, and a loop inside
+        // it max(lanes) times at each outer iteration. So the group's count of a merge pass is
+        // the sum over group indices g of 1 + the widest lane's group g (plus the outer loop's
+        // exit). Every lane's pass `step` must cut its list at the same indices for that to be
+        // the longest list's own count: taken here over every list length up to the longest a
+        // capture accepts, lanes of any lengths at once (a real group has 4 or 8 lanes; the
+        // bound holds for any number).
+        let budget = 60_000;
+        let longest = longest_list(budget);
+        for step in 1..=merge_passes(longest) {
+            let mut widest: Vec<u32> = Vec::new();
+            for n in 1..=longest {
+                for (g, width) in merge_groups(2 * n, step).into_iter().enumerate() {
+                    if g == widest.len() {
+                        widest.push(width);
+                    }
+                    widest[g] = widest[g].max(width);
+                }
+            }
+            let group_loops: u64 = widest.iter().map(|&w| 1 + u64::from(w)).sum::<u64>() + 1;
+            let own: Vec<u32> = merge_groups(2 * longest, step);
+            let longest_loops = own.iter().map(|&w| 1 + u64::from(w)).sum::<u64>() + 1;
+            assert_eq!(group_loops, longest_loops, "step {step}");
+            let events = 2 * u64::from(longest);
+            assert!(
+                group_loops <= events + events.div_ceil(u64::from(RUN)),
+                "step {step}: {group_loops}"
+            );
+            assert!(
+                group_loops <= u64::from(budget),
+                "step {step}: {group_loops}"
+            );
+        }
     }
 
     #[test]
