@@ -318,17 +318,25 @@ fn heap_extract(@builtin(global_invocation_id) id: vec3<u32>) {
 // does: one thread shades a tile's primitives in order) that is the order the draw-order resolve
 // wants: an insertion sort then reads each segment once (for that resolve only its draw index,
 // `draw_ordered_prefix`, and the sort starts behind the prefix found in order). It gives up
-// after n/4 moves (the list,
-// still a permutation of itself, is left to the heapsort, as most lists of the by-depth resolve
-// are); a list it sorts is marked SORTED in `counts` (the fill's cursors, unused from here on),
-// and the heap passes skip it. At most n + 2·(n/4) + 2 loop iterations, within the loop budget
-// for any list the capture accepts (n < budget/2: src/shadow/deep_capture.rs, `longest_list`).
+// after n/16 - 1 moves (the list, still a permutation of itself, is left to the heapsort, as
+// most lists of the by-depth resolve are); a list it sorts is marked SORTED in `counts` (the
+// fill's cursors, unused from here on), and the heap passes skip it.
+//
+// The loop limit. llvmpipe counts loop iterations per SIMD group of invocations, all lanes
+// together, so the sort is one flat loop in which each iteration of a lane either takes its next
+// segment or moves one: the group loops as often as its busiest lane, at most (n - start) +
+// 2·moves + 1 times (each insertion moves once at least, and takes one more iteration to set its
+// segment down). The prefix before it loops at most n + 1 times, so a group loops at most 2n +
+// 2·(n/16 - 1) + 2 <= 2n + ceil(2n / 16) times (n >= 16), the bound `longest_list` in
+// src/shadow/deep_capture.rs holds every single pass to. (The nested loops this replaced, an
+// insertion's moves inside the loop over the segments, ran each lane's moves at its own segment
+// indices: a group looped up to every lane's moves together.)
 const SORTED: u32 = 0xffffffffu;
 
 // How many of a list's first segments are in draw order, read a word a segment (the draw
 // index; the insertion sort reads all four): where the rasteriser keeps the draw order per
 // pixel, the whole list, and then nothing else is read. Loops as many times as it returns (plus
-// one), and the insertion sort goes on from there, so the two together stay within its bound.
+// one).
 fn draw_ordered_prefix(list: TexelList) -> u32 {
     var before = 0u;
     for (var i = 0u; i < list.count; i++) {
@@ -354,36 +362,46 @@ fn insertion_sort(@builtin(global_invocation_id) id: vec3<u32>) {
         start = max(draw_ordered_prefix(list), 1u);
     }
     var sorted = true;
-    var moves = list.count / 4u;
+    var moves = max(list.count / 16u, 1u) - 1u;
     if list.count > start {
         // The largest of the sorted prefix: a segment not before it stays where it is.
         var last = heap_key(list.first + start - 1u);
-        for (var i = start; i < list.count; i++) {
-            let v = heap_key(list.first + i);
-            if !key_before(v, last) {
-                last = v;
-                continue;
-            }
-            var j = i;
-            loop {
-                if j == 0u {
-                    break;
+        // The segment being taken or inserted (i), its hole (j) while it is inserted.
+        var i = start;
+        var j = start;
+        var v = last;
+        var inserting = false;
+        while i < list.count {
+            if !inserting {
+                v = heap_key(list.first + i);
+                if !key_before(v, last) {
+                    last = v;
+                    i++;
+                    continue;
                 }
+                // Before `last`, the segment at i - 1: it moves once at least.
+                inserting = true;
+                j = i;
+            }
+            var set_down = j == 0u;
+            if !set_down {
                 let prev = heap_key(list.first + j - 1u);
-                if !key_before(v, prev) {
-                    break;
+                set_down = !key_before(v, prev);
+                if !set_down {
+                    if moves == 0u {
+                        sorted = false;
+                        set_heap_key(list.first + j, v);
+                        break;
+                    }
+                    set_heap_key(list.first + j, prev);
+                    j--;
+                    moves--;
                 }
-                if moves == 0u {
-                    sorted = false;
-                    break;
-                }
-                set_heap_key(list.first + j, prev);
-                j--;
-                moves--;
             }
-            set_heap_key(list.first + j, v);
-            if !sorted {
-                break;
+            if set_down {
+                set_heap_key(list.first + j, v);
+                inserting = false;
+                i++;
             }
         }
     }

@@ -125,7 +125,8 @@ pub fn merge_passes(n: u32) -> u32 {
 /// its groups at the same indices, so the longest list's loops cover the others'), the run
 /// sort once per run (its loads and sorting network are unrolled), a greedy fit 2n + N + 2
 /// times (N <= 16 nodes, under ceil(2n / RUN) for any list near the limit), `avsm`'s insertion
-/// sort 1.5n.
+/// sort and the prefix it reads first 2n + 2·(n/16 - 1) + 2, for a SIMD group too (one flat
+/// loop: the group loops as often as its busiest lane).
 pub fn longest_list(loop_budget: u32) -> u32 {
     let events = u64::from(loop_budget.saturating_sub(1)) * u64::from(RUN) / u64::from(RUN + 1);
     u32::try_from(events / 2).unwrap_or(u32::MAX)
@@ -1140,6 +1141,107 @@ mod tests {
                 "step {step}: {group_loops}"
             );
         }
+    }
+
+    /// `insertion_sort`'s flat loop (shaders/shadow/deep_capture.wgsl) over `keys` from `start`
+    /// (the prefix found in order), iteration for iteration: whether it sorted the list, and
+    /// how many times it looped (the exit's iteration included).
+    fn flat_insertion_sort(keys: &mut [u32], start: usize) -> (bool, u64) {
+        let n = keys.len();
+        let mut moves = (n / 16).max(1) - 1;
+        let mut loops = 0;
+        if n <= start {
+            return (true, 1);
+        }
+        let mut last = keys[start - 1];
+        let (mut i, mut j, mut v, mut inserting) = (start, start, last, false);
+        loop {
+            loops += 1;
+            if i >= n {
+                return (true, loops);
+            }
+            if !inserting {
+                v = keys[i];
+                if v >= last {
+                    last = v;
+                    i += 1;
+                    continue;
+                }
+                inserting = true;
+                j = i;
+            }
+            let set_down = j == 0 || v >= keys[j - 1];
+            if !set_down {
+                if moves == 0 {
+                    keys[j] = v;
+                    return (false, loops);
+                }
+                keys[j] = keys[j - 1];
+                j -= 1;
+                moves -= 1;
+            } else {
+                keys[j] = v;
+                inserting = false;
+                i += 1;
+            }
+        }
+    }
+
+    #[test]
+    fn the_insertion_sort_loops_within_its_bound_on_any_list() {
+        // A SIMD group loops the flat loop as often as its busiest lane, and the prefix before
+        // it as often as its longest prefix: n + 1 and (n - start) + 2 (n/16 - 1) + 1 at most,
+        // whose sum stays within the bound `longest_list` holds every pass to.
+        let mut state = 0x9e37_79b9_u32;
+        let mut random = move || {
+            state ^= state << 13;
+            state ^= state >> 17;
+            state ^= state << 5;
+            state
+        };
+        for n in [1usize, 2, 15, 16, 17, 100, 1000, 5000] {
+            let sorted: Vec<u32> = (0..n as u32).collect();
+            let mut nearly = sorted.clone();
+            for k in (0..n).step_by(37) {
+                nearly.swap(k, (k + 5).min(n - 1));
+            }
+            let shuffled: Vec<u32> = sorted.iter().map(|_| random() % 64).collect();
+            let reversed: Vec<u32> = sorted.iter().rev().copied().collect();
+            for list in [&sorted, &nearly, &shuffled, &reversed] {
+                for start in [1, n / 2, n].into_iter().filter(|&s| s >= 1 && s <= n) {
+                    let mut keys = list.clone();
+                    keys[..start].sort_unstable();
+                    let before = keys.clone();
+                    let (done, loops) = flat_insertion_sort(&mut keys, start);
+                    let moves = ((n / 16).max(1) - 1) as u64;
+                    assert!(
+                        loops <= (n - start) as u64 + 2 * moves + 1,
+                        "n {n}: {loops}"
+                    );
+                    let mut expected = before.clone();
+                    expected.sort_unstable();
+                    let mut permutation = keys.clone();
+                    permutation.sort_unstable();
+                    assert_eq!(permutation, expected, "n {n}: not a permutation");
+                    if done {
+                        assert_eq!(keys, expected, "n {n}: marked sorted");
+                    }
+                }
+            }
+            // (Shorter lists are far within any budget.)
+            let n = n as u64;
+            let group = (n + 1) + n + 2 * ((n / 16).max(1) - 1) + 1;
+            assert!(
+                n < 16 || group <= 2 * n + (2 * n).div_ceil(u64::from(RUN)),
+                "n {n}"
+            );
+        }
+        // In order, the sort takes each segment once; at the longest list, within the budget.
+        let mut keys: Vec<u32> = (0..1000).collect();
+        assert_eq!(flat_insertion_sort(&mut keys, 1), (true, 1000));
+        let n = u64::from(longest_list(60_000));
+        let group = 2 * n + 2 * (n / 16 - 1) + 2;
+        assert!(group <= 60_000, "{group}");
     }
 
     #[test]
