@@ -404,6 +404,80 @@ mod eye {
     }
 
     #[test]
+    fn a_march_just_within_the_loop_budget_is_marched_whole() {
+        // llvmpipe cuts an invocation's loops short once they have looped 65,535 times in all
+        // and carries on with what it has. The probe accepts what its bound says fits in the
+        // loop budget (60,000): marches right at that bound must come out as the f64 mirror's.
+        // (With a loop the bound did not count, the box lookup's over three axes, these read T
+        // up to 0.07 off.)
+        let gpu = gpu();
+        let mut ledger = MemoryLedger::for_device(&gpu.limits);
+        let probe = EyeMarchProbe::new(&gpu);
+        let medium = HomogeneousMedium {
+            shape: Shape::Box {
+                min: DVec3::splat(-1.0),
+                max: DVec3::splat(3.0),
+            },
+            extinction_per_m: 0.3,
+        };
+        let grid = trilinear(DensityGrid::voxelize(
+            &medium,
+            DVec3::ZERO,
+            DVec3::splat(2.0),
+            UVec3::splat(16),
+        ));
+        let uploaded = GpuGrid::upload(&gpu, &mut ledger, &grid).unwrap();
+        // Every ray ends inside the grid's box, so every eye step has density.
+        let rays: Vec<EyeRay> = (0..16)
+            .map(|i| EyeRay {
+                origin: Vec3::new(-4.0, 0.3 + 0.09 * i as f32, 1.0),
+                dir: Vec3::X,
+                t_near: 0.5,
+                t_far: 5.0,
+            })
+            .collect();
+        let light = Vec3::new(1.0, 9.0, 1.0);
+        // Eye steps x (light steps + 4) + 3 just under 60,000: the probe's own bound.
+        for (eye_steps, light_steps, allowed) in [(14_999u32, 0u32, 1e-3), (2_999, 16, 2e-4)] {
+            let settings = EyeMarchSettings {
+                light,
+                albedo: Vec3::ONE,
+                eye_steps,
+                light_steps,
+                jitter: 0.5,
+            };
+            let results = match probe.march(&gpu, &uploaded, &settings, &rays) {
+                Ok(results) => results,
+                Err(e) => panic!("{eye_steps} x {light_steps} steps refused: {e}"),
+            };
+            for (ray, r) in rays.iter().zip(&results) {
+                let (_, t) = grid.march_eye(
+                    ray.origin.as_dvec3(),
+                    ray.dir.as_dvec3(),
+                    f64::from(ray.t_near),
+                    f64::from(ray.t_far),
+                    eye_steps,
+                    0.5,
+                    1.0,
+                    |p| {
+                        if light_steps == 0 {
+                            1.0
+                        } else {
+                            (-grid.marched_optical_depth(light.as_dvec3(), p, light_steps)).exp()
+                        }
+                    },
+                );
+                let dt = (f64::from(r.transmittance) - t).abs();
+                assert!(
+                    dt < allowed,
+                    "{eye_steps} x {light_steps} steps, {ray:?}: T {} against the mirror's {t}",
+                    r.transmittance
+                );
+            }
+        }
+    }
+
+    #[test]
     fn a_march_past_the_loop_budget_is_refused_where_there_is_one() {
         let gpu = gpu();
         let mut ledger = MemoryLedger::for_device(&gpu.limits);

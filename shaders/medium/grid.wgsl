@@ -74,18 +74,21 @@ fn grid_support(qa: vec3<f32>, qb: vec3<f32>) -> vec2<f32> {
     let d = qb - qa;
     var t0 = 0.0;
     var t1 = 1.0;
-    for (var axis = 0u; axis < 3u; axis++) {
+    // The axes written out (`#unroll`), not looped over: llvmpipe counts a loop's iterations
+    // (its exit's too) against its budget for the whole invocation, and this one cost every
+    // march 4 of them that the callers' bounds did not count.
+    #unroll axis 0..3
         if d[axis] == 0.0 {
             if qa[axis] <= lo[axis] || qa[axis] >= hi[axis] {
                 return vec2<f32>(1.0, 0.0);
             }
-            continue;
+        } else {
+            let u = (lo[axis] - qa[axis]) / d[axis];
+            let v = (hi[axis] - qa[axis]) / d[axis];
+            t0 = max(t0, min(u, v));
+            t1 = min(t1, max(u, v));
         }
-        let u = (lo[axis] - qa[axis]) / d[axis];
-        let v = (hi[axis] - qa[axis]) / d[axis];
-        t0 = max(t0, min(u, v));
-        t1 = min(t1, max(u, v));
-    }
+    #end_unroll
     return vec2<f32>(t0, t1);
 }
 
@@ -112,18 +115,19 @@ fn grid_shape_fraction(qa: vec3<f32>, qb: vec3<f32>) -> f32 {
         t1 = min(t1, (-b + root) / a);
     } else {
         let d = qb - qa;
-        for (var axis = 0u; axis < 3u; axis++) {
+        // Written out, as in `grid_support`.
+        #unroll axis 0..3
             if d[axis] == 0.0 {
                 if qa[axis] < g.shape_a[axis] || qa[axis] > g.shape_b[axis] {
                     return 0.0;
                 }
-                continue;
+            } else {
+                let u = (g.shape_a[axis] - qa[axis]) / d[axis];
+                let v = (g.shape_b[axis] - qa[axis]) / d[axis];
+                t0 = max(t0, min(u, v));
+                t1 = min(t1, max(u, v));
             }
-            let u = (g.shape_a[axis] - qa[axis]) / d[axis];
-            let v = (g.shape_b[axis] - qa[axis]) / d[axis];
-            t0 = max(t0, min(u, v));
-            t1 = min(t1, max(u, v));
-        }
+        #end_unroll
     }
     return max(t1 - t0, 0.0);
 }
