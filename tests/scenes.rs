@@ -187,6 +187,23 @@ fn a_count_beyond_the_limit_is_refused_with_the_field_and_range() {
 }
 
 #[test]
+fn more_boxes_than_a_scene_may_hold_are_refused_in_one_line() {
+    // The exact occluder test loops over every box: llvmpipe's loop budget holds 1,024.
+    let limit = smokeshadow::frame::occluders::MAX_BOXES;
+    let mut scene = Scene::thesis_plume();
+    let the_box = scene.boxes[0].clone();
+    scene.boxes = vec![the_box; limit];
+    Scene::from_toml_str(&scene.to_toml(), "many.toml").unwrap();
+    scene.boxes.push(scene.boxes[0].clone());
+    let err = Scene::from_toml_str(&scene.to_toml(), "many.toml")
+        .expect_err("too many boxes")
+        .to_string();
+    assert!(err.contains("1025 boxes"), "{err}");
+    assert!(err.contains("1024"), "{err}");
+    assert!(!err.contains('\n'), "{err}");
+}
+
+#[test]
 fn technique_parameters_take_numbers_and_the_names_of_choices() {
     use smokeshadow::scene::ParamValue;
     use smokeshadow::shadow::{check_params, find_param};

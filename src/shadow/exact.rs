@@ -38,8 +38,10 @@
 //! **The loop limit.** llvmpipe ends every shader loop after 65,535 iterations of an invocation
 //! group, all its loops together. Each invocation of the particle lighting pass, the opaque pass
 //! and the probe makes one lookup, and the walk takes `UNROLL` entries per iteration, so a
-//! list may hold up to `UNROLL` times the loop budget ([`Gpu::loop_budget`], 60,000), about
-//! 480,000 entries: only a list beyond that is refused ([`ShadowError::TileListTooLong`])
+//! list may hold up to `UNROLL` times the loop budget ([`Gpu::loop_budget`], 60,000) less the
+//! shares of the lookup's other loops (the march through a density volume, 2,048, and the exact
+//! occluder test over at most 1,024 boxes, 1,025), about 455,000 entries: only a list beyond
+//! that is refused ([`ShadowError::TileListTooLong`])
 //! rather than summed short. The build reads the per-tile counts back; the counter
 //! `max_tile_list` reports the longest list on every adapter. The count and the fill loop
 //! over each particle's footprint, so on llvmpipe the grid is also halved while the largest
@@ -521,11 +523,12 @@ impl Exact {
             slices: 0,
             lighting_order: Vec::new(),
             max_list: 0,
-            // The lookup's march through a density volume takes its share first.
-            loop_budget: ctx
-                .gpu
-                .loop_budget()
-                .map(|b| b.saturating_sub(crate::medium::frame::REFERENCE_LOOP_RESERVE)),
+            // The lookup's march through a density volume and the exact occluder test over the
+            // boxes take their shares first.
+            loop_budget: ctx.gpu.loop_budget().map(|b| {
+                b.saturating_sub(crate::medium::frame::REFERENCE_LOOP_RESERVE)
+                    .saturating_sub(crate::frame::occluders::OCCLUDER_LOOP_RESERVE)
+            }),
             build_layout,
             lookup_layout,
             lookup_bind_group,
