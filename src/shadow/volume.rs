@@ -47,7 +47,8 @@
 //!    each voxel's mean in fixed point to a u32 scratch grid with `atomicAdd`. Integer addition
 //!    is associative, so the grid does not depend on the order of the particles or of the
 //!    atomics (`order_independent`). An invocation loops over at most G ≤ 1023 voxels of
-//!    8 sub-samples each (8,193 iterations with the search), far inside llvmpipe's 65,535.
+//!    8 sub-samples each (under 10,250 iterations with the search, every loop's exit counted),
+//!    far inside llvmpipe's 65,535.
 //!    Each field has its own entry point: llvmpipe evaluates both sides of a branch under a
 //!    mask, even a uniform one, and evaluating both fields per sub-sample cost 1.6 times the
 //!    CPU time per frame. (Cutting the rows into bricks of up to 4,096 voxels, one workgroup
