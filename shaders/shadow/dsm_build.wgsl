@@ -133,9 +133,14 @@ fn power_eps(grain: f32, k: f32) -> f32 {
 }
 
 // Greedy fits per round: each loops at most 2n + N + 2 times (src/shadow/dsm.rs, `rounds`, says
-// why), the final fit with its padding 2n + N - 1. Keep in sync with `dsm::rounds`.
+// why), the final fit with its padding 2n + N - 1, within 2n + 20 each, from the loop budget
+// less LOOPS_BESIDE_FITS: the copy of a list that fits as it is (in lanes beside those that
+// search) and the loops' exits. Keep in sync with `dsm::rounds` and `dsm::LOOPS_BESIDE_FITS`.
+const LOOPS_BESIDE_FITS: u32 = 64u;
+
 fn fits_per_round() -> u32 {
-    return max(1u, capture.loop_budget / (2u * capture.max_list + 20u));
+    let budget = capture.loop_budget - min(capture.loop_budget, LOOPS_BESIDE_FITS);
+    return max(1u, budget / (2u * capture.max_list + 20u));
 }
 
 // Writes the fit at `eps` (at most `limit` vertices, the last repeated into the free slots) and

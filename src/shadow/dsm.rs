@@ -91,8 +91,14 @@ fn rounds(max_list: u32, loop_budget: u32) -> u32 {
 
 /// The greedy fits a round has room for (`fits_per_round` in the shader; [`rounds`] says why).
 fn fits_per_round(max_list: u32, loop_budget: u32) -> u32 {
-    (loop_budget / (2 * max_list + 20)).max(1)
+    (loop_budget.saturating_sub(LOOPS_BESIDE_FITS) / (2 * max_list + 20)).max(1)
 }
+
+/// Loop iterations a round spends beside its fits' allowances of 2n + 20, taken from the budget
+/// first (`LOOPS_BESIDE_FITS` in the shader): the copy of a list that fits as it is (N + 1
+/// iterations, N <= 16, in lanes of a SIMD group beside those that search), the search loop's
+/// exit and the final fit's padding beyond its allowance. 64 holds them with room to spare.
+const LOOPS_BESIDE_FITS: u32 = 64;
 
 /// The counters from the compression's statistics words (see `STAT_*` in dsm_build.wgsl): the
 /// largest ε as its bits, Σ ε in millionths (low, high word), the texels with smoke, the lossy
