@@ -104,11 +104,19 @@ fn texel_list(index: u32) -> TexelList {
 const NO_TEXEL: u32 = 0xffffffffu;
 
 // The texel a per-texel pass's invocation `id` handles, (x, row_begin + y), as an index into
-// the map; NO_TEXEL outside the current band.
+// the map; NO_TEXEL outside the current band. The passes run 8x8 workgroups over 8x8 tiles of
+// the band, and each row of 8 invocations (a SIMD group on llvmpipe, whose lanes loop in
+// lockstep as long as the longest of their lists) takes a 4x2 block of the tile rather than a
+// row of it: neighbours in both directions have lists of closer lengths. Summed over the
+// groups, the longest list of each came to 8.6% more than the lists themselves with 4x2 blocks
+// on the thesis frame, 14.9% with rows of 8 (at 65,536 particles of the scaled plume, 11.3%
+// against 19.8%). Every texel of the tile is still taken once.
 fn band_texel(id: vec3<u32>) -> u32 {
-    let row = capture.row_begin + id.y;
-    if id.x >= capture.resolution || row >= capture.row_end {
+    let local = id.xy & vec2<u32>(7u);
+    let x = id.x - local.x + 4u * (local.y & 1u) + (local.x & 3u);
+    let row = capture.row_begin + id.y - local.y + 2u * (local.y >> 1u) + (local.x >> 2u);
+    if x >= capture.resolution || row >= capture.row_end {
         return NO_TEXEL;
     }
-    return row * capture.resolution + id.x;
+    return row * capture.resolution + x;
 }
