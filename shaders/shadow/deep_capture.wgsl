@@ -151,6 +151,41 @@ fn fs_fill_volume(in: VolumeVertexOut) -> @location(0) vec4<f32> {
     return vec4<f32>(0.0);
 }
 
+// Before a band's per-texel passes: each 8x8 tile's texels by the length of their lists, longest
+// first (ties in the tile's order), into `texel_order` (see `band_texel`). Any order gives the
+// same lists, nodes and images: it only decides which texels a SIMD group takes together.
+var<workgroup> tile_keys: array<u32, 64>;
+var<workgroup> tile_longest: atomic<u32>;
+
+@compute @workgroup_size(8, 8)
+fn order_texels(
+    @builtin(global_invocation_id) id: vec3<u32>,
+    @builtin(local_invocation_index) place: u32,
+    @builtin(workgroup_id) tile: vec3<u32>,
+) {
+    let row = capture.row_begin + id.y;
+    let inside = id.x < capture.resolution && row < capture.row_end;
+    let texel = row * capture.resolution + id.x;
+    // A list's length + 1; 0 for a place outside the band, which goes last.
+    var key = 0u;
+    if inside {
+        key = offsets[texel + 1u] - offsets[texel] + 1u;
+    }
+    tile_keys[place] = key;
+    atomicMax(&tile_longest, key);
+    workgroupBarrier();
+    // A tile without smoke keeps its order (most of the map: no loop at all there).
+    var rank = place;
+    if workgroupUniformLoad(&tile_longest) > 1u {
+        rank = 0u;
+        for (var j = 0u; j < 64u; j++) {
+            let other = tile_keys[j];
+            rank += u32(other > key || (other == key && j < place));
+        }
+    }
+    texel_order[((tile.y * tiles_per_row() + tile.x) << 6u) + rank] = select(NO_TEXEL, texel, inside);
+}
+
 // The scan's grid is the map (shaders/shadow/grid_scan.wgsl).
 fn scan_side() -> u32 {
     return capture.resolution;

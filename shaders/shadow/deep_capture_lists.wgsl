@@ -59,6 +59,9 @@ struct Segment {
 // passes use both sides, so that which side a texel's pass reads is an offset, never a branch.)
 @group(1) @binding(6) var key_depths: texture_storage_2d<r32float, read_write>;
 @group(1) @binding(7) var key_values: texture_storage_2d<r32float, read_write>;
+// Per 8x8 tile of the band, 64 entries: its texels (map indices), longest list first, NO_TEXEL
+// for a place outside the band (`order_texels` writes it, `band_texel` reads it).
+@group(1) @binding(8) var<storage, read_write> texel_order: array<u32>;
 @group(3) @binding(0) var<uniform> pass_round: Round;
 
 // Where the nodes start in the key textures: after the band's 2·capacity sort keys.
@@ -103,20 +106,23 @@ fn texel_list(index: u32) -> TexelList {
 
 const NO_TEXEL: u32 = 0xffffffffu;
 
-// The texel a per-texel pass's invocation `id` handles, (x, row_begin + y), as an index into
-// the map; NO_TEXEL outside the current band. The passes run 8x8 workgroups over 8x8 tiles of
-// the band, and each row of 8 invocations (a SIMD group on llvmpipe, whose lanes loop in
-// lockstep as long as the longest of their lists) takes a 4x2 block of the tile rather than a
-// row of it: neighbours in both directions have lists of closer lengths. Summed over the
-// groups, the longest list of each came to 8.6% more than the lists themselves with 4x2 blocks
-// on the thesis frame, 14.9% with rows of 8 (at 65,536 particles of the scaled plume, 11.3%
-// against 19.8%). Every texel of the tile is still taken once.
+// The texel a per-texel pass's invocation `id` handles, as an index into the map, or NO_TEXEL.
+// The passes run 8x8 workgroups over the band's 8x8 tiles, and each takes its tile's texels in
+// the order `order_texels` (shaders/shadow/deep_capture.wgsl) wrote for it: longest list first.
+// llvmpipe runs each 8 invocations in a row as one SIMD group, looping in lockstep as long as the
+// longest of their lists, so a group of lists of about one length wastes the least. Summed over
+// the groups of the thesis frame, the longest lists came to 14.9% more than the lists themselves
+// with the tiles' rows and 8.6% with 4x2 blocks of them; in this order the run sort, merges and
+// search take about 13 ms less than with the blocks, for 3.6 ms of ordering (docs/studies.md,
+// "Loop counts per SIMD group"). Ordering a band's texels across its tiles lost more to the
+// lanes' scattered lists than it saved.
 fn band_texel(id: vec3<u32>) -> u32 {
+    let tile = id.xy >> vec2<u32>(3u);
     let local = id.xy & vec2<u32>(7u);
-    let x = id.x - local.x + 4u * (local.y & 1u) + (local.x & 3u);
-    let row = capture.row_begin + id.y - local.y + 2u * (local.y >> 1u) + (local.x >> 2u);
-    if x >= capture.resolution || row >= capture.row_end {
-        return NO_TEXEL;
-    }
-    return row * capture.resolution + x;
+    return texel_order[((tile.y * tiles_per_row() + tile.x) << 6u) + (local.y << 3u) + local.x];
+}
+
+// The 8x8 tiles across the map (a band's per-texel passes dispatch this many workgroups in x).
+fn tiles_per_row() -> u32 {
+    return (capture.resolution + 7u) / 8u;
 }

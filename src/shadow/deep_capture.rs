@@ -151,6 +151,14 @@ fn heap_rounds(max_list: u32, loop_budget: u32) -> (u32, u32) {
 /// buffer and 110 ms in two such textures. In binding order: depths (6), values (7).
 const KEY_TEXTURES: [&str; 2] = ["key_depths", "key_values"];
 const KEY_BINDINGS: [u32; 2] = [6, 7];
+/// The binding of the per-tile texel order (`texel_order` in
+/// shaders/shadow/deep_capture_lists.wgsl).
+const TEXEL_ORDER_BINDING: u32 = 8;
+
+/// The texel order's bytes at `resolution`: 64 entries of 4 bytes for every 8x8 tile of the map.
+fn texel_order_bytes(resolution: u32) -> u64 {
+    u64::from(resolution.div_ceil(8)).pow(2) * 64 * 4
+}
 const SORT_KEY_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Float;
 const SORT_KEY_BYTES: u64 = 4;
 
@@ -184,7 +192,7 @@ const DUMMY_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R8Unorm;
 
 /// The bytes a capture at `resolution_px` with lists for `segment_capacity` segments allocates:
 /// a 32-byte uniform, the 64 KiB round uniform, counts, offsets (+1 for the total), row sums
-/// (+1), an R8 raster target, 16 bytes of segment storage per segment, and for `avsm` 16 bytes
+/// (+1), the texel order (64 entries a tile of 8x8 texels), an R8 raster target, 16 bytes of segment storage per segment, and for `avsm` 16 bytes
 /// of node storage per segment, for `dsm` (`node_texels`) the two key textures
 /// (`KEY_TEXTURES`), 4 x capacity texels of 4 bytes each in whole rows: 32 bytes a segment (the
 /// others' are placeholders).
@@ -196,6 +204,7 @@ pub fn bytes(resolution_px: u32, segment_capacity: u64, node_texels: bool) -> u6
         + texels * 4
         + (texels + 1) * 4
         + (u64::from(resolution_px) + 1) * 4
+        + texel_order_bytes(resolution_px)
         + texels
         + segment_buffer_bytes(segment_capacity)
         + node_buffer_bytes(segment_capacity, node_texels)
@@ -254,6 +263,8 @@ pub struct DeepCapture {
     counts: wgpu::Buffer,
     offsets: wgpu::Buffer,
     row_sums: wgpu::Buffer,
+    /// Per 8x8 tile of the band, its texels in the order the per-texel passes take them.
+    texel_order: wgpu::Buffer,
     dummy_target: wgpu::TextureView,
     layout: wgpu::BindGroupLayout,
     count_pipeline: wgpu::RenderPipeline,
@@ -266,6 +277,8 @@ pub struct DeepCapture {
     scan_rows: wgpu::ComputePipeline,
     scan_total: wgpu::ComputePipeline,
     scan_write: wgpu::ComputePipeline,
+    /// Orders each tile's texels by list length for the per-texel passes (`order_texels`).
+    order_texels: wgpu::ComputePipeline,
     /// The resolve's phases, in order, each with its kind (which sets its rounds).
     resolve: Vec<(ResolvePhase, wgpu::ComputePipeline)>,
     rounds: Rounds,
@@ -512,6 +525,7 @@ impl DeepCapture {
         let counts = storage("counts", texels * 4)?;
         let offsets = storage("offsets", (texels + 1) * 4)?;
         let row_sums = storage("row_sums", (u64::from(res) + 1) * 4)?;
+        let texel_order = storage("texel_order", texel_order_bytes(res))?;
         let dummy_target = memory
             .texture_transient(
                 device,
@@ -536,6 +550,7 @@ impl DeepCapture {
                 storage_entry(5, wgpu::ShaderStages::COMPUTE, false),
                 key_entry(KEY_BINDINGS[0]),
                 key_entry(KEY_BINDINGS[1]),
+                storage_entry(TEXEL_ORDER_BINDING, wgpu::ShaderStages::COMPUTE, false),
             ],
         });
         let module = shaders::module(
@@ -614,7 +629,7 @@ impl DeepCapture {
             memory,
             name,
             &layout,
-            [&params_buffer, &counts, &offsets, &row_sums],
+            [&params_buffer, &counts, &offsets, &row_sums, &texel_order],
             INITIAL_CAPACITY.min(max_band_segments(gpu)),
             node_texels,
         )?;
@@ -624,12 +639,14 @@ impl DeepCapture {
             scan_rows: compute("scan_rows"),
             scan_total: compute("scan_total"),
             scan_write: compute("scan_write"),
+            order_texels: compute("order_texels"),
             resolve,
             rounds,
             params_buffer,
             counts,
             offsets,
             row_sums,
+            texel_order,
             dummy_target,
             layout,
             count_pipeline,
@@ -855,6 +872,16 @@ impl DeepCapture {
         );
         let (build_rounds, extract_rounds) = heap_rounds(self.last_max_list, self.loop_budget);
         let groups = (self.resolution.div_ceil(8), band.rows().div_ceil(8));
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some(&format!("{}.capture.order", self.name)),
+                timestamp_writes: timer.compute_pass("shadow"),
+            });
+            pass.set_pipeline(&self.order_texels);
+            pass.set_bind_group(0, frame_bind_group, &[]);
+            pass.set_bind_group(1, &self.lists.bind_group, &[]);
+            pass.dispatch_workgroups(groups.0, groups.1, 1);
+        }
         for (phase, pipeline) in &self.resolve {
             let rounds = match phase {
                 ResolvePhase::Heap(true) => build_rounds,
@@ -893,6 +920,7 @@ impl DeepCapture {
             &self.counts,
             &self.offsets,
             &self.row_sums,
+            &self.texel_order,
         ];
         self.lists = Lists::new(
             &gpu.device,
@@ -959,11 +987,11 @@ impl Lists {
         memory: &mut MemoryLedger,
         name: &str,
         layout: &wgpu::BindGroupLayout,
-        fixed: [&wgpu::Buffer; 4],
+        fixed: [&wgpu::Buffer; 5],
         capacity: u32,
         node_texels: bool,
     ) -> Result<Self, AllocationError> {
-        let [params, counts, offsets, row_sums] = fixed;
+        let [params, counts, offsets, row_sums, texel_order] = fixed;
         let (segments_label, nodes_label) = (
             format!("{name}.capture.segments"),
             format!("{name}.capture.nodes"),
@@ -1013,6 +1041,7 @@ impl Lists {
                 bind_entry(5, row_sums),
                 texture_binding(KEY_BINDINGS[0], &key_views[0]),
                 texture_binding(KEY_BINDINGS[1], &key_views[1]),
+                bind_entry(TEXEL_ORDER_BINDING, texel_order),
             ],
         });
         Ok(Self {
