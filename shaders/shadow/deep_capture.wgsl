@@ -7,15 +7,17 @@
 //    exclusive prefix sum of the counts -> list offsets (offsets[res²] = total).
 // 3. fs_fill: every fragment of the current band of rows writes its segment (z0, z1, optical
 //    depth, draw index) into its texel's list (counts, cleared, serve as cursors).
-// 4. resolve (run_sort, merge_runs): per texel of the band, `dsm`'s sorts its segments' events,
-//    their starts (z0, slope) and ends (z1, -slope), by depth and turns them into the nodes (z,
-//    Ω(z)) of the piecewise-linear optical depth as its last pass writes them: between events Ω
-//    grows by the sum of the slopes (optical depth per metre) of the segments open there. The
-//    keys are total over what is sorted, so the nodes do not depend on the order the fragments
-//    arrived in. An owner that needs the segments themselves has them sorted whole (an insertion
-//    sort that gives up early, then a heapsort of the lists it left): by (z0, z1, optical depth,
-//    draw index), or with SORT_BY_DRAW by draw index, which puts each texel's list back in the
-//    order the particles were drawn, whatever order the fill's atomics wrote it in.
+// 4. resolve (order_texels, which orders each tile's texels by list length for the passes
+//    after it, then run_sort, merge_runs): per texel of the band, `dsm`'s sorts its segments'
+//    events, their starts (z0, slope) and ends (z1, -slope), by depth and turns them into the
+//    nodes (z, Ω(z)) of the piecewise-linear optical depth as its last pass writes them: between
+//    events Ω grows by the sum of the slopes (optical depth per metre) of the segments open
+//    there. The keys are total over what is sorted, so the nodes do not depend on the order the
+//    fragments arrived in. An owner that needs the segments themselves has them sorted whole
+//    (an insertion sort that gives up early, then a heapsort of the lists it left): by (z0, z1,
+//    optical depth, draw index), or with SORT_BY_DRAW by draw index, which puts each texel's
+//    list back in the order the particles were drawn, whatever order the fill's atomics wrote
+//    it in.
 #import shadow/layered_build.wgsl
 #import shadow/deep_capture_lists.wgsl
 #import shadow/grid_scan.wgsl

@@ -113,9 +113,14 @@ const WAY_LEVELS: u32 = 3;
 /// runs of `RUN`, and a pass makes `WAY_LEVELS` of them (eight runs merged), the last pass
 /// what is left over. Never fewer for a longer list, so the longest sets the rounds.
 pub fn merge_passes(n: u32) -> u32 {
-    let runs = (2 * n).div_ceil(RUN);
-    let levels = if runs <= 1 { 0 } else { (runs - 1).ilog2() + 1 };
-    levels.div_ceil(WAY_LEVELS)
+    merge_levels(2 * n).div_ceil(WAY_LEVELS)
+}
+
+/// The two-run merge levels over `events` in runs of `RUN`: ceil(log2) of the runs (`levels_for`
+/// in shaders/shadow/deep_capture.wgsl).
+fn merge_levels(events: u32) -> u32 {
+    let runs = events.div_ceil(RUN);
+    if runs <= 1 { 0 } else { (runs - 1).ilog2() + 1 }
 }
 
 /// The longest texel list a capture accepts under `loop_budget`: one dispatch must stay within
@@ -155,10 +160,6 @@ const KEY_BINDINGS: [u32; 2] = [6, 7];
 /// shaders/shadow/deep_capture_lists.wgsl).
 const TEXEL_ORDER_BINDING: u32 = 8;
 
-/// The texel order's bytes at `resolution`: 64 entries of 4 bytes for every 8x8 tile of the map.
-fn texel_order_bytes(resolution: u32) -> u64 {
-    u64::from(resolution.div_ceil(8)).pow(2) * 64 * 4
-}
 const SORT_KEY_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Float;
 const SORT_KEY_BYTES: u64 = 4;
 
@@ -192,10 +193,10 @@ const DUMMY_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R8Unorm;
 
 /// The bytes a capture at `resolution_px` with lists for `segment_capacity` segments allocates:
 /// a 32-byte uniform, the 64 KiB round uniform, counts, offsets (+1 for the total), row sums
-/// (+1), the texel order (64 entries a tile of 8x8 texels), an R8 raster target, 16 bytes of segment storage per segment, and for `avsm` 16 bytes
-/// of node storage per segment, for `dsm` (`node_texels`) the two key textures
-/// (`KEY_TEXTURES`), 4 x capacity texels of 4 bytes each in whole rows: 32 bytes a segment (the
-/// others' are placeholders).
+/// (+1), the texel order (64 entries a tile of 8x8 texels), an R8 raster target, 16 bytes of
+/// segment storage per segment, and for `avsm` 16 bytes of node storage per segment, for `dsm`
+/// (`node_texels`) the two key textures (`KEY_TEXTURES`), 4 x capacity texels of 4 bytes each
+/// in whole rows: 32 bytes a segment (the others' are placeholders).
 pub fn bytes(resolution_px: u32, segment_capacity: u64, node_texels: bool) -> u64 {
     let texels = u64::from(resolution_px) * u64::from(resolution_px);
     let (width, height) = row_texture_size(node_texel_count(segment_capacity, node_texels));
@@ -209,6 +210,11 @@ pub fn bytes(resolution_px: u32, segment_capacity: u64, node_texels: bool) -> u6
         + segment_buffer_bytes(segment_capacity)
         + node_buffer_bytes(segment_capacity, node_texels)
         + u64::from(width) * u64::from(height) * KEY_TEXTURES.len() as u64 * SORT_KEY_BYTES
+}
+
+/// The texel order's bytes at `resolution`: 64 entries of 4 bytes for every 8x8 tile of the map.
+fn texel_order_bytes(resolution: u32) -> u64 {
+    u64::from(resolution.div_ceil(8)).pow(2) * 64 * 4
 }
 
 /// The segments buffer's bytes: [`SEGMENT_BYTES`] a segment of capacity (every fill stores the
@@ -277,8 +283,6 @@ pub struct DeepCapture {
     scan_rows: wgpu::ComputePipeline,
     scan_total: wgpu::ComputePipeline,
     scan_write: wgpu::ComputePipeline,
-    /// Orders each tile's texels by list length for the per-texel passes (`order_texels`).
-    order_texels: wgpu::ComputePipeline,
     /// The resolve's phases, in order, each with its kind (which sets its rounds).
     resolve: Vec<(ResolvePhase, wgpu::ComputePipeline)>,
     rounds: Rounds,
@@ -298,7 +302,7 @@ pub struct DeepCapture {
 enum ResolvePhase {
     /// A heap build (`true`) or extraction over the lists, in rounds.
     Heap(bool),
-    /// A single pass looping up to 2n times.
+    /// A single pass, looping up to 2n times (64 for `order_texels`).
     Single,
     /// The merge sort's passes, one a round ([`merge_passes`]).
     Merge,
@@ -327,17 +331,21 @@ impl Resolve {
     }
 
     /// The phases in order: entry point and kind.
+    /// Both begin with `order_texels`, which orders each tile's texels by list length for the
+    /// passes after it (`band_texel` in shaders/shadow/deep_capture_lists.wgsl).
     fn phases(self) -> &'static [(&'static str, ResolvePhase)] {
         // Whole segments: an insertion sort that gives up early, then the heapsort for the
         // lists it left.
-        const SEGMENTS: [(&str, ResolvePhase); 3] = [
+        const SEGMENTS: [(&str, ResolvePhase); 4] = [
+            ("order_texels", ResolvePhase::Single),
             ("insertion_sort", ResolvePhase::Single),
             ("heap_build", ResolvePhase::Heap(true)),
             ("heap_extract", ResolvePhase::Heap(false)),
         ];
         // The run sort splits each segment into its two events as it reads them; the merge
         // sort's last pass writes the nodes.
-        const NODES: [(&str, ResolvePhase); 2] = [
+        const NODES: [(&str, ResolvePhase); 3] = [
+            ("order_texels", ResolvePhase::Single),
             ("run_sort", ResolvePhase::Single),
             ("merge_runs", ResolvePhase::Merge),
         ];
@@ -639,7 +647,6 @@ impl DeepCapture {
             scan_rows: compute("scan_rows"),
             scan_total: compute("scan_total"),
             scan_write: compute("scan_write"),
-            order_texels: compute("order_texels"),
             resolve,
             rounds,
             params_buffer,
@@ -872,16 +879,6 @@ impl DeepCapture {
         );
         let (build_rounds, extract_rounds) = heap_rounds(self.last_max_list, self.loop_budget);
         let groups = (self.resolution.div_ceil(8), band.rows().div_ceil(8));
-        {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some(&format!("{}.capture.order", self.name)),
-                timestamp_writes: timer.compute_pass("shadow"),
-            });
-            pass.set_pipeline(&self.order_texels);
-            pass.set_bind_group(0, frame_bind_group, &[]);
-            pass.set_bind_group(1, &self.lists.bind_group, &[]);
-            pass.dispatch_workgroups(groups.0, groups.1, 1);
-        }
         for (phase, pipeline) in &self.resolve {
             let rounds = match phase {
                 ResolvePhase::Heap(true) => build_rounds,
@@ -1123,9 +1120,7 @@ mod tests {
         if step > passes {
             return Vec::new();
         }
-        let runs = events.div_ceil(RUN);
-        let levels = if runs <= 1 { 0 } else { (runs - 1).ilog2() + 1 };
-        let last = levels - WAY_LEVELS * (passes - 1);
+        let last = merge_levels(events) - WAY_LEVELS * (passes - 1);
         let width = RUN << (WAY_LEVELS * (step - 1));
         let ways = 1 << if step == passes { last } else { WAY_LEVELS };
         let group = ways * width;

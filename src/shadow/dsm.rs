@@ -74,8 +74,8 @@ const SEARCH_STEPS: u32 = BISECTION_STEPS + 1 + (u32::BITS - BISECTION_STEPS.lea
 /// Rounds of the compression: a greedy fit over 2n nodes loops at most 2n + N + 2 times (each
 /// node once, a look again after each closed segment, at most N + 1 of them, and the pass that
 /// stops it; N <= 16), the final fit with its padding of the unused nodes at most 2n + N - 1
-/// (it fits: at most N nodes), so a round has room for `per_round` = `loop_budget / (2
-/// max_list + 20)` fits (`fits_per_round` in the shader). llvmpipe counts a SIMD group's loop
+/// (it fits: at most N nodes), so a round has room for `per_round` = `(loop_budget -
+/// LOOPS_BESIDE_FITS) / (2 max_list + 20)` fits (`fits_per_round` in the shader). llvmpipe counts a SIMD group's loop
 /// iterations, whichever of its lanes run them, so a round's fits are the group's: at most
 /// per_round - 1 search fits in lockstep, then the final fit of every lane that has its ε. The
 /// search fits (`SEARCH_STEPS` - 1) take ceil((SEARCH_STEPS - 1) / (per_round - 1)) rounds, the
