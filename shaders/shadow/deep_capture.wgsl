@@ -22,6 +22,14 @@
 #import shadow/deep_capture_lists.wgsl
 #import shadow/grid_scan.wgsl
 
+// The nodes of a resolve into nodes, written by its last pass (see
+// shaders/shadow/deep_capture_lists.wgsl).
+@group(1) @binding(9) var resolved_nodes: texture_storage_2d<rg32float, write>;
+
+fn set_node(i: u32, node: vec2<f32>) {
+    textureStore(resolved_nodes, row_texel(i), vec4<f32>(node, 0.0, 0.0));
+}
+
 @group(1) @binding(1) var<storage, read_write> counts: array<atomic<u32>>;
 @group(1) @binding(5) var<storage, read_write> row_sums: array<u32>;
 // Shortest chord kept, metres: shorter ones (grazing rays) are widened to this so that every
@@ -455,12 +463,11 @@ fn insertion_sort(@builtin(global_invocation_id) id: vec3<u32>) {
 // insertion sort ran 16 compares and 32 selects an event: run sort 62 -> 55 ms on the thesis
 // frame; the network alone costs 2 ms of it, the loads and stores the rest, so runs of 32 (68
 // ms, merges 79 -> 65) or 64 (119 ms) gain nothing) and writes it out; `merge_runs` then merges
-// groups of up to WAYS runs, one pass a round, between the two sides of the key textures (the
-// sort keys and, `node_side()` further on, the nodes: which side is an index offset, not a
-// branch). A texel's passes alternate between the sides, arranged so that its last one writes
-// the nodes: `run_sort` writes its runs to the keys when the texel's
-// merge passes are odd in number, else to the nodes, and a list of a single run needs no merge,
-// so `run_sort` writes its nodes. Against the heapsort it replaced (the same order: the keys are
+// groups of up to WAYS runs, one pass a round, between the two sides of the key textures (which
+// side is an index offset, `second_side()`, not a branch): pass `step` writes the second side
+// when it is odd, the first when it is even (`run_sort` is step 0), and a texel's last pass
+// writes its nodes to `resolved_nodes` instead; a list of a single run needs no merge, so
+// `run_sort` writes its nodes. Against the heapsort it replaced (the same order: the keys are
 // total), each key is read and written once a pass instead of log2(n) times (the textures' loads
 // and stores are most of a sort's cost on llvmpipe); merging eight runs a pass instead of four,
 // and sorting the starts and ends as one list instead of two then merging them, took the sort and
@@ -519,9 +526,10 @@ fn runs_merged(runs: Runs, step: u32) -> u32 {
     return 1u << select(WAY_LEVELS, runs.last, step == runs.passes);
 }
 
-// Whether pass `step` of a texel (0: `run_sort`) writes to the node textures: its last one does.
-fn writes_nodes(runs: Runs, step: u32) -> bool {
-    return (runs.passes - step) % 2u == 0u;
+// Whether pass `step` (0: `run_sort`) writes its keys to the second side of the key textures
+// (the passes alternate, so pass `step` reads what pass step - 1 wrote).
+fn writes_second_side(step: u32) -> bool {
+    return step % 2u == 1u;
 }
 
 // Events by depth; at one depth the larger change of slope first (starts before ends). A total
@@ -554,13 +562,13 @@ const RUN_SEGMENTS: u32 = 8u;
 // The depth of the keys that pad a short run: after every event's.
 const PAD_DEPTH: f32 = 3.4028235e38;
 
-// The key or node at `i` on one side of the key textures.
-fn key_from(nodes_side: bool, i: u32) -> vec2<f32> {
-    return key_at(i + select(0u, node_side(), nodes_side));
+// The key at `i` on one side of the key textures.
+fn key_from(second: bool, i: u32) -> vec2<f32> {
+    return key_at(i + select(0u, second_side(), second));
 }
 
-fn set_key_to(nodes_side: bool, i: u32, key: vec2<f32>) {
-    set_key_at(i + select(0u, node_side(), nodes_side), key);
+fn set_key_to(second: bool, i: u32, key: vec2<f32>) {
+    set_key_at(i + select(0u, second_side(), second), key);
 }
 
 // Each run of RUN events sorted in registers and written out, or for a list of one run its nodes.
@@ -573,7 +581,7 @@ fn run_sort(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     let base = 2u * list.first;
     let runs = runs_of(n);
-    let to_nodes = writes_nodes(runs, 0u);
+    let to_second = writes_second_side(0u);
     var nodes = Nodes(0.0, 0.0, 0.0);
     let last_segment = list.first + list.count - 1u;
     for (var start = 0u; start < n; start += RUN) {
@@ -608,30 +616,52 @@ fn run_sort(@builtin(global_invocation_id) id: vec3<u32>) {
             if k < m {
                 // A single run is the whole list, in order: its nodes.
                 let node = next_node(&nodes, keys[k]);
-                set_key_to(to_nodes, base + start + k, select(keys[k], node, runs.passes == 0u));
+                if runs.passes == 0u {
+                    set_node(base + start + k, node);
+                } else {
+                    set_key_to(to_second, base + start + k, keys[k]);
+                }
             }
         #end_unroll
     }
 }
 
-// One merge pass (the round's index + 1) over the texel's runs: groups of WAYS (or fewer) sorted
-// runs of `run_width` keys, merged (stably: the first run's key on a tie) from one side of the
-// key textures to the other at the same indices; the texel's last pass writes its nodes. A loop
-// over the groups, each group's heads loaded before a loop over its keys. The runs' next keys
-// are held in registers (every index below is a constant), each loaded once.
+// Every merge pass of a texel but its last, one a round: the round's index + 1 is the pass.
 @compute @workgroup_size(8, 8)
 fn merge_runs(@builtin(global_invocation_id) id: vec3<u32>) {
     let list = band_list(id);
-    let n = 2u * list.count;
     let step = pass_round.index + 1u;
-    let runs = runs_of(n);
-    if step > runs.passes {
+    if step >= runs_of(2u * list.count).passes {
         return;
     }
+    merge_pass(list, step, false);
+}
+
+// Every texel's last merge pass, which writes its nodes, in one dispatch after all the others:
+// `last` is a constant in each entry point, so neither carries the other's stores (a branch on
+// it per key took the merges 40-41 -> 45-46 ms on the thesis frame). Each texel's last pass
+// merges its whole list as one group, so a SIMD group loops here as often as its longest list.
+@compute @workgroup_size(8, 8)
+fn merge_last(@builtin(global_invocation_id) id: vec3<u32>) {
+    let list = band_list(id);
+    let passes = runs_of(2u * list.count).passes;
+    if passes == 0u {
+        return;
+    }
+    merge_pass(list, passes, true);
+}
+
+// Merge pass `step` over the texel's runs: groups of WAYS (or fewer) sorted runs of `run_width`
+// keys, merged (stably: the first run's key on a tie) from one side of the key textures to the
+// other at the same indices, or for the `last` its nodes into `resolved_nodes`. A loop over the
+// groups, each group's heads loaded before a loop over its keys. The runs' next keys are held in
+// registers (every index below is a constant), each loaded once.
+fn merge_pass(list: TexelList, step: u32, last: bool) {
+    let n = 2u * list.count;
+    let runs = runs_of(n);
     let base = 2u * list.first;
-    let to_nodes = writes_nodes(runs, step);
-    let from_nodes = !to_nodes;
-    let last = step == runs.passes;
+    let to_second = writes_second_side(step);
+    let from_second = !to_second;
     let width = run_width(step);
     let ways = runs_merged(runs, step);
     var nodes = Nodes(0.0, 0.0, 0.0);
@@ -647,7 +677,7 @@ fn merge_runs(@builtin(global_invocation_id) id: vec3<u32>) {
             at[w] = begin;
             end[w] = select(begin, min(begin + width, group_end), w < ways);
             if begin < end[w] {
-                let key = key_from(from_nodes, base + begin);
+                let key = key_from(from_second, base + begin);
                 depth[w] = key.x;
                 slope[w] = key.y;
             }
@@ -667,7 +697,11 @@ fn merge_runs(@builtin(global_invocation_id) id: vec3<u32>) {
                 open = open || at[w] < end[w];
             #end_unroll
             let node = next_node(&nodes, best);
-            set_key_to(to_nodes, base + k, select(best, node, last));
+            if last {
+                set_node(base + k, node);
+            } else {
+                set_key_to(to_second, base + k, best);
+            }
             // The taken run's next key.
             var next = 0u;
             var next_end = 0u;
@@ -677,7 +711,7 @@ fn merge_runs(@builtin(global_invocation_id) id: vec3<u32>) {
                 next_end = select(next_end, end[w], taken == w);
             #end_unroll
             if next < next_end {
-                let key = key_from(from_nodes, base + next);
+                let key = key_from(from_second, base + next);
                 #unroll w 0..WAYS
                     depth[w] = select(depth[w], key.x, taken == w);
                     slope[w] = select(slope[w], key.y, taken == w);

@@ -1,7 +1,7 @@
 // The per-texel segment lists of a deep capture (src/shadow/deep_capture.rs), as its own passes
 // and the compression passes that read them declare them in group 1. Texel i's segments are
 // segments[offsets[i] .. offsets[i + 1]). After the resolve, for `dsm`, its nodes (z, Ω(z)) of
-// the piecewise-linear optical depth are node_texel(2·offsets[i] .. 2·offsets[i + 1]); for `avsm`
+// the piecewise-linear optical depth are resolved_nodes[2·offsets[i] .. 2·offsets[i + 1]); for `avsm`
 // the segments are sorted by (z0, z1, optical depth), or by draw index alone for its default
 // insertion in draw order (the resolve's `SORT_BY_DRAW`). The lists hold one band of rows at a
 // time (rows [row_begin, row_end), whose first segment is offsets' band_base), so every index
@@ -50,13 +50,17 @@ struct Segment {
 @group(1) @binding(2) var<storage, read_write> offsets: array<u32>;
 @group(1) @binding(3) var<storage, read_write> segments: array<Segment>;
 @group(1) @binding(4) var<storage, read_write> nodes: array<vec2<f32>>;
-// A resolve into nodes (`dsm`'s) keeps its keys and nodes in two read-write storage textures of
-// one R32Float each, row textures (shaders/common/rows.wgsl) in the nodes' index space
+// A resolve into nodes (`dsm`'s) sorts its keys in two read-write storage textures of one
+// R32Float each, row textures (shaders/common/rows.wgsl) in the nodes' index space
 // (src/shadow/deep_capture.rs, SORT_KEY_FORMAT, says why textures; 1x1 placeholders for the
 // others), depths in one and values in the other: the sort keys, a texel's events, its
 // segments' starts (z0, slope) and ends (z1, -slope) as the resolve sorts them, at [2·first,
-// 2·first + 2n); the nodes (z, Ω(z)) at the same indices `node_side()` further on. (The sort
-// passes use both sides, so that which side a texel's pass reads is an offset, never a branch.)
+// 2·first + 2n), on either of two sides, `second_side()` apart, between which the merge passes
+// alternate (which side a texel's pass reads is then an offset, never a branch). Its last pass
+// writes the nodes (z, Ω(z)) at the same indices into `resolved_nodes`, one Rg32Float row
+// texture (binding 9): the resolve's passes (shaders/shadow/deep_capture.wgsl) declare it
+// write-only, the owner's pass (shaders/shadow/dsm_build.wgsl) read-only, where one texel load
+// fetches a node: llvmpipe took 25 ms for loads that took 38-46 from the two key textures.
 @group(1) @binding(6) var key_depths: texture_storage_2d<r32float, read_write>;
 @group(1) @binding(7) var key_values: texture_storage_2d<r32float, read_write>;
 // Per 8x8 tile of the band, 64 entries: its texels (map indices), longest list first, NO_TEXEL
@@ -64,12 +68,12 @@ struct Segment {
 @group(1) @binding(8) var<storage, read_write> texel_order: array<u32>;
 @group(3) @binding(0) var<uniform> pass_round: Round;
 
-// Where the nodes start in the key textures: after the band's 2·capacity sort keys.
-fn node_side() -> u32 {
+// Where the second side of the key textures starts: after the band's 2·capacity sort keys.
+fn second_side() -> u32 {
     return 2u * capture.capacity;
 }
 
-// The key (or node) at index `i` of the key textures.
+// The key at index `i` of the key textures.
 fn key_at(i: u32) -> vec2<f32> {
     let texel = row_texel(i);
     return vec2<f32>(textureLoad(key_depths, texel).x, textureLoad(key_values, texel).x);
@@ -79,11 +83,6 @@ fn set_key_at(i: u32, key: vec2<f32>) {
     let texel = row_texel(i);
     textureStore(key_depths, texel, vec4<f32>(key.x));
     textureStore(key_values, texel, vec4<f32>(key.y));
-}
-
-// Node `i` of the resolved nodes (z, Ω(z)).
-fn node_texel(i: u32) -> vec2<f32> {
-    return key_at(node_side() + i);
 }
 
 // One texel's list: segments [first, first + count), nodes [2·first, 2·first + 2·count).

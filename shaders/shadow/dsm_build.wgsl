@@ -12,6 +12,14 @@
 #import shadow/deep_capture_lists.wgsl
 #import shadow/deep_params.wgsl
 
+// The capture's resolved nodes (shaders/shadow/deep_capture_lists.wgsl), read-only here.
+@group(1) @binding(9) var resolved_nodes: texture_storage_2d<rg32float, read>;
+
+// Node `i` of the resolved nodes (z, Ω(z)).
+fn node_texel(i: u32) -> vec2<f32> {
+    return textureLoad(resolved_nodes, row_texel(i)).xy;
+}
+
 @group(2) @binding(0) var<uniform> deep: DeepParams;
 @group(2) @binding(1) var<storage, read_write> out_nodes: array<vec2<f32>>;
 @group(2) @binding(2) var<storage, read_write> stats: array<atomic<u32>>;

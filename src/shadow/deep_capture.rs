@@ -10,8 +10,8 @@
 //! segment into two events, its start (z0, slope) and its end (z1, −slope), and sorts them by
 //! depth — a total key over what is sorted, so the nodes do not depend on the order the
 //! fragments arrived in; a merge sort: runs of 16 sorted in registers, then eight runs merged a
-//! pass ([`merge_passes`]) — whose last pass turns them into the nodes (z, Ω(z)), all in
-//! read-write storage textures (`KEY_TEXTURES`); for `avsm`, it sorts the segments by (z0, z1,
+//! pass ([`merge_passes`]), in read-write storage textures (`KEY_TEXTURES`) — whose last pass
+//! turns them into the nodes (z, Ω(z)), written to a texture of their own (`NODE_FORMAT`); for `avsm`, it sorts the segments by (z0, z1,
 //! optical depth, draw index) (`avsm` sorted) or by draw index (`avsm` streaming), which
 //! restores the order the particles were drawn in, the order an engine's interlocked fragment
 //! shader would see them.
@@ -147,9 +147,9 @@ fn heap_rounds(max_list: u32, loop_budget: u32) -> (u32, u32) {
     )
 }
 /// The textures of a resolve into nodes (`dsm`'s): the sort keys (its events' depths and
-/// changes of slope) and, after them, the nodes (depths and values), which the merge passes also
-/// use (which side a pass reads is then an index offset: no branch); two read-write storage
-/// textures of one `R32Float` a key or node (WebGPU allows read-write storage textures of 32-bit
+/// changes of slope) on two sides, one after the other, between which the merge passes alternate
+/// (which side a pass reads is then an index offset: no branch); two read-write storage
+/// textures of one `R32Float` a key (WebGPU allows read-write storage textures of 32-bit
 /// single-channel formats only), row textures ([`ROW_TEXELS`] a row) of four texels a segment.
 /// llvmpipe moves a storage texture's texels for all the lanes of a SIMD group at once and a
 /// storage buffer's words lane by lane: heapsorting 16,384 lists of 128 keys took 260 ms in a
@@ -163,8 +163,42 @@ const TEXEL_ORDER_BINDING: u32 = 8;
 const SORT_KEY_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Float;
 const SORT_KEY_BYTES: u64 = 4;
 
+/// The resolved nodes (z, Ω(z)) of a resolve into nodes: one `Rg32Float` row texture, two texels
+/// a segment (a 1x1 placeholder for the others), which the resolve's last pass writes (bound
+/// write-only) and the owner's pass reads (bound read-only: `resolved_nodes` in
+/// shaders/shadow/deep_capture_lists.wgsl). One load of a node from it took llvmpipe 25 ms where
+/// loading its depth and value from the two key textures took 38-46 (300 loads an invocation
+/// over a 512² grid), and `dsm`'s search loads every node once per greedy fit.
+const NODES_BINDING: u32 = 9;
+const NODE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rg32Float;
+const NODE_TEXEL_BYTES: u64 = 8;
+
+/// The resolved nodes' texels for lists of `capacity` segments: two a segment for a resolve into
+/// nodes, else one (a placeholder for the binding).
+fn resolved_node_count(capacity: u64, node_texels: bool) -> u64 {
+    match node_texels {
+        true => 2 * capacity,
+        false => 1,
+    }
+}
+
+/// The resolved nodes at [`NODES_BINDING`]: written by the capture's own passes, read by its
+/// owner's.
+fn nodes_entry(access: wgpu::StorageTextureAccess) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding: NODES_BINDING,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::StorageTexture {
+            access,
+            format: NODE_FORMAT,
+            view_dimension: wgpu::TextureViewDimension::D2,
+        },
+        count: None,
+    }
+}
+
 /// The key textures' texels for lists of `capacity` segments: four a segment for a resolve into
-/// nodes (two events, each a sort key and a node), else one (a placeholder for the binding).
+/// nodes (two events, each a sort key on either side), else one (a placeholder for the binding).
 fn node_texel_count(capacity: u64, node_texels: bool) -> u64 {
     match node_texels {
         true => 4 * capacity,
@@ -196,10 +230,13 @@ const DUMMY_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R8Unorm;
 /// (+1), the texel order (64 entries a tile of 8x8 texels), an R8 raster target, 16 bytes of
 /// segment storage per segment, and for `avsm` 16 bytes of node storage per segment, for `dsm`
 /// (`node_texels`) the two key textures (`KEY_TEXTURES`), 4 x capacity texels of 4 bytes each
-/// in whole rows: 32 bytes a segment (the others' are placeholders).
+/// in whole rows, and the resolved nodes ([`NODE_FORMAT`]), 2 x capacity texels of 8 bytes each
+/// in whole rows: 48 bytes a segment (the others' are placeholders).
 pub fn bytes(resolution_px: u32, segment_capacity: u64, node_texels: bool) -> u64 {
     let texels = u64::from(resolution_px) * u64::from(resolution_px);
     let (width, height) = row_texture_size(node_texel_count(segment_capacity, node_texels));
+    let (node_width, node_height) =
+        row_texture_size(resolved_node_count(segment_capacity, node_texels));
     std::mem::size_of::<CaptureParams>() as u64
         + u64::from(MAX_ROUNDS * ROUND_STRIDE)
         + texels * 4
@@ -210,6 +247,7 @@ pub fn bytes(resolution_px: u32, segment_capacity: u64, node_texels: bool) -> u6
         + segment_buffer_bytes(segment_capacity)
         + node_buffer_bytes(segment_capacity, node_texels)
         + u64::from(width) * u64::from(height) * KEY_TEXTURES.len() as u64 * SORT_KEY_BYTES
+        + u64::from(node_width) * u64::from(node_height) * NODE_TEXEL_BYTES
 }
 
 /// The texel order's bytes at `resolution`: 64 entries of 4 bytes for every 8x8 tile of the map.
@@ -224,8 +262,8 @@ fn segment_buffer_bytes(segment_capacity: u64) -> u64 {
 }
 
 /// The nodes buffer's bytes: [`NODE_BYTES_PER_SEGMENT`] a segment of capacity (`avsm` keeps its
-/// curve there between rounds), or for a resolve into nodes, whose nodes are the key textures,
-/// one segment's, a placeholder for the binding.
+/// curve there between rounds), or for a resolve into nodes, whose nodes are a texture
+/// (`NODE_FORMAT`), one segment's, a placeholder for the binding.
 fn node_buffer_bytes(segment_capacity: u64, node_texels: bool) -> u64 {
     match node_texels {
         true => NODE_BYTES_PER_SEGMENT,
@@ -234,8 +272,8 @@ fn node_buffer_bytes(segment_capacity: u64, node_texels: bool) -> u64 {
 }
 
 /// The most segments one band may hold: the segments (16 bytes each, and `avsm`'s nodes as
-/// many) within one storage binding, and `dsm`'s keys and nodes (four texels a segment) within
-/// the key textures' rows. Both owners band by both bounds, though `dsm` binds no buffer of
+/// many) within one storage binding, and `dsm`'s keys (four texels a segment) within the key
+/// textures' rows (its nodes, two texels a segment, fit when they do). Both owners band by both bounds, though `dsm` binds no buffer of
 /// nodes: the bands stay the same for both, and so does the test that holds banded maps to whole
 /// ones (tests/techniques.rs).
 fn max_band_segments(gpu: &Gpu) -> u32 {
@@ -252,12 +290,23 @@ struct Lists {
     /// Held with the bind group that uses them (the ledger records their sizes).
     _segments: wgpu::Buffer,
     _nodes: wgpu::Buffer,
-    /// The key textures ([`KEY_TEXTURES`]; 1x1 placeholders unless the resolve is into nodes),
-    /// held with the bind group.
+    /// The key textures ([`KEY_TEXTURES`]) and the resolved nodes ([`NODE_FORMAT`]) (1x1
+    /// placeholders unless the resolve is into nodes), held with the bind groups.
     _keys: [wgpu::Texture; 2],
+    _resolved_nodes: wgpu::Texture,
     /// Whether the resolve is into nodes.
     node_texels: bool,
+    /// The group of the capture's own passes (the resolved nodes write-only) and of its
+    /// owner's (read-only).
+    own_bind_group: wgpu::BindGroup,
     bind_group: wgpu::BindGroup,
+}
+
+/// The capture's two layouts of group 1: the same bindings, the resolved nodes write-only in
+/// its own passes and read-only in its owner's.
+struct Layouts {
+    capture: wgpu::BindGroupLayout,
+    owner: wgpu::BindGroupLayout,
 }
 
 /// The capture's pipelines and buffers (see the module doc).
@@ -272,7 +321,7 @@ pub struct DeepCapture {
     /// Per 8x8 tile of the band, its texels in the order the per-texel passes take them.
     texel_order: wgpu::Buffer,
     dummy_target: wgpu::TextureView,
-    layout: wgpu::BindGroupLayout,
+    layouts: Layouts,
     count_pipeline: wgpu::RenderPipeline,
     fill_pipeline: wgpu::RenderPipeline,
     /// The density volume's count and fill (shaders/shadow/volume_splat.wgsl), and whether
@@ -304,7 +353,7 @@ enum ResolvePhase {
     Heap(bool),
     /// A single pass, looping up to 2n times (64 for `order_texels`).
     Single,
-    /// The merge sort's passes, one a round ([`merge_passes`]).
+    /// The merge sort's passes but the last, one a round ([`merge_passes`] - 1).
     Merge,
 }
 
@@ -321,11 +370,11 @@ pub enum Resolve {
 }
 
 impl Resolve {
-    /// Whether the resolve is into nodes, kept with the sort keys in the key textures
-    /// (`KEY_TEXTURES`; `node_texel` in shaders/shadow/deep_capture_lists.wgsl): llvmpipe
-    /// moves a storage texture's texels for all the lanes of a SIMD group at once, where it
-    /// moves a storage buffer's words lane by lane, and `dsm`'s search reads every node once
-    /// per greedy fit.
+    /// Whether the resolve is into nodes, sorted in the key textures (`KEY_TEXTURES`) and
+    /// written to a texture of their own (`NODE_FORMAT`; `node_texel` in
+    /// shaders/shadow/dsm_build.wgsl): llvmpipe moves a storage texture's texels for all the
+    /// lanes of a SIMD group at once, where it moves a storage buffer's words lane by lane, and
+    /// `dsm`'s search reads every node once per greedy fit.
     pub fn node_texels(self) -> bool {
         self == Resolve::Nodes
     }
@@ -342,12 +391,13 @@ impl Resolve {
             ("heap_build", ResolvePhase::Heap(true)),
             ("heap_extract", ResolvePhase::Heap(false)),
         ];
-        // The run sort splits each segment into its two events as it reads them; the merge
-        // sort's last pass writes the nodes.
-        const NODES: [(&str, ResolvePhase); 3] = [
+        // The run sort splits each segment into its two events as it reads them; every
+        // texel's last merge pass, in a dispatch of their own, writes the nodes.
+        const NODES: [(&str, ResolvePhase); 4] = [
             ("order_texels", ResolvePhase::Single),
             ("run_sort", ResolvePhase::Single),
             ("merge_runs", ResolvePhase::Merge),
+            ("merge_last", ResolvePhase::Single),
         ];
         match self {
             Resolve::Nodes => &NODES,
@@ -547,26 +597,34 @@ impl DeepCapture {
             .create_view(&wgpu::TextureViewDescriptor::default());
 
         let raster_and_compute = wgpu::ShaderStages::FRAGMENT | wgpu::ShaderStages::COMPUTE;
-        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some(&label("layout")),
-            entries: &[
-                uniform_entry(0, wgpu::ShaderStages::VERTEX | raster_and_compute),
-                storage_entry(1, raster_and_compute, false),
-                storage_entry(2, raster_and_compute, false),
-                storage_entry(3, raster_and_compute, false),
-                storage_entry(4, wgpu::ShaderStages::COMPUTE, false),
-                storage_entry(5, wgpu::ShaderStages::COMPUTE, false),
-                key_entry(KEY_BINDINGS[0]),
-                key_entry(KEY_BINDINGS[1]),
-                storage_entry(TEXEL_ORDER_BINDING, wgpu::ShaderStages::COMPUTE, false),
-            ],
-        });
+        let layout_with = |what: &str, nodes: wgpu::StorageTextureAccess| {
+            device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some(&label(what)),
+                entries: &[
+                    uniform_entry(0, wgpu::ShaderStages::VERTEX | raster_and_compute),
+                    storage_entry(1, raster_and_compute, false),
+                    storage_entry(2, raster_and_compute, false),
+                    storage_entry(3, raster_and_compute, false),
+                    storage_entry(4, wgpu::ShaderStages::COMPUTE, false),
+                    storage_entry(5, wgpu::ShaderStages::COMPUTE, false),
+                    key_entry(KEY_BINDINGS[0]),
+                    key_entry(KEY_BINDINGS[1]),
+                    storage_entry(TEXEL_ORDER_BINDING, wgpu::ShaderStages::COMPUTE, false),
+                    nodes_entry(nodes),
+                ],
+            })
+        };
+        let layouts = Layouts {
+            capture: layout_with("layout", wgpu::StorageTextureAccess::WriteOnly),
+            owner: layout_with("owner_layout", wgpu::StorageTextureAccess::ReadOnly),
+        };
+        let layout = &layouts.capture;
         let module = shaders::module(
             device,
             &label("build"),
             &shaders::compose("shadow/deep_capture.wgsl", &[]),
         );
-        let groups = [Some(frame_layout), Some(&layout)];
+        let groups = [Some(frame_layout), Some(layout)];
         let raster = |what: &str, entry: &str| {
             billboard_pipeline(
                 device,
@@ -586,7 +644,7 @@ impl DeepCapture {
                 &module,
                 label(what),
                 entry,
-                &[frame_layout, &layout],
+                &[frame_layout, layout],
                 &[(DUMMY_FORMAT, super::layered::ADDITIVE)],
             )
         };
@@ -602,7 +660,7 @@ impl DeepCapture {
             label: Some(&label("rounds.pipeline_layout")),
             bind_group_layouts: &[
                 Some(frame_layout),
-                Some(&layout),
+                Some(layout),
                 None,
                 Some(rounds.layout()),
             ],
@@ -636,7 +694,7 @@ impl DeepCapture {
             device,
             memory,
             name,
-            &layout,
+            &layouts,
             [&params_buffer, &counts, &offsets, &row_sums, &texel_order],
             INITIAL_CAPACITY.min(max_band_segments(gpu)),
             node_texels,
@@ -655,7 +713,7 @@ impl DeepCapture {
             row_sums,
             texel_order,
             dummy_target,
-            layout,
+            layouts,
             count_pipeline,
             fill_pipeline,
             count_volume,
@@ -670,9 +728,10 @@ impl DeepCapture {
         Ok(capture)
     }
 
-    /// Layout of the capture's group (group 1 of its passes and of a compression pass).
+    /// Layout of the capture's group as a compression pass binds it (its group 1: the
+    /// resolved nodes read-only).
     pub fn layout(&self) -> &wgpu::BindGroupLayout {
-        &self.layout
+        &self.layouts.owner
     }
 
     /// Layout of the round group (group 3 of a compression pass).
@@ -680,8 +739,8 @@ impl DeepCapture {
         self.rounds.layout()
     }
 
-    /// This frame's group over the lists (replaced when they grow: take it after
-    /// [`DeepCapture::record`]).
+    /// This frame's group over the lists as a compression pass binds it (replaced when they
+    /// grow: take it after [`DeepCapture::record`]).
     pub fn bind_group(&self) -> &wgpu::BindGroup {
         &self.lists.bind_group
     }
@@ -783,7 +842,7 @@ impl DeepCapture {
                 timestamp_writes: timer.compute_pass("shadow"),
             });
             pass.set_bind_group(0, frame_bind_group, &[]);
-            pass.set_bind_group(1, &self.lists.bind_group, &[]);
+            pass.set_bind_group(1, &self.lists.own_bind_group, &[]);
             pass.set_pipeline(pipeline);
             pass.dispatch_workgroups(groups, 1, 1);
         }
@@ -884,15 +943,18 @@ impl DeepCapture {
                 ResolvePhase::Heap(true) => build_rounds,
                 ResolvePhase::Heap(false) => extract_rounds,
                 ResolvePhase::Single => 1,
-                ResolvePhase::Merge => merge_passes(self.last_max_list).max(1),
+                ResolvePhase::Merge => merge_passes(self.last_max_list).saturating_sub(1),
             };
+            if rounds == 0 {
+                continue;
+            }
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some(&format!("{}.capture.resolve", self.name)),
                 timestamp_writes: timer.compute_pass("shadow"),
             });
             pass.set_pipeline(pipeline);
             pass.set_bind_group(0, frame_bind_group, &[]);
-            pass.set_bind_group(1, &self.lists.bind_group, &[]);
+            pass.set_bind_group(1, &self.lists.own_bind_group, &[]);
             self.rounds.dispatch(&mut pass, rounds, groups);
         }
     }
@@ -923,7 +985,7 @@ impl DeepCapture {
             &gpu.device,
             memory,
             self.name,
-            &self.layout,
+            &self.layouts,
             fixed,
             capacity,
             self.lists.node_texels,
@@ -964,26 +1026,26 @@ impl DeepCapture {
             &mut pass,
             pipeline,
             frame_bind_group,
-            &self.lists.bind_group,
+            &self.lists.own_bind_group,
             particles.slice(..),
             particle_count,
         );
         if self.volume {
-            volume.draw(&mut pass, frame_bind_group, &self.lists.bind_group);
+            volume.draw(&mut pass, frame_bind_group, &self.lists.own_bind_group);
         }
     }
 }
 
 impl Lists {
     /// Allocates (transient) list buffers for `capacity` segments (placeholders when
-    /// `node_texels`), the key textures (room for their keys and nodes when `node_texels`, else
-    /// 1x1), and the bind group over them and the fixed buffers `[params, counts, offsets,
-    /// row_sums]`.
+    /// `node_texels`), the key textures and the resolved nodes (room for the keys and nodes
+    /// when `node_texels`, else 1x1), and the two bind groups (`layouts`) over them and the
+    /// fixed buffers `[params, counts, offsets, row_sums, texel_order]`.
     fn new(
         device: &wgpu::Device,
         memory: &mut MemoryLedger,
         name: &str,
-        layout: &wgpu::BindGroupLayout,
+        layouts: &Layouts,
         fixed: [&wgpu::Buffer; 5],
         capacity: u32,
         node_texels: bool,
@@ -994,9 +1056,10 @@ impl Lists {
             format!("{name}.capture.nodes"),
         );
         let key_labels = KEY_TEXTURES.map(|what| format!("{name}.capture.{what}"));
+        let resolved_label = format!("{name}.capture.resolved_nodes");
         memory.forget(&segments_label);
         memory.forget(&nodes_label);
-        for label in &key_labels {
+        for label in key_labels.iter().chain([&resolved_label]) {
             memory.forget(label);
         }
         let segments = memory.buffer_transient(
@@ -1023,31 +1086,45 @@ impl Lists {
             )?);
         }
         let keys: [wgpu::Texture; 2] = keys.try_into().expect("two key textures");
-        let key_views = keys
-            .each_ref()
-            .map(|t| t.create_view(&wgpu::TextureViewDescriptor::default()));
-        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some(&format!("{name}.capture.bind_group")),
-            layout,
-            entries: &[
-                bind_entry(0, params),
-                bind_entry(1, counts),
-                bind_entry(2, offsets),
-                bind_entry(3, &segments),
-                bind_entry(4, &nodes),
-                bind_entry(5, row_sums),
-                texture_binding(KEY_BINDINGS[0], &key_views[0]),
-                texture_binding(KEY_BINDINGS[1], &key_views[1]),
-                bind_entry(TEXEL_ORDER_BINDING, texel_order),
-            ],
-        });
+        let resolved_nodes = memory.texture_transient(
+            device,
+            &row_texture_descriptor(
+                &resolved_label,
+                NODE_FORMAT,
+                wgpu::TextureUsages::STORAGE_BINDING,
+                resolved_node_count(u64::from(capacity), node_texels),
+            ),
+        )?;
+        let view = |t: &wgpu::Texture| t.create_view(&wgpu::TextureViewDescriptor::default());
+        let key_views = keys.each_ref().map(view);
+        let resolved_view = view(&resolved_nodes);
+        let bind_group_with = |what: &str, layout: &wgpu::BindGroupLayout| {
+            device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some(&format!("{name}.capture.{what}")),
+                layout,
+                entries: &[
+                    bind_entry(0, params),
+                    bind_entry(1, counts),
+                    bind_entry(2, offsets),
+                    bind_entry(3, &segments),
+                    bind_entry(4, &nodes),
+                    bind_entry(5, row_sums),
+                    texture_binding(KEY_BINDINGS[0], &key_views[0]),
+                    texture_binding(KEY_BINDINGS[1], &key_views[1]),
+                    bind_entry(TEXEL_ORDER_BINDING, texel_order),
+                    texture_binding(NODES_BINDING, &resolved_view),
+                ],
+            })
+        };
         Ok(Self {
             capacity,
+            own_bind_group: bind_group_with("bind_group", &layouts.capture),
+            bind_group: bind_group_with("owner_bind_group", &layouts.owner),
             _segments: segments,
             _nodes: nodes,
             _keys: keys,
+            _resolved_nodes: resolved_nodes,
             node_texels,
-            bind_group,
         })
     }
 }
@@ -1112,12 +1189,19 @@ mod tests {
         assert_eq!(longest_list(60_000), 28_234);
     }
 
-    /// The widths (events) of the groups merge pass `step` (1-based) merges in a list of
-    /// `events`, as `merge_runs` in shaders/shadow/deep_capture.wgsl walks them: `run_width`
-    /// times `runs_merged`, the last group cut at the list's end; none once the list is sorted.
-    fn merge_groups(events: u32, step: u32) -> Vec<u32> {
+    /// The widths (events) of the groups a list of `events` merges in merge dispatch `dispatch`
+    /// (1-based) of `dispatches`, as shaders/shadow/deep_capture.wgsl walks them: every pass
+    /// of the list but its last in the dispatch of its index (`merge_runs`), its last in the
+    /// last dispatch (`merge_last`); a pass's groups are `run_width` times `runs_merged` wide,
+    /// the last group cut at the list's end. None in a dispatch without a pass of the list.
+    fn merge_groups(events: u32, dispatch: u32, dispatches: u32) -> Vec<u32> {
         let passes = merge_passes(events / 2);
-        if step > passes {
+        let step = match dispatch == dispatches {
+            true => passes,
+            false if dispatch < passes => dispatch,
+            false => 0,
+        };
+        if step == 0 {
             return Vec::new();
         }
         let last = merge_levels(events) - WAY_LEVELS * (passes - 1);
@@ -1141,10 +1225,12 @@ mod tests {
         // bound holds for any number).
         let budget = 60_000;
         let longest = longest_list(budget);
-        for step in 1..=merge_passes(longest) {
+        let dispatches = merge_passes(longest);
+        for step in 1..=dispatches {
             let mut widest: Vec<u32> = Vec::new();
             for n in 1..=longest {
-                for (g, width) in merge_groups(2 * n, step).into_iter().enumerate() {
+                let groups = merge_groups(2 * n, step, dispatches);
+                for (g, width) in groups.into_iter().enumerate() {
                     if g == widest.len() {
                         widest.push(width);
                     }
@@ -1152,7 +1238,7 @@ mod tests {
                 }
             }
             let group_loops: u64 = widest.iter().map(|&w| 1 + u64::from(w)).sum::<u64>() + 1;
-            let own: Vec<u32> = merge_groups(2 * longest, step);
+            let own: Vec<u32> = merge_groups(2 * longest, step, dispatches);
             let longest_loops = own.iter().map(|&w| 1 + u64::from(w)).sum::<u64>() + 1;
             assert_eq!(group_loops, longest_loops, "step {step}");
             let events = 2 * u64::from(longest);
