@@ -22,12 +22,13 @@
 #import shadow/deep_capture_lists.wgsl
 #import shadow/grid_scan.wgsl
 
-// The nodes of a resolve into nodes, written by its last pass (see
+// The nodes of a resolve into nodes, written by its last pass, two a texel (see
 // shaders/shadow/deep_capture_lists.wgsl).
-@group(1) @binding(9) var resolved_nodes: texture_storage_2d<rg32float, write>;
+@group(1) @binding(9) var resolved_nodes: texture_storage_2d<rgba32float, write>;
 
-fn set_node(i: u32, node: vec2<f32>) {
-    textureStore(resolved_nodes, row_texel(i), vec4<f32>(node, 0.0, 0.0));
+// Stores nodes i and i + 1 (i even: a texel's two).
+fn set_node_pair(i: u32, first: vec2<f32>, second: vec2<f32>) {
+    textureStore(resolved_nodes, row_texel(i >> 1u), vec4<f32>(first, second));
 }
 
 @group(1) @binding(1) var<storage, read_write> counts: array<atomic<u32>>;
@@ -583,6 +584,7 @@ fn run_sort(@builtin(global_invocation_id) id: vec3<u32>) {
     let runs = runs_of(n);
     let to_second = writes_second_side(0u);
     var nodes = Nodes(0.0, 0.0, 0.0);
+    var previous = vec2<f32>(0.0);
     let last_segment = list.first + list.count - 1u;
     for (var start = 0u; start < n; start += RUN) {
         let m = min(RUN, n - start);
@@ -617,7 +619,11 @@ fn run_sort(@builtin(global_invocation_id) id: vec3<u32>) {
                 // A single run is the whole list, in order: its nodes.
                 let node = next_node(&nodes, keys[k]);
                 if runs.passes == 0u {
-                    set_node(base + start + k, node);
+                    // m is even: every pair is whole.
+                    if k % 2u == 1u {
+                        set_node_pair(base + start + k - 1u, previous, node);
+                    }
+                    previous = node;
                 } else {
                     set_key_to(to_second, base + start + k, keys[k]);
                 }
@@ -665,6 +671,7 @@ fn merge_pass(list: TexelList, step: u32, last: bool) {
     let width = run_width(step);
     let ways = runs_merged(runs, step);
     var nodes = Nodes(0.0, 0.0, 0.0);
+    var previous = vec2<f32>(0.0);
     // Each run's next index and end, and its key there.
     var at: array<u32, WAYS>;
     var end: array<u32, WAYS>;
@@ -698,7 +705,11 @@ fn merge_pass(list: TexelList, step: u32, last: bool) {
             #end_unroll
             let node = next_node(&nodes, best);
             if last {
-                set_node(base + k, node);
+                // The last pass's one group starts at 0, and n is even: every pair is whole.
+                if k % 2u == 1u {
+                    set_node_pair(base + k - 1u, previous, node);
+                }
+                previous = node;
             } else {
                 set_key_to(to_second, base + k, best);
             }

@@ -1,7 +1,7 @@
 // The per-texel segment lists of a deep capture (src/shadow/deep_capture.rs), as its own passes
 // and the compression passes that read them declare them in group 1. Texel i's segments are
 // segments[offsets[i] .. offsets[i + 1]). After the resolve, for `dsm`, its nodes (z, Ω(z)) of
-// the piecewise-linear optical depth are resolved_nodes[2·offsets[i] .. 2·offsets[i + 1]); for `avsm`
+// the piecewise-linear optical depth are nodes 2·offsets[i] .. 2·offsets[i + 1] of resolved_nodes; for `avsm`
 // the segments are sorted by (z0, z1, optical depth), or by draw index alone for its default
 // insertion in draw order (the resolve's `SORT_BY_DRAW`). The lists hold one band of rows at a
 // time (rows [row_begin, row_end), whose first segment is offsets' band_base), so every index
@@ -57,10 +57,11 @@ struct Segment {
 // segments' starts (z0, slope) and ends (z1, -slope) as the resolve sorts them, at [2·first,
 // 2·first + 2n), on either of two sides, `second_side()` apart, between which the merge passes
 // alternate (which side a texel's pass reads is then an offset, never a branch). Its last pass
-// writes the nodes (z, Ω(z)) at the same indices into `resolved_nodes`, one Rg32Float row
-// texture (binding 9): the resolve's passes (shaders/shadow/deep_capture.wgsl) declare it
-// write-only, the owner's pass (shaders/shadow/dsm_build.wgsl) read-only, where one texel load
-// fetches a node: llvmpipe took 25 ms for loads that took 38-46 from the two key textures.
+// writes the nodes (z, Ω(z)) at the same indices into `resolved_nodes`, an Rgba32Float row
+// texture of two nodes a texel (nodes 2j and 2j + 1 in texel j; binding 9): the resolve's passes
+// (shaders/shadow/deep_capture.wgsl) declare it write-only, the owner's pass
+// (shaders/shadow/dsm_build.wgsl) read-only, where one load fetches two nodes
+// (src/shadow/deep_capture.rs, NODE_FORMAT, has the measurements).
 @group(1) @binding(6) var key_depths: texture_storage_2d<r32float, read_write>;
 @group(1) @binding(7) var key_values: texture_storage_2d<r32float, read_write>;
 // Per 8x8 tile of the band, 64 entries: its texels (map indices), longest list first, NO_TEXEL

@@ -12,12 +12,21 @@
 #import shadow/deep_capture_lists.wgsl
 #import shadow/deep_params.wgsl
 
-// The capture's resolved nodes (shaders/shadow/deep_capture_lists.wgsl), read-only here.
-@group(1) @binding(9) var resolved_nodes: texture_storage_2d<rg32float, read>;
+// The capture's resolved nodes (shaders/shadow/deep_capture_lists.wgsl), read-only here: nodes
+// 2j and 2j + 1 in texel j.
+@group(1) @binding(9) var resolved_nodes: texture_storage_2d<rgba32float, read>;
 
-// Node `i` of the resolved nodes (z, Ω(z)).
+// The texel that holds node `i` of the resolved nodes (z, Ω(z)), and `i`'s own of its two.
+fn node_pair(i: u32) -> vec4<f32> {
+    return textureLoad(resolved_nodes, row_texel(i >> 1u));
+}
+
+fn pick_node(pair: vec4<f32>, i: u32) -> vec2<f32> {
+    return select(pair.xy, pair.zw, (i & 1u) == 1u);
+}
+
 fn node_texel(i: u32) -> vec2<f32> {
-    return textureLoad(resolved_nodes, row_texel(i)).xy;
+    return pick_node(node_pair(i), i);
 }
 
 @group(2) @binding(0) var<uniform> deep: DeepParams;
@@ -47,57 +56,94 @@ fn close_segment(origin: vec2<f32>, last: vec2<f32>, lo: f32, hi: f32, eps: f32)
     return vec2<f32>(last.x, clamp(value, last.y - eps, last.y + eps));
 }
 
-// Greedy fit of nodes node_texel(base .. base + n) within ±eps. Returns the number of vertices,
-// stopping as soon as it passes `limit`; with `write` it stores them at out_nodes[out ..] (at
-// most `limit`). A step's two outcomes (p fits, or it closes the segment) are selects, not
-// branches, and the stop at `limit` is in the loop's exit condition: the search 127 -> 115 ms
-// on the thesis frame.
-fn greedy_fit(base: u32, n: u32, eps: f32, limit: u32, write: bool, out: u32) -> u32 {
-    var origin = node_texel(base);
-    var count = 1u;
-    if write {
-        out_nodes[out] = origin;
+// A greedy fit under way: the open segment from `origin` (its feasible slopes [lo, hi]) and the
+// last input node it covers, if it covers any (`open`); the next input node `i`; the vertices
+// so far.
+struct Fit {
+    origin: vec2<f32>,
+    last: vec2<f32>,
+    lo: f32,
+    hi: f32,
+    i: u32,
+    count: u32,
+    open: bool,
+};
+
+// One step of the fit at input node p (node `i`), or none where `live` is false: p fits and the
+// open segment extends over it, or the segment closes at the last node it covers and p is
+// looked at again from there; a step at the origin's own depth (never in a capture, where equal
+// depths carry equal Ω) becomes a vertex of its own. With `write` it stores a new vertex at
+// out_nodes[out ..] (at most `limit`). A step's two outcomes are selects, not branches:
+// llvmpipe runs every side of one under its lanes' masks anyway.
+fn fit_step(
+    fit: ptr<function, Fit>,
+    p: vec2<f32>,
+    eps: f32,
+    live: bool,
+    limit: u32,
+    write: bool,
+    out: u32,
+) {
+    let origin = (*fit).origin;
+    let lo = (*fit).lo;
+    let hi = (*fit).hi;
+    let dz = p.x - origin.x;
+    var new_lo = lo;
+    var new_hi = hi;
+    if dz > 0.0 {
+        // One division, not two: the search 134 -> 127 ms on the thesis frame.
+        let r = 1.0 / dz;
+        new_lo = max(lo, (p.y - eps - origin.y) * r);
+        new_hi = min(hi, (p.y + eps - origin.y) * r);
+    } else if abs(p.y - origin.y) > eps {
+        new_lo = ANY_SLOPE;
+        new_hi = -ANY_SLOPE;
     }
-    var lo = -ANY_SLOPE;
-    var hi = ANY_SLOPE;
-    // The last input node the open segment covers, if it covers any.
-    var last = origin;
-    var open = false;
-    var i = 1u;
+    let fits = new_lo <= new_hi;
+    let closes = live && !fits;
+    let vertex = select(p, close_segment(origin, (*fit).last, lo, hi, eps), (*fit).open);
+    (*fit).i += u32(live && (fits || !(*fit).open));
+    (*fit).count += u32(closes);
+    if write && closes && (*fit).count <= limit {
+        out_nodes[out + (*fit).count - 1u] = vertex;
+    }
+    (*fit).origin = select(origin, vertex, closes);
+    (*fit).lo = select(lo, select(-ANY_SLOPE, new_lo, fits), live);
+    (*fit).hi = select(hi, select(ANY_SLOPE, new_hi, fits), live);
+    (*fit).last = select((*fit).last, p, live && fits);
+    (*fit).open = select((*fit).open, fits, live);
+}
+
+// Greedy fit of nodes base .. base + n (base even) within ±eps. Returns the number of vertices,
+// stopping as soon as it passes `limit`; with `write` it stores them at out_nodes[out ..] (at
+// most `limit`). The stop at `limit` is in the loop's exit condition (the search 127 -> 115 ms
+// on the thesis frame). Each iteration loads the texel of the next node and steps at it, then
+// steps again where the node after that step is in the same texel (most steps move to the next
+// node, so nearly two steps a load): the node loads are most of the search's cost.
+fn greedy_fit(base: u32, n: u32, eps: f32, limit: u32, write: bool, out: u32) -> u32 {
+    let first = node_texel(base);
+    var fit = Fit(first, first, -ANY_SLOPE, ANY_SLOPE, 1u, 1u, false);
+    if write {
+        out_nodes[out] = first;
+    }
     loop {
-        if i >= n || count > limit {
+        if fit.i >= n || fit.count > limit {
             break;
         }
-        let p = node_texel(base + i);
-        let dz = p.x - origin.x;
-        var new_lo = lo;
-        var new_hi = hi;
-        if dz > 0.0 {
-            // One division, not two: the search 134 -> 127 ms on the thesis frame.
-            let r = 1.0 / dz;
-            new_lo = max(lo, (p.y - eps - origin.y) * r);
-            new_hi = min(hi, (p.y + eps - origin.y) * r);
-        } else if abs(p.y - origin.y) > eps {
-            new_lo = ANY_SLOPE;
-            new_hi = -ANY_SLOPE;
-        }
-        // p fits: the open segment extends over it. Else the segment closes at the last node
-        // it covers and p is looked at again from there; a step at the origin's own depth
-        // (never in a capture, where equal depths carry equal Ω) becomes a vertex of its own.
-        // No branch: llvmpipe runs every side of one under its lanes' masks anyway.
-        let fits = new_lo <= new_hi;
-        let vertex = select(p, close_segment(origin, last, lo, hi, eps), open);
-        i += u32(fits || !open);
-        count += u32(!fits);
-        if write && !fits && count <= limit {
-            out_nodes[out + count - 1u] = vertex;
-        }
-        origin = select(vertex, origin, fits);
-        lo = select(-ANY_SLOPE, new_lo, fits);
-        hi = select(ANY_SLOPE, new_hi, fits);
-        last = select(last, p, fits);
-        open = fits;
+        let at = fit.i;
+        let pair = node_pair(base + at);
+        fit_step(&fit, pick_node(pair, at), eps, true, limit, write, out);
+        // Node fit.i is in this texel when it is `at` or its pair's second; past the list's end
+        // never (n is even).
+        let again = (fit.i >> 1u) == (at >> 1u) && fit.count <= limit;
+        fit_step(&fit, pick_node(pair, fit.i), eps, again, limit, write, out);
     }
+    let origin = fit.origin;
+    let last = fit.last;
+    let lo = fit.lo;
+    let hi = fit.hi;
+    let open = fit.open;
+    var count = fit.count;
     if count > limit {
         return count;
     }

@@ -163,21 +163,24 @@ const TEXEL_ORDER_BINDING: u32 = 8;
 const SORT_KEY_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Float;
 const SORT_KEY_BYTES: u64 = 4;
 
-/// The resolved nodes (z, Ω(z)) of a resolve into nodes: one `Rg32Float` row texture, two texels
-/// a segment (a 1x1 placeholder for the others), which the resolve's last pass writes (bound
-/// write-only) and the owner's pass reads (bound read-only: `resolved_nodes` in
-/// shaders/shadow/deep_capture_lists.wgsl). One load of a node from it took llvmpipe 25 ms where
-/// loading its depth and value from the two key textures took 38-46 (300 loads an invocation
-/// over a 512² grid), and `dsm`'s search loads every node once per greedy fit.
+/// The resolved nodes (z, Ω(z)) of a resolve into nodes: one `Rgba32Float` row texture, two
+/// nodes a texel (nodes 2j and 2j + 1 in texel j: one texel a segment; a 1x1 placeholder for the
+/// others), which the resolve's last pass writes (bound write-only) and the owner's pass reads
+/// (bound read-only: `resolved_nodes` in shaders/shadow/deep_capture_lists.wgsl). `dsm`'s
+/// search loads every node once per greedy fit, and the loads are most of its cost: one load of
+/// an `Rg32Float` node took llvmpipe 25 ms where loading its depth and value from the two key
+/// textures took 38-46 (300 loads an invocation over a 512² grid), and one `Rgba32Float` load
+/// 34-36 ms, for two nodes (search 76 -> 69 ms on the thesis frame with a node a texel, 69 -> 59
+/// with two).
 const NODES_BINDING: u32 = 9;
-const NODE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rg32Float;
-const NODE_TEXEL_BYTES: u64 = 8;
+const NODE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
+const NODE_TEXEL_BYTES: u64 = 16;
 
-/// The resolved nodes' texels for lists of `capacity` segments: two a segment for a resolve into
-/// nodes, else one (a placeholder for the binding).
+/// The resolved nodes' texels for lists of `capacity` segments: one a segment (its two nodes)
+/// for a resolve into nodes, else one (a placeholder for the binding).
 fn resolved_node_count(capacity: u64, node_texels: bool) -> u64 {
     match node_texels {
-        true => 2 * capacity,
+        true => capacity,
         false => 1,
     }
 }
@@ -230,8 +233,8 @@ const DUMMY_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R8Unorm;
 /// (+1), the texel order (64 entries a tile of 8x8 texels), an R8 raster target, 16 bytes of
 /// segment storage per segment, and for `avsm` 16 bytes of node storage per segment, for `dsm`
 /// (`node_texels`) the two key textures (`KEY_TEXTURES`), 4 x capacity texels of 4 bytes each
-/// in whole rows, and the resolved nodes ([`NODE_FORMAT`]), 2 x capacity texels of 8 bytes each
-/// in whole rows: 48 bytes a segment (the others' are placeholders).
+/// in whole rows, and the resolved nodes ([`NODE_FORMAT`]), capacity texels of 16 bytes each in
+/// whole rows: 48 bytes a segment (the others' are placeholders).
 pub fn bytes(resolution_px: u32, segment_capacity: u64, node_texels: bool) -> u64 {
     let texels = u64::from(resolution_px) * u64::from(resolution_px);
     let (width, height) = row_texture_size(node_texel_count(segment_capacity, node_texels));
@@ -273,7 +276,7 @@ fn node_buffer_bytes(segment_capacity: u64, node_texels: bool) -> u64 {
 
 /// The most segments one band may hold: the segments (16 bytes each, and `avsm`'s nodes as
 /// many) within one storage binding, and `dsm`'s keys (four texels a segment) within the key
-/// textures' rows (its nodes, two texels a segment, fit when they do). Both owners band by both bounds, though `dsm` binds no buffer of
+/// textures' rows (its nodes, one texel a segment, fit when they do). Both owners band by both bounds, though `dsm` binds no buffer of
 /// nodes: the bands stay the same for both, and so does the test that holds banded maps to whole
 /// ones (tests/techniques.rs).
 fn max_band_segments(gpu: &Gpu) -> u32 {
