@@ -145,9 +145,10 @@ pub struct DsmFit {
 
 /// `dsm`'s compression of one texel's optical depth nodes to at most `limit` (≥ 2): the list
 /// itself when it fits, else the fit at ε = 0 when that fits, else the fit at the smallest
-/// multiple of the grain g = Ω_max / 2^`steps` that fits, searched as the GPU does: a binary
-/// search over the powers g·2^k (k = -1 standing for ε = 0, k = `steps` for Ω_max, where the fit
-/// is one flat segment) for neighbouring ones that fail and fit, then bisection between them to
+/// multiple of the grain g = Ω_max / 2^`steps` that fits, searched as the GPU does: a search
+/// over the powers g·2^k (k = -1 standing for ε = 0, k = `steps` for Ω_max, where the fit is one
+/// flat segment) for neighbouring ones that fail and fit, first at [`first_power`] and its
+/// neighbour, then by bisection of the exponents left, then bisection between the two powers to
 /// one grain.
 pub fn dsm_compress(nodes: &[Node], limit: usize, steps: u32) -> DsmFit {
     if nodes.len() <= limit {
@@ -173,15 +174,7 @@ pub fn dsm_compress(nodes: &[Node], limit: usize, steps: u32) -> DsmFit {
                 grain * (1u64 << k) as f32
             }
         };
-        let (mut k_lo, mut k_hi) = (-1i32, steps as i32);
-        while k_hi - k_lo > 1 {
-            let mid = (k_lo + k_hi).div_euclid(2);
-            if fits(power(mid)) {
-                k_hi = mid;
-            } else {
-                k_lo = mid;
-            }
-        }
+        let (k_lo, k_hi) = power_bracket(first_power(limit, steps), steps, |k| fits(power(k)));
         let (mut lo, mut hi) = (power(k_lo), power(k_hi));
         while hi - lo > grain {
             let mid = 0.5 * (lo + hi);
@@ -199,6 +192,39 @@ pub fn dsm_compress(nodes: &[Node], limit: usize, steps: u32) -> DsmFit {
         nodes: fitted,
         tolerance: eps,
     }
+}
+
+/// The powers' search (`power_to_try` in shaders/shadow/dsm_build.wgsl): the neighbouring
+/// exponents (lo, hi) in -1..=`steps` with `fits(lo)` false and `fits(hi)` true, given that
+/// `fits(-1)` is false and `fits(steps)` true, trying `first` and its neighbour before bisecting
+/// what is left.
+pub fn power_bracket(first: i32, steps: u32, mut fits: impl FnMut(i32) -> bool) -> (i32, i32) {
+    let top = steps as i32;
+    let (mut lo, mut hi) = (-1i32, top);
+    while hi - lo > 1 {
+        let k = match (lo, hi) {
+            (-1, h) if h == top => first,
+            (-1, h) if h == first => first - 1,
+            (l, h) if l == first && h == top => first + 1,
+            (l, h) => (l + h).div_euclid(2),
+        }
+        .clamp(lo + 1, hi - 1);
+        if fits(k) {
+            hi = k;
+        } else {
+            lo = k;
+        }
+    }
+    (lo, hi)
+}
+
+/// The exponent k of the powers' search's first fit, at g·2^k nearest Ω_max / (2N²) for N =
+/// `limit` nodes: `steps` - 1 - round(log2 N²), in integers as the shader computes it
+/// (`first_power` in shaders/shadow/dsm_build.wgsl, which says why), within 0..`steps`.
+pub fn first_power(limit: usize, steps: u32) -> i32 {
+    let n = limit as u64;
+    let rounded = (n * n * n * n).max(1).ilog2().div_ceil(2);
+    (steps as i32 - 1 - rounded as i32).clamp(0, steps as i32 - 1)
 }
 
 /// One texel's value at `z`: `before` in front of the first node (or with none), the last
@@ -383,6 +409,55 @@ mod tests {
     }
 
     /// A deterministic list of overlapping segments (a 32-bit LCG).
+    #[test]
+    fn the_first_power_is_the_nearest_to_half_omega_max_over_n_squared() {
+        // g·2^k = Ω_max·2^(k - S) nearest Ω_max / (2N²): k = S - 1 - 2·log2(N), rounded.
+        for steps in [8u32, 12, 16] {
+            for n in 2..=64usize {
+                let exact = f64::from(steps) - 1.0 - 2.0 * (n as f64).log2();
+                let want = (exact.round() as i32).clamp(0, steps as i32 - 1);
+                assert_eq!(first_power(n, steps), want, "N {n}, S {steps}");
+            }
+        }
+        // The brackets most texels of the thesis frame end in (docs/studies.md): [3, 4] at 12
+        // nodes (24 channels), [6, 7] at 4.
+        assert_eq!(first_power(12, 12), 4);
+        assert_eq!(first_power(4, 12), 7);
+    }
+
+    #[test]
+    fn the_powers_search_finds_the_bracket_within_its_bound_from_any_first_power() {
+        // For every place the boundary can be (fits(k) for k >= boundary) and every first
+        // power, the search ends at (boundary - 1, boundary), in at most 2 + bit length of S
+        // fits (`SEARCH_STEPS` in src/shadow/dsm.rs counts on it), and in two where the
+        // boundary is the first power or the one after it.
+        for steps in [1u32, 2, 5, 12, 16] {
+            let bound = 2 + (u32::BITS - steps.leading_zeros());
+            for first in 0..steps as i32 {
+                for boundary in 0..=steps as i32 {
+                    let mut tries = Vec::new();
+                    let bracket = power_bracket(first, steps, |k| {
+                        tries.push(k);
+                        k >= boundary
+                    });
+                    assert_eq!(
+                        bracket,
+                        (boundary - 1, boundary),
+                        "S {steps}, first {first}"
+                    );
+                    assert!(
+                        tries.iter().all(|&k| (0..steps as i32).contains(&k)),
+                        "{tries:?}"
+                    );
+                    assert!(tries.len() as u32 <= bound, "S {steps}: {tries:?}");
+                    if (boundary == first || boundary == first + 1) && steps > 1 {
+                        assert!(tries.len() <= 2, "S {steps}, first {first}: {tries:?}");
+                    }
+                }
+            }
+        }
+    }
+
     fn random_segments(seed: u32, count: usize) -> Vec<Segment> {
         let mut state = seed;
         let mut next = || {

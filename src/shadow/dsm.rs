@@ -66,10 +66,11 @@ pub const SPEC: DeepNodesSpec = DeepNodesSpec {
 };
 
 /// Steps of the per-texel search, one greedy fit each (shaders/shadow/dsm_build.wgsl), at most:
-/// the fit at ε = 0, the binary search over the exponents -1..=`BISECTION_STEPS` of the powers
-/// of two (ceil(log2(steps + 1)) fits: the bit length of `BISECTION_STEPS`), the bisection of the
-/// bracket it leaves (at most `BISECTION_STEPS` - 1), the final fit.
-const SEARCH_STEPS: u32 = BISECTION_STEPS + 1 + (u32::BITS - BISECTION_STEPS.leading_zeros());
+/// the fit at ε = 0, the search over the exponents -1..=`BISECTION_STEPS` of the powers of two
+/// (two fits, at the first power and a neighbour, then a binary search over at most
+/// `BISECTION_STEPS` - 1 exponents left: at most the bit length of `BISECTION_STEPS` fits), the
+/// bisection of the bracket it leaves (at most `BISECTION_STEPS` - 1), the final fit.
+const SEARCH_STEPS: u32 = BISECTION_STEPS + 3 + (u32::BITS - BISECTION_STEPS.leading_zeros());
 
 /// Rounds of the compression: a greedy fit over 2n nodes loops at most 2n + N + 2 times (each
 /// node once, a look again after each closed segment, at most N + 1 of them, and the pass that
