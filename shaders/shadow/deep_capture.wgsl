@@ -467,8 +467,9 @@ fn insertion_sort(@builtin(global_invocation_id) id: vec3<u32>) {
 // groups of up to WAYS runs, one pass a round, between the two sides of the key textures (which
 // side is an index offset, `second_side()`, not a branch): pass `step` writes the second side
 // when it is odd, the first when it is even (`run_sort` is step 0), and a texel's last pass
-// writes its nodes to `resolved_nodes` instead; a list of a single run needs no merge, so
-// `run_sort` writes its nodes. Against the heapsort it replaced (the same order: the keys are
+// writes its nodes to `resolved_nodes` instead (a list of a single run too, as if its first pass:
+// `run_sort` writing those nodes itself, behind a branch on every key, took 3.5 ms more than
+// the copy on the thesis frame). Against the heapsort it replaced (the same order: the keys are
 // total), each key is read and written once a pass instead of log2(n) times (the textures' loads
 // and stores are most of a sort's cost on llvmpipe); merging eight runs a pass instead of four,
 // and sorting the starts and ends as one list instead of two then merging them, took the sort and
@@ -572,7 +573,7 @@ fn set_key_to(second: bool, i: u32, key: vec2<f32>) {
     set_key_at(i + select(0u, second_side(), second), key);
 }
 
-// Each run of RUN events sorted in registers and written out, or for a list of one run its nodes.
+// Each run of RUN events sorted in registers and written out.
 @compute @workgroup_size(8, 8)
 fn run_sort(@builtin(global_invocation_id) id: vec3<u32>) {
     let list = band_list(id);
@@ -581,10 +582,7 @@ fn run_sort(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     let base = 2u * list.first;
-    let runs = runs_of(n);
     let to_second = writes_second_side(0u);
-    var nodes = Nodes(0.0, 0.0, 0.0);
-    var previous = vec2<f32>(0.0);
     let last_segment = list.first + list.count - 1u;
     for (var start = 0u; start < n; start += RUN) {
         let m = min(RUN, n - start);
@@ -616,17 +614,7 @@ fn run_sort(@builtin(global_invocation_id) id: vec3<u32>) {
         #end_unroll
         #unroll k 0..RUN
             if k < m {
-                // A single run is the whole list, in order: its nodes.
-                let node = next_node(&nodes, keys[k]);
-                if runs.passes == 0u {
-                    // m is even: every pair is whole.
-                    if k % 2u == 1u {
-                        set_node_pair(base + start + k - 1u, previous, node);
-                    }
-                    previous = node;
-                } else {
-                    set_key_to(to_second, base + start + k, keys[k]);
-                }
+                set_key_to(to_second, base + start + k, keys[k]);
             }
         #end_unroll
     }
@@ -650,11 +638,11 @@ fn merge_runs(@builtin(global_invocation_id) id: vec3<u32>) {
 @compute @workgroup_size(8, 8)
 fn merge_last(@builtin(global_invocation_id) id: vec3<u32>) {
     let list = band_list(id);
-    let passes = runs_of(2u * list.count).passes;
-    if passes == 0u {
+    if list.count == 0u {
         return;
     }
-    merge_pass(list, passes, true);
+    // A list of one run (no merge pass) is merged as if by a first pass: copied into its nodes.
+    merge_pass(list, max(runs_of(2u * list.count).passes, 1u), true);
 }
 
 // Merge pass `step` over the texel's runs: groups of WAYS (or fewer) sorted runs of `run_width`

@@ -1194,20 +1194,21 @@ mod tests {
 
     /// The widths (events) of the groups a list of `events` merges in merge dispatch `dispatch`
     /// (1-based) of `dispatches`, as shaders/shadow/deep_capture.wgsl walks them: every pass
-    /// of the list but its last in the dispatch of its index (`merge_runs`), its last in the
-    /// last dispatch (`merge_last`); a pass's groups are `run_width` times `runs_merged` wide,
+    /// of the list but its last in the dispatch of its index (`merge_runs`), its last (or for a
+    /// list of one run, a first) in the last dispatch (`merge_last`); a pass's groups are `run_width` times `runs_merged` wide,
     /// the last group cut at the list's end. None in a dispatch without a pass of the list.
     fn merge_groups(events: u32, dispatch: u32, dispatches: u32) -> Vec<u32> {
         let passes = merge_passes(events / 2);
         let step = match dispatch == dispatches {
-            true => passes,
+            // A list of one run is copied into its nodes as if by a first pass.
+            true if events > 0 => passes.max(1),
             false if dispatch < passes => dispatch,
-            false => 0,
+            _ => 0,
         };
         if step == 0 {
             return Vec::new();
         }
-        let last = merge_levels(events) - WAY_LEVELS * (passes - 1);
+        let last = merge_levels(events) - WAY_LEVELS * (passes.max(1) - 1);
         let width = RUN << (WAY_LEVELS * (step - 1));
         let ways = 1 << if step == passes { last } else { WAY_LEVELS };
         let group = ways * width;
