@@ -220,15 +220,17 @@ fn power_eps(grain: f32, k: f32) -> f32 {
     return select(ldexp(grain, i32(k)), 0.0, k < 0.0);
 }
 
-// Greedy fits per round: each loops at most 2n + N + 2 times (src/shadow/dsm.rs, `rounds`, says
-// why), the final fit with its padding 2n + N - 1, within 2n + 20 each, from the loop budget
-// less LOOPS_BESIDE_FITS: the copy of a list that fits as it is (in lanes beside those that
-// search) and the loops' exits. Keep in sync with `dsm::rounds` and `dsm::LOOPS_BESIDE_FITS`.
+// Greedy fits per round: over a list of n segments (2n nodes, two a texel) each loops at most
+// n + N + 1 times, the final fit with its padding n + 2N + 1 (src/shadow/dsm.rs, `rounds`, says
+// why), within n + 36 each (N <= 16), from the loop budget less LOOPS_BESIDE_FITS: the copy of
+// a list that fits as it is (in lanes beside those that search) and the loops' exits. Keep in
+// sync with `dsm::rounds` and `dsm::LOOPS_BESIDE_FITS`.
 const LOOPS_BESIDE_FITS: u32 = 64u;
+const FIT_LOOPS_BESIDE_LIST: u32 = 36u;
 
 fn fits_per_round() -> u32 {
     let budget = capture.loop_budget - min(capture.loop_budget, LOOPS_BESIDE_FITS);
-    return max(1u, budget / (2u * capture.max_list + 20u));
+    return max(1u, budget / (capture.max_list + FIT_LOOPS_BESIDE_LIST));
 }
 
 // Writes the fit at `eps` (at most `limit` vertices, the last repeated into the free slots) and

@@ -93,47 +93,78 @@ fn close_segment(origin: Node, last: Node, lo: f32, hi: f32, eps: f32) -> Node {
 /// while some slope passes within eps of all of them, ending at the last one it covers. Stops
 /// once it has more than `limit` vertices (and returns `limit` + 1 of them).
 pub fn greedy_fit(nodes: &[Node], eps: f32, limit: usize) -> Vec<Node> {
-    let Some(&first) = nodes.first() else {
+    let Some(mut fit) = Fit::new(nodes) else {
         return Vec::new();
     };
-    let mut out = vec![first];
-    let mut origin = first;
-    let (mut lo, mut hi) = (-ANY_SLOPE, ANY_SLOPE);
-    let mut last = origin;
-    let mut open = false;
-    let mut i = 1;
-    while i < nodes.len() {
-        let p = nodes[i];
-        let dz = p.z - origin.z;
-        let (mut new_lo, mut new_hi) = (lo, hi);
+    while fit.i < nodes.len() && fit.out.len() <= limit {
+        fit.step(nodes[fit.i], eps);
+    }
+    fit.finish(eps, limit)
+}
+
+/// A greedy fit under way (`Fit` in shaders/shadow/dsm_build.wgsl): the open segment from
+/// `origin` (its feasible slopes [lo, hi]) and the last input node it covers, if it covers any
+/// (`open`); the next input node `i`; the vertices so far.
+struct Fit {
+    origin: Node,
+    last: Node,
+    lo: f32,
+    hi: f32,
+    i: usize,
+    open: bool,
+    out: Vec<Node>,
+}
+
+impl Fit {
+    fn new(nodes: &[Node]) -> Option<Self> {
+        let &first = nodes.first()?;
+        Some(Self {
+            origin: first,
+            last: first,
+            lo: -ANY_SLOPE,
+            hi: ANY_SLOPE,
+            i: 1,
+            open: false,
+            out: vec![first],
+        })
+    }
+
+    /// One step at input node p (node `i`): p fits and the open segment extends over it, or the
+    /// segment closes at the last node it covers (a vertex) and p is looked at again from
+    /// there; with no segment open p becomes a vertex itself.
+    fn step(&mut self, p: Node, eps: f32) {
+        let dz = p.z - self.origin.z;
+        let (mut new_lo, mut new_hi) = (self.lo, self.hi);
         if dz > 0.0 {
             let r = 1.0 / dz;
-            new_lo = lo.max((p.value - eps - origin.value) * r);
-            new_hi = hi.min((p.value + eps - origin.value) * r);
-        } else if (p.value - origin.value).abs() > eps {
+            new_lo = self.lo.max((p.value - eps - self.origin.value) * r);
+            new_hi = self.hi.min((p.value + eps - self.origin.value) * r);
+        } else if (p.value - self.origin.value).abs() > eps {
             (new_lo, new_hi) = (ANY_SLOPE, -ANY_SLOPE);
         }
         if new_lo <= new_hi {
-            (lo, hi, last, open) = (new_lo, new_hi, p, true);
-            i += 1;
-            continue;
+            (self.lo, self.hi, self.last, self.open) = (new_lo, new_hi, p, true);
+            self.i += 1;
+            return;
         }
-        let vertex = if open {
-            close_segment(origin, last, lo, hi, eps)
+        let vertex = if self.open {
+            close_segment(self.origin, self.last, self.lo, self.hi, eps)
         } else {
-            i += 1;
+            self.i += 1;
             p
         };
-        out.push(vertex);
-        if out.len() > limit {
-            return out;
+        self.out.push(vertex);
+        (self.origin, self.lo, self.hi, self.open) = (vertex, -ANY_SLOPE, ANY_SLOPE, false);
+    }
+
+    /// The vertices: the open segment closed, unless the fit stopped past `limit`.
+    fn finish(mut self, eps: f32, limit: usize) -> Vec<Node> {
+        if self.open && self.out.len() <= limit {
+            self.out
+                .push(close_segment(self.origin, self.last, self.lo, self.hi, eps));
         }
-        (origin, lo, hi, open) = (vertex, -ANY_SLOPE, ANY_SLOPE, false);
+        self.out
     }
-    if open {
-        out.push(close_segment(origin, last, lo, hi, eps));
-    }
-    out
 }
 
 /// A texel's `dsm` nodes and the tolerance they were fitted with.
@@ -472,6 +503,47 @@ mod tests {
             .collect();
         sort_segments(&mut segments);
         segments
+    }
+
+    #[test]
+    fn two_steps_a_loaded_texel_loop_within_the_rounds_allowance() {
+        // The shader's fit (`greedy_fit` in shaders/shadow/dsm_build.wgsl) loads the texel of
+        // node i (nodes 2j and 2j + 1 in texel j), steps at i, and steps again where the next
+        // node is in that texel and the fit has not stopped. Replayed here: the same vertices as
+        // one step a loop, in at most n + N + 1 loop iterations (with the exit's) for n
+        // segments and N nodes, the allowance `dsm::rounds` gives a search fit.
+        for seed in 0..40 {
+            for count in [1, 2, 3, 9, 40, 200] {
+                let nodes = optical_depth_nodes(&random_segments(seed, count));
+                let top = nodes.last().unwrap().value;
+                for limit in [2, 3, 6, 12, 16] {
+                    for eps in [0.0, 1e-4 * top, 1e-3 * top, 1e-2 * top, 0.1 * top, top] {
+                        let mut fit = Fit::new(&nodes).unwrap();
+                        let mut iterations = 0;
+                        loop {
+                            iterations += 1;
+                            if fit.i >= nodes.len() || fit.out.len() > limit {
+                                break;
+                            }
+                            let at = fit.i;
+                            fit.step(nodes[at], eps);
+                            if fit.i / 2 == at / 2 && fit.out.len() <= limit {
+                                fit.step(nodes[fit.i], eps);
+                            }
+                        }
+                        assert_eq!(
+                            fit.finish(eps, limit),
+                            greedy_fit(&nodes, eps, limit),
+                            "seed {seed}, {count} segments, N {limit}, eps {eps}"
+                        );
+                        assert!(
+                            iterations <= count + limit + 1,
+                            "seed {seed}, {count} segments, N {limit}: {iterations}"
+                        );
+                    }
+                }
+            }
+        }
     }
 
     #[test]

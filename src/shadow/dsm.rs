@@ -72,11 +72,16 @@ pub const SPEC: DeepNodesSpec = DeepNodesSpec {
 /// bisection of the bracket it leaves (at most `BISECTION_STEPS` - 1), the final fit.
 const SEARCH_STEPS: u32 = BISECTION_STEPS + 3 + (u32::BITS - BISECTION_STEPS.leading_zeros());
 
-/// Rounds of the compression: a greedy fit over 2n nodes loops at most 2n + N + 2 times (each
-/// node once, a look again after each closed segment, at most N + 1 of them, and the pass that
-/// stops it; N <= 16), the final fit with its padding of the unused nodes at most 2n + N - 1
-/// (it fits: at most N nodes), so a round has room for `per_round` = `(loop_budget -
-/// LOOPS_BESIDE_FITS) / (2 max_list + 20)` fits (`fits_per_round` in the shader). llvmpipe counts a SIMD group's loop
+/// Rounds of the compression: a greedy fit over the 2n nodes of n segments steps at most 2n + N
+/// - 1 times (each node after the first once, a look again after each closed segment, at most
+/// N of them before it stops; N <= 16), two steps a loop iteration where the second node is in
+/// the first one's texel (`greedy_fit` in the shader): an iteration of one step starts at the
+/// second node of a texel, which the first iteration and at most one after each closed segment
+/// do, and the one that stops the fit may too: at most N + 2 of them, so at most (2n + N - 1 + N
+/// + 2) / 2 iterations, n + N + 1 with the loop's exit; the final fit adds its padding of the
+/// unused nodes, at most N. Within n + `FIT_LOOPS_BESIDE_LIST` each, a round has room for
+/// `per_round` = `(loop_budget - LOOPS_BESIDE_FITS) / (max_list + 36)` fits (`fits_per_round`
+/// in the shader; two steps an iteration doubled it). llvmpipe counts a SIMD group's loop
 /// iterations, whichever of its lanes run them, so a round's fits are the group's: at most
 /// per_round - 1 search fits in lockstep, then the final fit of every lane that has its ε. The
 /// search fits (`SEARCH_STEPS` - 1) take ceil((SEARCH_STEPS - 1) / (per_round - 1)) rounds, the
@@ -92,7 +97,7 @@ fn rounds(max_list: u32, loop_budget: u32) -> u32 {
 
 /// The greedy fits a round has room for (`fits_per_round` in the shader; [`rounds`] says why).
 fn fits_per_round(max_list: u32, loop_budget: u32) -> u32 {
-    (loop_budget.saturating_sub(LOOPS_BESIDE_FITS) / (2 * max_list + 20)).max(1)
+    (loop_budget.saturating_sub(LOOPS_BESIDE_FITS) / (max_list + FIT_LOOPS_BESIDE_LIST)).max(1)
 }
 
 /// Loop iterations a round spends beside its fits' allowances of 2n + 20, taken from the budget
@@ -100,6 +105,10 @@ fn fits_per_round(max_list: u32, loop_budget: u32) -> u32 {
 /// iterations, N <= 16, in lanes of a SIMD group beside those that search), the search loop's
 /// exit and the final fit's padding beyond its allowance. 64 holds them with room to spare.
 const LOOPS_BESIDE_FITS: u32 = 64;
+
+/// A greedy fit's loop iterations beyond one a segment of its list, at most: N + 1 for a search
+/// fit, 2N + 1 for the final one with its padding, N <= 16 ([`rounds`]).
+const FIT_LOOPS_BESIDE_LIST: u32 = 36;
 
 /// The counters from the compression's statistics words (see `STAT_*` in dsm_build.wgsl): the
 /// largest ε as its bits, Σ ε in millionths (low, high word), the texels with smoke, the lossy
