@@ -233,7 +233,7 @@ const DUMMY_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R8Unorm;
 /// (+1), the texel order (64 entries a tile of 8x8 texels), an R8 raster target, 16 bytes of
 /// segment storage per segment, and for `avsm` 16 bytes of node storage per segment, for `dsm`
 /// (`node_texels`) the two key textures (`KEY_TEXTURES`), 4 x capacity texels of 4 bytes each
-/// in whole rows, and the resolved nodes ([`NODE_FORMAT`]), capacity texels of 16 bytes each in
+/// in whole rows, and the resolved nodes (`NODE_FORMAT`), capacity texels of 16 bytes each in
 /// whole rows: 48 bytes a segment (the others' are placeholders).
 pub fn bytes(resolution_px: u32, segment_capacity: u64, node_texels: bool) -> u64 {
     let texels = u64::from(resolution_px) * u64::from(resolution_px);
