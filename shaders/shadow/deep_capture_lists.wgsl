@@ -1,13 +1,13 @@
 // The per-texel segment lists of a deep capture (src/shadow/deep_capture.rs), as its own passes
 // and the compression passes that read them declare them in group 1. Texel i's segments are
 // segments[offsets[i] .. offsets[i + 1]). After the resolve, for `dsm`, its nodes (z, Ω(z)) of
-// the piecewise-linear optical depth are nodes 2·offsets[i] .. 2·offsets[i + 1] of resolved_nodes; for `avsm`
-// the segments are sorted by (z0, z1, optical depth), or by draw index alone for its default
-// insertion in draw order (the resolve's `SORT_BY_DRAW`). The lists hold one band of rows at a
-// time (rows [row_begin, row_end), whose first segment is offsets' band_base), so every index
-// into them is relative to band_base, and the per-texel passes cover the band's rows only. Every
-// storage binding is read_write because the capture's bind group layout is shared by all of its
-// passes.
+// the piecewise-linear optical depth are nodes 2·offsets[i] .. 2·offsets[i + 1] of
+// `resolved_nodes`; for `avsm` the segments are sorted by (z0, z1, optical depth), or by draw
+// index alone for its default insertion in draw order (the resolve's `SORT_BY_DRAW`). The lists
+// hold one band of rows at a time (rows [row_begin, row_end), whose first segment is offsets'
+// band_base), so every index into them is relative to band_base, and the per-texel passes cover
+// the band's rows only. Every storage binding is read_write because the capture's bind group
+// layouts are the same but for the resolved nodes' access.
 // Keep `CaptureParams` in sync with src/shadow/deep_capture.rs.
 
 #import common/rows.wgsl

@@ -11,10 +11,10 @@
 //! depth — a total key over what is sorted, so the nodes do not depend on the order the
 //! fragments arrived in; a merge sort: runs of 16 sorted in registers, then eight runs merged a
 //! pass ([`merge_passes`]), in read-write storage textures (`KEY_TEXTURES`) — whose last pass
-//! turns them into the nodes (z, Ω(z)), written to a texture of their own (`NODE_FORMAT`); for `avsm`, it sorts the segments by (z0, z1,
-//! optical depth, draw index) (`avsm` sorted) or by draw index (`avsm` streaming), which
-//! restores the order the particles were drawn in, the order an engine's interlocked fragment
-//! shader would see them.
+//! turns them into the nodes (z, Ω(z)), written to a texture of their own (`NODE_FORMAT`); for
+//! `avsm`, it sorts the segments by (z0, z1, optical depth, draw index) (`avsm` sorted) or by
+//! draw index (`avsm` streaming), which restores the order the particles were drawn in, the
+//! order an engine's interlocked fragment shader would see them.
 //! The counts are read back before the fill so the lists can grow to hold the frame (a CPU–GPU
 //! sync per build).
 //! A compression pass then binds [`DeepCapture::layout`] as its group 1
@@ -276,9 +276,9 @@ fn node_buffer_bytes(segment_capacity: u64, node_texels: bool) -> u64 {
 
 /// The most segments one band may hold: the segments (16 bytes each, and `avsm`'s nodes as
 /// many) within one storage binding, and `dsm`'s keys (four texels a segment) within the key
-/// textures' rows (its nodes, one texel a segment, fit when they do). Both owners band by both bounds, though `dsm` binds no buffer of
-/// nodes: the bands stay the same for both, and so does the test that holds banded maps to whole
-/// ones (tests/techniques.rs).
+/// textures' rows (its nodes, one texel a segment, fit when they do). Both owners band by both
+/// bounds, though `dsm` binds no buffer of nodes: the bands stay the same for both, and so does
+/// the test that holds banded maps to whole ones (tests/techniques.rs).
 fn max_band_segments(gpu: &Gpu) -> u32 {
     let binding =
         gpu.limits.max_storage_buffer_binding_size / SEGMENT_BYTES.max(NODE_BYTES_PER_SEGMENT);
@@ -1195,8 +1195,9 @@ mod tests {
     /// The widths (events) of the groups a list of `events` merges in merge dispatch `dispatch`
     /// (1-based) of `dispatches`, as shaders/shadow/deep_capture.wgsl walks them: every pass
     /// of the list but its last in the dispatch of its index (`merge_runs`), its last (or for a
-    /// list of one run, a first) in the last dispatch (`merge_last`); a pass's groups are `run_width` times `runs_merged` wide,
-    /// the last group cut at the list's end. None in a dispatch without a pass of the list.
+    /// list of one run, a first) in the last dispatch (`merge_last`); a pass's groups are
+    /// `run_width` times `runs_merged` wide, the last group cut at the list's end. None in a
+    /// dispatch without a pass of the list.
     fn merge_groups(events: u32, dispatch: u32, dispatches: u32) -> Vec<u32> {
         let passes = merge_passes(events / 2);
         let step = match dispatch == dispatches {

@@ -84,9 +84,10 @@ const SEARCH_STEPS: u32 = BISECTION_STEPS + 3 + (u32::BITS - BISECTION_STEPS.lea
 /// LOOPS_BESIDE_FITS) / (max_list + 36)` fits (`fits_per_round` in the shader; two steps an
 /// iteration doubled it). llvmpipe counts a SIMD group's loop iterations, whichever of its
 /// lanes run them, so a round's fits are the group's: at most per_round - 1 search fits in
-/// lockstep, then the final fit of every lane that has its ε. The search fits (`SEARCH_STEPS` - 1) take ceil((SEARCH_STEPS - 1) / (per_round - 1)) rounds, the
-/// final fit in the round of the last; with room for one fit a round, search fits run in even
-/// rounds and final fits in odd ones.
+/// lockstep, then the final fit of every lane that has its ε. The search fits
+/// (`SEARCH_STEPS` - 1) take ceil((SEARCH_STEPS - 1) / (per_round - 1)) rounds, the final fit
+/// in the round of the last; with room for one fit a round, search fits run in even rounds and
+/// final fits in odd ones.
 fn rounds(max_list: u32, loop_budget: u32) -> u32 {
     let search_fits = SEARCH_STEPS - 1;
     match fits_per_round(max_list, loop_budget) {
