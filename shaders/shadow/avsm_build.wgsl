@@ -152,7 +152,7 @@ fn compress(@builtin(global_invocation_id) id: vec3<u32>) {
         #end_unroll
     }
     for (var i = begin; i < end; i++) {
-        insert_segment(&curve, segments[list.first + i]);
+        insert_segment(&curve, segment_at(list.first + i));
         while curve.count > limit {
             remove_least_area(&curve);
         }

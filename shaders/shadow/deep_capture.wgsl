@@ -97,7 +97,7 @@ fn fs_fill(in: BuildVertexOut) -> @location(0) vec4<f32> {
         discard;
     }
     if at.slot < capture.capacity {
-        segments[at.slot] = segment;
+        set_segment(at.slot, segment);
     }
     return vec4<f32>(0.0);
 }
@@ -156,7 +156,7 @@ fn fs_fill_volume(in: VolumeVertexOut) -> @location(0) vec4<f32> {
         }
         let slot = offsets[index] - capture.band_base + atomicAdd(&counts[index], 1u);
         if slot < capture.capacity {
-            segments[slot] = segment;
+            set_segment(slot, segment);
         }
     }
     return vec4<f32>(0.0);
@@ -237,12 +237,12 @@ fn key_before(a: HeapItem, b: HeapItem) -> bool {
 }
 
 fn heap_key(i: u32) -> HeapItem {
-    let s = segments[i];
+    let s = segment_at(i);
     return HeapItem(vec3<f32>(s.z0, s.z1, s.optical_depth), s.draw_index);
 }
 
 fn set_heap_key(i: u32, item: HeapItem) {
-    segments[i] = Segment(item.key.x, item.key.y, item.key.z, item.draw_index);
+    set_segment(i, Segment(item.key.x, item.key.y, item.key.z, item.draw_index));
 }
 
 // Sifts element `root_in` down the max-heap [base, base + n). Each level reads its two children
@@ -386,7 +386,7 @@ const SORTED: u32 = 0xffffffffu;
 fn draw_ordered_prefix(list: TexelList) -> u32 {
     var before = 0u;
     for (var i = 0u; i < list.count; i++) {
-        let draw = segments[list.first + i].draw_index;
+        let draw = segments[list.first + i].w;
         if i > 0u && draw < before {
             return i;
         }
@@ -589,7 +589,7 @@ fn run_sort(@builtin(global_invocation_id) id: vec3<u32>) {
         // The run's segments, two events each (m is even); keys past its end are padding.
         var keys: array<vec2<f32>, RUN>;
         #unroll h 0..RUN_SEGMENTS
-            let segment = segments[min(list.first + start / 2u + h, last_segment)];
+            let segment = segment_at(min(list.first + start / 2u + h, last_segment));
             let slope = segment_slope(segment);
             let real = 2u * h < m;
             let pad = vec2<f32>(PAD_DEPTH, 0.0);
