@@ -138,23 +138,13 @@ fn greedy_fit(base: u32, n: u32, eps: f32, limit: u32, write: bool, out: u32) ->
         let again = (fit.i >> 1u) == (at >> 1u) && fit.count <= limit;
         fit_step(&fit, pick_node(pair, fit.i), eps, again, limit, write, out);
     }
-    let origin = fit.origin;
-    let last = fit.last;
-    let lo = fit.lo;
-    let hi = fit.hi;
-    let open = fit.open;
-    var count = fit.count;
-    if count > limit {
-        return count;
+    if fit.count > limit || !fit.open {
+        return fit.count;
     }
-    if open {
-        count++;
-        if count > limit {
-            return count;
-        }
-        if write {
-            out_nodes[out + count - 1u] = close_segment(origin, last, lo, hi, eps);
-        }
+    // The open segment closes at the last node: one vertex more.
+    let count = fit.count + 1u;
+    if write && count <= limit {
+        out_nodes[out + count - 1u] = close_segment(fit.origin, fit.last, fit.lo, fit.hi, eps);
     }
     return count;
 }
@@ -164,13 +154,12 @@ fn greedy_fit(base: u32, n: u32, eps: f32, limit: u32, write: bool, out: u32) ->
 // smallest multiple of g whose fit takes at most N nodes. The first step fits at ε = 0 (the
 // texel is done when that fits). Then a search over the powers of two g·2^k, k in 0..S, finds
 // the bracket [g·2^(k-1), g·2^k] (or [0, g]) whose bottom fails and top fits (`power_to_try`):
-// g·2^S = Ω_max
-// needs no fit to know it fits (Ω rises from 0 at the first node to Ω_max at the last, so every
-// node's feasible slopes from the first, [(Ω - ε)/dz, (Ω + ε)/dz], hold 0 (Ω - ε <= 0 <= Ω + ε
-// holds in floats too), and the fit is one segment, 2 nodes, within any budget the technique
-// accepts (at least 4 channels: N >= 2)); two fits for most texels, at most 2 + log2(S) (a fit
-// that fails stops after N vertices). Then bisection narrows the bracket to one grain
-// (its width a power-of-two multiple of g, so every midpoint is a multiple of g, exact in
+// g·2^S = Ω_max needs no fit to know it fits (Ω rises from 0 at the first node to Ω_max at the
+// last, so every node's feasible slopes from the first, [(Ω - ε)/dz, (Ω + ε)/dz], hold 0 (Ω - ε
+// <= 0 <= Ω + ε holds in floats too), and the fit is one segment, 2 nodes, within any budget the
+// technique accepts (at least 4 channels: N >= 2)); two fits for most texels, at most 2 +
+// log2(S) (a fit that fails stops after N vertices). Then bisection narrows the bracket to one
+// grain (its width a power-of-two multiple of g, so every midpoint is a multiple of g, exact in
 // floats), and the last step writes the fit at ε = hi. Twelve steps of bisection over [0,
 // Ω_max], which this replaced, ran every fit above ε over the whole list. Between rounds the
 // search's state lives in the texel's first two sort keys (nothing reads them after the
@@ -183,14 +172,13 @@ const MODE_POWERS: f32 = 3.0;
 const MODE_DONE: f32 = 4.0;
 
 // The exponent of the powers' search to try next in the bracket (lo, hi) of exponents (lo fails,
-// hi fits, hi - lo >= 2): first `first_power()`, the top of the bracket most texels end in;
+// hi fits, hi - lo >= 2): first `first` (`first_power()`), the top of the bracket most texels end in;
 // then its neighbour on the side its fit leaves open, which closes the bracket where the first
 // was its top or bottom; then the middle of what is left. A binary search from the middle, which
 // this replaced, took four fits to any bracket (the first, at g·2^5, ran over the whole list for
 // most texels); llvmpipe runs a SIMD group's lanes in lockstep, so its fits run as long as its
 // longest lane's: the search 59 -> 52 ms on the thesis frame.
-fn power_to_try(lo: f32, hi: f32) -> f32 {
-    let first = first_power();
+fn power_to_try(lo: f32, hi: f32, first: f32) -> f32 {
     let top = f32(deep.bisection_steps);
     var k = floor(0.5 * (lo + hi));
     if lo == -1.0 && hi == top {
@@ -289,6 +277,7 @@ fn compress(@builtin(global_invocation_id) id: vec3<u32>) {
     let per_round = fits_per_round();
     let omega_max = node_texel(base + n - 1u).y;
     let grain = ldexp(omega_max, -i32(deep.bisection_steps));
+    let first = first_power();
     var lo = 0.0;
     var hi = 0.0;
     var mode = MODE_START;
@@ -323,12 +312,12 @@ fn compress(@builtin(global_invocation_id) id: vec3<u32>) {
         }
         steps++;
         // The powers' search's next exponent (lo < it < hi: hi - lo >= 2 there).
-        let mid_power = power_to_try(lo, hi);
+        let power = power_to_try(lo, hi, first);
         var eps = 0.5 * (lo + hi);
         if mode == MODE_START {
             eps = 0.0;
         } else if mode == MODE_POWERS {
-            eps = power_eps(grain, mid_power);
+            eps = power_eps(grain, power);
         }
         let fits = greedy_fit(base, n, eps, limit, false, out) <= limit;
         if mode == MODE_START {
@@ -341,7 +330,7 @@ fn compress(@builtin(global_invocation_id) id: vec3<u32>) {
             }
         } else {
             // What was tried (an exponent while searching the powers) bounds the bracket.
-            let tried = select(eps, mid_power, mode == MODE_POWERS);
+            let tried = select(eps, power, mode == MODE_POWERS);
             lo = select(tried, lo, fits);
             hi = select(hi, tried, fits);
         }

@@ -410,6 +410,25 @@ pub fn texture_entry(
     }
 }
 
+/// A 2D storage texture binding of `format` with `access`.
+pub fn storage_texture_entry(
+    binding: u32,
+    visibility: wgpu::ShaderStages,
+    access: wgpu::StorageTextureAccess,
+    format: wgpu::TextureFormat,
+) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility,
+        ty: wgpu::BindingType::StorageTexture {
+            access,
+            format,
+            view_dimension: wgpu::TextureViewDimension::D2,
+        },
+        count: None,
+    }
+}
+
 /// A 3D texture binding of `sample_type` (a density grid's voxels, a cloud's noise).
 pub fn texture_3d_entry(
     binding: u32,

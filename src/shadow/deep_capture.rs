@@ -50,7 +50,8 @@ use super::layered::{VolumeBuild, billboard_pipeline, cleared_attachment, draw_p
 use crate::gpu::uniform_entry;
 use crate::gpu::{
     AllocationError, Gpu, GpuTimer, MemoryLedger, ROW_TEXELS, bind_entry, read_buffer,
-    row_texture_descriptor, row_texture_size, storage_descriptor, storage_entry, texture_binding,
+    row_texture_descriptor, row_texture_size, storage_descriptor, storage_entry,
+    storage_texture_entry, texture_binding,
 };
 use crate::shaders;
 
@@ -185,41 +186,12 @@ fn resolved_node_count(capacity: u64, node_texels: bool) -> u64 {
     }
 }
 
-/// The resolved nodes at [`NODES_BINDING`]: written by the capture's own passes, read by its
-/// owner's.
-fn nodes_entry(access: wgpu::StorageTextureAccess) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding: NODES_BINDING,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty: wgpu::BindingType::StorageTexture {
-            access,
-            format: NODE_FORMAT,
-            view_dimension: wgpu::TextureViewDimension::D2,
-        },
-        count: None,
-    }
-}
-
 /// The key textures' texels for lists of `capacity` segments: four a segment for a resolve into
 /// nodes (two events, each a sort key on either side), else one (a placeholder for the binding).
 fn node_texel_count(capacity: u64, node_texels: bool) -> u64 {
     match node_texels {
         true => 4 * capacity,
         false => 1,
-    }
-}
-
-/// A read-write key texture at `binding` ([`KEY_TEXTURES`]), for the compute passes.
-fn key_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty: wgpu::BindingType::StorageTexture {
-            access: wgpu::StorageTextureAccess::ReadWrite,
-            format: SORT_KEY_FORMAT,
-            view_dimension: wgpu::TextureViewDimension::D2,
-        },
-        count: None,
     }
 }
 
@@ -599,7 +571,16 @@ impl DeepCapture {
             )?
             .create_view(&wgpu::TextureViewDescriptor::default());
 
-        let raster_and_compute = wgpu::ShaderStages::FRAGMENT | wgpu::ShaderStages::COMPUTE;
+        let compute = wgpu::ShaderStages::COMPUTE;
+        let raster_and_compute = wgpu::ShaderStages::FRAGMENT | compute;
+        let key = |binding| {
+            storage_texture_entry(
+                binding,
+                compute,
+                wgpu::StorageTextureAccess::ReadWrite,
+                SORT_KEY_FORMAT,
+            )
+        };
         let layout_with = |what: &str, nodes: wgpu::StorageTextureAccess| {
             device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
                 label: Some(&label(what)),
@@ -608,12 +589,12 @@ impl DeepCapture {
                     storage_entry(1, raster_and_compute, false),
                     storage_entry(2, raster_and_compute, false),
                     storage_entry(3, raster_and_compute, false),
-                    storage_entry(4, wgpu::ShaderStages::COMPUTE, false),
-                    storage_entry(5, wgpu::ShaderStages::COMPUTE, false),
-                    key_entry(KEY_BINDINGS[0]),
-                    key_entry(KEY_BINDINGS[1]),
-                    storage_entry(TEXEL_ORDER_BINDING, wgpu::ShaderStages::COMPUTE, false),
-                    nodes_entry(nodes),
+                    storage_entry(4, compute, false),
+                    storage_entry(5, compute, false),
+                    key(KEY_BINDINGS[0]),
+                    key(KEY_BINDINGS[1]),
+                    storage_entry(TEXEL_ORDER_BINDING, compute, false),
+                    storage_texture_entry(NODES_BINDING, compute, nodes, NODE_FORMAT),
                 ],
             })
         };

@@ -75,7 +75,8 @@ use super::{
 use crate::gpu::uniform_entry;
 use crate::gpu::{
     AllocationError, Gpu, MemoryLedger, ROW_TEXELS, bind_entry, read_buffer,
-    row_texture_descriptor, storage_descriptor, storage_entry, texture_binding, texture_entry,
+    row_texture_descriptor, storage_descriptor, storage_entry, storage_texture_entry,
+    texture_binding, texture_entry,
 };
 use crate::shaders;
 
@@ -444,16 +445,12 @@ impl Exact {
                 uniform_entry(0, compute),
                 storage_entry(1, compute, false),
                 storage_entry(2, compute, false),
-                wgpu::BindGroupLayoutEntry {
-                    binding: 3,
-                    visibility: compute,
-                    ty: wgpu::BindingType::StorageTexture {
-                        access: wgpu::StorageTextureAccess::WriteOnly,
-                        format: wgpu::TextureFormat::R32Uint,
-                        view_dimension: wgpu::TextureViewDimension::D2,
-                    },
-                    count: None,
-                },
+                storage_texture_entry(
+                    3,
+                    compute,
+                    wgpu::StorageTextureAccess::WriteOnly,
+                    wgpu::TextureFormat::R32Uint,
+                ),
                 texture_entry(4, compute, unfilterable),
                 storage_entry(6, compute, false),
                 wgpu::BindGroupLayoutEntry {
