@@ -485,6 +485,7 @@ const RUN: u32 = 16u;
 
 // Runs merged at most by one pass, and the two-run levels that makes.
 const WAYS: u32 = 8u;
+const HALF_WAYS: u32 = 4u;
 const WAY_LEVELS: u32 = 3u;
 
 struct Runs {
@@ -665,12 +666,15 @@ fn merge_pass(list: TexelList, step: u32, last: bool) {
     var end: array<u32, WAYS>;
     var depth: array<f32, WAYS>;
     var slope: array<f32, WAYS>;
+    let exhausted = vec2<f32>(bitcast<f32>(0x7f800000u), 0.0);
     for (var group = 0u; group < n; group += ways * width) {
         let group_end = min(group + ways * width, n);
         var begin = group;
         #unroll w 0..WAYS
             at[w] = begin;
             end[w] = select(begin, min(begin + width, group_end), w < ways);
+            depth[w] = exhausted.x;
+            slope[w] = exhausted.y;
             if begin < end[w] {
                 let key = key_from(from_second, base + begin);
                 depth[w] = key.x;
@@ -681,16 +685,26 @@ fn merge_pass(list: TexelList, step: u32, last: bool) {
         for (var k = group; k < group_end; k++) {
             // The least next key, the earliest run's on a tie; no branch on which (lanes that took
             // from different runs would otherwise run every side's loads and stores).
-            var best = vec2<f32>(depth[0], slope[0]);
-            var taken = 0u;
-            var open = at[0] < end[0];
-            #unroll w 1..WAYS
-                let candidate = vec2<f32>(depth[w], slope[w]);
-                let better = at[w] < end[w] && (!open || key_less(candidate, best));
-                best = select(best, candidate, better);
-                taken = select(taken, w, better);
-                open = open || at[w] < end[w];
+            var tree_depth = depth;
+            var tree_slope = slope;
+            var tree_run: array<u32, WAYS>;
+            #unroll w 0..WAYS
+                tree_run[w] = w;
             #end_unroll
+            #unroll level 0..WAY_LEVELS
+                #unroll i 0..HALF_WAYS
+                    if i < (WAYS >> (level + 1u)) {
+                        let left = vec2<f32>(tree_depth[2u * i], tree_slope[2u * i]);
+                        let right = vec2<f32>(tree_depth[2u * i + 1u], tree_slope[2u * i + 1u]);
+                        let take_right = key_less(right, left);
+                        tree_depth[i] = select(left.x, right.x, take_right);
+                        tree_slope[i] = select(left.y, right.y, take_right);
+                        tree_run[i] = select(tree_run[2u * i], tree_run[2u * i + 1u], take_right);
+                    }
+                #end_unroll
+            #end_unroll
+            let best = vec2<f32>(tree_depth[0], tree_slope[0]);
+            let taken = tree_run[0];
             let node = next_node(&nodes, best);
             if last {
                 // The last pass's one group starts at 0, and n is even: every pair is whole.
@@ -709,13 +723,14 @@ fn merge_pass(list: TexelList, step: u32, last: bool) {
                 next = select(next, at[w], taken == w);
                 next_end = select(next_end, end[w], taken == w);
             #end_unroll
+            var key = exhausted;
             if next < next_end {
-                let key = key_from(from_second, base + next);
-                #unroll w 0..WAYS
-                    depth[w] = select(depth[w], key.x, taken == w);
-                    slope[w] = select(slope[w], key.y, taken == w);
-                #end_unroll
+                key = key_from(from_second, base + next);
             }
+            #unroll w 0..WAYS
+                depth[w] = select(depth[w], key.x, taken == w);
+                slope[w] = select(slope[w], key.y, taken == w);
+            #end_unroll
         }
     }
 }
