@@ -130,9 +130,13 @@ const NO_TEXEL: u32 = 0xffffffffu;
 // "Loop counts per SIMD group"). Ordering a band's texels across its tiles lost more to the
 // lanes' scattered lists than it saved.
 fn band_texel(id: vec3<u32>) -> u32 {
-    let tile = id.xy >> vec2<u32>(3u);
     let local = id.xy & vec2<u32>(7u);
-    return texel_order[((tile.y * tiles_per_row() + tile.x) << 6u) + (local.y << 3u) + local.x];
+    return tile_texel(id.xy >> vec2<u32>(3u), (local.y << 3u) + local.x);
+}
+
+// The texel at `place` (0..64) of the band's 8x8 tile `tile` in `order_texels`' order.
+fn tile_texel(tile: vec2<u32>, place: u32) -> u32 {
+    return texel_order[((tile.y * tiles_per_row() + tile.x) << 6u) + place];
 }
 
 // The 8x8 tiles across the map (a band's per-texel passes dispatch this many workgroups in x).

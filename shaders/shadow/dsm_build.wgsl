@@ -114,39 +114,94 @@ fn fit_step(
     (*fit).open = select((*fit).open, fits, live);
 }
 
-// Greedy fit of nodes base .. base + n (base even) within ±eps. Returns the number of vertices,
-// stopping as soon as it passes `limit`; with `write` it stores them at out_nodes[out ..] (at
-// most `limit`). The stop at `limit` is in the loop's exit condition (the search 127 -> 115 ms
-// on the thesis frame). Each iteration loads the texel of the next node and steps at it, then
-// steps again where the node after that step is in the same texel (most steps move to the next
-// node, so nearly two steps a load): the node loads are most of the search's cost.
-fn greedy_fit(base: u32, n: u32, eps: f32, limit: u32, write: bool, out: u32) -> u32 {
+// A greedy fit's start at node `base`: its first node, a vertex (stored at out_nodes[out] with
+// `write`).
+fn fit_start(base: u32, write: bool, out: u32) -> Fit {
     let first = node_texel(base);
-    var fit = Fit(first, first, -ANY_SLOPE, ANY_SLOPE, 1u, 1u, false);
     if write {
         out_nodes[out] = first;
     }
-    loop {
-        if fit.i >= n || fit.count > limit {
-            break;
-        }
-        let at = fit.i;
-        let pair = node_pair(base + at);
-        fit_step(&fit, pick_node(pair, at), eps, true, limit, write, out);
-        // Node fit.i is in this texel when it is `at` or its pair's second; past the list's end
-        // never (n is even).
-        let again = (fit.i >> 1u) == (at >> 1u) && fit.count <= limit;
-        fit_step(&fit, pick_node(pair, fit.i), eps, again, limit, write, out);
-    }
+    return Fit(first, first, -ANY_SLOPE, ANY_SLOPE, 1u, 1u, false);
+}
+
+// One iteration of a greedy fit of nodes base .. base + n (base even) within ±eps, or none where
+// `go` is false: it loads the texel of the next node and steps at it, then steps again where the
+// node after that step is in the same texel (most steps move to the next node, so nearly two
+// steps a load; one step a load: the search 69 -> 59 ms on the thesis frame). Stops counting
+// past `limit` vertices; with `write` it stores them at out_nodes[out ..] (at most `limit`).
+fn fit_iteration(
+    fit: ptr<function, Fit>,
+    base: u32,
+    eps: f32,
+    go: bool,
+    limit: u32,
+    write: bool,
+    out: u32,
+) {
+    let at = (*fit).i;
+    // A fit that goes no further loads its first texel (its next may be past the nodes' end).
+    let pair = node_pair(base + select(0u, at, go));
+    fit_step(fit, pick_node(pair, at), eps, go, limit, write, out);
+    // Node fit.i is in this texel when it is `at` or its pair's second; past the list's end
+    // never (n is even).
+    let again = go && ((*fit).i >> 1u) == (at >> 1u) && (*fit).count <= limit;
+    fit_step(fit, pick_node(pair, (*fit).i), eps, again, limit, write, out);
+}
+
+// Whether a fit over n nodes has steps left: nodes left, and no more than `limit` vertices.
+fn fit_goes(fit: Fit, n: u32, limit: u32) -> bool {
+    return fit.i < n && fit.count <= limit;
+}
+
+// A greedy fit's number of vertices once its loop has stopped: the open segment, unless it
+// stopped past `limit`, closes at the last node, one vertex more (stored with `write`).
+fn fit_end(fit: Fit, eps: f32, limit: u32, write: bool, out: u32) -> u32 {
     if fit.count > limit || !fit.open {
         return fit.count;
     }
-    // The open segment closes at the last node: one vertex more.
     let count = fit.count + 1u;
     if write && count <= limit {
         out_nodes[out + count - 1u] = close_segment(fit.origin, fit.last, fit.lo, fit.hi, eps);
     }
     return count;
+}
+
+// The greedy fits of two texels' lists at once, `a` and `b` (each: (base, n, out), base even)
+// within ±eps.x and ±eps.y, one loop for both: the vertex counts (each stops as soon as it
+// passes `limit`); with `write` their vertices at out_nodes[out ..] (at most `limit` each). A
+// texel whose `live` is false takes no step (its base must still be a node's: its partner's
+// does). The stop at `limit` is in the loop's exit condition (the search 127 -> 115 ms on the
+// thesis frame). Two fits a loop because a fit is a chain of dependent steps (each step's
+// interval, division and vertex wait on the last one's), which leaves a core idle much of the
+// time: a second fit over the same nodes, run beside the first in its loop for the
+// measurement, cost the thesis frame's search 18% more; two texels' fits in one loop (their
+// own loads and steps) took the search from 52 to 46 ms (docs/studies.md).
+fn fit_pair(
+    a: vec3<u32>,
+    b: vec3<u32>,
+    live: vec2<bool>,
+    eps: vec2<f32>,
+    limit: u32,
+    write: bool,
+) -> vec2<u32> {
+    let write_a = write && live.x;
+    let write_b = write && live.y;
+    var fit_a = fit_start(a.x, write_a, a.z);
+    var fit_b = fit_start(b.x, write_b, b.z);
+    let n = select(vec2<u32>(0u), vec2<u32>(a.y, b.y), live);
+    loop {
+        let go_a = fit_goes(fit_a, n.x, limit);
+        let go_b = fit_goes(fit_b, n.y, limit);
+        if !go_a && !go_b {
+            break;
+        }
+        fit_iteration(&fit_a, a.x, eps.x, go_a, limit, write_a, a.z);
+        fit_iteration(&fit_b, b.x, eps.y, go_b, limit, write_b, b.z);
+    }
+    return vec2<u32>(
+        fit_end(fit_a, eps.x, limit, write_a, a.z),
+        fit_end(fit_b, eps.y, limit, write_b, b.z),
+    );
 }
 
 // The search for ε in steps of one greedy fit each, run in rounds (see src/shadow/deep_capture.rs),
@@ -211,7 +266,8 @@ fn power_eps(grain: f32, k: f32) -> f32 {
 // Greedy fits per round: over a list of n segments (2n nodes, two a texel) each loops at most
 // n + N + 1 times, the final fit with its padding n + 2N + 1 (src/shadow/dsm.rs, `rounds`, says
 // why), within n + 36 each (N <= 16), from the loop budget less LOOPS_BESIDE_FITS: the copy of
-// a list that fits as it is (in lanes beside those that search) and the loops' exits. Keep in
+// the lists that fit as they are (an invocation's two in one loop of N, in lanes beside those
+// that search) and the loops' exits. Keep in
 // sync with `dsm::rounds` and `dsm::LOOPS_BESIDE_FITS`.
 const LOOPS_BESIDE_FITS: u32 = 64u;
 const FIT_LOOPS_BESIDE_LIST: u32 = 36u;
@@ -221,15 +277,151 @@ fn fits_per_round() -> u32 {
     return max(1u, budget / (capture.max_list + FIT_LOOPS_BESIDE_LIST));
 }
 
-// Writes the fit at `eps` (at most `limit` vertices, the last repeated into the free slots) and
-// adds the texel to the statistics.
-fn finish(base: u32, n: u32, eps: f32, limit: u32, out: u32) {
-    let written = min(greedy_fit(base, n, eps, limit, true, out), limit);
-    let tail = out_nodes[out + written - 1u];
-    for (var k = written; k < limit; k++) {
-        out_nodes[out + k] = tail;
+// One texel's compression: its list (its first node `base`, n nodes, output from `out`) and
+// the search for its tolerance (`compress`): the bracket (lo, hi) and the mode (the MODE_*
+// constants; MODE_DONE for a texel with nothing (left) to search).
+struct Texel {
+    real: bool,
+    base: u32,
+    n: u32,
+    out: u32,
+    grain: f32,
+    lo: f32,
+    hi: f32,
+    mode: f32,
+};
+
+// Texel `index`'s compression as it stands at this round (NO_TEXEL: none, done).
+fn texel_at(index: u32, limit: u32) -> Texel {
+    var t = Texel(index != NO_TEXEL, 0u, 0u, 0u, 0.0, 0.0, 0.0, MODE_DONE);
+    if !t.real {
+        return t;
     }
-    record_tolerance(eps);
+    let list = texel_list(index);
+    t.base = 2u * list.first;
+    t.n = 2u * list.count;
+    t.out = index * limit;
+    if t.n <= limit {
+        // Nothing to search: copied (or zeroed) in the first round (`copy_short_lists`).
+        return t;
+    }
+    let omega_max = node_texel(t.base + t.n - 1u).y;
+    t.grain = ldexp(omega_max, -i32(deep.bisection_steps));
+    t.mode = MODE_START;
+    // Between rounds the search's state waits in the texel's first sort keys, which nothing
+    // reads after the resolve: (lo, hi), then (mode, 0).
+    if pass_round.index > 0u {
+        let bounds = key_at(t.base);
+        t.lo = bounds.x;
+        t.hi = bounds.y;
+        t.mode = key_at(t.base + 1u).x;
+    }
+    return t;
+}
+
+fn searching(t: Texel) -> bool {
+    return t.mode != MODE_FINAL && t.mode != MODE_DONE;
+}
+
+// Whether the texel's list is longer than the nodes it keeps (it has a search, done or not).
+fn searches(t: Texel, limit: u32) -> bool {
+    return t.n > limit;
+}
+
+fn save_search(t: Texel) {
+    set_key_at(t.base, vec2<f32>(t.lo, t.hi));
+    set_key_at(t.base + 1u, vec2<f32>(t.mode, 0.0));
+}
+
+// The tolerance the search tries next, and what it bounds the bracket with: the exponent while
+// searching the powers (lo < it < hi: hi - lo >= 2 there), else the tolerance itself.
+fn search_try(t: Texel, first: f32) -> vec2<f32> {
+    if t.mode == MODE_START {
+        return vec2<f32>(0.0);
+    }
+    if t.mode == MODE_POWERS {
+        let power = power_to_try(t.lo, t.hi, first);
+        return vec2<f32>(power_eps(t.grain, power), power);
+    }
+    let mid = 0.5 * (t.lo + t.hi);
+    return vec2<f32>(mid);
+}
+
+// The search after the fit at `tried` (search_try's), which fits or not.
+fn search_advance(t: ptr<function, Texel>, tried: vec2<f32>, fits: bool) {
+    if (*t).mode == MODE_START {
+        // Exponents: -1 (ε = 0) fails, S (Ω_max) fits.
+        (*t).lo = -1.0;
+        (*t).hi = select(f32(deep.bisection_steps), 0.0, fits);
+        (*t).mode = select(MODE_POWERS, MODE_FINAL, fits);
+    } else {
+        (*t).lo = select(tried.y, (*t).lo, fits);
+        (*t).hi = select((*t).hi, tried.y, fits);
+    }
+    if (*t).mode == MODE_POWERS && (*t).hi - (*t).lo <= 1.0 {
+        // The bracket between neighbouring powers, in ε.
+        (*t).lo = power_eps((*t).grain, (*t).lo);
+        (*t).hi = power_eps((*t).grain, (*t).hi);
+        (*t).mode = MODE_BISECT;
+    }
+    if (*t).mode == MODE_BISECT && (*t).hi - (*t).lo <= (*t).grain {
+        (*t).mode = MODE_FINAL;
+    }
+}
+
+// The fit's (base, n, out) for `fit_pair`; a texel that takes no step lends its partner's base.
+fn fit_list(t: Texel, live: bool, partner: Texel) -> vec3<u32> {
+    return vec3<u32>(select(partner.base, t.base, live), t.n, t.out);
+}
+
+// The first round's copy of the lists that fit as they are (the last node repeated into the
+// free slots; no smoke on the ray: Ω = 0 at every depth), both texels in one loop.
+fn copy_short_lists(a: Texel, b: Texel, limit: u32) {
+    let copy = vec2<bool>(a.real && a.n > 0u && a.n <= limit, b.real && b.n > 0u && b.n <= limit);
+    let zero = vec2<bool>(a.real && a.n == 0u, b.real && b.n == 0u);
+    for (var k = 0u; k < limit; k++) {
+        if copy.x {
+            out_nodes[a.out + k] = node_texel(a.base + min(k, a.n - 1u));
+        } else if zero.x {
+            out_nodes[a.out + k] = vec2<f32>(0.0);
+        }
+        if copy.y {
+            out_nodes[b.out + k] = node_texel(b.base + min(k, b.n - 1u));
+        } else if zero.y {
+            out_nodes[b.out + k] = vec2<f32>(0.0);
+        }
+    }
+    if copy.x {
+        record_tolerance(0.0);
+    }
+    if copy.y {
+        record_tolerance(0.0);
+    }
+}
+
+// Writes the fits at the texels' tolerances (hi) where `live` (at most `limit` vertices each, the
+// last repeated into the free slots; one loop for both) and adds them to the statistics.
+fn finish_pair(a: Texel, b: Texel, live: vec2<bool>, limit: u32) {
+    let eps = vec2<f32>(a.hi, b.hi);
+    let list_a = fit_list(a, live.x, b);
+    let list_b = fit_list(b, live.y, a);
+    let written = min(fit_pair(list_a, list_b, live, eps, limit, true), vec2<u32>(limit));
+    let tail_a = out_nodes[a.out + max(written.x, 1u) - 1u];
+    let tail_b = out_nodes[b.out + max(written.y, 1u) - 1u];
+    for (var k = min(written.x, written.y); k < limit; k++) {
+        if live.x && k >= written.x {
+            out_nodes[a.out + k] = tail_a;
+        }
+        if live.y && k >= written.y {
+            out_nodes[b.out + k] = tail_b;
+        }
+    }
+    if live.x {
+        record_tolerance(a.hi);
+    }
+    if live.y {
+        record_tolerance(b.hi);
+    }
 }
 
 fn record_tolerance(eps: f32) {
@@ -245,60 +437,33 @@ fn record_tolerance(eps: f32) {
     }
 }
 
-@compute @workgroup_size(8, 8)
-fn compress(@builtin(global_invocation_id) id: vec3<u32>) {
-    let index = band_texel(id);
-    if index == NO_TEXEL {
-        return;
-    }
-    let list = texel_list(index);
+// Each invocation compresses two texels of its tile, the tile's places 2i and 2i + 1 in the
+// order `order_texels` left (longest list first, so the two are about as long), searching both
+// in the same loops (`fit_pair` says why).
+@compute @workgroup_size(8, 4)
+fn compress(
+    @builtin(workgroup_id) tile: vec3<u32>,
+    @builtin(local_invocation_index) place: u32,
+) {
     let limit = deep.nodes_per_texel;
-    let out = index * limit;
-    let base = 2u * list.first;
-    let n = 2u * list.count;
-    if n == 0u || n <= limit {
-        if pass_round.index > 0u {
-            return;
-        }
-        if n == 0u {
-            // No smoke on this ray: Ω = 0 at every depth.
-            for (var k = 0u; k < limit; k++) {
-                out_nodes[out + k] = vec2<f32>(0.0);
-            }
-            return;
-        }
-        // The whole list fits: copied as it is, the last node repeated.
-        for (var k = 0u; k < limit; k++) {
-            out_nodes[out + k] = node_texel(base + min(k, n - 1u));
-        }
-        record_tolerance(0.0);
+    var a = texel_at(tile_texel(tile.xy, 2u * place), limit);
+    var b = texel_at(tile_texel(tile.xy, 2u * place + 1u), limit);
+    if pass_round.index == 0u {
+        copy_short_lists(a, b, limit);
+    }
+    if a.mode == MODE_DONE && b.mode == MODE_DONE {
         return;
     }
     let per_round = fits_per_round();
-    let omega_max = node_texel(base + n - 1u).y;
-    let grain = ldexp(omega_max, -i32(deep.bisection_steps));
     let first = first_power();
-    var lo = 0.0;
-    var hi = 0.0;
-    var mode = MODE_START;
-    // Between rounds the search's state waits in the texel's first sort keys, which nothing
-    // reads after the resolve: (lo, hi), then (mode, 0).
-    if pass_round.index > 0u {
-        let bounds = key_at(base);
-        lo = bounds.x;
-        hi = bounds.y;
-        mode = key_at(base + 1u).x;
-        if mode == MODE_DONE {
-            return;
-        }
-    }
     // The search's fits, then the final fit outside their loop: every lane of a SIMD group that
     // has its ε by then writes its fit in the same pass over the lists. (A final fit inside the
     // loop ran once for each step at which some lane of the group finished: the search 107 -> 94
     // ms on the thesis frame.) llvmpipe counts loop iterations per SIMD group, whichever lanes
     // run them, so a group's fits in one dispatch, the search's in lockstep and then the final
     // one, stay within `per_round`: at most per_round - 1 search fits, and with one fit a
-    // round, search fits in even rounds and final fits in odd ones (`dsm::rounds`).
+    // round, search fits in even rounds and final fits in odd ones (`dsm::rounds`). A fit of
+    // two texels at once is one fit here: one loop over the longer list.
     var search_fits = per_round - 1u;
     var may_finish = true;
     if per_round == 1u {
@@ -307,47 +472,34 @@ fn compress(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     var steps = 0u;
     loop {
-        if steps >= search_fits || mode == MODE_FINAL {
+        let live = vec2<bool>(searching(a), searching(b));
+        if steps >= search_fits || !any(live) {
             break;
         }
         steps++;
-        // The powers' search's next exponent (lo < it < hi: hi - lo >= 2 there).
-        let power = power_to_try(lo, hi, first);
-        var eps = 0.5 * (lo + hi);
-        if mode == MODE_START {
-            eps = 0.0;
-        } else if mode == MODE_POWERS {
-            eps = power_eps(grain, power);
+        let try_a = search_try(a, first);
+        let try_b = search_try(b, first);
+        let eps = vec2<f32>(try_a.x, try_b.x);
+        let list_a = fit_list(a, live.x, b);
+        let list_b = fit_list(b, live.y, a);
+        let counts = fit_pair(list_a, list_b, live, eps, limit, false);
+        if live.x {
+            search_advance(&a, try_a, counts.x <= limit);
         }
-        let fits = greedy_fit(base, n, eps, limit, false, out) <= limit;
-        if mode == MODE_START {
-            // Exponents: -1 (ε = 0) fails, S (Ω_max) fits.
-            lo = -1.0;
-            hi = f32(deep.bisection_steps);
-            mode = select(MODE_POWERS, MODE_FINAL, fits);
-            if fits {
-                hi = 0.0;
-            }
-        } else {
-            // What was tried (an exponent while searching the powers) bounds the bracket.
-            let tried = select(eps, power, mode == MODE_POWERS);
-            lo = select(tried, lo, fits);
-            hi = select(hi, tried, fits);
-        }
-        if mode == MODE_POWERS && hi - lo <= 1.0 {
-            // The bracket between neighbouring powers, in ε.
-            lo = power_eps(grain, lo);
-            hi = power_eps(grain, hi);
-            mode = MODE_BISECT;
-        }
-        if mode == MODE_BISECT && hi - lo <= grain {
-            mode = MODE_FINAL;
+        if live.y {
+            search_advance(&b, try_b, counts.y <= limit);
         }
     }
-    if mode == MODE_FINAL && may_finish {
-        finish(base, n, hi, limit, out);
-        mode = MODE_DONE;
+    let finals = vec2<bool>(a.mode == MODE_FINAL, b.mode == MODE_FINAL) & vec2<bool>(may_finish);
+    if any(finals) {
+        finish_pair(a, b, finals, limit);
+        a.mode = select(a.mode, MODE_DONE, finals.x);
+        b.mode = select(b.mode, MODE_DONE, finals.y);
     }
-    set_key_at(base, vec2<f32>(lo, hi));
-    set_key_at(base + 1u, vec2<f32>(mode, 0.0));
+    if searches(a, limit) {
+        save_search(a);
+    }
+    if searches(b, limit) {
+        save_search(b);
+    }
 }

@@ -12,7 +12,9 @@
 //! takes (`deep_capture`'s loop budget). Adding one: a spec and an entry in
 //! `src/shadow/<name>.rs`, a lookup shader that imports `shadow/deep_nodes.wgsl`, a build shader
 //! that imports `shadow/deep_capture_lists.wgsl` and `shadow/deep_params.wgsl`, declares group 2
-//! as [`DeepNodes::new`] lays it out, covers the texels `band_texel` gives it, and does round
+//! as [`DeepNodes::new`] lays it out, covers the texels of the band's 8x8 tiles (one workgroup
+//! a tile: `band_texel` gives an 8x8 workgroup's invocation its texel, `tile_texel` a tile's
+//! texel by place, as `dsm`'s two texels an invocation take them), and does round
 //! `pass_round.index`'s share of its work (group 3).
 
 use bytemuck::{Pod, Zeroable};

@@ -75,7 +75,7 @@ const SEARCH_STEPS: u32 = BISECTION_STEPS + 3 + (u32::BITS - BISECTION_STEPS.lea
 /// Rounds of the compression: a greedy fit over the 2n nodes of n segments steps at most
 /// 2n + N - 1 times: each node after the first once, and a look again after each closed
 /// segment, at most N of them before it stops (N <= 16). It takes two steps a loop iteration
-/// where the second node is in the first one's texel (`greedy_fit` in the shader); an
+/// where the second node is in the first one's texel (`fit_iteration` in the shader); an
 /// iteration of one step starts at the second node of a texel, which the first iteration and at
 /// most one after each closed segment do, and the one that stops the fit may take one too: at
 /// most N + 2 of them. So at most (2n + N - 1 + N + 2) / 2 iterations, n + N + 1 with the
@@ -84,10 +84,11 @@ const SEARCH_STEPS: u32 = BISECTION_STEPS + 3 + (u32::BITS - BISECTION_STEPS.lea
 /// LOOPS_BESIDE_FITS) / (max_list + 36)` fits (`fits_per_round` in the shader; two steps an
 /// iteration doubled it). llvmpipe counts a SIMD group's loop iterations, whichever of its
 /// lanes run them, so a round's fits are the group's: at most per_round - 1 search fits in
-/// lockstep, then the final fit of every lane that has its ε. The search fits
-/// (`SEARCH_STEPS` - 1) take ceil((SEARCH_STEPS - 1) / (per_round - 1)) rounds, the final fit
-/// in the round of the last; with room for one fit a round, search fits run in even rounds and
-/// final fits in odd ones.
+/// lockstep, then the final fit of every lane that has its ε. (Each lane fits two texels in
+/// one loop, `fit_pair`: that loop runs as long as the longer fit, within the same allowance.)
+/// The search fits (`SEARCH_STEPS` - 1) take ceil((SEARCH_STEPS - 1) / (per_round - 1))
+/// rounds, the final fit in the round of the last; with room for one fit a round, search fits
+/// run in even rounds and final fits in odd ones.
 fn rounds(max_list: u32, loop_budget: u32) -> u32 {
     let search_fits = SEARCH_STEPS - 1;
     match fits_per_round(max_list, loop_budget) {
