@@ -37,12 +37,14 @@ fn deep_texel_value(texel: vec2<i32>, z: f32, before: f32) -> f32 {
 }
 
 // The four texels around `l` (a point inside the map), each evaluated at l's depth, blended
-// bilinearly.
+// bilinearly. Written out four times (`#unroll`; llvmpipe does not unroll loops itself), so
+// that the four texels' bisections, each a chain of loads that wait on the last, overlap: the
+// thesis frame's opaque pass, `dsm`'s lookups on the ground, 10-11 -> 8-9 ms.
 fn deep_blended_value(l: LightCoords, before: f32) -> f32 {
     var taps = bilinear_taps(l.uv, vec2<i32>(i32(deep.resolution)));
     var value = 0.0;
-    for (var i = 0; i < 4; i++) {
+    #unroll i 0..4
         value += taps.weights[i] * deep_texel_value(taps.texels[i], l.dist_m, before);
-    }
+    #end_unroll
     return value;
 }
