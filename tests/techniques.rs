@@ -1092,6 +1092,51 @@ fn dsm_stays_within_the_tolerance_it_reports() {
 }
 
 #[test]
+fn deep_maps_counted_with_atomics_equal_those_counted_by_blending() {
+    // Where 32-bit float targets blend (lavapipe's do), the capture's count pass adds 1 a
+    // fragment into a float target; elsewhere each fragment adds 1 to its texel's count with an
+    // atomic. Either way every fragment is counted once, so the lists, their sort and their
+    // compression are the same, and so is T.
+    let scene = reduced_plume();
+    let particles = simulate(&scene);
+    let points = shaded_points(&scene, &particles, (W, H), 8, None);
+    let res = 64;
+    let blending_gpu = gpu();
+    let mut atomic_gpu = gpu();
+    atomic_gpu
+        .features
+        .remove(wgpu::Features::FLOAT32_BLENDABLE);
+    for name in ["dsm", "avsm"] {
+        let config = technique(name, 4, res, SplatMode::Segment);
+        let (blended, blended_counters) =
+            probe_with_counters(&blending_gpu, &scene, &particles, &config, &points);
+        let (atomic, atomic_counters) =
+            probe_with_counters(&atomic_gpu, &scene, &particles, &config, &points);
+        assert_eq!(
+            counter(&blended_counters, "counts_by_blending"),
+            1,
+            "{name}"
+        );
+        assert_eq!(counter(&atomic_counters, "counts_by_blending"), 0, "{name}");
+        assert!(
+            counter(&blended_counters, "segments") > 10_000,
+            "{name}: {blended_counters:?}"
+        );
+        for what in ["segments", "max_texel_list"] {
+            assert_eq!(
+                counter(&blended_counters, what),
+                counter(&atomic_counters, what),
+                "{name}: {what}"
+            );
+        }
+        assert_eq!(
+            blended, atomic,
+            "{name}: T counted by blending and with atomics"
+        );
+    }
+}
+
+#[test]
 fn deep_maps_captured_in_bands_equal_the_map_captured_whole() {
     // On an adapter that binds only a third of the capture's nodes per buffer, the capture
     // splits the map into bands of rows. Each texel's list, its sort and its compression are

@@ -2,7 +2,8 @@
 // segment stored per texel and merged into the texel's piecewise-linear optical depth, the
 // uncompressed deep shadow map of Lokovic & Veach (2000) that `dsm` and `avsm` compress.
 // 1. fs_count: every light-space particle fragment (one light ray through one particle) counts
-//    itself in its texel (atomic add).
+//    itself in its texel (atomic add); or fs_count_blended, by adding 1 to its texel of a float
+//    target, which counts_from_blend turns into the counts.
 // 2. scan_rows, scan_total, scan_write (shaders/shadow/grid_scan.wgsl, shared with `exact`):
 //    exclusive prefix sum of the counts -> list offsets (offsets[res²] = total).
 // 3. fs_fill: every fragment of the current band of rows writes its segment (z0, z1, optical
@@ -60,7 +61,7 @@ fn texel_index(clip: vec4<f32>) -> u32 {
     return texel.y * capture.resolution + texel.x;
 }
 
-// The colour output is a dummy (its target's write mask is empty): the lists are the result.
+// The colour output adds nothing to its target (a dummy here): the counts are the result.
 @fragment
 fn fs_count(in: BuildVertexOut) -> @location(0) vec4<f32> {
     if fragment_segment(in).optical_depth < 0.0 {
@@ -68,6 +69,28 @@ fn fs_count(in: BuildVertexOut) -> @location(0) vec4<f32> {
     }
     atomicAdd(&counts[texel_index(in.clip)], 1u);
     return vec4<f32>(0.0);
+}
+
+// fs_count where the count pass counts by blending (src/shadow/deep_capture.rs,
+// `counts_by_blending`): the fragment adds 1 to its texel of the R32Float target, which
+// `counts_from_blend` then turns into the counts.
+@fragment
+fn fs_count_blended(in: BuildVertexOut) -> @location(0) vec4<f32> {
+    if fragment_segment(in).optical_depth < 0.0 {
+        discard;
+    }
+    return vec4<f32>(1.0);
+}
+
+// The counts from the count target's floats, copied into `counts` as their bits (whole numbers,
+// exact in floats far beyond the longest list a capture accepts).
+@compute @workgroup_size(8, 8)
+fn counts_from_blend(@builtin(global_invocation_id) id: vec3<u32>) {
+    if id.x >= capture.resolution || id.y >= capture.resolution {
+        return;
+    }
+    let texel = id.y * capture.resolution + id.x;
+    atomicStore(&counts[texel], u32(bitcast<f32>(atomicLoad(&counts[texel]))));
 }
 
 // The band texel of a fill fragment and its slot in the lists, or NO_TEXEL (the fragment is
@@ -119,13 +142,19 @@ fn volume_segment(ray: VolumeRay, i: u32) -> Segment {
     return out;
 }
 
-@fragment
-fn fs_count_volume(in: VolumeVertexOut) -> @location(0) vec4<f32> {
+// The segments of a volume fragment's light ray (the steps with density).
+fn volume_segments(in: VolumeVertexOut) -> u32 {
     let ray = volume_light_ray(in.ndc);
     var n = 0u;
     for (var i = 0u; i < ray.steps; i++) {
         n += u32(volume_segment(ray, i).optical_depth >= 0.0);
     }
+    return n;
+}
+
+@fragment
+fn fs_count_volume(in: VolumeVertexOut) -> @location(0) vec4<f32> {
+    let n = volume_segments(in);
     if n == 0u {
         discard;
     }
@@ -140,6 +169,16 @@ fn volume_texel(clip: vec4<f32>) -> u32 {
         return NO_TEXEL;
     }
     return texel_index(clip);
+}
+
+// fs_count_volume where the count pass counts by blending: the fragment adds its segments.
+@fragment
+fn fs_count_volume_blended(in: VolumeVertexOut) -> @location(0) vec4<f32> {
+    let n = volume_segments(in);
+    if n == 0u {
+        discard;
+    }
+    return vec4<f32>(f32(n));
 }
 
 @fragment

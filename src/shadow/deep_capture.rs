@@ -4,7 +4,9 @@
 //! compress (see `deep_nodes.rs`).
 //!
 //! Four passes, all in shaders/shadow/deep_capture.wgsl: a count raster pass over the
-//! light-space billboards (atomic count per texel), a prefix scan into list offsets, a fill pass
+//! light-space billboards (a count per texel: additive blending into a float target where the
+//! adapter blends 32-bit floats, `counts_by_blending`, else atomics), a prefix scan into list
+//! offsets, a fill pass
 //! writing each fragment's segment (z0, z1, optical depth, draw index) into its texel's list, and
 //! the resolve's compute passes, as the owner asks ([`Resolve`]): for `dsm`, it splits each
 //! segment into two events, its start (z0, slope) and its end (z1, −slope), and sorts them by
@@ -197,12 +199,27 @@ fn node_texel_count(capacity: u64, node_texels: bool) -> u64 {
 
 /// Segments the lists hold before the first frame asks for more.
 const INITIAL_CAPACITY: u32 = 1 << 16;
-/// Format of the dummy colour target the list passes rasterise into (nothing is written).
-const DUMMY_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R8Unorm;
+/// The colour target the list passes rasterise into, 4 bytes a texel either way: where 32-bit
+/// floats blend and a row of it copies into the counts as it is (`counts_by_blending`), the
+/// count pass counts there by additive blending (llvmpipe's atomics took the count pass 7.3
+/// -> 12 ms on the thesis frame) and the fill adds nothing; elsewhere the count pass counts
+/// with atomics and the target is a dummy (both passes add nothing to it).
+const COUNT_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Float;
+const DUMMY_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
+
+/// Whether the count pass of a capture at `resolution_px` counts by blending on `gpu`: 32-bit
+/// float targets blend there, and a row of the count target is a whole number of the copy's
+/// row alignment (256 bytes: `resolution_px` a multiple of 64), so it copies into the counts
+/// as it is.
+fn counts_by_blending(gpu: &Gpu, resolution_px: u32) -> bool {
+    gpu.features.contains(wgpu::Features::FLOAT32_BLENDABLE)
+        && (resolution_px * 4).is_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT)
+}
 
 /// The bytes a capture at `resolution_px` with lists for `segment_capacity` segments allocates:
 /// a 32-byte uniform, the 64 KiB round uniform, counts, offsets (+1 for the total), row sums
-/// (+1), the texel order (64 entries a tile of 8x8 texels), an R8 raster target, 16 bytes of
+/// (+1), the texel order (64 entries a tile of 8x8 texels), a raster target of 4 bytes a texel
+/// (`COUNT_FORMAT` or `DUMMY_FORMAT`), 16 bytes of
 /// segment storage per segment, and for `avsm` 16 bytes of node storage per segment, for `dsm`
 /// (`node_texels`) the two key textures (`KEY_TEXTURES`), 4 x capacity texels of 4 bytes each
 /// in whole rows, and the resolved nodes (`NODE_FORMAT`), capacity texels of 16 bytes each in
@@ -218,7 +235,7 @@ pub fn bytes(resolution_px: u32, segment_capacity: u64, node_texels: bool) -> u6
         + (texels + 1) * 4
         + (u64::from(resolution_px) + 1) * 4
         + texel_order_bytes(resolution_px)
-        + texels
+        + texels * 4
         + segment_buffer_bytes(segment_capacity)
         + node_buffer_bytes(segment_capacity, node_texels)
         + u64::from(width) * u64::from(height) * KEY_TEXTURES.len() as u64 * SORT_KEY_BYTES
@@ -295,7 +312,10 @@ pub struct DeepCapture {
     row_sums: wgpu::Buffer,
     /// Per 8x8 tile of the band, its texels in the order the per-texel passes take them.
     texel_order: wgpu::Buffer,
-    dummy_target: wgpu::TextureView,
+    /// The raster target, and whether the count pass counts into it (`counts_by_blending`).
+    raster_target: wgpu::Texture,
+    raster_view: wgpu::TextureView,
+    blended_counts: bool,
     layouts: Layouts,
     count_pipeline: wgpu::RenderPipeline,
     fill_pipeline: wgpu::RenderPipeline,
@@ -304,6 +324,8 @@ pub struct DeepCapture {
     count_volume: VolumeBuild,
     fill_volume: VolumeBuild,
     volume: bool,
+    /// The counts from the count target's floats (`counts_by_blending`).
+    counts_from_blend: wgpu::ComputePipeline,
     scan_rows: wgpu::ComputePipeline,
     scan_total: wgpu::ComputePipeline,
     scan_write: wgpu::ComputePipeline,
@@ -559,17 +581,21 @@ impl DeepCapture {
         let offsets = storage("offsets", (texels + 1) * 4)?;
         let row_sums = storage("row_sums", (u64::from(res) + 1) * 4)?;
         let texel_order = storage("texel_order", texel_order_bytes(res))?;
-        let dummy_target = memory
-            .texture_transient(
-                device,
-                &crate::gpu::texture_2d_descriptor(
-                    &label("raster_target"),
-                    (res, res),
-                    DUMMY_FORMAT,
-                    wgpu::TextureUsages::RENDER_ATTACHMENT,
-                ),
-            )?
-            .create_view(&wgpu::TextureViewDescriptor::default());
+        let blended_counts = counts_by_blending(gpu, res);
+        let raster_format = if blended_counts {
+            COUNT_FORMAT
+        } else {
+            DUMMY_FORMAT
+        };
+        let raster_target = memory.texture_transient(
+            device,
+            &crate::gpu::texture_2d_descriptor(
+                &label("raster_target"),
+                (res, res),
+                raster_format,
+                wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+            ),
+        )?;
 
         let compute = wgpu::ShaderStages::COMPUTE;
         let raster_and_compute = wgpu::ShaderStages::FRAGMENT | compute;
@@ -616,11 +642,16 @@ impl DeepCapture {
                 &module,
                 entry,
                 &groups,
-                &[DUMMY_FORMAT],
+                &[raster_format],
                 super::layered::ADDITIVE,
             )
         };
-        let count_pipeline = raster("count", "fs_count");
+        let count_entry = if blended_counts {
+            "fs_count_blended"
+        } else {
+            "fs_count"
+        };
+        let count_pipeline = raster("count", count_entry);
         let fill_pipeline = raster("fill", "fs_fill");
         let volume = |what: &str, entry: &'static str| {
             VolumeBuild::new(
@@ -629,10 +660,17 @@ impl DeepCapture {
                 label(what),
                 entry,
                 &[frame_layout, layout],
-                &[(DUMMY_FORMAT, super::layered::ADDITIVE)],
+                &[(raster_format, super::layered::ADDITIVE)],
             )
         };
-        let count_volume = volume("count.volume", "fs_count_volume");
+        let count_volume = volume(
+            "count.volume",
+            if blended_counts {
+                "fs_count_volume_blended"
+            } else {
+                "fs_count_volume"
+            },
+        );
         let fill_volume = volume("fill.volume", "fs_fill_volume");
         let compute_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some(&label("compute.pipeline_layout")),
@@ -686,6 +724,7 @@ impl DeepCapture {
         let capture = Self {
             name,
             resolution: res,
+            counts_from_blend: compute("counts_from_blend"),
             scan_rows: compute("scan_rows"),
             scan_total: compute("scan_total"),
             scan_write: compute("scan_write"),
@@ -696,7 +735,9 @@ impl DeepCapture {
             offsets,
             row_sums,
             texel_order,
-            dummy_target,
+            raster_view: raster_target.create_view(&wgpu::TextureViewDescriptor::default()),
+            raster_target,
+            blended_counts,
             layouts,
             count_pipeline,
             fill_pipeline,
@@ -747,6 +788,11 @@ impl DeepCapture {
     /// Segments the lists hold.
     pub fn capacity(&self) -> u32 {
         self.lists.capacity
+    }
+
+    /// Whether the count pass counts by blending (`counts_by_blending`), else with atomics.
+    pub fn counts_by_blending(&self) -> bool {
+        self.blended_counts
     }
 
     /// Points the passes at `band` (landing at the next submission).
@@ -813,6 +859,9 @@ impl DeepCapture {
             particles,
             particle_count,
         );
+        if self.blended_counts {
+            self.take_blended_counts(&mut count_encoder, timer, frame_bind_group);
+        }
         // Each scan step in a pass of its own, so that each sees the previous one's writes
         // whatever the backend's barriers between dispatches of one pass.
         let row_groups = self.resolution.div_ceil(64);
@@ -899,6 +948,41 @@ impl DeepCapture {
             }
         }
         Ok(())
+    }
+
+    /// Records the copy of the count pass's blended counts into `counts` (a float's bits a
+    /// texel) and their conversion there to integers.
+    fn take_blended_counts(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        timer: &mut GpuTimer,
+        frame_bind_group: &wgpu::BindGroup,
+    ) {
+        let side = self.resolution;
+        encoder.copy_texture_to_buffer(
+            self.raster_target.as_image_copy(),
+            wgpu::TexelCopyBufferInfo {
+                buffer: &self.counts,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(side * 4),
+                    rows_per_image: Some(side),
+                },
+            },
+            wgpu::Extent3d {
+                width: side,
+                height: side,
+                depth_or_array_layers: 1,
+            },
+        );
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some(&format!("{}.capture.counts_from_blend", self.name)),
+            timestamp_writes: timer.compute_pass("shadow"),
+        });
+        pass.set_pipeline(&self.counts_from_blend);
+        pass.set_bind_group(0, frame_bind_group, &[]);
+        pass.set_bind_group(1, &self.lists.own_bind_group, &[]);
+        pass.dispatch_workgroups(side.div_ceil(8), side.div_ceil(8), 1);
     }
 
     /// Records one band's fill and resolve.
@@ -995,7 +1079,7 @@ impl DeepCapture {
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some(&format!("{}.capture.{what}", self.name)),
             color_attachments: &[cleared_attachment(
-                &self.dummy_target,
+                &self.raster_view,
                 wgpu::Color::TRANSPARENT,
             )],
             depth_stencil_attachment: None,

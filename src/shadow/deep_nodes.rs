@@ -309,6 +309,10 @@ impl ShadowTechnique for DeepNodes {
             ("segment_capacity", u64::from(self.capture.capacity())),
             ("capture_bands", u64::from(self.capture.bands())),
             ("max_texel_list", u64::from(self.capture.max_list())),
+            (
+                "counts_by_blending",
+                u64::from(self.capture.counts_by_blending()),
+            ),
         ];
         out.extend((self.spec.stats_counters)(&self.last_stats));
         out
