@@ -1091,27 +1091,30 @@ fn dsm_stays_within_the_tolerance_it_reports() {
     );
 }
 
+/// `name` (`dsm` or `avsm`) at 4 channels on the reduced plume's 64² map, on `gpu`: T at the
+/// scene's shaded points, and the technique's counters.
+fn reduced_deep_map(gpu: &Gpu, name: &str) -> (Vec<f32>, Vec<(&'static str, u64)>) {
+    let scene = reduced_plume();
+    let particles = simulate(&scene);
+    let points = shaded_points(&scene, &particles, (W, H), 8, None);
+    let config = technique(name, 4, 64, SplatMode::Segment);
+    probe_with_counters(gpu, &scene, &particles, &config, &points)
+}
+
 #[test]
 fn deep_maps_counted_with_atomics_equal_those_counted_by_blending() {
     // Where 32-bit float targets blend (lavapipe's do), the capture's count pass adds 1 a
     // fragment into a float target; elsewhere each fragment adds 1 to its texel's count with an
     // atomic. Either way every fragment is counted once, so the lists, their sort and their
     // compression are the same, and so is T.
-    let scene = reduced_plume();
-    let particles = simulate(&scene);
-    let points = shaded_points(&scene, &particles, (W, H), 8, None);
-    let res = 64;
     let blending_gpu = gpu();
     let mut atomic_gpu = gpu();
     atomic_gpu
         .features
         .remove(wgpu::Features::FLOAT32_BLENDABLE);
     for name in ["dsm", "avsm"] {
-        let config = technique(name, 4, res, SplatMode::Segment);
-        let (blended, blended_counters) =
-            probe_with_counters(&blending_gpu, &scene, &particles, &config, &points);
-        let (atomic, atomic_counters) =
-            probe_with_counters(&atomic_gpu, &scene, &particles, &config, &points);
+        let (blended, blended_counters) = reduced_deep_map(&blending_gpu, name);
+        let (atomic, atomic_counters) = reduced_deep_map(&atomic_gpu, name);
         assert_eq!(
             counter(&blended_counters, "counts_by_blending"),
             1,
@@ -1141,23 +1144,16 @@ fn deep_maps_captured_in_bands_equal_the_map_captured_whole() {
     // On an adapter that binds only a third of the capture's nodes per buffer, the capture
     // splits the map into bands of rows. Each texel's list, its sort and its compression are
     // the same as when the map is captured whole, so T is identical.
-    let scene = reduced_plume();
-    let particles = simulate(&scene);
-    let points = shaded_points(&scene, &particles, (W, H), 8, None);
-    let res = 64;
     let whole_gpu = gpu();
     for name in ["dsm", "avsm"] {
-        let config = technique(name, 4, res, SplatMode::Segment);
-        let (whole, counters) =
-            probe_with_counters(&whole_gpu, &scene, &particles, &config, &points);
+        let (whole, counters) = reduced_deep_map(&whole_gpu, name);
         assert_eq!(counter(&counters, "capture_bands"), 1, "{counters:?}");
         let segments = counter(&counters, "segments");
         assert!(segments > 10_000, "{counters:?}");
         let mut banded_gpu = gpu();
         // 16 bytes of nodes per segment (deep_capture::NODE_BYTES_PER_SEGMENT).
         banded_gpu.limits.max_storage_buffer_binding_size = (segments / 3) * 16;
-        let (banded, counters) =
-            probe_with_counters(&banded_gpu, &scene, &particles, &config, &points);
+        let (banded, counters) = reduced_deep_map(&banded_gpu, name);
         println!("{name} in bands: {counters:?}");
         let bands = counter(&counters, "capture_bands");
         assert!((3..=6).contains(&bands), "{name}: {counters:?}");
