@@ -166,41 +166,42 @@ fn fit_end(fit: Fit, eps: f32, limit: u32, write: bool, out: u32) -> u32 {
     return count;
 }
 
-// The greedy fits of two texels' lists at once, `a` and `b` (each: (base, n, out), base even)
-// within ±eps.x and ±eps.y, one loop for both: the vertex counts (each stops as soon as it
-// passes `limit`); with `write` their vertices at out_nodes[out ..] (at most `limit` each). A
-// texel whose `live` is false takes no step (its base must still be a node's: its partner's
-// does). The stop at `limit` is in the loop's exit condition (the search 127 -> 115 ms on the
-// thesis frame). Two fits a loop because a fit is a chain of dependent steps (each step's
-// interval, division and vertex wait on the last one's), which leaves a core idle much of the
-// time: a second fit over the same nodes, run beside the first in its loop for the
-// measurement, cost the thesis frame's search 18% more; two texels' fits in one loop (their
-// own loads and steps) took the search from 52 to 46 ms (docs/studies.md).
+// The greedy fits of two texels' lists at once, `a`'s and `b`'s, within ±eps.x and ±eps.y, one loop
+// for both: the vertex counts (each stops as soon as it passes `limit`); with `write` their
+// vertices at out_nodes[out ..] (at most `limit` each). A texel whose `live` is false takes no step
+// (it loads its partner's first node, a real one, where its own list may be empty). The stop at
+// `limit` is in the loop's exit condition (the search 127 -> 115 ms on the thesis frame). Two fits
+// a loop because a fit is a chain of dependent steps (each step's interval, division and vertex
+// wait on the last one's), which leaves a core idle much of the time: a second fit over the same
+// nodes, run beside the first in its loop for the measurement, cost the thesis frame's search 18%
+// more; two texels' fits in one loop (their own loads and steps) took the search from 52 to 46 ms
+// (docs/studies.md).
 fn fit_pair(
-    a: vec3<u32>,
-    b: vec3<u32>,
+    a: Texel,
+    b: Texel,
     live: vec2<bool>,
     eps: vec2<f32>,
     limit: u32,
     write: bool,
 ) -> vec2<u32> {
+    let base = vec2<u32>(select(b.base, a.base, live.x), select(a.base, b.base, live.y));
+    let n = select(vec2<u32>(0u), vec2<u32>(a.n, b.n), live);
     let write_a = write && live.x;
     let write_b = write && live.y;
-    var fit_a = fit_start(a.x, write_a, a.z);
-    var fit_b = fit_start(b.x, write_b, b.z);
-    let n = select(vec2<u32>(0u), vec2<u32>(a.y, b.y), live);
+    var fit_a = fit_start(base.x, write_a, a.out);
+    var fit_b = fit_start(base.y, write_b, b.out);
     loop {
         let go_a = fit_goes(fit_a, n.x, limit);
         let go_b = fit_goes(fit_b, n.y, limit);
         if !go_a && !go_b {
             break;
         }
-        fit_iteration(&fit_a, a.x, eps.x, go_a, limit, write_a, a.z);
-        fit_iteration(&fit_b, b.x, eps.y, go_b, limit, write_b, b.z);
+        fit_iteration(&fit_a, base.x, eps.x, go_a, limit, write_a, a.out);
+        fit_iteration(&fit_b, base.y, eps.y, go_b, limit, write_b, b.out);
     }
     return vec2<u32>(
-        fit_end(fit_a, eps.x, limit, write_a, a.z),
-        fit_end(fit_b, eps.y, limit, write_b, b.z),
+        fit_end(fit_a, eps.x, limit, write_a, a.out),
+        fit_end(fit_b, eps.y, limit, write_b, b.out),
     );
 }
 
@@ -226,13 +227,13 @@ const MODE_FINAL: f32 = 2.0;
 const MODE_POWERS: f32 = 3.0;
 const MODE_DONE: f32 = 4.0;
 
-// The exponent of the powers' search to try next in the bracket (lo, hi) of exponents (lo fails,
-// hi fits, hi - lo >= 2): first `first` (`first_power()`), the top of the bracket most texels end in;
-// then its neighbour on the side its fit leaves open, which closes the bracket where the first
-// was its top or bottom; then the middle of what is left. A binary search from the middle, which
-// this replaced, took four fits to any bracket (the first, at g·2^5, ran over the whole list for
-// most texels); llvmpipe runs a SIMD group's lanes in lockstep, so its fits run as long as its
-// longest lane's: the search 59 -> 52 ms on the thesis frame.
+// The exponent of the powers' search to try next in the bracket (lo, hi) of exponents (lo fails, hi
+// fits, hi - lo >= 2): first `first` (`first_power()`), the top of the bracket most texels end in;
+// then its neighbour on the side its fit leaves open, which closes the bracket where the first was
+// its top or bottom; then the middle of what is left. A binary search from the middle, which this
+// replaced, took four fits to any bracket (the first, at g·2^5, ran over the whole list for most
+// texels); llvmpipe runs a SIMD group's lanes in lockstep, so its fits run as long as its longest
+// lane's: the search 59 -> 52 ms on the thesis frame.
 fn power_to_try(lo: f32, hi: f32, first: f32) -> f32 {
     let top = f32(deep.bisection_steps);
     var k = floor(0.5 * (lo + hi));
@@ -267,8 +268,8 @@ fn power_eps(grain: f32, k: f32) -> f32 {
 // n + N + 1 times, the final fit with its padding n + 2N + 1 (src/shadow/dsm.rs, `rounds`, says
 // why), within n + 36 each (N <= 16), from the loop budget less LOOPS_BESIDE_FITS: the copy of
 // the lists that fit as they are (an invocation's two in one loop of N, in lanes beside those
-// that search) and the loops' exits. Keep in
-// sync with `dsm::rounds` and `dsm::LOOPS_BESIDE_FITS`.
+// that search) and the loops' exits. Keep in sync with `dsm::rounds` and
+// `dsm::LOOPS_BESIDE_FITS`.
 const LOOPS_BESIDE_FITS: u32 = 64u;
 const FIT_LOOPS_BESIDE_LIST: u32 = 36u;
 
@@ -369,11 +370,6 @@ fn search_advance(t: ptr<function, Texel>, tried: vec2<f32>, fits: bool) {
     }
 }
 
-// The fit's (base, n, out) for `fit_pair`; a texel that takes no step lends its partner's base.
-fn fit_list(t: Texel, live: bool, partner: Texel) -> vec3<u32> {
-    return vec3<u32>(select(partner.base, t.base, live), t.n, t.out);
-}
-
 // The first round's copy of the lists that fit as they are (the last node repeated into the
 // free slots; no smoke on the ray: Ω = 0 at every depth), both texels in one loop.
 fn copy_short_lists(a: Texel, b: Texel, limit: u32) {
@@ -403,9 +399,7 @@ fn copy_short_lists(a: Texel, b: Texel, limit: u32) {
 // last repeated into the free slots; one loop for both) and adds them to the statistics.
 fn finish_pair(a: Texel, b: Texel, live: vec2<bool>, limit: u32) {
     let eps = vec2<f32>(a.hi, b.hi);
-    let list_a = fit_list(a, live.x, b);
-    let list_b = fit_list(b, live.y, a);
-    let written = min(fit_pair(list_a, list_b, live, eps, limit, true), vec2<u32>(limit));
+    let written = min(fit_pair(a, b, live, eps, limit, true), vec2<u32>(limit));
     let tail_a = out_nodes[a.out + max(written.x, 1u) - 1u];
     let tail_b = out_nodes[b.out + max(written.y, 1u) - 1u];
     for (var k = min(written.x, written.y); k < limit; k++) {
@@ -480,9 +474,7 @@ fn compress(
         let try_a = search_try(a, first);
         let try_b = search_try(b, first);
         let eps = vec2<f32>(try_a.x, try_b.x);
-        let list_a = fit_list(a, live.x, b);
-        let list_b = fit_list(b, live.y, a);
-        let counts = fit_pair(list_a, list_b, live, eps, limit, false);
+        let counts = fit_pair(a, b, live, eps, limit, false);
         if live.x {
             search_advance(&a, try_a, counts.x <= limit);
         }

@@ -6,17 +6,16 @@
 //! Four passes, all in shaders/shadow/deep_capture.wgsl: a count raster pass over the
 //! light-space billboards (a count per texel: additive blending into a float target where the
 //! adapter blends 32-bit floats, `counts_by_blending`, else atomics), a prefix scan into list
-//! offsets, a fill pass
-//! writing each fragment's segment (z0, z1, optical depth, draw index) into its texel's list, and
-//! the resolve's compute passes, as the owner asks ([`Resolve`]): for `dsm`, it splits each
-//! segment into two events, its start (z0, slope) and its end (z1, −slope), and sorts them by
-//! depth — a total key over what is sorted, so the nodes do not depend on the order the
-//! fragments arrived in; a merge sort: runs of 16 sorted in registers, then eight runs merged a
-//! pass ([`merge_passes`]), in read-write storage textures (`KEY_TEXTURES`) — whose last pass
-//! turns them into the nodes (z, Ω(z)), written to a texture of their own (`NODE_FORMAT`); for
-//! `avsm`, it sorts the segments by (z0, z1, optical depth, draw index) (`avsm` sorted) or by
-//! draw index (`avsm` streaming), which restores the order the particles were drawn in, the
-//! order an engine's interlocked fragment shader would see them.
+//! offsets, a fill pass writing each fragment's segment (z0, z1, optical depth, draw index) into
+//! its texel's list, and the resolve's compute passes, as the owner asks ([`Resolve`]): for
+//! `dsm`, it splits each segment into two events, its start (z0, slope) and its end (z1,
+//! −slope), and sorts them by depth — a total key over what is sorted, so the nodes do not
+//! depend on the order the fragments arrived in; a merge sort: runs of 16 sorted in registers,
+//! then eight runs merged a pass ([`merge_passes`]), in read-write storage textures
+//! (`KEY_TEXTURES`) — whose last pass turns them into the nodes (z, Ω(z)), written to a texture
+//! of their own (`NODE_FORMAT`); for `avsm`, it sorts the segments by (z0, z1, optical depth,
+//! draw index) (`avsm` sorted) or by draw index (`avsm` streaming), which restores the order the
+//! particles were drawn in, the order an engine's interlocked fragment shader would see them.
 //! The counts are read back before the fill so the lists can grow to hold the frame (a CPU–GPU
 //! sync per build).
 //! A compression pass then binds [`DeepCapture::layout`] as its group 1
@@ -200,10 +199,10 @@ fn node_texel_count(capacity: u64, node_texels: bool) -> u64 {
 /// Segments the lists hold before the first frame asks for more.
 const INITIAL_CAPACITY: u32 = 1 << 16;
 /// The colour target the list passes rasterise into, 4 bytes a texel either way: where 32-bit
-/// floats blend and a row of it copies into the counts as it is (`counts_by_blending`), the
-/// count pass counts there by additive blending (llvmpipe's atomics took the count pass 7.3
-/// -> 12 ms on the thesis frame) and the fill adds nothing; elsewhere the count pass counts
-/// with atomics and the target is a dummy (both passes add nothing to it).
+/// floats blend and a row of it copies into the counts as it is (`counts_by_blending`), the count
+/// pass counts there by additive blending (the thesis frame's count pass 12 -> 6.5-7.5 ms, plus
+/// 0.7-0.9 for the copy, against atomics) and the fill adds nothing; elsewhere the count pass
+/// counts with atomics and the target is a dummy (both passes add nothing to it).
 const COUNT_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Float;
 const DUMMY_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
 

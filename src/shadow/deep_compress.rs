@@ -439,7 +439,6 @@ mod tests {
         );
     }
 
-    /// A deterministic list of overlapping segments (a 32-bit LCG).
     #[test]
     fn the_first_power_is_the_nearest_to_half_omega_max_over_n_squared() {
         // g·2^k = Ω_max·2^(k - S) nearest Ω_max / (2N²): k = S - 1 - 2·log2(N), rounded.
@@ -489,6 +488,7 @@ mod tests {
         }
     }
 
+    /// A deterministic list of overlapping segments (a 32-bit LCG).
     fn random_segments(seed: u32, count: usize) -> Vec<Segment> {
         let mut state = seed;
         let mut next = || {
@@ -507,7 +507,7 @@ mod tests {
 
     #[test]
     fn two_steps_a_loaded_texel_loop_within_the_rounds_allowance() {
-        // The shader's fit (`greedy_fit` in shaders/shadow/dsm_build.wgsl) loads the texel of
+        // The shader's fit (`fit_iteration` in shaders/shadow/dsm_build.wgsl) loads the texel of
         // node i (nodes 2j and 2j + 1 in texel j), steps at i, and steps again where the next
         // node is in that texel and the fit has not stopped. Replayed here: the same vertices as
         // one step a loop, in at most n + N + 1 loop iterations (with the exit's) for n
