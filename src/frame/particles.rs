@@ -12,7 +12,7 @@ use bytemuck::{Pod, Zeroable};
 
 use super::gpu_data::ParticleInstance;
 use super::{DEPTH_FORMAT, HDR_FORMAT};
-use crate::gpu::{Gpu, GpuError};
+use crate::gpu::{AllocationError, Gpu, GpuError, MemoryLedger};
 use crate::shaders;
 
 /// Premultiplied "over" (thesis Eq. 1.5): C = C_src + (1 - α_src) C_dst, the same for alpha.
@@ -225,35 +225,56 @@ pub struct LightBuffers {
 impl LightBuffers {
     /// Lighting for `capacity` particles of `instances`, in up to `max_batches` ranges; in a
     /// technique's order ([`LightBuffers::write_order`]) when `ordered` (otherwise the order
-    /// binding is a 16-byte placeholder).
+    /// binding is a 16-byte placeholder). Its buffers are created through `memory` (the
+    /// technique's ledger, or the frame's), which forgets those of the same `label` first: the
+    /// buffers this replaces.
+    #[allow(clippy::too_many_arguments)]
     pub fn new(
         device: &wgpu::Device,
+        memory: &mut MemoryLedger,
         layouts: &ParticleLayouts,
         instances: &wgpu::Buffer,
         capacity: u64,
         max_batches: u32,
         ordered: bool,
         label: &str,
-    ) -> Self {
-        let lighting = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some(&format!("{label}.lighting")),
-            size: capacity.max(1) * std::mem::size_of::<ParticleLight>() as u64,
-            // COPY_SRC: read back for `read` (tests and the sweep's error at lighting points).
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
-        let ranges = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some(&format!("{label}.light_ranges")),
-            size: u64::from(max_batches.max(1)) * RANGE_STRIDE,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let order = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some(&format!("{label}.light_order")),
-            size: if ordered { capacity.max(4) * 4 } else { 16 },
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+    ) -> Result<Self, AllocationError> {
+        let names = [
+            format!("{label}.lighting"),
+            format!("{label}.light_ranges"),
+            format!("{label}.light_order"),
+        ];
+        for name in &names {
+            memory.forget(name);
+        }
+        let lighting = memory.buffer(
+            device,
+            &wgpu::BufferDescriptor {
+                label: Some(&names[0]),
+                size: capacity.max(1) * std::mem::size_of::<ParticleLight>() as u64,
+                // COPY_SRC: read back for `read` (tests and the sweep's error at lighting points).
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            },
+        )?;
+        let ranges = memory.buffer(
+            device,
+            &wgpu::BufferDescriptor {
+                label: Some(&names[1]),
+                size: u64::from(max_batches.max(1)) * RANGE_STRIDE,
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            },
+        )?;
+        let order = memory.buffer(
+            device,
+            &wgpu::BufferDescriptor {
+                label: Some(&names[2]),
+                size: if ordered { capacity.max(4) * 4 } else { 16 },
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            },
+        )?;
         let read_bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some(&format!("{label}.light_bind_group")),
             layout: &layouts.read,
@@ -288,7 +309,7 @@ impl LightBuffers {
                 },
             ],
         });
-        Self {
+        Ok(Self {
             capacity,
             max_batches,
             lighting,
@@ -296,14 +317,10 @@ impl LightBuffers {
             order,
             read_bind_group,
             io_bind_group,
-        }
+        })
     }
 
     /// Bytes allocated (lighting, ranges and order).
-    pub fn bytes(&self) -> u64 {
-        self.lighting.size() + self.ranges.size() + self.order.size()
-    }
-
     /// Writes the order a range set `ordered` lights its particles in: `order[i]` is the
     /// instance the lighting of slot i lights (at most the capacity).
     pub fn write_order(&self, queue: &wgpu::Queue, order: &[u32]) {

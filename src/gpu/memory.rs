@@ -3,7 +3,17 @@
 //! Every texture and buffer a shadow technique owns is created through a [`MemoryLedger`], which
 //! records its size computed from the descriptor wgpu received (format block size x extent x
 //! layers x mips, or the buffer size). The bytes a technique reports are the ledger's sum, so the
-//! number cannot drift from the allocations.
+//! number cannot drift from the allocations: nothing is declared, a buffer is counted by being
+//! created here (`tests/memory.rs` holds every technique's ledger to the allocations the GPU's
+//! own allocator reports under its labels).
+//!
+//! **What is charged.** A technique's *resident* bytes are everything it holds at its peak
+//! ([`MemoryLedger::peak_bytes`]): what the lookup reads (persistent) and the build's scratch
+//! (transient: a deep capture's lists, the volume's voxelisation), both alike. Byte budgets
+//! compare resident bytes; the transient part is reported apart, never left out. A technique
+//! given a memory limit ([`MemoryBudget::limited`], a sweep cell's byte budget) sizes the
+//! scratch it can shed to what the limit leaves ([`MemoryLedger::remaining_bytes`]): the deep
+//! capture its bands, the volume its slabs.
 //!
 //! The ledger is also where allocations are refused *before* they reach the driver: each
 //! texture and buffer is checked against the device's limits and against a memory budget
@@ -45,6 +55,16 @@ impl MemoryBudget {
             max_storage_binding_bytes: limits.max_storage_buffer_binding_size,
             total_bytes,
         }
+    }
+
+    /// [`MemoryBudget::for_device`] with its total lowered to `limit_bytes` where one is given
+    /// (a byte budget's memory: what a technique may hold, scratch included).
+    pub fn limited(limits: &wgpu::Limits, limit_bytes: Option<u64>) -> Self {
+        let mut budget = Self::for_device(limits);
+        if let Some(limit) = limit_bytes {
+            budget.total_bytes = budget.total_bytes.min(limit);
+        }
+        budget
     }
 
     /// No limit at all (unit tests of the accounting).
@@ -90,8 +110,9 @@ pub enum AllocationError {
     },
     #[error(
         "{label} ({bytes} bytes) would bring this technique to {total} bytes, over its memory \
-         budget of {budget} bytes ({budget_mib} MiB; set SMOKESHADOW_MEMORY_BUDGET_MIB to change \
-         it): use fewer channels or a lower --shadow-res"
+         budget of {budget} bytes ({budget_mib} MiB: its byte budget's, or at most \
+         SMOKESHADOW_MEMORY_BUDGET_MIB): use fewer channels, a lower --shadow-res or a larger \
+         budget"
     )]
     OverBudget {
         label: String,
@@ -100,6 +121,8 @@ pub enum AllocationError {
         budget: u64,
         budget_mib: u64,
     },
+    #[error("{label} could not be filled at creation: {reason}")]
+    Mapping { label: String, reason: String },
 }
 
 /// One recorded allocation.
@@ -117,6 +140,8 @@ pub struct LedgerEntry {
 pub struct MemoryLedger {
     entries: Vec<LedgerEntry>,
     budget: MemoryBudget,
+    /// The most [`MemoryLedger::total_bytes`] has been: what was held at once.
+    peak: u64,
 }
 
 impl MemoryLedger {
@@ -125,12 +150,19 @@ impl MemoryLedger {
         Self {
             entries: Vec::new(),
             budget,
+            peak: 0,
         }
     }
 
     /// An empty ledger for allocations on a device with `limits`.
     pub fn for_device(limits: &wgpu::Limits) -> Self {
         Self::new(MemoryBudget::for_device(limits))
+    }
+
+    /// An empty ledger for a technique on a device with `limits`, held to `limit_bytes` (its
+    /// byte budget's memory, [`crate::scene::TechniqueParams::memory_limit_bytes`]) where set.
+    pub fn for_technique(limits: &wgpu::Limits, limit_bytes: Option<u64>) -> Self {
+        Self::new(MemoryBudget::limited(limits, limit_bytes))
     }
 
     /// Checks a texture against the limits and the budget, then creates and records it.
@@ -228,13 +260,39 @@ impl MemoryLedger {
         Ok(device.create_buffer(desc))
     }
 
-    /// Records an allocation made elsewhere, by the size of the buffer(s) actually created.
-    pub fn record(&mut self, label: &str, bytes: u64) {
-        self.entries.push(LedgerEntry {
-            label: label.to_owned(),
-            bytes,
-            transient: false,
-        });
+    /// [`MemoryLedger::buffer`] created with `contents` (its size: the contents' length, padded
+    /// to wgpu's copy alignment as `create_buffer_init` pads it).
+    pub fn buffer_init(
+        &mut self,
+        device: &wgpu::Device,
+        label: &str,
+        contents: &[u8],
+        usage: wgpu::BufferUsages,
+    ) -> Result<wgpu::Buffer, AllocationError> {
+        let size = (contents.len() as u64)
+            .next_multiple_of(wgpu::COPY_BUFFER_ALIGNMENT)
+            .max(wgpu::COPY_BUFFER_ALIGNMENT);
+        let buffer = self.buffer(
+            device,
+            &wgpu::BufferDescriptor {
+                label: Some(label),
+                size,
+                usage,
+                mapped_at_creation: true,
+            },
+        )?;
+        let mut view =
+            buffer
+                .slice(..)
+                .get_mapped_range_mut()
+                .map_err(|e| AllocationError::Mapping {
+                    label: label.to_owned(),
+                    reason: e.to_string(),
+                })?;
+        view.slice(..contents.len()).copy_from_slice(contents);
+        drop(view);
+        buffer.unmap();
+        Ok(buffer)
     }
 
     /// Records `bytes` under `label` if the budget allows them.
@@ -254,6 +312,7 @@ impl MemoryLedger {
             bytes,
             transient,
         });
+        self.peak = self.peak.max(total);
         Ok(())
     }
 
@@ -262,9 +321,26 @@ impl MemoryLedger {
         self.entries.retain(|e| e.label != label);
     }
 
-    /// Total bytes recorded, transient ones included.
+    /// Total bytes recorded now, transient ones included.
     pub fn total_bytes(&self) -> u64 {
         self.entries.iter().map(|e| e.bytes).sum()
+    }
+
+    /// The most bytes recorded at once since the ledger began: the resident bytes a technique
+    /// is charged (a list that grew was held beside nothing else, since its old buffer is
+    /// forgotten before the new one is reserved, so this is the largest configuration held).
+    pub fn peak_bytes(&self) -> u64 {
+        self.peak.max(self.total_bytes())
+    }
+
+    /// Bytes the budget still allows: what scratch that can shed may take.
+    pub fn remaining_bytes(&self) -> u64 {
+        self.budget.total_bytes.saturating_sub(self.total_bytes())
+    }
+
+    /// The total this ledger may hold ([`MemoryBudget::total_bytes`]).
+    pub fn limit_bytes(&self) -> u64 {
+        self.budget.total_bytes
     }
 
     /// The part of [`MemoryLedger::total_bytes`] recorded as transient: build scratch the
@@ -332,11 +408,40 @@ mod tests {
     #[test]
     fn transient_bytes_are_part_of_the_total_and_reported_apart() {
         let mut ledger = MemoryLedger::new(MemoryBudget::unlimited());
-        ledger.record("kept", 100);
+        ledger.reserve("kept", 100, false).unwrap();
         ledger.reserve("scratch", 40, true).unwrap();
         ledger.reserve("more scratch", 2, true).unwrap();
         assert_eq!((ledger.total_bytes(), ledger.transient_bytes()), (142, 42));
         ledger.forget("scratch");
         assert_eq!((ledger.total_bytes(), ledger.transient_bytes()), (102, 2));
+        // What was held at once is what is charged.
+        assert_eq!(ledger.peak_bytes(), 142);
+        ledger.reserve("regrown scratch", 20, true).unwrap();
+        assert_eq!((ledger.total_bytes(), ledger.peak_bytes()), (122, 142));
+    }
+
+    #[test]
+    fn a_limited_ledger_refuses_past_its_limit_and_says_what_is_left() {
+        let budget = MemoryBudget {
+            total_bytes: 1000,
+            ..MemoryBudget::unlimited()
+        };
+        let mut ledger = MemoryLedger::new(budget);
+        ledger.reserve("a", 600, false).unwrap();
+        assert_eq!(ledger.remaining_bytes(), 400);
+        let err = ledger.reserve("b", 401, true).unwrap_err();
+        assert!(
+            matches!(
+                err,
+                AllocationError::OverBudget {
+                    total: 1001,
+                    budget: 1000,
+                    ..
+                }
+            ),
+            "{err}"
+        );
+        ledger.reserve("b", 400, true).unwrap();
+        assert_eq!((ledger.remaining_bytes(), ledger.peak_bytes()), (0, 1000));
     }
 }

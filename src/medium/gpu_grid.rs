@@ -250,17 +250,12 @@ impl GpuGrid {
             shape_a,
             shape_b,
         };
-        let params_buffer = gpu
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("medium.grid.params"),
-                contents: bytemuck::bytes_of(&params),
-                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            });
-        ledger.record(
+        let params_buffer = ledger.buffer_init(
+            &gpu.device,
             "medium.grid.params",
-            std::mem::size_of::<GridParams>() as u64,
-        );
+            bytemuck::bytes_of(&params),
+            wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        )?;
         Ok(Self {
             params: params_buffer,
             uniform: params,

@@ -38,7 +38,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::frame::occluders::{self, Occluders};
-use crate::gpu::{FragmentTally, Gpu, GpuError, GpuTimer, PassTimes, TargetWrites};
+use crate::gpu::{FragmentTally, Gpu, GpuError, GpuTimer, MemoryLedger, PassTimes, TargetWrites};
 use crate::medium::eye_pass;
 use crate::medium::frame::FrameMedium;
 use crate::scene::{LightKind, Scene};
@@ -199,6 +199,9 @@ pub struct Renderer {
     particle_layouts: ParticleLayouts,
     /// Lighting of the sorted instances, computed each frame before the particle pass.
     lights: LightBuffers,
+    /// The frame's own buffers that grow with it (the lighting), which every technique's frame
+    /// holds alike: not charged to a technique.
+    frame_memory: MemoryLedger,
     /// The particle pass's draw pipelines (independent of the technique).
     particle_pipelines: ParticlePipelines,
     technique_config: TechniqueConfig,
@@ -311,16 +314,19 @@ impl Renderer {
 
         let particle_capacity = 1024;
         let particles = particle_buffer(device, particle_capacity);
+        let mut frame_memory = MemoryLedger::for_device(&gpu.limits);
         let lights = LightBuffers::new(
             device,
+            &mut frame_memory,
             &particle_layouts,
             &particles,
             particle_capacity,
             1,
             true,
             "particles",
-        );
+        )?;
         Ok(Self {
+            frame_memory,
             opaque_vertices: device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("opaque.vertices"),
                 size: 4,
@@ -1172,7 +1178,7 @@ impl Renderer {
                 .par_iter()
                 .map(|&i| ParticleInstance::from_particle(&particles[i as usize])),
         );
-        self.upload_particles(gpu);
+        self.upload_particles(gpu)?;
         let particle_count = particles.len() as u32;
 
         let mut encoder = gpu
@@ -1395,25 +1401,27 @@ impl Renderer {
         self.opaque_source = mesh;
     }
 
-    fn upload_particles(&mut self, gpu: &Gpu) {
+    fn upload_particles(&mut self, gpu: &Gpu) -> Result<(), ShadowError> {
         let needed = self.instances.len() as u64;
         if needed > self.particle_capacity {
             self.particle_capacity = needed.next_power_of_two();
             self.particles = particle_buffer(&gpu.device, self.particle_capacity);
             self.lights = LightBuffers::new(
                 &gpu.device,
+                &mut self.frame_memory,
                 &self.particle_layouts,
                 &self.particles,
                 self.particle_capacity,
                 1,
                 true,
                 "particles",
-            );
+            )?;
         }
         if needed > 0 {
             gpu.queue
                 .write_buffer(&self.particles, 0, bytemuck::cast_slice(&self.instances));
         }
+        Ok(())
     }
 }
 

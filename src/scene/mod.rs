@@ -535,6 +535,7 @@ impl ShadowSettings {
             splat: self.splat,
             occluders: self.occluders,
             values: self.params.clone(),
+            memory_limit_bytes: None,
         }
     }
 }

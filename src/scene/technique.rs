@@ -164,6 +164,12 @@ pub struct TechniqueParams {
     /// serialize equally.
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub values: BTreeMap<String, ParamValue>,
+    /// The most bytes the technique may hold, scratch included (`gpu::MemoryLedger`): a byte
+    /// budget's memory (`sweep --bytes-per-texel`, `--memory`). Scratch that can shed (a deep
+    /// capture's lists, the volume's voxelisation) sizes itself to what is left, trading time
+    /// for bytes; an allocation past it is refused in one line. `None`: the device's budget.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub memory_limit_bytes: Option<u64>,
 }
 
 impl TechniqueParams {
@@ -175,6 +181,7 @@ impl TechniqueParams {
             splat: SplatMode::Segment,
             occluders: OccluderMode::Exact,
             values: BTreeMap::new(),
+            memory_limit_bytes: None,
         }
     }
 

@@ -164,7 +164,7 @@ impl DeepNodes {
         let res = params.resolution_px;
         let nodes_per_texel = nodes_per_texel(params.channels);
         let texels = u64::from(res) * u64::from(res);
-        let mut memory = MemoryLedger::for_device(&gpu.limits);
+        let mut memory = MemoryLedger::for_technique(&gpu.limits, params.memory_limit_bytes);
         let label = |what: &str| format!("{}.{what}", spec.name);
 
         // What the lookup reads: the parameters and the nodes.

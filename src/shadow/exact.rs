@@ -403,9 +403,9 @@ impl Grid {
 }
 
 impl Exact {
-    pub fn new(ctx: &TechniqueContext<'_>, _params: &TechniqueParams) -> Result<Self, ShadowError> {
+    pub fn new(ctx: &TechniqueContext<'_>, params: &TechniqueParams) -> Result<Self, ShadowError> {
         let device = &ctx.gpu.device;
-        let mut memory = MemoryLedger::for_device(&ctx.gpu.limits);
+        let mut memory = MemoryLedger::for_technique(&ctx.gpu.limits, params.memory_limit_bytes);
         let params_buffer = memory.buffer(
             device,
             &wgpu::BufferDescriptor {

@@ -211,7 +211,7 @@ fn instance_buffer(
     )
 }
 
-/// Lighting buffers for `capacity` particles in `slices` batches, recorded in `memory`.
+/// Lighting buffers for `capacity` particles in `slices` batches, created through `memory`.
 fn light_buffers(
     memory: &mut MemoryLedger,
     device: &wgpu::Device,
@@ -219,18 +219,17 @@ fn light_buffers(
     instances: &wgpu::Buffer,
     capacity: u64,
     slices: u32,
-) -> LightBuffers {
-    let lights = LightBuffers::new(device, layouts, instances, capacity, slices, false, "has");
-    memory.forget("has.lighting");
-    memory.record("has.lighting", lights.bytes());
-    lights
+) -> Result<LightBuffers, AllocationError> {
+    LightBuffers::new(
+        device, memory, layouts, instances, capacity, slices, false, "has",
+    )
 }
 
 impl HalfAngle {
     pub fn new(ctx: &TechniqueContext<'_>, params: &TechniqueParams) -> Result<Self, ShadowError> {
         let gpu = ctx.gpu;
         let device = &gpu.device;
-        let mut memory = MemoryLedger::for_device(&gpu.limits);
+        let mut memory = MemoryLedger::for_technique(&gpu.limits, params.memory_limit_bytes);
         let params_buffer = memory.buffer(
             device,
             &wgpu::BufferDescriptor {
@@ -342,7 +341,7 @@ impl HalfAngle {
             &instances,
             instance_capacity,
             params.channels,
-        );
+        )?;
         Ok(Self {
             slices: params.channels,
             device: device.clone(),
@@ -384,7 +383,7 @@ impl HalfAngle {
                 &self.instances,
                 self.instance_capacity,
                 self.slices,
-            );
+            )?;
         }
         if needed > 0 {
             gpu.queue

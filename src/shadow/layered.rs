@@ -822,7 +822,7 @@ impl Layered {
 
         let name = spec.name;
         let res = params.resolution_px;
-        let mut memory = MemoryLedger::for_device(&gpu.limits);
+        let mut memory = MemoryLedger::for_technique(&gpu.limits, params.memory_limit_bytes);
         let maps = Maps::new(&mut memory, device, name, plan.packed, precision, res)?;
         let targets = maps.attachments();
         let depth_view = spec

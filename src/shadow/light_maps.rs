@@ -115,7 +115,7 @@ impl LightMaps {
         let device = &gpu.device;
         let name = spec.name;
         let res = params.resolution_px;
-        let mut memory = MemoryLedger::for_device(&gpu.limits);
+        let mut memory = MemoryLedger::for_technique(&gpu.limits, params.memory_limit_bytes);
         let maps = spec
             .maps
             .iter()

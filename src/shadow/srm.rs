@@ -105,7 +105,7 @@ impl Srm {
                  adapter ({budget} iterations, 3 of them the march's set-up)"
             )));
         }
-        let mut memory = MemoryLedger::for_device(&gpu.limits);
+        let mut memory = MemoryLedger::for_technique(&gpu.limits, params.memory_limit_bytes);
         let buffer = memory.buffer(
             &gpu.device,
             &wgpu::BufferDescriptor {

@@ -505,7 +505,7 @@ impl Volume {
         }
         let steps = params.get(&STEPS).unwrap_or(DEFAULT_STEPS as f32).round() as u32;
         let light_aligned = params.get(&LIGHT_ALIGNED).unwrap_or(0.0) >= 0.5;
-        let mut memory = MemoryLedger::for_device(&gpu.limits);
+        let mut memory = MemoryLedger::for_technique(&gpu.limits, params.memory_limit_bytes);
         let lookup_params = memory.buffer(
             device,
             &wgpu::BufferDescriptor {
