@@ -1,10 +1,12 @@
 // `volume` build: the particles' extinction voxelised into a world-space grid (src/shadow/volume.rs).
-// 1. scatter: one invocation per (particle, voxel row) pair of the frame (the CPU numbered them
-//    with a prefix sum over the particles' boxes). It finds its particle by binary search, skips
-//    a row that misses the sphere, and adds to each voxel of the row that the sphere reaches the
-//    particle's mean extinction over the voxel (`radial_extinction`, below), from
-//    VOLUME_SUBSAMPLES³ points at the centres of its sub-cells, in fixed point (atomicAdd: integer sums do not depend on the order). Only the
-//    z-slices of this slab are written.
+// 1. scatter: one invocation per (particle, voxel row) pair of the slab's candidate jobs (the
+//    CPU sorted the particles' boxes by their first z-slice and numbered their rows with a
+//    prefix sum, so that the jobs that can reach a slab are one run of them). It finds its
+//    particle by binary search, skips a row that misses the sphere or the slab, and adds to each
+//    voxel of the row that the sphere reaches the particle's mean extinction over the voxel
+//    (`radial_extinction`, below), from VOLUME_SUBSAMPLES³ points at the centres of its
+//    sub-cells, in fixed point (atomicAdd: integer sums do not depend on the order, so the grid
+//    is the same at any slab depth). Only the z-slices of this slab are written.
 // 2. convert: the slab's sums as half floats, two voxels a word, rows padded for the copy into
 //    the 3D texture.
 // Loops per invocation: the search (among the jobs of the row's block of VOLUME_ROWS_PER_BLOCK
@@ -18,14 +20,16 @@ struct VolumeBuild {
     // The grid's corner (m) and voxels per side.
     origin: vec3<f32>,
     side: u32,
-    // One voxel's size per axis (m), and the (particle, row) pairs.
+    // One voxel's size per axis (m), and the end of this slab's (particle, row) pairs.
     voxel_size: vec3<f32>,
-    total_rows: u32,
-    // This slab's first z-slice and its slices; staging words per row.
+    row_end: u32,
+    // This slab's first z-slice and its slices; staging words per row; the first of the
+    // (particle, row) pairs this slab's scatter runs over (the rows of the jobs, sorted by their
+    // first z-slice, that can reach the slab: the others' never do).
     slab_z0: u32,
     slab_depth: u32,
     words_per_row: u32,
-    _pad0: u32,
+    row_first: u32,
     // The light (m), for the light-aligned field; fixed-point units per 1/m of extinction.
     light_pos: vec3<f32>,
     units_per_extinction: f32,
@@ -110,8 +114,9 @@ fn job_of(row: u32) -> u32 {
 // One (particle, voxel row) pair of the scatter, through the light-aligned field or the
 // light-independent one. Two entry points call it with a constant `aligned`, so each compiles
 // only its own field: llvmpipe runs both sides of a branch under a mask, even a uniform one.
-fn scatter_row(row: u32, aligned: bool) {
-    if row >= build.total_rows {
+fn scatter_row(index: u32, aligned: bool) {
+    let row = build.row_first + index;
+    if row >= build.row_end {
         return;
     }
     let job = jobs[job_of(row)];

@@ -166,7 +166,7 @@ pub fn run(
             }
             crate::output::write_png_rgb(&out_dir.join(file), &rgb)?;
             let t = renderer.technique();
-            Ok((rgb, t.channels_used(), t.memory().total_bytes()))
+            Ok((rgb, t.channels_used(), t.memory().peak_bytes()))
         };
 
     let exact_config = config(crate::shadow::reference().name, 1);

@@ -499,11 +499,20 @@ pub fn storage_descriptor(label: &str, size: u64) -> wgpu::BufferDescriptor<'_> 
 /// there (`exact`'s lists and spheres, `dsm`'s capture nodes).
 pub const ROW_TEXELS: u32 = 4096;
 
+/// Rows a row texture of more than one row is padded to a multiple of: drivers allocate a 2D
+/// texture in whole tiles of rows (lavapipe pads its height to a multiple of 4), so the rows
+/// are asked for, and counted, as the driver holds them.
+pub const ROW_TILE: u64 = 4;
+
 /// Width and height of a row texture for `texels` elements: rows of [`ROW_TEXELS`], the one row
-/// narrower when there are fewer, at least 1x1.
+/// narrower when there are fewer, at least 1x1; more than one row padded to whole tiles of
+/// [`ROW_TILE`] rows.
 pub fn row_texture_size(texels: u64) -> (u32, u32) {
     let width = texels.clamp(1, u64::from(ROW_TEXELS)) as u32;
-    let rows = texels.div_ceil(u64::from(ROW_TEXELS)).max(1);
+    let rows = match texels.div_ceil(u64::from(ROW_TEXELS)) {
+        0 | 1 => 1,
+        rows => rows.next_multiple_of(ROW_TILE),
+    };
     (width, u32::try_from(rows).unwrap_or(u32::MAX))
 }
 

@@ -494,16 +494,17 @@ impl Renderer {
     pub fn face_shadow_bytes(&self) -> Vec<u64> {
         self.faces
             .iter()
-            .map(|f| f.technique.memory().total_bytes())
+            .map(|f| f.technique.memory().peak_bytes())
             .collect()
     }
 
-    /// Bytes the technique allocated over every light face, and how many of them are transient
-    /// (build scratch the lookup never reads).
+    /// Bytes the technique holds over every light face at its peak (resident: scratch
+    /// included, [`crate::gpu::MemoryLedger::peak_bytes`]), and how many of those held now are
+    /// transient (build scratch the lookup never reads).
     pub fn shadow_bytes(&self) -> (u64, u64) {
         self.faces.iter().fold((0, 0), |(total, transient), f| {
             let m = f.technique.memory();
-            (total + m.total_bytes(), transient + m.transient_bytes())
+            (total + m.peak_bytes(), transient + m.transient_bytes())
         })
     }
 

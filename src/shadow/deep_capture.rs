@@ -196,8 +196,9 @@ fn node_texel_count(capacity: u64, node_texels: bool) -> u64 {
     }
 }
 
-/// Segments the lists hold before the first frame asks for more.
-const INITIAL_CAPACITY: u32 = 1 << 16;
+/// Segments the lists hold before the first frame asks for more (what a technique plans for
+/// before its first build).
+pub const INITIAL_CAPACITY: u32 = 1 << 16;
 /// The colour target the list passes rasterise into, 4 bytes a texel either way: where 32-bit
 /// floats blend and a row of it copies into the counts as it is (`counts_by_blending`), the count
 /// pass counts there by additive blending (the thesis frame's count pass 12 -> 6.5-7.5 ms, plus
@@ -225,9 +226,6 @@ fn counts_by_blending(gpu: &Gpu, resolution_px: u32) -> bool {
 /// whole rows: 48 bytes a segment (the others' are placeholders).
 pub fn bytes(resolution_px: u32, segment_capacity: u64, node_texels: bool) -> u64 {
     let texels = u64::from(resolution_px) * u64::from(resolution_px);
-    let (width, height) = row_texture_size(node_texel_count(segment_capacity, node_texels));
-    let (node_width, node_height) =
-        row_texture_size(resolved_node_count(segment_capacity, node_texels));
     std::mem::size_of::<CaptureParams>() as u64
         + u64::from(MAX_ROUNDS * ROUND_STRIDE)
         + texels * 4
@@ -235,10 +233,34 @@ pub fn bytes(resolution_px: u32, segment_capacity: u64, node_texels: bool) -> u6
         + (u64::from(resolution_px) + 1) * 4
         + texel_order_bytes(resolution_px)
         + texels * 4
-        + segment_buffer_bytes(segment_capacity)
+        + list_bytes(segment_capacity, node_texels)
+}
+
+/// The bytes of the lists sized by the segment capacity ([`Lists`]): the segments, `avsm`'s
+/// nodes, `dsm`'s key textures and resolved nodes (placeholders where unused).
+fn list_bytes(segment_capacity: u64, node_texels: bool) -> u64 {
+    let (width, height) = row_texture_size(node_texel_count(segment_capacity, node_texels));
+    let (node_width, node_height) =
+        row_texture_size(resolved_node_count(segment_capacity, node_texels));
+    segment_buffer_bytes(segment_capacity)
         + node_buffer_bytes(segment_capacity, node_texels)
         + u64::from(width) * u64::from(height) * KEY_TEXTURES.len() as u64 * SORT_KEY_BYTES
         + u64::from(node_width) * u64::from(node_height) * NODE_TEXEL_BYTES
+}
+
+/// The most segments lists may hold in `room` bytes (at most `max_segments`, one binding's): a
+/// technique under a memory limit captures in bands of what its limit leaves.
+fn segments_in(room: u64, node_texels: bool, max_segments: u32) -> u32 {
+    let fits = |c: u32| list_bytes(u64::from(c), node_texels) <= room;
+    if fits(max_segments) {
+        return max_segments;
+    }
+    let (mut lo, mut hi) = (0u32, max_segments);
+    while lo < hi {
+        let mid = lo + (hi - lo).div_ceil(2);
+        if fits(mid) { lo = mid } else { hi = mid - 1 }
+    }
+    lo
 }
 
 /// The texel order's bytes at `resolution`: 64 entries of 4 bytes for every 8x8 tile of the map.
@@ -270,8 +292,9 @@ fn node_buffer_bytes(segment_capacity: u64, node_texels: bool) -> u64 {
 fn max_band_segments(gpu: &Gpu) -> u32 {
     let binding =
         gpu.limits.max_storage_buffer_binding_size / SEGMENT_BYTES.max(NODE_BYTES_PER_SEGMENT);
-    let texture = u64::from(gpu.limits.max_texture_dimension_2d) * u64::from(ROW_TEXELS)
-        / node_texel_count(1, true);
+    let rows = u64::from(gpu.limits.max_texture_dimension_2d) / crate::gpu::ROW_TILE
+        * crate::gpu::ROW_TILE;
+    let texture = rows * u64::from(ROW_TEXELS) / node_texel_count(1, true);
     u32::try_from(binding.min(texture)).unwrap_or(u32::MAX)
 }
 
@@ -717,7 +740,14 @@ impl DeepCapture {
             name,
             &layouts,
             [&params_buffer, &counts, &offsets, &row_sums, &texel_order],
-            INITIAL_CAPACITY.min(max_band_segments(gpu)),
+            // Within what a memory limit leaves (at least one segment: a limit below that is
+            // the ledger's one line).
+            segments_in(
+                memory.remaining_bytes(),
+                node_texels,
+                INITIAL_CAPACITY.min(max_band_segments(gpu)),
+            )
+            .max(1),
             node_texels,
         )?;
         let capture = Self {
@@ -898,7 +928,12 @@ impl DeepCapture {
                 limit: longest_allowed,
             });
         }
-        let max_segments = max_band_segments(gpu);
+        // Bands of what one binding holds, and what the memory limit leaves for the lists
+        // (the ledger's remaining bytes and the lists' own, which they would give up).
+        let node_texels = self.lists.node_texels;
+        let room =
+            memory.remaining_bytes() + list_bytes(u64::from(self.lists.capacity), node_texels);
+        let max_segments = segments_in(room, node_texels, max_band_segments(gpu));
         let bands = plan_bands(&row_offsets, max_segments).map_err(|(row, segments)| {
             ShadowError::CaptureTooLarge {
                 technique: self.name,

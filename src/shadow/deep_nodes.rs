@@ -118,12 +118,18 @@ impl DeepNodesSpec {
 
     /// The memory formula: 2N channels; a 16-byte uniform and N nodes of 8 bytes per texel kept
     /// for the lookup, plus the transient capture (`deep_capture::bytes`, its lists as large as
-    /// the `segment_capacity` counter says) and the statistics words.
+    /// the `segment_capacity` counter says, before a build their first capacity) and the statistics
+    /// words.
     pub fn memory(&self, c: &MemoryCase<'_>) -> MemoryUse {
         let nodes = u64::from(nodes_per_texel(c.channels()));
+        // Before a build (no counters), the lists' first capacity.
+        let capacity = match c.counters.is_empty() {
+            true => u64::from(super::deep_capture::INITIAL_CAPACITY),
+            false => c.counter("segment_capacity"),
+        };
         let transient = super::deep_capture::bytes(
             c.resolution_px(),
-            c.counter("segment_capacity"),
+            capacity,
             (self.resolve)(c.params).node_texels(),
         ) + self.stats_bytes();
         MemoryUse {
@@ -184,7 +190,15 @@ impl DeepNodes {
                 texels * u64::from(nodes_per_texel) * NODE_BYTES,
             ),
         )?;
-        // Build scratch: the capture and the statistics.
+        // Build scratch: the statistics, and the capture (last: its lists take what a memory
+        // limit leaves).
+        let stats = match spec.stats_words {
+            0 => None,
+            _ => Some(memory.buffer_transient(
+                device,
+                &storage_descriptor(&label("stats"), spec.stats_bytes()),
+            )?),
+        };
         let capture = DeepCapture::new(
             gpu,
             ctx.frame_layout,
@@ -193,13 +207,6 @@ impl DeepNodes {
             (spec.resolve)(params),
             &mut memory,
         )?;
-        let stats = match spec.stats_words {
-            0 => None,
-            _ => Some(memory.buffer_transient(
-                device,
-                &storage_descriptor(&label("stats"), spec.stats_bytes()),
-            )?),
-        };
         gpu.queue.write_buffer(
             &params_buffer,
             0,

@@ -702,7 +702,10 @@ impl Exact {
         let needed = instances.len() as u32;
         if needed > self.sphere_capacity {
             // A power of two of at least one row: whole rows.
-            self.sphere_capacity = needed.next_power_of_two().max(MIN_SPHERES);
+            // (More than one row: whole tiles of rows, `ROW_TILE`, as the texture holds them.)
+            self.sphere_capacity = needed
+                .next_power_of_two()
+                .max(ROW_TEXELS / 2 * crate::gpu::ROW_TILE as u32);
             self.spheres = sphere_texture(&mut self.memory, &gpu.device, self.sphere_capacity)?;
         }
         // Whole rows: the last one padded with zeros (spheres no list indexes).
@@ -799,7 +802,9 @@ impl ShadowTechnique for Exact {
     fn build(&mut self, gpu: &Gpu, mut inputs: BuildInputs<'_>) -> Result<(), ShadowError> {
         let device = &gpu.device;
         // The entries one texture holds: whole rows, as many as the adapter allows.
-        let max_entries = u64::from(ROW_TEXELS) * u64::from(gpu.limits.max_texture_dimension_2d);
+        let max_rows = u64::from(gpu.limits.max_texture_dimension_2d) / crate::gpu::ROW_TILE
+            * crate::gpu::ROW_TILE;
+        let max_entries = u64::from(ROW_TEXELS) * max_rows;
         let limit = max_entries * ENTRY_BYTES;
         let fits = |entries: u64| entries <= max_entries;
         self.upload_spheres(gpu, inputs.light.position, inputs.instances)?;
@@ -850,8 +855,9 @@ impl ShadowTechnique for Exact {
         }
         if total > u64::from(self.capacity) {
             // Headroom so that a slowly changing scene does not reallocate every frame; whole
-            // texture rows.
-            let whole_rows = |n: u64| n.next_multiple_of(u64::from(ROW_TEXELS));
+            // tiles of texture rows (`ROW_TILE`), as the texture holds them.
+            let whole_rows =
+                |n: u64| n.next_multiple_of(u64::from(ROW_TEXELS) * crate::gpu::ROW_TILE);
             let mut capacity = whole_rows((total + total / 4).max(1 << 16));
             if !fits(capacity) {
                 capacity = whole_rows(total);

@@ -129,8 +129,8 @@ pub enum ShadowError {
     #[error(
         "{technique} at {resolution_px}x{resolution_px} captures {segments} segments in row \
          {row} of its map alone this frame, but one band of its lists holds at most {limit} \
-         segments on this adapter (its largest storage binding or texture): use a lower \
-         --shadow-res"
+         segments on this adapter (its largest storage binding or texture) within its memory \
+         limit: use a lower --shadow-res or a larger budget"
     )]
     CaptureTooLarge {
         technique: &'static str,
@@ -480,10 +480,6 @@ pub fn packed_bytes_per_texel(packed: u64, bytes_per_channel: u64) -> u64 {
     (packed / 4 * 4 + rest) * bytes_per_channel
 }
 
-/// Slack of a byte budget per texel: the share of a technique's uniforms (16 to 80 bytes) in
-/// its bytes per texel, so that `osm` at 24 half-float slices fits 48 bytes a texel.
-pub const BYTE_BUDGET_SLACK: f64 = 1.0 / 64.0;
-
 /// What `entry`'s memory formula gives for `params` before any frame (no counters: list
 /// capacities, which only transient scratch depends on, read as 0), for `particles` particles in
 /// a frame of `frame_pixels`.
@@ -501,10 +497,12 @@ pub fn planned_memory(
     })
 }
 
-/// The bytes a configuration keeps for the lookup (its memory formula, transient build scratch
-/// aside) per texel of its shadow map, for `particles` particles in a frame of `frame_pixels`:
-/// the measure a byte budget per texel (`--bytes-per-texel`) compares at.
-pub fn kept_bytes_per_texel(
+/// The bytes a configuration plans to hold (its memory formula before a build: what the lookup
+/// reads and the least build scratch it can shed to, resident bytes) per texel of its shadow
+/// map, for `particles` particles in a frame of `frame_pixels`: the measure a byte budget per
+/// texel (`--bytes-per-texel`) fits configurations by. The build then holds itself to the
+/// budget's bytes ([`TechniqueParams::memory_limit_bytes`]), shedding scratch to fit.
+pub fn planned_bytes_per_texel(
     entry: &TechniqueEntry,
     params: &TechniqueParams,
     particles: u64,
@@ -513,8 +511,8 @@ pub fn kept_bytes_per_texel(
     planned_use(entry, params, particles, frame_pixels).1
 }
 
-/// The channels a configuration uses and the bytes it keeps per texel
-/// ([`kept_bytes_per_texel`]), from one evaluation of its memory formula: what tells two
+/// The channels a configuration uses and the bytes it plans to hold per texel
+/// ([`planned_bytes_per_texel`]), from one evaluation of its memory formula: what tells two
 /// configurations apart under a byte budget.
 pub fn planned_use(
     entry: &TechniqueEntry,
@@ -524,23 +522,20 @@ pub fn planned_use(
 ) -> (u64, f64) {
     let used = planned_memory(entry, params, particles, frame_pixels);
     let texels = u64::from(params.resolution_px).pow(2).max(1);
-    (
-        used.channels,
-        (used.bytes - used.transient_bytes) as f64 / texels as f64,
-    )
+    (used.channels, used.bytes as f64 / texels as f64)
 }
 
 /// The configuration a technique takes under a byte budget per shadow-map texel.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ByteFit {
-    /// The channel budget: the largest whose configuration keeps at most the budget (within
-    /// [`BYTE_BUDGET_SLACK`]), lowered to the smallest budget with the same memory (`fom` at
-    /// 12 channels uses 11, so it runs at 11).
+    /// The channel budget: the largest whose configuration plans to hold at most the budget
+    /// (resident bytes, uniforms and least scratch included), lowered to the smallest budget
+    /// with the same memory (`fom` at 12 channels uses 11, so it runs at 11).
     pub channels: u32,
     /// The channels that configuration uses (its memory formula's): two budgets with the same
     /// channels used and bytes are the same configuration.
     pub channels_used: u64,
-    /// Bytes per texel it keeps there.
+    /// Bytes per texel it plans to hold there.
     pub bytes_per_texel: f64,
 }
 
@@ -553,7 +548,7 @@ pub fn fit_bytes_per_texel(
     particles: u64,
     frame_pixels: u64,
 ) -> Result<ByteFit, String> {
-    // (channels used, bytes kept per texel) at a channel budget.
+    // (channels used, bytes held per texel) at a channel budget.
     let at = |channels: u32| {
         let params = TechniqueParams {
             channels,
@@ -561,16 +556,20 @@ pub fn fit_bytes_per_texel(
         };
         planned_use(entry, &params, particles, frame_pixels)
     };
-    let allowed = f64::from(budget) + BYTE_BUDGET_SLACK;
+    let allowed = f64::from(budget);
     let Some(largest) = (entry.min_channels..=MAX_CHANNELS)
         .rev()
         .find(|&c| at(c).1 <= allowed)
     else {
+        let res = u64::from(base.resolution_px);
+        let least = at(entry.min_channels).1;
         return Err(format!(
-            "{} keeps {:.1} bytes a texel at its smallest budget ({}), more than {budget}",
+            "{} holds {least:.1} bytes a texel at its smallest budget ({}; {} bytes at {res}², \
+             scratch and uniforms included), more than {budget} ({} bytes)",
             entry.name,
-            at(entry.min_channels).1,
-            (entry.budget_caption)(entry.min_channels)
+            (entry.budget_caption)(entry.min_channels),
+            (least * (res * res) as f64).round() as u64,
+            u64::from(budget) * res * res,
         ));
     };
     let fitted = at(largest);
@@ -1143,27 +1142,43 @@ mod tests {
             fit_bytes_per_texel(entry, &params, budget, 10_000, 1280 * 720)
         };
         let channels = |name, budget, precision| fit(name, budget, precision).unwrap().channels;
-        // Half-float slices: 2 bytes each, so 48 bytes buy 24 (the uniform fits the slack).
-        assert_eq!(channels("osm", 48, None), 24);
-        assert_eq!(channels("osm", 12, None), 6);
-        assert_eq!(channels("osm", 48, Some("single")), 12);
+        // Every byte counts, the uniform's too: a configuration of exactly the budget's texels'
+        // worth does not fit. Half-float slices, 2 bytes each: 48 bytes buy 22 (23 and 24 take
+        // 48, 23's last 3 in a 4-channel target), 12 bytes 5; single floats, 48 bytes 10.
+        assert_eq!(channels("osm", 48, None), 22);
+        assert_eq!(channels("osm", 12, None), 5);
+        assert_eq!(channels("osm", 48, Some("single")), 10);
         // A start depth (2 bytes) and half-float layers: 48 bytes buy the depth and 22 layers
         // (23 would put their last 3 in a 4-channel target: 50 bytes).
         assert_eq!(channels("dom", 48, None), 23);
         // Single-float coefficients, 2n + 1 of them, the last target rounded to R, RG or RGBA:
-        // 48 bytes hold 11 (8 + 3 in an RGBA target), 24 bytes 5 (4 + 1 in an R target).
+        // 48 bytes hold 9 (8 + 1 in an R target; 11 take 48 and the uniform), 24 bytes 5 (4 + 1).
         let fom48 = fit("fom", 48, None).unwrap();
-        assert_eq!((fom48.channels, fom48.channels_used), (11, 11));
-        assert_eq!(fom48.bytes_per_texel, 48.0 + 60.0 / 262_144.0);
+        assert_eq!((fom48.channels, fom48.channels_used), (9, 9));
+        assert_eq!(fom48.bytes_per_texel, 36.0 + 60.0 / 262_144.0);
         assert_eq!(channels("fom", 24, None), 5);
-        assert_eq!(channels("fom", 48, Some("half")), 23);
+        assert_eq!(channels("fom", 48, Some("half")), 21);
         // Below its smallest configuration (3 coefficients: 16 bytes) it fits nothing, and says so.
         let err = fit("fom", 12, None).unwrap_err();
         assert!(err.contains("16.0 bytes") && err.contains("12"), "{err}");
         // The moment maps stop at 9 channels, whatever the bytes.
         assert_eq!(fit("msm", 96, None).unwrap().channels_used, 9);
-        // Two 4-byte words per node: 48 bytes hold 6 nodes.
-        assert_eq!(fit("dsm", 48, None).unwrap().channels_used, 12);
+        // Two 4-byte words per node, beside the capture's 16 bytes a texel (counts, offsets,
+        // raster target, texel order) and its first lists (65,536 segments of 64 bytes: 16
+        // bytes a texel at 512²): 48 bytes hold not even its 2 nodes, 96 bytes 7.
+        let err = fit("dsm", 48, None).unwrap_err();
+        assert!(
+            err.contains("dsm holds 48.") && err.contains("scratch"),
+            "{err}"
+        );
+        assert_eq!(fit("dsm", 96, None).unwrap().channels_used, 14);
+        // The volume's grid beside the least scratch its build sheds to (a z-slice's sums and
+        // staging, a job a particle): under 48 bytes a texel, at most 23 channels.
+        let volume = fit("volume", 48, None).unwrap();
+        assert!(
+            volume.bytes_per_texel <= 48.0 && volume.channels <= 23,
+            "{volume:?}"
+        );
     }
 
     #[test]

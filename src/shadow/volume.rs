@@ -228,15 +228,30 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     compresses_captured_lists: false,
     // The R16F grid (G³ · 2 bytes, G = round(cbrt(res² · B))) and the 32-byte lookup uniform;
     // transient: per slab a 64-byte uniform, the u32 scratch and the padded f16 staging of one
-    // slab, 32 bytes per job of capacity and 4 per entry of the row-block table's.
+    // slab (`slab_scratch_bytes`), 32 bytes per job of capacity and 4 per entry of the row-block
+    // table's. Before a build (no counters) it plans the least the build can take: slabs of one
+    // z-slice, a job a particle and the row-block table's first capacity (it grows by a few
+    // bytes a particle; the build sheds slab depth to fit it).
     memory: |c| {
-        let g = u64::from(grid_side(c.resolution_px(), c.channels()));
-        let depth = c.counter("slab_depth").max(1);
-        let transient = g.div_ceil(depth) * BUILD_BYTES
-            + g * g * depth * 4
-            + depth * g * staging_pitch(g as u32)
-            + c.counter("job_capacity") * JOB_BYTES
-            + c.counter("block_capacity") * 4;
+        let g = grid_side(c.resolution_px(), c.channels());
+        let planned = c.counters.is_empty();
+        let depth = match planned {
+            true => 1,
+            false => c.counter("slab_depth") as u32,
+        };
+        let slabs = match depth {
+            0 => 0,
+            d => slab_scratch_bytes(g, d),
+        };
+        let (jobs, blocks) = match planned {
+            true => (
+                c.particles.max(MIN_JOB_CAPACITY.into()),
+                MIN_BLOCK_CAPACITY.into(),
+            ),
+            false => (c.counter("job_capacity"), c.counter("block_capacity")),
+        };
+        let transient = slabs + jobs * JOB_BYTES + blocks * 4;
+        let g = u64::from(g);
         MemoryUse {
             channels: c.channels().into(),
             bytes: g * g * g * 2 + LOOKUP_BYTES + transient,
@@ -273,6 +288,31 @@ fn slab_depth(side: u32, binding_limit: u64) -> u32 {
     (binding_limit / per_slice).clamp(1, side64) as u32
 }
 
+/// The build scratch of slabs of `depth` z-slices of a `side`³ grid: a uniform per slab, the
+/// u32 sums and the padded f16 staging of one slab (reused by every slab in turn).
+pub fn slab_scratch_bytes(side: u32, depth: u32) -> u64 {
+    let (side64, depth64) = (u64::from(side), u64::from(depth.max(1)));
+    side64.div_ceil(depth64) * BUILD_BYTES
+        + side64 * side64 * depth64 * 4
+        + depth64 * side64 * staging_pitch(side)
+}
+
+/// The deepest slab (at most `max_depth` z-slices) whose scratch fits `available` bytes: the
+/// fewest passes the memory allows. `None` when not even one z-slice fits.
+fn deepest_slab(side: u32, max_depth: u32, available: u64) -> Option<u32> {
+    // The scratch grows with the depth (the per-slab uniforms shrink, by far less).
+    let fits = |d: u32| slab_scratch_bytes(side, d) <= available;
+    if !fits(1) {
+        return None;
+    }
+    let (mut lo, mut hi) = (1u32, max_depth.max(1));
+    while lo < hi {
+        let mid = lo + (hi - lo).div_ceil(2);
+        if fits(mid) { lo = mid } else { hi = mid - 1 }
+    }
+    Some(lo)
+}
+
 /// Keep in sync with `VolumeParams` in shaders/shadow/volume.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
@@ -290,11 +330,11 @@ struct VolumeBuild {
     origin: [f32; 3],
     side: u32,
     voxel_size: [f32; 3],
-    total_rows: u32,
+    row_end: u32,
     slab_z0: u32,
     slab_depth: u32,
     words_per_row: u32,
-    _pad: u32,
+    row_first: u32,
     light_pos: [f32; 3],
     units_per_extinction: f32,
 }
@@ -331,10 +371,11 @@ pub fn layouts() -> Vec<crate::gpu::MirrorLayout> {
                 origin,
                 side,
                 voxel_size,
-                total_rows,
+                row_end,
                 slab_z0,
                 slab_depth,
                 words_per_row,
+                row_first,
                 light_pos,
                 units_per_extinction
             ]
@@ -352,13 +393,18 @@ fn pack3(v: [u32; 3]) -> u32 {
     v[0] | (v[1] << 10) | (v[2] << 20)
 }
 
+fn unpack3(v: u32) -> [u32; 3] {
+    [v & 1023, (v >> 10) & 1023, v >> 20]
+}
+
 /// A frame's grid placement and scatter jobs, computed on the CPU.
 #[derive(Clone, Debug, PartialEq)]
 pub struct VoxelPlan {
     /// The grid's corner and size (m): the spheres' bounds widened by one voxel per side.
     pub origin: glam::Vec3,
     pub extent: glam::Vec3,
-    /// One job per particle with a radius and an extinction, in instance order.
+    /// One job per particle with a radius and an extinction, sorted by their boxes' first
+    /// z-slice (ties in instance order).
     pub jobs: Vec<VolumeJob>,
     /// (particle, voxel row) pairs of the scatter.
     pub rows: u64,
@@ -369,6 +415,43 @@ pub struct VoxelPlan {
     /// Fixed-point units per 1/m: [`MAX_UNITS_PER_EXTINCTION`], or a lower power of two where
     /// the particles' count times the largest τ could carry a voxel's sum past 2^32.
     pub units_per_extinction: f32,
+}
+
+impl VoxelPlan {
+    /// The rows `[first, end)` of the scatter that slabs of `depth` z-slices of a `side`³ grid
+    /// run over, one range a slab: the rows of the run of jobs that can reach it (their boxes
+    /// start before its end, and some box up to the run's first ends at or after its start).
+    /// Rows of the run outside the slab are skipped by the shader; a slab no box reaches gets
+    /// an empty range.
+    pub fn slab_rows(&self, side: u32, depth: u32) -> Vec<(u32, u32)> {
+        let z_range = |j: &VolumeJob| {
+            let (lo, size) = (unpack3(j.lo)[2], unpack3(j.size)[2]);
+            (lo, lo + size - 1)
+        };
+        // The furthest last z-slice of the jobs up to each: non-decreasing, so searchable.
+        let reach: Vec<u32> = self
+            .jobs
+            .iter()
+            .scan(0u32, |furthest, j| {
+                *furthest = (*furthest).max(z_range(j).1);
+                Some(*furthest)
+            })
+            .collect();
+        let row_of = |job: usize| self.jobs.get(job).map_or(self.rows as u32, |j| j.row_start);
+        (0..side.div_ceil(depth.max(1)))
+            .map(|i| {
+                let z0 = i * depth;
+                let z_end = z0 + depth;
+                let first = reach.partition_point(|&z| z < z0);
+                let end = self.jobs.partition_point(|j| z_range(j).0 < z_end);
+                if first >= end {
+                    (row_of(end), row_of(end))
+                } else {
+                    (row_of(first), row_of(end))
+                }
+            })
+            .collect()
+    }
 }
 
 /// Places a `side`³ grid over `instances` and the density volume's box `volume` (min, max), if
@@ -410,8 +493,7 @@ pub fn plan(
     // Every sphere lies inside the border voxels (a face on the bounds may round onto a border
     // voxel's edge, where no sub-sample lies inside it).
     let (inner_first, inner_last) = (Vec3::ONE, Vec3::splat((side - 2) as f32));
-    let mut rows = 0u64;
-    let jobs = instances
+    let mut jobs = instances
         .iter()
         .filter(live)
         .map(|p| {
@@ -425,18 +507,25 @@ pub fn plan(
                 .clamp(inner_first, inner_last);
             let first = first.as_uvec3();
             let size = end.as_uvec3() - first + glam::UVec3::ONE;
-            let job = VolumeJob {
+            VolumeJob {
                 center: c.to_array(),
                 radius: r,
                 tau: p.albedo_density[3],
-                row_start: rows as u32,
+                row_start: 0,
                 lo: pack3(first.to_array()),
                 size: pack3(size.to_array()),
-            };
-            rows += u64::from(size.y) * u64::from(size.z);
-            job
+            }
         })
         .collect::<Vec<VolumeJob>>();
+    // By first z-slice (stable: ties keep the instance order), so that the jobs that can reach
+    // a slab are one run ([`VoxelPlan::slab_rows`]).
+    jobs.sort_by_key(|j| unpack3(j.lo)[2]);
+    let mut rows = 0u64;
+    for job in &mut jobs {
+        let size = unpack3(job.size);
+        job.row_start = rows as u32;
+        rows += u64::from(size[1]) * u64::from(size[2]);
+    }
     let blocks = rows.div_ceil(u64::from(ROWS_PER_BLOCK));
     let mut row_blocks = Vec::with_capacity(blocks as usize + 1);
     let mut job = 0usize;
@@ -464,12 +553,10 @@ pub struct Volume {
     side: u32,
     steps: u32,
     light_aligned: bool,
-    slab_depth: u32,
     grid: wgpu::Texture,
     lookup_params: wgpu::Buffer,
-    slab_params: Vec<wgpu::Buffer>,
-    scratch: wgpu::Buffer,
-    staging: wgpu::Buffer,
+    /// The build's slab scratch, sized at the first build to what the memory limit leaves.
+    slabs: Option<Slabs>,
     /// The frame's jobs, and its row-block table.
     jobs: GrowingBuffer,
     row_blocks: GrowingBuffer,
@@ -531,30 +618,6 @@ impl Volume {
                 usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
                 view_formats: &[],
             },
-        )?;
-        let slab_depth = slab_depth(side, gpu.limits.max_storage_buffer_binding_size);
-        let slab_params = (0..side.div_ceil(slab_depth))
-            .map(|i| {
-                memory.buffer_transient(
-                    device,
-                    &wgpu::BufferDescriptor {
-                        label: Some(&format!("volume.slab{i}")),
-                        size: BUILD_BYTES,
-                        usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-                        mapped_at_creation: false,
-                    },
-                )
-            })
-            .collect::<Result<Vec<_>, _>>()?;
-        let side64 = u64::from(side);
-        let depth64 = u64::from(slab_depth);
-        let scratch = memory.buffer_transient(
-            device,
-            &storage_descriptor("volume.scratch", side64 * side64 * depth64 * 4),
-        )?;
-        let staging = memory.buffer_transient(
-            device,
-            &storage_descriptor("volume.staging", depth64 * side64 * staging_pitch(side)),
         )?;
         let jobs = GrowingBuffer::new(
             &mut memory,
@@ -645,7 +708,6 @@ impl Volume {
             side,
             steps,
             light_aligned,
-            slab_depth,
             // Each field has its own entry point (see scatter_row in volume_build.wgsl).
             scatter: pipeline(if light_aligned {
                 "scatter_light_aligned"
@@ -656,9 +718,7 @@ impl Volume {
             convert_with_medium: pipeline("convert_with_medium"),
             grid,
             lookup_params,
-            slab_params,
-            scratch,
-            staging,
+            slabs: None,
             jobs,
             row_blocks,
             build_layout,
@@ -669,6 +729,94 @@ impl Volume {
             last_jobs: 0,
             last_rows: 0,
         })
+    }
+}
+
+impl Volume {
+    /// Sizes the slab scratch to the deepest slab the memory limit leaves room for (after the
+    /// grid, the jobs and the row blocks), within one storage binding: the whole grid in one
+    /// slab where it fits, else as few slabs as the limit allows (the grid is the same either
+    /// way). Reallocates only when that depth changes.
+    fn fit_slabs(&mut self, device: &wgpu::Device) -> Result<(), ShadowError> {
+        let held = self
+            .slabs
+            .as_ref()
+            .map_or(0, |s| slab_scratch_bytes(self.side, s.depth));
+        let room = self.memory.remaining_bytes() + held;
+        let max_depth = slab_depth(self.side, self.binding_limit);
+        // Not even one z-slice fits: allocate one anyway, for the ledger's one line.
+        let depth = deepest_slab(self.side, max_depth, room).unwrap_or(1);
+        if self.slabs.as_ref().is_some_and(|s| s.depth == depth) {
+            return Ok(());
+        }
+        if let Some(old) = self.slabs.take() {
+            old.release(&mut self.memory);
+        }
+        self.slabs = Some(Slabs::new(&mut self.memory, device, self.side, depth)?);
+        Ok(())
+    }
+}
+
+/// The build's scratch for slabs of `depth` z-slices: a uniform per slab, and the u32 sums and
+/// the f16 staging of one slab, which every slab reuses in turn
+/// ([`slab_scratch_bytes`]).
+struct Slabs {
+    depth: u32,
+    params: Vec<wgpu::Buffer>,
+    scratch: wgpu::Buffer,
+    staging: wgpu::Buffer,
+}
+
+impl Slabs {
+    fn new(
+        memory: &mut MemoryLedger,
+        device: &wgpu::Device,
+        side: u32,
+        depth: u32,
+    ) -> Result<Self, ShadowError> {
+        let params = (0..side.div_ceil(depth))
+            .map(|i| {
+                memory.buffer_transient(
+                    device,
+                    &wgpu::BufferDescriptor {
+                        label: Some(&format!("volume.slab{i}")),
+                        size: BUILD_BYTES,
+                        usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                        mapped_at_creation: false,
+                    },
+                )
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        let (side64, depth64) = (u64::from(side), u64::from(depth));
+        let scratch = memory.buffer_transient(
+            device,
+            &storage_descriptor("volume.scratch", side64 * side64 * depth64 * 4),
+        )?;
+        let staging = memory.buffer_transient(
+            device,
+            &storage_descriptor("volume.staging", depth64 * side64 * staging_pitch(side)),
+        )?;
+        Ok(Self {
+            depth,
+            params,
+            scratch,
+            staging,
+        })
+    }
+
+    /// Forgets its allocations in `memory` and frees them.
+    fn release(self, memory: &mut MemoryLedger) {
+        for (i, buffer) in self.params.into_iter().enumerate() {
+            memory.forget(&format!("volume.slab{i}"));
+            buffer.destroy();
+        }
+        for (label, buffer) in [
+            ("volume.scratch", self.scratch),
+            ("volume.staging", self.staging),
+        ] {
+            memory.forget(label);
+            buffer.destroy();
+        }
     }
 }
 
@@ -702,7 +850,7 @@ impl GrowingBuffer {
     }
 
     /// Grows it to hold `count` elements (a power of two, or exactly `count` where a power of
-    /// two would not fit one binding of `binding_limit` bytes).
+    /// two would not fit one binding of `binding_limit` bytes or the memory limit).
     fn reserve(
         &mut self,
         memory: &mut MemoryLedger,
@@ -713,11 +861,15 @@ impl GrowingBuffer {
         if count <= self.capacity {
             return Ok(());
         }
+        // What the buffer may take: the limit's remaining bytes and its own, which it frees.
+        let room = memory.remaining_bytes() + u64::from(self.capacity) * self.element_bytes;
         let mut capacity = count.next_power_of_two();
-        if u64::from(capacity) * self.element_bytes > binding_limit {
+        let bytes = u64::from(capacity) * self.element_bytes;
+        if bytes > binding_limit || bytes > room {
             capacity = count;
         }
         memory.forget(self.label);
+        self.buffer.destroy();
         *self = Self::new(memory, device, self.label, self.element_bytes, capacity)?;
         Ok(())
     }
@@ -753,7 +905,10 @@ impl ShadowTechnique for Volume {
     fn counters(&self) -> Vec<(&'static str, u64)> {
         vec![
             ("grid_side", u64::from(self.side)),
-            ("slab_depth", u64::from(self.slab_depth)),
+            (
+                "slab_depth",
+                self.slabs.as_ref().map_or(0, |s| u64::from(s.depth)),
+            ),
             ("job_capacity", u64::from(self.jobs.capacity)),
             ("block_capacity", u64::from(self.row_blocks.capacity)),
             ("voxelised_particles", u64::from(self.last_jobs)),
@@ -778,7 +933,8 @@ impl ShadowTechnique for Volume {
             );
             return Ok(());
         };
-        let rows = u32::try_from(plan.rows).map_err(|_| ShadowError::VoxelRowsTooMany {
+        // Rows are numbered in u32 (the jobs' row starts, the slabs' ranges).
+        u32::try_from(plan.rows).map_err(|_| ShadowError::VoxelRowsTooMany {
             particles: inputs.particle_count,
             side: self.side,
             rows: plan.rows,
@@ -813,11 +969,17 @@ impl ShadowTechnique for Volume {
         );
 
         let side = self.side;
+        self.fit_slabs(device)?;
+        let slabs = self.slabs.as_ref().expect("fit_slabs leaves slabs");
         let pitch = staging_pitch(side);
-        let (groups_x, groups_y) = scatter_groups(rows);
-        for (i, slab) in self.slab_params.iter().enumerate() {
-            let z0 = i as u32 * self.slab_depth;
-            let depth = self.slab_depth.min(side - z0);
+        let ranges = plan.slab_rows(side, slabs.depth);
+        // One timed span over every slab's passes (and the copies between them).
+        let span = inputs.timer.compute_span("shadow");
+        let passes = 2 * slabs.params.len();
+        let mut pass_index = 0;
+        for (i, (slab, &(row_first, row_end))) in slabs.params.iter().zip(&ranges).enumerate() {
+            let z0 = i as u32 * slabs.depth;
+            let depth = slabs.depth.min(side - z0);
             gpu.queue.write_buffer(
                 slab,
                 0,
@@ -825,11 +987,11 @@ impl ShadowTechnique for Volume {
                     origin: plan.origin.to_array(),
                     side,
                     voxel_size: (plan.extent / side as f32).to_array(),
-                    total_rows: rows,
+                    row_end,
                     slab_z0: z0,
                     slab_depth: depth,
                     words_per_row: (pitch / 4) as u32,
-                    _pad: 0,
+                    row_first,
                     light_pos: inputs.light.position.to_array(),
                     units_per_extinction: plan.units_per_extinction,
                 }),
@@ -840,14 +1002,16 @@ impl ShadowTechnique for Volume {
                 entries: &[
                     bind_entry(0, slab),
                     bind_entry(1, &self.jobs.buffer),
-                    bind_entry(2, &self.scratch),
-                    bind_entry(3, &self.staging),
+                    bind_entry(2, &slabs.scratch),
+                    bind_entry(3, &slabs.staging),
                     bind_entry(4, &self.row_blocks.buffer),
                 ],
             });
-            inputs.encoder.clear_buffer(&self.scratch, 0, None);
+            inputs.encoder.clear_buffer(&slabs.scratch, 0, None);
             // Each step in a pass of its own, so that each sees the previous one's writes
-            // whatever the backend's barriers within a pass.
+            // whatever the backend's barriers within a pass. A slab no particle reaches still
+            // converts its zeros (and the density volume's share).
+            let (groups_x, groups_y) = scatter_groups(row_end - row_first);
             let words = side.div_ceil(2);
             let convert = match inputs.volume {
                 Some(_) => &self.convert_with_medium,
@@ -857,20 +1021,27 @@ impl ShadowTechnique for Volume {
                 (&self.scatter, [groups_x, groups_y, 1]),
                 (convert, [words.div_ceil(8), side.div_ceil(8), depth]),
             ] {
+                let timestamp_writes =
+                    inputs
+                        .timer
+                        .span_writes(span, pass_index == 0, pass_index + 1 == passes);
+                pass_index += 1;
                 let mut pass = inputs
                     .encoder
                     .begin_compute_pass(&wgpu::ComputePassDescriptor {
                         label: Some("volume.build"),
-                        timestamp_writes: inputs.timer.compute_pass("shadow"),
+                        timestamp_writes,
                     });
                 pass.set_pipeline(pipeline);
                 pass.set_bind_group(0, inputs.frame_bind_group, &[]);
                 pass.set_bind_group(1, &bind_group, &[]);
-                pass.dispatch_workgroups(groups[0], groups[1], groups[2]);
+                if groups.iter().all(|&g| g > 0) {
+                    pass.dispatch_workgroups(groups[0], groups[1], groups[2]);
+                }
             }
             inputs.encoder.copy_buffer_to_texture(
                 wgpu::TexelCopyBufferInfo {
-                    buffer: &self.staging,
+                    buffer: &slabs.staging,
                     layout: wgpu::TexelCopyBufferLayout {
                         offset: 0,
                         bytes_per_row: Some(pitch as u32),
@@ -952,13 +1123,16 @@ mod tests {
         assert!((voxel - expected).abs().max_element() < 1e-6, "{voxel}");
         assert!((plan.origin - (glam::Vec3::new(-1.0, -1.0, -1.5) - expected)).length() < 1e-5);
         let unpack = |v: u32| [v & 1023, (v >> 10) & 1023, v >> 20];
+        // Jobs go by their first z-slice: the small sphere's box starts at the first inner one.
+        assert_eq!(plan.jobs[0].radius, 0.5);
         // The big sphere's box starts in the first inner voxel along x and y, and 0.5 m (6.4
         // voxels) in along z, where the small sphere reaches further; it spans 2 m of x.
-        assert_eq!(unpack(plan.jobs[0].lo), [1, 1, 7]);
-        let size = unpack(plan.jobs[0].size);
+        assert_eq!(unpack(plan.jobs[1].lo), [1, 1, 7]);
+        let size = unpack(plan.jobs[1].size);
         assert!((14..=16).contains(&size[0]), "{size:?}");
         // Row numbering is a prefix sum of size_y · size_z.
-        let rows0 = u64::from(size[1] * size[2]);
+        let s0 = unpack(plan.jobs[0].size);
+        let rows0 = u64::from(s0[1] * s0[2]);
         assert_eq!(plan.jobs[1].row_start as u64, rows0);
         let s1 = unpack(plan.jobs[1].size);
         assert_eq!(plan.rows, rows0 + u64::from(s1[1] * s1[2]));
@@ -1016,6 +1190,54 @@ mod tests {
         }
         // Some block holds several jobs (the search has work), none more than its rows.
         assert!(widest > 1 && widest <= ROWS_PER_BLOCK, "{widest}");
+    }
+
+    #[test]
+    fn each_slab_runs_over_every_row_that_reaches_it() {
+        // Spheres of many sizes: some slabs are reached by few jobs, some by none.
+        let particles: Vec<_> = (0..200)
+            .map(|i| {
+                let radius = if i % 9 == 0 { 2.0 } else { 0.1 };
+                instance(
+                    [(i % 7) as f32, (i % 5) as f32, (i % 23) as f32],
+                    radius,
+                    1.0,
+                )
+            })
+            .collect();
+        let side = 48;
+        let plan = plan(&particles, side, None).unwrap();
+        // Jobs are sorted by their first z-slice.
+        assert!(plan.jobs.is_sorted_by_key(|j| unpack3(j.lo)[2]));
+        for depth in [1, 2, 5, 16, side] {
+            let ranges = plan.slab_rows(side, depth);
+            assert_eq!(ranges.len(), side.div_ceil(depth) as usize);
+            let mut run = 0u64;
+            for (s, &(first, end)) in ranges.iter().enumerate() {
+                assert!(first <= end && u64::from(end) <= plan.rows);
+                let (z0, z1) = (s as u32 * depth, (s as u32 + 1) * depth);
+                for j in &plan.jobs {
+                    let (lo, size) = (unpack3(j.lo), unpack3(j.size));
+                    // Row `local` of the job is its z-slice lo.z + local / size.y.
+                    for local in 0..size[1] * size[2] {
+                        let z = lo[2] + local / size[1];
+                        let row = j.row_start + local;
+                        if (z0..z1).contains(&z) {
+                            assert!(
+                                (first..end).contains(&row),
+                                "slab {s} of {depth}: row {row} at z {z} outside {first}..{end}"
+                            );
+                        }
+                    }
+                }
+                run += u64::from(end - first);
+            }
+            // The runs cover every row at least once, and one slab is every row.
+            assert!(run >= plan.rows);
+            if depth == side {
+                assert_eq!(ranges, [(0, plan.rows as u32)]);
+            }
+        }
     }
 
     #[test]

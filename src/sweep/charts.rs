@@ -430,14 +430,14 @@ fn series_over_bytes(
 ) -> (Vec<Series>, usize) {
     let zero_bytes = shadowed(results)
         .iter()
-        .filter(|c| c.bytes == 0 && value(c).is_some_and(f64::is_finite))
+        .filter(|c| c.resident_bytes == 0 && value(c).is_some_and(f64::is_finite))
         .count();
     let series = series_per_variant(results, |c| {
         // u64 -> f64 is exact up to 2^53 bytes, far beyond any GPU.
-        if c.bytes == 0 {
+        if c.resident_bytes == 0 {
             return None;
         }
-        Some((c.bytes as f64, value(c)?))
+        Some((c.resident_bytes as f64, value(c)?))
     });
     (series, zero_bytes)
 }
@@ -901,7 +901,7 @@ mod tests {
             shadow_res: res,
             splat: SplatMode::Point,
             particle_res: Default::default(),
-            bytes,
+            resident_bytes: bytes,
             transient_bytes: 0,
             gpu_shadow_ms: timing(1.0),
             gpu_render_ms: timing(4.0),

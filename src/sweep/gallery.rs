@@ -135,7 +135,7 @@ pub fn ranks(scenes: &[SweepResults]) -> Vec<Rank> {
             at.sort_by(|x, y| {
                 flip(x)
                     .total_cmp(&flip(y))
-                    .then(x.kept_bytes().cmp(&y.kept_bytes()))
+                    .then(x.resident_bytes.cmp(&y.resident_bytes))
                     .then(registry_index(&x.technique).cmp(&registry_index(&y.technique)))
                     .then(x.shadow_res.cmp(&y.shadow_res))
                     .then(x.splat.name().cmp(y.splat.name()))
@@ -152,7 +152,7 @@ pub fn ranks(scenes: &[SweepResults]) -> Vec<Rank> {
                     rank: i as u32 + 1,
                     of,
                     flip_vs_exact: flip(c),
-                    bytes: c.kept_bytes(),
+                    bytes: c.resident_bytes,
                 });
             }
         }
@@ -754,7 +754,7 @@ fn page(scenes: &[SweepResults], gallery: &Gallery) -> String {
                 c.channels,
                 c.shadow_res,
                 c.splat.label(),
-                report::bytes(c.bytes),
+                report::bytes(c.resident_bytes),
                 c.frame_ms.median,
                 c.overhead_ratio
                     .filter(|r| r.is_finite())

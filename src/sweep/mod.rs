@@ -78,10 +78,15 @@ pub struct CellResult {
     /// The particle pass's resolution (`1` in cells written before it was an axis).
     #[serde(default)]
     pub particle_res: ParticleRes,
-    /// Bytes the technique allocated (its memory ledger).
-    pub bytes: u64,
-    /// The part of `bytes` that is build scratch the lookup never reads (a deep capture's
-    /// uncompressed lists); 0 for most techniques, and in cells written before it existed.
+    /// Bytes the technique held at its peak, scratch included (its memory ledger's
+    /// [`crate::gpu::MemoryLedger::peak_bytes`], summed over the light's faces): what byte
+    /// budgets, the answer and the Pareto fronts count. Cells written before the name changed
+    /// called it `bytes` (and counted the allocations then live).
+    #[serde(alias = "bytes")]
+    pub resident_bytes: u64,
+    /// The part of `resident_bytes` that is build scratch the lookup never reads (a deep
+    /// capture's lists, the volume's voxelisation); 0 for most techniques, and in cells written
+    /// before it existed.
     #[serde(default)]
     pub transient_bytes: u64,
     /// GPU time of the technique's shadow build passes.
@@ -147,10 +152,10 @@ pub struct CellResult {
 }
 
 impl CellResult {
-    /// The bytes it keeps for the lookup: its transient build scratch aside (a deep capture's
-    /// lists, the volume's voxelisation), as the byte budgets count them.
-    pub fn kept_bytes(&self) -> u64 {
-        self.bytes.saturating_sub(self.transient_bytes)
+    /// The bytes it keeps for the lookup: its resident bytes less the transient build scratch
+    /// (reported apart; byte budgets count the resident bytes).
+    pub fn persistent_bytes(&self) -> u64 {
+        self.resident_bytes.saturating_sub(self.transient_bytes)
     }
 }
 

@@ -131,8 +131,8 @@ fn answer(body: &mut String, results: &SweepResults, variants: &Variants, pareto
         return;
     }
     front.sort_by(|a, b| {
-        a.bytes
-            .cmp(&b.bytes)
+        a.resident_bytes
+            .cmp(&b.resident_bytes)
             .then(flip_exact(a).total_cmp(&flip_exact(b)))
     });
     let listed: Vec<String> = front
@@ -141,7 +141,7 @@ fn answer(body: &mut String, results: &SweepResults, variants: &Variants, pareto
             format!(
                 "<b>{}</b>: {}, FLIP {:.4}",
                 e(&variants.cell_label(c)),
-                report::bytes(c.bytes),
+                report::bytes(c.resident_bytes),
                 flip_exact(c)
             )
         })
@@ -153,7 +153,7 @@ fn answer(body: &mut String, results: &SweepResults, variants: &Variants, pareto
         .min_by(|a, b| {
             flip_exact(a)
                 .total_cmp(&flip_exact(b))
-                .then(a.bytes.cmp(&b.bytes))
+                .then(a.resident_bytes.cmp(&b.resident_bytes))
         });
     let _ = write!(
         body,
@@ -167,7 +167,7 @@ fn answer(body: &mut String, results: &SweepResults, variants: &Variants, pareto
             " Closest to <code>exact</code> overall: <b>{}</b> (FLIP {:.4}, {}).",
             e(&variants.cell_label(best)),
             flip_exact(best),
-            report::bytes(best.bytes)
+            report::bytes(best.resident_bytes)
         );
     }
     body.push_str("</p>\n");
@@ -186,7 +186,7 @@ pub fn at_byte_budget(results: &SweepResults, bytes: u32) -> Vec<&CellResult> {
     at.sort_by(|a, b| {
         flip_exact(a)
             .total_cmp(&flip_exact(b))
-            .then(a.kept_bytes().cmp(&b.kept_bytes()))
+            .then(a.resident_bytes.cmp(&b.resident_bytes))
             .then(super::registry_index(&a.technique).cmp(&super::registry_index(&b.technique)))
     });
     at
@@ -294,25 +294,25 @@ fn budget_limits(results: &SweepResults, largest: u32) -> Vec<String> {
         };
         let kept = |channels: u32| {
             let params = crate::shadow::TechniqueParams::new(channels, cell.shadow_res);
-            crate::shadow::kept_bytes_per_texel(entry, &params, u64::from(m.particles), pixels)
+            crate::shadow::planned_bytes_per_texel(entry, &params, u64::from(m.particles), pixels)
         };
         let (least, most) = (kept(entry.min_channels), kept(crate::shadow::MAX_CHANNELS));
         let name = format!("<code>{}</code>", entry.name);
         if most - least < 1.0 && !entry.uses_budget {
             notes.push(format!(
-                "{name} keeps {most:.1} bytes a texel at any budget, and a larger one buys it \
+                "{name} holds {most:.1} bytes a texel at any budget, and a larger one buys it \
                  nothing"
             ));
         } else if most - least < 1.0 {
             notes.push(format!(
-                "{name} keeps {least:.1} to {most:.1} bytes a texel from {} to {}: its budget \
+                "{name} holds {least:.1} to {most:.1} bytes a texel from {} to {}: its budget \
                  buys it passes (time), not memory, so it runs at its largest wherever it fits",
                 (entry.budget_caption)(entry.min_channels),
                 (entry.budget_caption)(crate::shadow::MAX_CHANNELS),
             ));
         } else if most < f64::from(largest) {
             notes.push(format!(
-                "{name} keeps at most {most:.1} bytes a texel ({}), whatever the budget",
+                "{name} holds at most {most:.1} bytes a texel ({}), whatever the budget",
                 (entry.budget_caption)(crate::shadow::MAX_CHANNELS)
             ));
         }
@@ -391,10 +391,10 @@ fn table(body: &mut String, results: &SweepResults, variants: &Variants, pareto:
             c.shadow_res,
             c.splat.label(),
             match c.transient_bytes {
-                0 => report::bytes(c.bytes),
+                0 => report::bytes(c.resident_bytes),
                 t => format!(
                     "{} ({} transient)",
-                    report::bytes(c.bytes),
+                    report::bytes(c.resident_bytes),
                     report::bytes(t)
                 ),
             },
@@ -595,7 +595,7 @@ fn image_grid(body: &mut String, results: &SweepResults, variants: &Variants) {
                  <span class=\"links\">{links}</span></figcaption></figure>",
                 x = e(&c.image),
                 label = e(&variants.cell_label(c)),
-                bytes = report::bytes(c.bytes),
+                bytes = report::bytes(c.resident_bytes),
                 flip = metric(c.vs_exact.map(|x| x.flip_mean)),
                 links = links.join(" "),
             );
@@ -689,16 +689,17 @@ fn pareto_front(cells: &[CellResult]) -> Vec<bool> {
             flip.is_finite()
                 && !cells.iter().any(|d| {
                     let other = flip_exact(d);
-                    other.is_finite() && d.bytes <= c.bytes && other < flip
+                    other.is_finite() && d.resident_bytes <= c.resident_bytes && other < flip
                 })
         })
         .collect()
 }
 
-/// The bytes a cell keeps for the lookup (its transient build scratch aside) per shadow-map
-/// texel, one decimal; "—" without a map (`none`, `exact`'s lists are no map either).
+/// The bytes a cell holds (resident: its build scratch included, as byte budgets count them)
+/// per shadow-map texel, one decimal; "—" without a map (`none`, `exact`'s lists are no map
+/// either).
 fn bytes_per_texel(c: &CellResult) -> String {
-    let kept = c.kept_bytes();
+    let kept = c.resident_bytes;
     let texels = u64::from(c.shadow_res).pow(2);
     let has_map =
         crate::shadow::find(&c.technique).is_ok_and(|t| t.role == crate::shadow::Role::Contender);
@@ -762,7 +763,7 @@ pub(crate) mod tests {
             shadow_res: 512,
             splat: SplatMode::Point,
             particle_res: Default::default(),
-            bytes,
+            resident_bytes: bytes,
             transient_bytes: 0,
             gpu_shadow_ms: timing(1.0),
             gpu_render_ms: timing(4.0),

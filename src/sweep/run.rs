@@ -320,7 +320,9 @@ fn plan(scene: &Scene, options: &SweepOptions) -> anyhow::Result<(Vec<Plan>, Vec
 /// [`shadow::fit_bytes_per_texel`] at the scene's particles and frame): a cell already planned
 /// with the same channels used (a channel budget's, or another byte budget's) answers it too;
 /// else a new cell, off the channel axis. A technique whose result does not depend on the
-/// budget answers every byte budget it fits with its one cell. `Err`: why it fits none.
+/// budget answers every byte budget it fits with its one cell. The cell's technique is held to
+/// the smallest budget's bytes ([`shadow::TechniqueParams::memory_limit_bytes`]). `Err`: why it fits
+/// none.
 fn plan_byte_budget(
     scene: &Scene,
     entry: &'static shadow::TechniqueEntry,
@@ -340,12 +342,23 @@ fn plan_byte_budget(
             && p.particle_res == particle_res
             && (!entry.uses_budget || used(p) == (fit.channels_used, fit.bytes_per_texel))
     });
+    // The cell holds itself to the smallest byte budget it answers: its build sheds scratch
+    // to fit (more slabs or bands: time for bytes), so its resident bytes are within each.
+    let limit = u64::from(bytes) * u64::from(res).pow(2);
+    let hold = |p: &mut Plan| {
+        let params = &mut p.config.params;
+        params.memory_limit_bytes = Some(params.memory_limit_bytes.map_or(limit, |l| l.min(limit)));
+    };
     match same {
-        Some(p) => p.byte_budgets.push(bytes),
+        Some(p) => {
+            p.byte_budgets.push(bytes);
+            hold(p);
+        }
         None => {
             let mut p = Plan::new(scene, entry.name, fit.channels, res, splat).at(particle_res);
             p.byte_budgets.push(bytes);
             p.channel_axis = false;
+            hold(&mut p);
             cells.push(p);
         }
     }
@@ -699,7 +712,7 @@ impl<'a> Sweeper<'a> {
         if is_frame_baseline {
             self.against.none_frame_ms = timing(&frame_ms).median;
         }
-        let (bytes, transient_bytes) = self.renderer.shadow_bytes();
+        let (resident_bytes, transient_bytes) = self.renderer.shadow_bytes();
         let channels_used = self.renderer.technique().channels_used();
         let rgba = crate::gpu::read_texture_rgba8(self.gpu, &self.target.texture)?;
         let image = image::DynamicImage::ImageRgba8(rgba).into_rgb8();
@@ -721,7 +734,7 @@ impl<'a> Sweeper<'a> {
             shadow_res: plan.config.params.resolution_px,
             splat: plan.config.params.splat,
             particle_res: plan.particle_res,
-            bytes,
+            resident_bytes,
             transient_bytes,
             gpu_shadow_ms: timing(&shadow_ms),
             gpu_render_ms: timing(&render_ms),
@@ -1451,7 +1464,7 @@ fn summary(cell: &CellResult) -> String {
             ParticleRes::Full => String::new(),
             res => format!(", particles at {res}"),
         },
-        cell.bytes,
+        cell.resident_bytes,
         cell.frame_ms.median,
         cell.gpu_shadow_ms.median
     );
@@ -1475,7 +1488,8 @@ pub const CSV_COLUMNS: &[&str] = &[
     "shadow_res",
     "splat",
     "particle_res",
-    "bytes",
+    "resident_bytes",
+    "persistent_bytes",
     "transient_bytes",
     "shadow_ms_median",
     "shadow_ms_min",
@@ -1531,7 +1545,8 @@ pub(super) fn csv_row(c: &CellResult) -> Vec<String> {
         c.shadow_res.to_string(),
         c.splat.name().to_owned(),
         c.particle_res.name().to_owned(),
-        c.bytes.to_string(),
+        c.resident_bytes.to_string(),
+        c.persistent_bytes().to_string(),
         c.transient_bytes.to_string(),
         format!("{:.3}", c.gpu_shadow_ms.median),
         format!("{:.3}", c.gpu_shadow_ms.min),

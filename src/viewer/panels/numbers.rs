@@ -64,12 +64,15 @@ pub fn show(controller: &mut Controller, ui: &mut egui::Ui) {
         ui.end_row();
         let memory = view.renderer().technique().memory();
         ui.label("Shadow memory");
-        // The build's scratch (a deep capture's lists) is allocated and counted, and said apart.
-        let shown = match memory.transient_bytes() {
-            0 => crate::report::bytes(memory.total_bytes()),
+        // Resident bytes (over every light face, at their peak), as the sweep's byte budgets
+        // count them; the build's scratch (a deep capture's lists, the volume's slabs) is part
+        // of them, and said apart.
+        let (resident, transient) = view.renderer().shadow_bytes();
+        let shown = match transient {
+            0 => crate::report::bytes(resident),
             transient => format!(
                 "{} ({} transient)",
-                crate::report::bytes(memory.total_bytes()),
+                crate::report::bytes(resident),
                 crate::report::bytes(transient)
             ),
         };
@@ -89,9 +92,7 @@ pub fn show(controller: &mut Controller, ui: &mut egui::Ui) {
             && controller.state.mode.shows_b()
         {
             ui.label("B memory");
-            ui.label(crate::report::bytes(
-                b.renderer().technique().memory().total_bytes(),
-            ));
+            ui.label(crate::report::bytes(b.renderer().shadow_bytes().0));
             ui.end_row();
         }
     });
