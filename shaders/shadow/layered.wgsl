@@ -27,7 +27,7 @@ struct LayeredParams {
     // dom: factor on each particle's radius in the start-depth pass (1: the particles' own
     // spheres; more: a smoother proxy that starts in front of them).
     dom_start_dilation: f32,
-    // msm, tmsm: β, the pull of the moments towards the uniform distribution's.
+    // msm, tmsm: β, the pull of the moments towards the bias target (`moment_bias_target`).
     moment_bias: f32,
     // msm, tmsm: η, the share of the weight at the receiver's depth counted in front of it.
     moment_overestimation: f32,
@@ -35,6 +35,10 @@ struct LayeredParams {
     wrapping_zone_rad: f32,
     _pad1: u32,
     _pad2: u32,
+    _pad3: u32,
+    // msm: what power moments 2, 4, 6 and 8 are pulled towards (the odd ones towards 0): the
+    // uniform distribution's 1/(k + 1), or the moment-based OIT authors' bias vector.
+    moment_bias_target: vec4<f32>,
 };
 
 @group(1) @binding(0) var<uniform> layered: LayeredParams;

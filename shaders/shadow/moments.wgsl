@@ -188,12 +188,15 @@ fn moment_roots(coefficients: array<vec2<f32>, 5>) -> MomentRoots {
 struct MomentSetting {
     // Trigonometric moments (else power).
     trigonometric: bool,
-    // β: the pull towards the uniform distribution's moments.
+    // β: the pull towards the bias target.
     bias: f32,
     // η: the share of the weight at the receiver's depth counted in front of it.
     overestimation: f32,
     // θ: the wrapping zone, radians (trigonometric moments).
     wrapping_zone_rad: f32,
+    // Power moments: the target of moments 2, 4, 6, 8 (the odd ones' is 0); trigonometric
+    // moments are pulled towards 0 (scaled by 1 − β).
+    bias_target: vec4<f32>,
 };
 
 // The node a normalised depth maps to: z = 2d − 1 on the real line, or e^{iφ}, φ = d(2π − θ).
@@ -205,12 +208,13 @@ fn moment_node(s: MomentSetting, depth01: f32) -> vec2<f32> {
     return vec2<f32>(2.0 * d - 1.0, 0.0);
 }
 
-// The uniform distribution's moment k (the bias target).
-fn moment_uniform(s: MomentSetting, k: u32) -> f32 {
+// The bias target's moment k: 0 for trigonometric and odd power moments, else the setting's
+// (the uniform distribution's 1/(k + 1), or the authors' vector).
+fn moment_bias_target(s: MomentSetting, k: u32) -> f32 {
     if s.trigonometric || (k % 2u) == 1u {
         return 0.0;
     }
-    return 1.0 / f32(k + 1u);
+    return s.bias_target[min(k / 2u, 4u) - 1u];
 }
 
 // How much of a root's weight lies in front of the node z0: 1 in front, 0 behind, and for
@@ -242,7 +246,7 @@ fn moment_transmittance(s: MomentSetting, b0: f32, weighted: array<vec2<f32>, 9>
     var b: array<vec2<f32>, 9>;
     b[0] = vec2<f32>(1.0, 0.0);
     #unroll k 1..LAYERED_COUNT+1
-        b[k] = (1.0 - s.bias) * weighted[k] / b0 + vec2<f32>(s.bias * moment_uniform(s, k), 0.0);
+        b[k] = (1.0 - s.bias) * weighted[k] / b0 + vec2<f32>(s.bias * moment_bias_target(s, k), 0.0);
     #end_unroll
     // A = L D Lᴴ of the (n + 1)² Hankel (power: A_ij = b[i + j]) or Toeplitz (A_ij = b[i − j],
     // conjugated above the diagonal) matrix.

@@ -5,7 +5,13 @@
 #import shadow/moments.wgsl
 
 fn msm_setting() -> MomentSetting {
-    return MomentSetting(false, layered.moment_bias, layered.moment_overestimation, 0.0);
+    return MomentSetting(
+        false,
+        layered.moment_bias,
+        layered.moment_overestimation,
+        0.0,
+        layered.moment_bias_target,
+    );
 }
 
 fn shadow_transmittance(p: vec3<f32>) -> f32 {

@@ -6,7 +6,13 @@
 #import shadow/moments.wgsl
 
 fn tmsm_setting() -> MomentSetting {
-    return MomentSetting(true, layered.moment_bias, layered.moment_overestimation, layered.wrapping_zone_rad);
+    return MomentSetting(
+        true,
+        layered.moment_bias,
+        layered.moment_overestimation,
+        layered.wrapping_zone_rad,
+        layered.moment_bias_target,
+    );
 }
 
 fn shadow_transmittance(p: vec3<f32>) -> f32 {

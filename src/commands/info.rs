@@ -111,7 +111,12 @@ pub fn run(args: &InfoArgs, preference: &AdapterPreference) -> anyhow::Result<()
          `smokeshadow tune` chose):"
     );
     for (key, value, source) in crate::tune::PAPER {
-        println!("  {key:<22} {value} ({source})");
+        // A choice by its name.
+        let shown = crate::shadow::find_param(key)
+            .ok()
+            .and_then(|spec| spec.choices.get(*value as usize))
+            .map_or(value.to_string(), |c| (*c).to_owned());
+        println!("  {key:<22} {shown} ({source})");
     }
     Ok(())
 }

@@ -356,6 +356,31 @@ fn print_table(results: &SweepResults, folder: &Path) {
             }
         );
     }
+    // And at equal time, on this adapter.
+    if results.cells.iter().any(|c| c.overhead_ratio.is_some()) {
+        for &ratio in sweep::report::TIME_BUDGETS {
+            let ranked: Vec<String> = sweep::report::at_time_budget(results, ratio)
+                .iter()
+                .map(|c| {
+                    format!(
+                        "{} {} ({:.4}, {:.2}x)",
+                        c.technique,
+                        c.channels,
+                        c.vs_exact.map_or(f64::NAN, |e| e.flip_mean),
+                        c.overhead_ratio.unwrap_or(f64::NAN)
+                    )
+                })
+                .collect();
+            println!(
+                "within {ratio:.1}x none's frame time on {}, by FLIP vs exact: {}",
+                results.metadata.adapter,
+                match ranked.is_empty() {
+                    true => "no technique is that fast".to_owned(),
+                    false => ranked.join(", "),
+                }
+            );
+        }
+    }
 }
 
 /// `--bytes-per-texel`'s budgets (empty for `none`).

@@ -77,6 +77,9 @@ pub struct LayeredSpec {
 pub struct MomentParams {
     /// β, the pull towards the uniform distribution's moments.
     pub bias: &'static ParamSpec,
+    /// Whether β and its target are `bias` and the uniform distribution's moments, or the
+    /// authors' table ([`super::msm::PAPER_BIAS`]).
+    pub bias_table: &'static ParamSpec,
     /// η, the share of the weight at the receiver's depth counted in front of it.
     pub overestimation: &'static ParamSpec,
     /// θ, the wrapping zone of trigonometric moments: set exactly for them
@@ -153,7 +156,9 @@ struct LayeredParams {
     moment_bias: f32,
     moment_overestimation: f32,
     wrapping_zone_rad: f32,
-    _pad1: [u32; 2],
+    _pad1: [u32; 3],
+    /// What power moments 2, 4, 6 and 8 are pulled towards (the odd ones towards 0).
+    moment_bias_target: [f32; 4],
 }
 
 /// Bytes of a layered technique's uniform parameters (its memory formula counts them).
@@ -177,9 +182,34 @@ pub fn layouts() -> Vec<crate::gpu::MirrorLayout> {
             dom_start_dilation,
             moment_bias,
             moment_overestimation,
-            wrapping_zone_rad
+            wrapping_zone_rad,
+            moment_bias_target
         ]
     )]
+}
+
+/// β and the target of power moments 2, 4, 6, 8 for `spec` with `params` at `count` moments:
+/// its bias parameter towards the uniform distribution's moments (1/(k + 1)), or with its bias
+/// table at `paper` the authors' row for this count ([`super::msm::PAPER_BIAS`]).
+pub fn moment_bias(spec: &LayeredSpec, params: &TechniqueParams, count: u32) -> (f32, [f32; 4]) {
+    let uniform = [1.0 / 3.0, 1.0 / 5.0, 1.0 / 7.0, 1.0 / 9.0];
+    let Some(m) = spec.moments.as_ref() else {
+        return (0.0, uniform);
+    };
+    let one = (params.get(m.bias).unwrap_or(0.0), uniform);
+    if params.choice_index(m.bias_table) != 1 {
+        return one;
+    }
+    match super::msm::paper_bias(m.trigonometric(), count) {
+        Some(row) => {
+            let mut target = [0.0; 4];
+            for (t, v) in target.iter_mut().zip(row.vector.iter().skip(1).step_by(2)) {
+                *t = *v as f32;
+            }
+            (row.bias, target)
+        }
+        None => one,
+    }
 }
 
 /// Format of packed target `index` for `packed` channels of `precision`.
@@ -1015,6 +1045,8 @@ impl Layered {
 
     /// The parameters for the shaders.
     fn shader_params(&self) -> LayeredParams {
+        let (moment_bias, moment_bias_target) =
+            moment_bias(self.spec, &self.params, self.plan.count);
         LayeredParams {
             count: self.plan.count,
             packed: self.plan.packed,
@@ -1046,10 +1078,11 @@ impl Layered {
                 .start_dilation
                 .and_then(|p| self.params.get(p))
                 .unwrap_or(1.0),
-            moment_bias: self.moment_param(|m| Some(m.bias)),
+            moment_bias,
             moment_overestimation: self.moment_param(|m| Some(m.overestimation)),
             wrapping_zone_rad: self.moment_param(|m| m.wrapping_zone),
-            _pad1: [0; 2],
+            _pad1: [0; 3],
+            moment_bias_target,
         }
     }
 

@@ -18,7 +18,10 @@
 //! returns T = clamp(exp(−b0·A), 0, 1). The kernel polynomial has degree N/2 or M, at most 4,
 //! whose roots have a closed form; that is why neither family grows past 9 channels here, as in
 //! the authors' own code. Parameters: the bias β (towards light leaking) and the overestimation
-//! η (towards darkening) of each family, and `tmsm`'s wrapping zone θ.
+//! η (towards darkening) of each family, and `tmsm`'s wrapping zone θ. β pulls the moments
+//! towards the uniform distribution's (`msm_bias`, `tmsm_bias`, tuned), or with
+//! `msm_bias_table = paper` / `tmsm_bias_table = paper` (what `--params paper` sets) by the
+//! authors' β per moment count towards their fixed bias vectors ([`PAPER_BIAS`]).
 //! Shaders: `shaders/shadow/msm.wgsl`, `tmsm.wgsl` (lookups), `msm_build.wgsl`,
 //! `tmsm_build.wgsl` and the shared `moments.wgsl`.
 
@@ -45,6 +48,162 @@ pub const BIAS: ParamSpec = ParamSpec {
     integer: false,
     tuned: true,
 };
+
+/// `msm_bias_table`: one β towards the uniform distribution's moments, or the authors' table.
+pub const BIAS_TABLE: ParamSpec = ParamSpec {
+    key: "msm_bias_table",
+    unit: "-",
+    doc: "one: β = msm_bias for every moment count, pulling towards the uniform distribution's \
+          moments; paper: the moment-based OIT authors' β per moment count and their fixed bias \
+          vectors (single-float moments: `--params paper` chooses it)",
+    min: 0.0,
+    max: 1.0,
+    default: Some(0.0),
+    choices: &["one", "paper"],
+    integer: false,
+    tuned: false,
+};
+
+/// `tmsm_bias_table`: one β, or the authors' β per trigonometric moment count.
+pub const TRIG_BIAS_TABLE: ParamSpec = ParamSpec {
+    key: "tmsm_bias_table",
+    doc: "one: β = tmsm_bias for every moment count; paper: the moment-based OIT authors' β per \
+          moment count (single-float moments; trigonometric moments are scaled by 1 − β, \
+          towards no vector: `--params paper` chooses it)",
+    ..BIAS_TABLE
+};
+
+/// The bias the moment-based OIT authors use, per moment count and precision: Münstermann,
+/// Krumpen, Klein & Peters, "Moment-Based Order-Independent Transparency", Proc. ACM Comput.
+/// Graph. Interact. Tech. 1(1), article 7, 2018 (doi:10.1145/3203206), and the code they
+/// released with it (`MomentOIT.hlsli`, `resolveMoments`: the bias vectors; the β per count and
+/// precision as its OIT demo sets them, e.g. PixelSyncOIT's `OIT_MBOIT.cpp`,
+/// `updateMomentMode`). Power moments are lerped towards the vector by β; trigonometric moments
+/// are scaled by 1 − β (no vector). This tool stores its moments in 32-bit floats, so the
+/// lookup uses the single-float rows; the 16-bit rows are kept for the record.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PaperBias {
+    pub trigonometric: bool,
+    /// Power moments (4, 6, 8) or trigonometric moments (2, 3, 4).
+    pub moments: u32,
+    /// Bits per moment: 32 or 16.
+    pub bits: u32,
+    pub bias: f32,
+    /// The bias vector's moments 1..=N (power moments only; empty for trigonometric ones).
+    pub vector: &'static [f64],
+}
+
+pub const PAPER_BIAS: &[PaperBias] = &[
+    PaperBias {
+        trigonometric: false,
+        moments: 4,
+        bits: 32,
+        bias: 5e-7,
+        vector: &[0.0, 0.375, 0.0, 0.375],
+    },
+    PaperBias {
+        trigonometric: false,
+        moments: 6,
+        bits: 32,
+        bias: 5e-6,
+        vector: &[0.0, 0.48, 0.0, 0.451, 0.0, 0.45],
+    },
+    PaperBias {
+        trigonometric: false,
+        moments: 8,
+        bits: 32,
+        bias: 5e-5,
+        vector: &[
+            0.0,
+            0.75,
+            0.0,
+            0.676_666_666_666_666_6,
+            0.0,
+            0.63,
+            0.0,
+            0.600_303_030_303_030_3,
+        ],
+    },
+    PaperBias {
+        trigonometric: true,
+        moments: 2,
+        bits: 32,
+        bias: 4e-7,
+        vector: &[],
+    },
+    PaperBias {
+        trigonometric: true,
+        moments: 3,
+        bits: 32,
+        bias: 8e-7,
+        vector: &[],
+    },
+    PaperBias {
+        trigonometric: true,
+        moments: 4,
+        bits: 32,
+        bias: 1.5e-6,
+        vector: &[],
+    },
+    PaperBias {
+        trigonometric: false,
+        moments: 4,
+        bits: 16,
+        bias: 6e-5,
+        vector: &[0.0, 0.628, 0.0, 0.628],
+    },
+    PaperBias {
+        trigonometric: false,
+        moments: 6,
+        bits: 16,
+        bias: 6e-4,
+        vector: &[0.0, 0.5566, 0.0, 0.489, 0.0, 0.478_693_82],
+    },
+    PaperBias {
+        trigonometric: false,
+        moments: 8,
+        bits: 16,
+        bias: 2.5e-3,
+        vector: &[
+            0.0,
+            0.424_749_163_879_598_66,
+            0.0,
+            0.224_078_026_755_852_84,
+            0.0,
+            0.153_692_307_692_307_68,
+            0.0,
+            0.129_004_405_290_891_2,
+        ],
+    },
+    PaperBias {
+        trigonometric: true,
+        moments: 2,
+        bits: 16,
+        bias: 4e-4,
+        vector: &[],
+    },
+    PaperBias {
+        trigonometric: true,
+        moments: 3,
+        bits: 16,
+        bias: 6.5e-4,
+        vector: &[],
+    },
+    PaperBias {
+        trigonometric: true,
+        moments: 4,
+        bits: 16,
+        bias: 8.5e-4,
+        vector: &[],
+    },
+];
+
+/// The authors' row for `moments` moments of this family in 32-bit floats (this tool's).
+pub fn paper_bias(trigonometric: bool, moments: u32) -> Option<&'static PaperBias> {
+    PAPER_BIAS
+        .iter()
+        .find(|b| b.trigonometric == trigonometric && b.moments == moments && b.bits == 32)
+}
 
 /// `msm_overestimation`: η for power moments.
 pub const OVERESTIMATION: ParamSpec = ParamSpec {
@@ -143,6 +302,7 @@ pub const MSM: LayeredSpec = LayeredSpec {
     sigma: false,
     moments: Some(MomentParams {
         bias: &BIAS,
+        bias_table: &BIAS_TABLE,
         overestimation: &OVERESTIMATION,
         wrapping_zone: None,
     }),
@@ -160,6 +320,7 @@ pub const TMSM: LayeredSpec = LayeredSpec {
     plan: trig_plan,
     moments: Some(MomentParams {
         bias: &TRIG_BIAS,
+        bias_table: &TRIG_BIAS_TABLE,
         overestimation: &TRIG_OVERESTIMATION,
         wrapping_zone: Some(&WRAPPING_ZONE),
     }),
@@ -191,7 +352,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     in_default_sweep: true,
     in_default_compare: true,
     build_reads_back: false,
-    params: &[BIAS, OVERESTIMATION],
+    params: &[BIAS, OVERESTIMATION, BIAS_TABLE],
     // Additive, so independent of the draw order up to the f32 sums' rounding; but the
     // Hankel matrix of 8 power moments amplifies that rounding past the shared 5e-3 bound at a
     // few ill-conditioned texels (measured: T moved by 0.53 at 1 of 10,249 points when the order
@@ -223,7 +384,12 @@ pub const TRIG_ENTRY: TechniqueEntry = TechniqueEntry {
             plan.count, plan.used
         )
     },
-    params: &[TRIG_BIAS, TRIG_OVERESTIMATION, WRAPPING_ZONE],
+    params: &[
+        TRIG_BIAS,
+        TRIG_OVERESTIMATION,
+        WRAPPING_ZONE,
+        TRIG_BIAS_TABLE,
+    ],
     memory: |c| memory(trig_plan)(c),
     lookup_shader: "shadow/tmsm.wgsl",
     lookup_constants: |p| super::layered::lookup_constants(&TMSM, p),
@@ -237,6 +403,120 @@ pub const TRIG_ENTRY: TechniqueEntry = TechniqueEntry {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_paper_table_is_the_authors_released_values() {
+        // Typed in from the released code (MomentOIT.hlsli `resolveMoments`; the β per count
+        // and precision of its demo's `updateMomentMode`): (trigonometric, moments, bits, β,
+        // bias vector).
+        let source: [(bool, u32, u32, f32, &[f64]); 12] = [
+            (false, 4, 32, 5e-7, &[0.0, 0.375, 0.0, 0.375]),
+            (false, 6, 32, 5e-6, &[0.0, 0.48, 0.0, 0.451, 0.0, 0.45]),
+            (
+                false,
+                8,
+                32,
+                5e-5,
+                &[
+                    0.0,
+                    0.75,
+                    0.0,
+                    0.676666666666666,
+                    0.0,
+                    0.63,
+                    0.0,
+                    0.600303030303030,
+                ],
+            ),
+            (true, 2, 32, 4e-7, &[]),
+            (true, 3, 32, 8e-7, &[]),
+            (true, 4, 32, 1.5e-6, &[]),
+            (false, 4, 16, 6e-5, &[0.0, 0.628, 0.0, 0.628]),
+            (
+                false,
+                6,
+                16,
+                6e-4,
+                &[0.0, 0.5566, 0.0, 0.489, 0.0, 0.47869382],
+            ),
+            (
+                false,
+                8,
+                16,
+                2.5e-3,
+                &[
+                    0.0,
+                    0.424749163879598,
+                    0.0,
+                    0.224078026755852,
+                    0.0,
+                    0.153692307692307,
+                    0.0,
+                    0.129004405290891,
+                ],
+            ),
+            (true, 2, 16, 4e-4, &[]),
+            (true, 3, 16, 6.5e-4, &[]),
+            (true, 4, 16, 8.5e-4, &[]),
+        ];
+        assert_eq!(PAPER_BIAS.len(), source.len());
+        for (row, (trig, moments, bits, bias, vector)) in PAPER_BIAS.iter().zip(source) {
+            assert_eq!(
+                (row.trigonometric, row.moments, row.bits, row.bias),
+                (trig, moments, bits, bias)
+            );
+            assert_eq!(row.vector.len(), vector.len());
+            for (a, b) in row.vector.iter().zip(vector) {
+                assert!((a - b).abs() < 1e-12, "{row:?}");
+            }
+        }
+        // Every count either family uses has its single-float row.
+        for m in [4, 6, 8] {
+            assert_eq!(paper_bias(false, m).unwrap().vector.len(), m as usize);
+        }
+        for m in [2, 3, 4] {
+            assert!(paper_bias(true, m).unwrap().vector.is_empty());
+        }
+    }
+
+    #[test]
+    fn the_paper_table_sets_each_counts_bias_and_vector() {
+        use super::super::layered::moment_bias;
+        use crate::shadow::{ParamValue, TechniqueParams, set_param};
+        let mut params = TechniqueParams::new(24, 512);
+        // By default: msm_bias towards the uniform distribution's moments.
+        let (bias, target) = moment_bias(&MSM, &params, 8);
+        assert_eq!(bias, BIAS.default.unwrap());
+        assert_eq!(target, [1.0 / 3.0, 1.0 / 5.0, 1.0 / 7.0, 1.0 / 9.0]);
+        for (key, value) in [("msm_bias_table", "paper"), ("tmsm_bias_table", "paper")] {
+            set_param(&mut params, key, &ParamValue::Choice(value.to_owned())).unwrap();
+        }
+        let f = |v: f64| v as f32;
+        assert_eq!(
+            moment_bias(&MSM, &params, 4),
+            (5e-7, [0.375, 0.375, 0.0, 0.0])
+        );
+        assert_eq!(
+            moment_bias(&MSM, &params, 6),
+            (5e-6, [0.48, 0.451, 0.45, 0.0])
+        );
+        assert_eq!(
+            moment_bias(&MSM, &params, 8),
+            (
+                5e-5,
+                [
+                    0.75,
+                    f(0.676_666_666_666_666_6),
+                    0.63,
+                    f(0.600_303_030_303_030_3)
+                ]
+            )
+        );
+        // Trigonometric moments: β per count, towards no vector.
+        for (m, b) in [(2, 4e-7), (3, 8e-7), (4, 1.5e-6)] {
+            assert_eq!(moment_bias(&TMSM, &params, m), (b, [0.0; 4]));
+        }
+    }
 
     #[test]
     fn budgets_buy_the_moments_the_issue_names() {

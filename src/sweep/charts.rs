@@ -99,6 +99,7 @@ pub fn write_charts(results: &SweepResults, dir: &Path) -> anyhow::Result<Vec<Ch
         error_vs_bytes(results),
         transmittance_error_vs_bytes(results),
         time_vs_bytes(results),
+        error_vs_frame_time(results),
         error_vs_resolution(results),
         error_vs_own_baseline(results),
     ];
@@ -123,6 +124,8 @@ enum XScale {
     LogBytes,
     /// Shadow-map resolution (texels per side) on a base-2 log axis.
     LogResolution,
+    /// A frame-time ratio (to `none`'s) on a base-2 log axis.
+    LogRatio,
     /// Channel budget on a linear axis.
     Channels,
     /// A count (particles) on a base-10 log axis against a log y axis: cost curves whose
@@ -422,6 +425,35 @@ fn series_per_variant(
     series
 }
 
+/// FLIP mean against `exact` over the frame time relative to `none`'s: accuracy per time, the
+/// time Pareto picture, on the adapter the sweep ran on.
+fn error_vs_frame_time(results: &SweepResults) -> Plot {
+    let series = series_per_variant(results, |c| {
+        Some((c.overhead_ratio?, c.vs_exact.map(|e| e.flip_mean)?))
+    });
+    Plot {
+        file_name: "error_vs_frame_time.svg",
+        title: format!(
+            "Accuracy per frame time: FLIP vs exact ({})",
+            results.metadata.adapter
+        ),
+        caption: format!(
+            "FLIP mean of each image against the exact reference (lower is better) over its median \
+             frame time relative to the frame without self-shadowing (none's, 1x; log scale), \
+             timed on {} ({}). The lower-left envelope is the Pareto front of time: nothing to \
+             its left is more accurate. Times are this adapter's: a software rasterizer's \
+             ratios are not a desktop GPU's (docs/gpu holds GPU runs).",
+            results.metadata.adapter, results.metadata.backend
+        ),
+        x_scale: XScale::LogRatio,
+        x_label: "frame time / none's (log scale)".into(),
+        y_label: "FLIP mean vs exact (0 = identical)".into(),
+        series,
+        reference: None,
+        legend_at: SeriesLabelPosition::UpperRight,
+    }
+}
+
 /// [`series_per_variant`] over bytes, with `value` as y. Cells with 0 bytes cannot sit on a log
 /// axis: they are left out and counted.
 fn series_over_bytes(
@@ -568,6 +600,15 @@ fn render_svg(plot: &Plot) -> anyhow::Result<String> {
                 .base(2.0),
             y_range,
             &|x| number_label(*x),
+        ),
+        XScale::LogRatio => draw(
+            plot,
+            &series,
+            log_range(&xs, std::f64::consts::SQRT_2, 1.0..4.0)
+                .log_scale()
+                .base(2.0),
+            y_range,
+            &|x| format!("{}x", number_label(*x)),
         ),
         XScale::Channels => draw(
             plot,

@@ -117,6 +117,7 @@ fn metadata_line(body: &mut String, results: &SweepResults) {
 fn answer(body: &mut String, results: &SweepResults, variants: &Variants, pareto: &[bool]) {
     body.push_str("<h2>Answer</h2>\n");
     equal_bytes(body, results, variants);
+    equal_time(body, results, variants);
     body.push_str(&report::studies_paragraph());
     let mut front: Vec<&CellResult> = results
         .cells
@@ -190,6 +191,37 @@ pub fn at_byte_budget(results: &SweepResults, bytes: u32) -> Vec<&CellResult> {
             .then(super::registry_index(&a.technique).cmp(&super::registry_index(&b.technique)))
     });
     at
+}
+
+/// The frame-time budgets of the time answer: a technique's frame at most this many times the
+/// frame without self-shadowing (`none`'s, timed in the same run).
+pub const TIME_BUDGETS: &[f64] = &[1.5, 2.0, 4.0];
+
+/// Each technique's most accurate cell (FLIP vs `exact`) whose frame takes at most `ratio`
+/// times `none`'s (its `overhead_ratio`, full particle resolution), most accurate first (then
+/// faster, registry order): the answer at equal time.
+pub fn at_time_budget(results: &SweepResults, ratio: f64) -> Vec<&CellResult> {
+    let mut best: Vec<&CellResult> = Vec::new();
+    for c in results.cells.iter().filter(|c| {
+        c.particle_res == ParticleRes::Full
+            && flip_exact(c).is_finite()
+            && c.overhead_ratio.is_some_and(|r| r <= ratio)
+            && crate::shadow::find(&c.technique)
+                .is_ok_and(|t| t.role == crate::shadow::Role::Contender)
+    }) {
+        match best.iter_mut().find(|b| b.technique == c.technique) {
+            Some(b) if flip_exact(c) < flip_exact(b) => *b = c,
+            Some(_) => {}
+            None => best.push(c),
+        }
+    }
+    best.sort_by(|a, b| {
+        flip_exact(a)
+            .total_cmp(&flip_exact(b))
+            .then(a.frame_ms.median.total_cmp(&b.frame_ms.median))
+            .then(super::registry_index(&a.technique).cmp(&super::registry_index(&b.technique)))
+    });
+    best
 }
 
 /// The byte budgets the cells answer, largest first.
@@ -275,6 +307,124 @@ fn equal_bytes(body: &mut String, results: &SweepResults, variants: &Variants) {
             notes.join("; ")
         );
     }
+}
+
+/// The techniques ranked within each frame-time budget ([`TIME_BUDGETS`]), with the adapter
+/// the times are from.
+fn equal_time(body: &mut String, results: &SweepResults, variants: &Variants) {
+    if !results.cells.iter().any(|c| c.overhead_ratio.is_some()) {
+        return;
+    }
+    let spread = super::gallery::FLIP_SPREAD;
+    let m = &results.metadata;
+    let _ = writeln!(
+        body,
+        "<p>At equal time: each technique's most accurate configuration (of every cell, channel \
+         and byte budgets alike) whose median frame takes at most the budget's multiple of the \
+         frame without self-shadowing (<code>none</code>'s, timed in the same run), ranked by \
+         FLIP mean against <code>exact</code>. Timed on <b>{}</b> ({}, {}): on another adapter \
+         the times, and so this answer, differ (a software rasterizer's are not a GPU's).</p>\n\
+         <table><tr><th>frame time</th><th>answer</th><th>ranked (FLIP vs exact, frame time / \
+         none's, resident bytes)</th></tr>",
+        e(&m.adapter),
+        e(&m.backend),
+        e(&m.driver)
+    );
+    for &ratio in TIME_BUDGETS {
+        let at = at_time_budget(results, ratio);
+        let Some(first) = at.first() else {
+            let _ = writeln!(
+                body,
+                "<tr><td>≤ {ratio:.1}x none</td><td>no technique is that fast</td><td></td></tr>"
+            );
+            continue;
+        };
+        let label = |c: &CellResult| e(&variants.cell_label(c));
+        let tied: Vec<&&CellResult> = at
+            .iter()
+            .filter(|c| flip_exact(c) - flip_exact(first) < spread)
+            .collect();
+        let verdict = match tied.len() {
+            1 => format!("<b>{}</b>", label(first)),
+            _ => format!(
+                "tied: {}",
+                tied.iter()
+                    .map(|c| format!("<b>{}</b>", label(c)))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+        };
+        let ranked = at
+            .iter()
+            .enumerate()
+            .map(|(i, c)| {
+                format!(
+                    "{}. {} ({:.4}, {:.2}x, {})",
+                    i + 1,
+                    label(c),
+                    flip_exact(c),
+                    c.overhead_ratio.unwrap_or(f64::NAN),
+                    report::bytes(c.resident_bytes)
+                )
+            })
+            .collect::<Vec<_>>()
+            .join("; ");
+        let _ = writeln!(
+            body,
+            "<tr><td>≤ {ratio:.1}x none</td><td style=\"text-align: left\">{verdict}</td>\
+             <td style=\"text-align: left; white-space: normal\">{ranked}</td></tr>"
+        );
+    }
+    body.push_str("</table>\n");
+    let front = time_pareto(results);
+    if !front.is_empty() {
+        let listed: Vec<String> = front
+            .iter()
+            .map(|c| {
+                format!(
+                    "<b>{}</b>: {:.2}x, FLIP {:.4}",
+                    e(&variants.cell_label(c)),
+                    c.overhead_ratio.unwrap_or(f64::NAN),
+                    flip_exact(c)
+                )
+            })
+            .collect();
+        let _ = writeln!(
+            body,
+            "<p>Most accuracy for the time on {} (the Pareto front of time: no other cell is both \
+             no slower and closer to <code>exact</code>): {}.</p>",
+            e(&m.adapter),
+            listed.join("; ")
+        );
+    }
+}
+
+/// The cells no other beats on both frame time (relative to `none`'s) and FLIP vs `exact`, at
+/// full particle resolution, fastest first.
+pub fn time_pareto(results: &SweepResults) -> Vec<&CellResult> {
+    let timed: Vec<&CellResult> = results
+        .cells
+        .iter()
+        .filter(|c| {
+            c.particle_res == ParticleRes::Full
+                && flip_exact(c).is_finite()
+                && c.overhead_ratio.is_some_and(f64::is_finite)
+        })
+        .collect();
+    let ratio = |c: &CellResult| c.overhead_ratio.unwrap_or(f64::INFINITY);
+    let mut front: Vec<&CellResult> = timed
+        .iter()
+        .copied()
+        .filter(|c| {
+            !timed.iter().any(|d| {
+                ratio(d) <= ratio(c)
+                    && flip_exact(d) <= flip_exact(c)
+                    && (ratio(d) < ratio(c) || flip_exact(d) < flip_exact(c))
+            })
+        })
+        .collect();
+    front.sort_by(|a, b| ratio(a).total_cmp(&ratio(b)));
+    front
 }
 
 /// One sentence per technique of the byte cells whose memory stops short of the largest

@@ -47,12 +47,19 @@ use crate::sim::Particle;
 /// The papers' values, for `--params paper`: (key, value, source). A parameter without a
 /// published value for this use keeps its default, and `smokeshadow info` says which.
 pub const PAPER: &[(&str, f32, &str)] = &[
-    // Münstermann et al. 2018 (moment-based OIT), supplementary: β = 5e-7, 5e-6 and 5e-5 for
-    // 4, 6 and 8 single-float power moments; 8 is what 24 channels hold.
+    // Münstermann, Krumpen, Klein & Peters 2018 (moment-based OIT, doi:10.1145/3203206) and
+    // their released code: β per moment count and precision, with their bias vectors for power
+    // moments ([`crate::shadow::msm::PAPER_BIAS`]: 5e-7, 5e-6, 5e-5 for 4, 6, 8 single-float
+    // power moments; 4e-7, 8e-7, 1.5e-6 for 2, 3, 4 trigonometric ones).
     (
-        "msm_bias",
-        5e-5,
-        "Münstermann et al. 2018, 8 single-float power moments",
+        "msm_bias_table",
+        1.0,
+        "Münstermann et al. 2018 and their code: β and bias vector per moment count (32-bit)",
+    ),
+    (
+        "tmsm_bias_table",
+        1.0,
+        "Münstermann et al. 2018 and their code: β per moment count (32-bit)",
     ),
     // The same paper's overestimation η for every moment count.
     (
