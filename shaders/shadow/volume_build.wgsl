@@ -33,6 +33,11 @@ struct VolumeBuild {
     // The light (m), for the light-aligned field; fixed-point units per 1/m of extinction.
     light_pos: vec3<f32>,
     units_per_extinction: f32,
+    // The run of jobs that can reach this slab, for the scatter by job (`scatter_*_jobs`).
+    job_first: u32,
+    job_end: u32,
+    _pad1: u32,
+    _pad2: u32,
 };
 
 struct VolumeJob {
@@ -111,9 +116,10 @@ fn job_of(row: u32) -> u32 {
     return lo;
 }
 
-// One (particle, voxel row) pair of the scatter, through the light-aligned field or the
-// light-independent one. Two entry points call it with a constant `aligned`, so each compiles
-// only its own field: llvmpipe runs both sides of a branch under a mask, even a uniform one.
+// One (particle, voxel row) pair of the scatter by row: the `index`th row of the slab's run,
+// through the light-aligned field or the light-independent one. Two entry points call it with a
+// constant `aligned`, so each compiles only its own field: llvmpipe runs both sides of a branch
+// under a mask, even a uniform one.
 fn scatter_row(index: u32, aligned: bool) {
     let row = build.row_first + index;
     if row >= build.row_end {
@@ -128,6 +134,32 @@ fn scatter_row(index: u32, aligned: bool) {
     if z < build.slab_z0 || z >= build.slab_z0 + build.slab_depth {
         return;
     }
+    scatter_voxel_row(job, y, z, aligned);
+}
+
+// The scatter by job, for thin slabs (where most of a run's rows lie outside the slab): job
+// `job_first + j`'s `r`th row within the slab, rows z-major as in the frame's numbering. No
+// search, and no invocation for a row of the job outside the slab.
+fn scatter_job_row(j: u32, r: u32, aligned: bool) {
+    let index = build.job_first + j;
+    if index >= build.job_end {
+        return;
+    }
+    let job = jobs[index];
+    let first = unpack3(job.lo);
+    let size = unpack3(job.size);
+    let z_lo = max(first.z, build.slab_z0);
+    let z_end = min(first.z + size.z, build.slab_z0 + build.slab_depth);
+    if z_end <= z_lo || r >= (z_end - z_lo) * size.y {
+        return;
+    }
+    scatter_voxel_row(job, first.y + r % size.y, z_lo + r / size.y, aligned);
+}
+
+// What one job adds to the voxels of its row (y, z) of this slab.
+fn scatter_voxel_row(job: VolumeJob, y: u32, z: u32, aligned: bool) {
+    let first = unpack3(job.lo);
+    let size = unpack3(job.size);
     // The row's voxels span a rectangle in (y, z): skip the row when it lies beyond the radius,
     // and walk x only where the sphere's cross-section at the rectangle's nearest point reaches.
     let h = build.voxel_size;
@@ -189,6 +221,23 @@ fn scatter_light_aligned(
     @builtin(local_invocation_index) lane: u32,
 ) {
     scatter_row((group.y * groups.x + group.x) * 64u + lane, true);
+}
+
+// By job: x (and its 64 lanes) the row within the job's part of the slab, y and z the job.
+@compute @workgroup_size(64)
+fn scatter_radial_jobs(
+    @builtin(workgroup_id) group: vec3<u32>,
+    @builtin(local_invocation_index) lane: u32,
+) {
+    scatter_job_row(group.z * 65535u + group.y, group.x * 64u + lane, false);
+}
+
+@compute @workgroup_size(64)
+fn scatter_light_aligned_jobs(
+    @builtin(workgroup_id) group: vec3<u32>,
+    @builtin(local_invocation_index) lane: u32,
+) {
+    scatter_job_row(group.z * 65535u + group.y, group.x * 64u + lane, true);
 }
 
 // The scene's density volume's mean extinction over voxel `v` of this slab (group 0's grid,

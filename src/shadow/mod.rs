@@ -1155,7 +1155,8 @@ mod tests {
         // 48 bytes hold 9 (8 + 1 in an R target; 11 take 48 and the uniform), 24 bytes 5 (4 + 1).
         let fom48 = fit("fom", 48, None).unwrap();
         assert_eq!((fom48.channels, fom48.channels_used), (9, 9));
-        assert_eq!(fom48.bytes_per_texel, 36.0 + 60.0 / 262_144.0);
+        let uniform = layered::PARAMS_BYTES as f64;
+        assert_eq!(fom48.bytes_per_texel, 36.0 + uniform / 262_144.0);
         assert_eq!(channels("fom", 24, None), 5);
         assert_eq!(channels("fom", 48, Some("half")), 21);
         // Below its smallest configuration (3 coefficients: 16 bytes) it fits nothing, and says so.

@@ -337,6 +337,9 @@ struct VolumeBuild {
     row_first: u32,
     light_pos: [f32; 3],
     units_per_extinction: f32,
+    job_first: u32,
+    job_end: u32,
+    _pad1: [u32; 2],
 }
 
 /// One particle's share of the scatter. Keep in sync with `VolumeJob` in volume_build.wgsl.
@@ -377,7 +380,9 @@ pub fn layouts() -> Vec<crate::gpu::MirrorLayout> {
                 words_per_row,
                 row_first,
                 light_pos,
-                units_per_extinction
+                units_per_extinction,
+                job_first,
+                job_end
             ]
         ),
         crate::mirror_layout!(
@@ -417,13 +422,43 @@ pub struct VoxelPlan {
     pub units_per_extinction: f32,
 }
 
+/// What one slab's scatter runs over ([`VoxelPlan::slabs`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SlabWork {
+    /// The rows `[first, end)` of the run of jobs that can reach the slab (the scatter by row).
+    pub rows: (u32, u32),
+    /// That run of jobs `[first, end)` (the scatter by job).
+    pub jobs: (u32, u32),
+    /// The most rows one of them has within the slab.
+    pub job_rows: u32,
+}
+
+impl SlabWork {
+    /// Invocations of the scatter by row: every row of the run, in the slab or not.
+    pub fn row_invocations(&self) -> u64 {
+        u64::from(self.rows.1 - self.rows.0)
+    }
+
+    /// Invocations of the scatter by job: per job of the run, its largest part's rows in whole
+    /// workgroups of 64.
+    pub fn job_invocations(&self) -> u64 {
+        u64::from(self.jobs.1 - self.jobs.0) * u64::from(self.job_rows.div_ceil(64)) * 64
+    }
+
+    /// Whether the scatter by job runs fewer invocations (thin slabs, where most of a run's
+    /// rows lie outside the slab); both add the same integers to the same voxels.
+    pub fn by_job(&self) -> bool {
+        self.job_invocations() < self.row_invocations()
+    }
+}
+
 impl VoxelPlan {
-    /// The rows `[first, end)` of the scatter that slabs of `depth` z-slices of a `side`³ grid
-    /// run over, one range a slab: the rows of the run of jobs that can reach it (their boxes
-    /// start before its end, and some box up to the run's first ends at or after its start).
-    /// Rows of the run outside the slab are skipped by the shader; a slab no box reaches gets
-    /// an empty range.
-    pub fn slab_rows(&self, side: u32, depth: u32) -> Vec<(u32, u32)> {
+    /// What the scatter of each slab of `depth` z-slices of a `side`³ grid runs over: the run
+    /// of jobs that can reach it (their boxes start before its end, and some box up to the
+    /// run's first ends at or after its start), their rows, and the most rows one of them has
+    /// in the slab. Rows of the run outside the slab are skipped by the shader; a slab no box
+    /// reaches gets an empty run.
+    pub fn slabs(&self, side: u32, depth: u32) -> Vec<SlabWork> {
         let z_range = |j: &VolumeJob| {
             let (lo, size) = (unpack3(j.lo)[2], unpack3(j.size)[2]);
             (lo, lo + size - 1)
@@ -442,12 +477,21 @@ impl VoxelPlan {
             .map(|i| {
                 let z0 = i * depth;
                 let z_end = z0 + depth;
-                let first = reach.partition_point(|&z| z < z0);
                 let end = self.jobs.partition_point(|j| z_range(j).0 < z_end);
-                if first >= end {
-                    (row_of(end), row_of(end))
-                } else {
-                    (row_of(first), row_of(end))
+                let first = reach.partition_point(|&z| z < z0).min(end);
+                let job_rows = self.jobs[first..end]
+                    .iter()
+                    .map(|j| {
+                        let (lo, hi) = z_range(j);
+                        let overlap = (hi + 1).min(z_end).saturating_sub(lo.max(z0));
+                        unpack3(j.size)[1] * overlap
+                    })
+                    .max()
+                    .unwrap_or(0);
+                SlabWork {
+                    rows: (row_of(first), row_of(end)),
+                    jobs: (first as u32, end as u32),
+                    job_rows,
                 }
             })
             .collect()
@@ -562,6 +606,8 @@ pub struct Volume {
     row_blocks: GrowingBuffer,
     build_layout: wgpu::BindGroupLayout,
     scatter: wgpu::ComputePipeline,
+    /// The scatter by job, for slabs where it runs fewer invocations ([`SlabWork::by_job`]).
+    scatter_jobs: wgpu::ComputePipeline,
     /// The conversion for scenes without a density volume, and with one.
     convert: wgpu::ComputePipeline,
     convert_with_medium: wgpu::ComputePipeline,
@@ -713,6 +759,11 @@ impl Volume {
                 "scatter_light_aligned"
             } else {
                 "scatter_radial"
+            }),
+            scatter_jobs: pipeline(if light_aligned {
+                "scatter_light_aligned_jobs"
+            } else {
+                "scatter_radial_jobs"
             }),
             convert: pipeline("convert"),
             convert_with_medium: pipeline("convert_with_medium"),
@@ -972,12 +1023,12 @@ impl ShadowTechnique for Volume {
         self.fit_slabs(device)?;
         let slabs = self.slabs.as_ref().expect("fit_slabs leaves slabs");
         let pitch = staging_pitch(side);
-        let ranges = plan.slab_rows(side, slabs.depth);
+        let work = plan.slabs(side, slabs.depth);
         // One timed span over every slab's passes (and the copies between them).
         let span = inputs.timer.compute_span("shadow");
         let passes = 2 * slabs.params.len();
         let mut pass_index = 0;
-        for (i, (slab, &(row_first, row_end))) in slabs.params.iter().zip(&ranges).enumerate() {
+        for (i, (slab, work)) in slabs.params.iter().zip(&work).enumerate() {
             let z0 = i as u32 * slabs.depth;
             let depth = slabs.depth.min(side - z0);
             gpu.queue.write_buffer(
@@ -987,13 +1038,16 @@ impl ShadowTechnique for Volume {
                     origin: plan.origin.to_array(),
                     side,
                     voxel_size: (plan.extent / side as f32).to_array(),
-                    row_end,
+                    row_end: work.rows.1,
                     slab_z0: z0,
                     slab_depth: depth,
                     words_per_row: (pitch / 4) as u32,
-                    row_first,
+                    row_first: work.rows.0,
                     light_pos: inputs.light.position.to_array(),
                     units_per_extinction: plan.units_per_extinction,
+                    job_first: work.jobs.0,
+                    job_end: work.jobs.1,
+                    _pad1: [0; 2],
                 }),
             );
             let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -1011,14 +1065,31 @@ impl ShadowTechnique for Volume {
             // Each step in a pass of its own, so that each sees the previous one's writes
             // whatever the backend's barriers within a pass. A slab no particle reaches still
             // converts its zeros (and the density volume's share).
-            let (groups_x, groups_y) = scatter_groups(row_end - row_first);
+            // By row, or by job where that runs fewer invocations (thin slabs).
+            let (scatter, scatter_dispatch) = match work.by_job() {
+                false => {
+                    let (x, y) = scatter_groups(work.rows.1 - work.rows.0);
+                    (&self.scatter, [x, y, 1])
+                }
+                true => {
+                    let jobs = work.jobs.1 - work.jobs.0;
+                    (
+                        &self.scatter_jobs,
+                        [
+                            work.job_rows.div_ceil(64),
+                            jobs.min(65_535),
+                            jobs.div_ceil(65_535),
+                        ],
+                    )
+                }
+            };
             let words = side.div_ceil(2);
             let convert = match inputs.volume {
                 Some(_) => &self.convert_with_medium,
                 None => &self.convert,
             };
             for (pipeline, groups) in [
-                (&self.scatter, [groups_x, groups_y, 1]),
+                (scatter, scatter_dispatch),
                 (convert, [words.div_ceil(8), side.div_ceil(8), depth]),
             ] {
                 let timestamp_writes =
@@ -1210,24 +1281,37 @@ mod tests {
         // Jobs are sorted by their first z-slice.
         assert!(plan.jobs.is_sorted_by_key(|j| unpack3(j.lo)[2]));
         for depth in [1, 2, 5, 16, side] {
-            let ranges = plan.slab_rows(side, depth);
-            assert_eq!(ranges.len(), side.div_ceil(depth) as usize);
+            let work = plan.slabs(side, depth);
+            assert_eq!(work.len(), side.div_ceil(depth) as usize);
             let mut run = 0u64;
-            for (s, &(first, end)) in ranges.iter().enumerate() {
+            for (s, w) in work.iter().enumerate() {
+                let (first, end) = w.rows;
                 assert!(first <= end && u64::from(end) <= plan.rows);
                 let (z0, z1) = (s as u32 * depth, (s as u32 + 1) * depth);
-                for j in &plan.jobs {
+                for (index, j) in plan.jobs.iter().enumerate() {
                     let (lo, size) = (unpack3(j.lo), unpack3(j.size));
                     // Row `local` of the job is its z-slice lo.z + local / size.y.
+                    let mut in_slab = 0;
                     for local in 0..size[1] * size[2] {
                         let z = lo[2] + local / size[1];
                         let row = j.row_start + local;
                         if (z0..z1).contains(&z) {
+                            in_slab += 1;
                             assert!(
                                 (first..end).contains(&row),
                                 "slab {s} of {depth}: row {row} at z {z} outside {first}..{end}"
                             );
                         }
+                    }
+                    // The scatter by job reaches the same rows: the job is in the run, and
+                    // its part of the slab within the rows it dispatches.
+                    if in_slab > 0 {
+                        assert!((w.jobs.0..w.jobs.1).contains(&(index as u32)));
+                        assert!(
+                            in_slab <= w.job_rows,
+                            "slab {s}: {in_slab} > {}",
+                            w.job_rows
+                        );
                     }
                 }
                 run += u64::from(end - first);
@@ -1235,7 +1319,12 @@ mod tests {
             // The runs cover every row at least once, and one slab is every row.
             assert!(run >= plan.rows);
             if depth == side {
-                assert_eq!(ranges, [(0, plan.rows as u32)]);
+                assert_eq!(work[0].rows, (0, plan.rows as u32));
+                assert!(!work[0].by_job(), "{:?}", work[0]);
+            }
+            // Thin slabs go by job: most of a run's rows lie outside one z-slice.
+            if depth == 1 {
+                assert!(work.iter().any(SlabWork::by_job));
             }
         }
     }

@@ -1049,7 +1049,7 @@ mod tests {
         }
         let dir = temp_dir("full");
         let charts = write_charts(&results(cells), &dir).unwrap();
-        assert_eq!(charts.len(), 5);
+        assert_eq!(charts.len(), 6);
         for chart in &charts {
             assert!(chart.file.starts_with("charts/") && chart.file.ends_with(".svg"));
             let texts = chart_texts(&dir.join(&chart.file));

@@ -1051,8 +1051,19 @@ pub(crate) mod tests {
         );
         assert!(html.contains("1.42x") && html.contains("24 (11)"));
         assert_eq!(html.matches("class=\"pareto\"").count(), 3);
-        // The answer names the front in order of bytes, and the best cell.
+        // The answer at equal time ranks each technique's best cell within the budget (every
+        // cell here takes 1.42x none's frame).
         let answer = &html[html.find("<h2>Answer").unwrap()..html.find("<h2>Charts").unwrap()];
+        let within = &answer[answer.find("≤ 1.5x none").unwrap()..];
+        let within = &within[..within.find("</tr>").unwrap()];
+        assert!(
+            within.contains("<b>fom at 24 channels</b>")
+                && within.find("2. osm at 24").is_some()
+                && within.find("3. dom at 8").is_some(),
+            "{within}"
+        );
+        // The answer names the front in order of bytes, and the best cell.
+        let answer = &answer[answer.find("Over every cell").unwrap()..];
         let osm8 = answer.find("osm at 8 channels").unwrap();
         let osm24 = answer.find("osm at 24 channels").unwrap();
         assert!(osm8 < osm24, "{answer}");
