@@ -777,8 +777,9 @@ fn written_out(
         };
         (channels / 4 * 4 + rest) * bytes
     };
-    // The layered techniques' uniform (LayeredParams: 13 words and 2 of padding).
-    let layered_uniform = 15 * 4;
+    // The layered techniques' uniform (LayeredParams: 13 words, 3 of padding and the 4 of
+    // msm's bias target).
+    let layered_uniform = 20 * 4;
     assert_eq!(layered_uniform, smokeshadow::shadow::layered::PARAMS_BYTES);
     match name {
         "none" => (0, 0),
@@ -1094,10 +1095,20 @@ fn dsm_stays_within_the_tolerance_it_reports() {
 /// `name` (`dsm` or `avsm`) at 4 channels on the reduced plume's 64² map, on `gpu`: T at the
 /// scene's shaded points, and the technique's counters.
 fn reduced_deep_map(gpu: &Gpu, name: &str) -> (Vec<f32>, Vec<(&'static str, u64)>) {
+    reduced_deep_map_within(gpu, name, None)
+}
+
+/// [`reduced_deep_map`] with the technique held to `limit` bytes.
+fn reduced_deep_map_within(
+    gpu: &Gpu,
+    name: &str,
+    limit: Option<u64>,
+) -> (Vec<f32>, Vec<(&'static str, u64)>) {
     let scene = reduced_plume();
     let particles = simulate(&scene);
     let points = shaded_points(&scene, &particles, (W, H), 8, None);
-    let config = technique(name, 4, 64, SplatMode::Segment);
+    let mut config = technique(name, 4, 64, SplatMode::Segment);
+    config.params.memory_limit_bytes = limit;
     probe_with_counters(gpu, &scene, &particles, &config, &points)
 }
 
@@ -1141,8 +1152,9 @@ fn deep_maps_counted_with_atomics_equal_those_counted_by_blending() {
 
 #[test]
 fn deep_maps_captured_in_bands_equal_the_map_captured_whole() {
-    // On an adapter that binds only a third of the capture's nodes per buffer, the capture
-    // splits the map into bands of rows. Each texel's list, its sort and its compression are
+    // Held to a memory limit that leaves lists for a third of the frame's segments, the capture
+    // splits the map into bands of rows (bands by what one storage binding holds go through the
+    // same plan, `deep_capture::plan_bands`). Each texel's list, its sort and its compression are
     // the same as when the map is captured whole, so T is identical.
     let whole_gpu = gpu();
     for name in ["dsm", "avsm"] {
@@ -1150,10 +1162,25 @@ fn deep_maps_captured_in_bands_equal_the_map_captured_whole() {
         assert_eq!(counter(&counters, "capture_bands"), 1, "{counters:?}");
         let segments = counter(&counters, "segments");
         assert!(segments > 10_000, "{counters:?}");
-        let mut banded_gpu = gpu();
-        // 16 bytes of nodes per segment (deep_capture::NODE_BYTES_PER_SEGMENT).
-        banded_gpu.limits.max_storage_buffer_binding_size = (segments / 3) * 16;
-        let (banded, counters) = reduced_deep_map(&banded_gpu, name);
+        // Held to the bytes of lists for a third of the segments (its memory formula's), the
+        // capture bands by what the limit leaves, as it bands by what one binding holds.
+        let entry = smokeshadow::shadow::find(name).unwrap();
+        let third: Vec<(&'static str, u64)> = counters
+            .iter()
+            .map(|&(k, v)| match k {
+                "segment_capacity" => (k, segments / 3),
+                _ => (k, v),
+            })
+            .collect();
+        let params = technique(name, 4, 64, SplatMode::Segment).params;
+        let limit = (entry.memory)(&MemoryCase {
+            params: &params,
+            particles: 0,
+            frame_pixels: 0,
+            counters: &third,
+        })
+        .bytes;
+        let (banded, counters) = reduced_deep_map_within(&whole_gpu, name, Some(limit));
         println!("{name} in bands: {counters:?}");
         let bands = counter(&counters, "capture_bands");
         assert!((3..=6).contains(&bands), "{name}: {counters:?}");
