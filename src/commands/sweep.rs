@@ -44,7 +44,7 @@ pub struct SweepArgs {
     #[arg(long, value_delimiter = ',', default_value = "24,16,8,6")]
     pub channels: Vec<u32>,
     /// Byte budgets per shadow-map texel, comma-separated, or `none`: each technique runs at
-    /// the largest configuration it keeps within each, at its precision (`--param
+    /// the largest configuration whose resident bytes fit each, at its precision (`--param
     /// osm_precision=single`, ...), and the report's answer compares at these; the channel
     /// budgets stay the thesis' view. A technique that fits no configuration is skipped with
     /// the bytes it needs.

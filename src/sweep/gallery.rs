@@ -54,7 +54,7 @@ pub struct Rank {
     /// How many were ranked there.
     pub of: u32,
     pub flip_vs_exact: f64,
-    /// The bytes it keeps for the lookup (its transient build scratch aside).
+    /// Its resident bytes (scratch included, as byte budgets count them).
     pub bytes: u64,
 }
 
@@ -642,8 +642,8 @@ fn page(scenes: &[SweepResults], gallery: &Gallery) -> String {
     let _ = writeln!(
         body,
         "<h2>Ranking at equal bytes, all scenes</h2>\n<p>Within each scene and byte budget per \
-         shadow-map texel (each technique at the largest configuration it keeps within it, at \
-         its own precision; a sweep without byte budgets: each channel budget) the \
+         shadow-map texel (each technique at the largest configuration whose resident bytes \
+         fit it, at its own precision; a sweep without byte budgets: each channel budget) the \
          techniques are ranked by FLIP mean against <code>exact</code> (1 = closest; ties: fewer \
          bytes first). A technique whose result does not depend on the budget is ranked at every \
          budget it fits with its one cell. Below, each technique and budget with its median and worst \

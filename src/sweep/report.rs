@@ -175,7 +175,7 @@ fn answer(body: &mut String, results: &SweepResults, variants: &Variants, pareto
 }
 
 /// The cells answering byte budget `bytes` (full particle resolution: the budgets compare
-/// shadow techniques), most accurate first (FLIP vs `exact`, then fewer bytes kept, registry
+/// shadow techniques), most accurate first (FLIP vs `exact`, then fewer resident bytes, registry
 /// order), as the gallery ranks them.
 pub fn at_byte_budget(results: &SweepResults, bytes: u32) -> Vec<&CellResult> {
     let mut at: Vec<&CellResult> = results
@@ -245,8 +245,9 @@ fn equal_bytes(body: &mut String, results: &SweepResults, variants: &Variants) {
     let spread = super::gallery::FLIP_SPREAD;
     let _ = writeln!(
         body,
-        "<p>At equal memory: each technique at the largest configuration it keeps within the \
-         byte budget per shadow-map texel, at its own precision (half floats are 2 bytes a \
+        "<p>At equal memory: each technique at the largest configuration whose resident bytes \
+         (maps, build scratch, lists and uniforms: all it holds at its peak) fit the byte \
+         budget per shadow-map texel, at its own precision (half floats are 2 bytes a \
          channel, single floats 4), ranked by FLIP mean against <code>exact</code>. A best is \
          named only when it leads by more than {spread} FLIP, the spread another CPU's rounding \
          gives; within it the leaders are tied.</p>\n<table><tr><th>budget</th><th>answer</th>\

@@ -30,7 +30,7 @@ pub struct SweepOptions {
     pub techniques: Vec<String>,
     pub channels: Vec<u32>,
     /// Byte budgets per shadow-map texel (`--bytes-per-texel`): each technique at the largest
-    /// configuration it keeps within each ([`shadow::fit_bytes_per_texel`]); may be empty.
+    /// configuration whose resident bytes fit each ([`shadow::fit_bytes_per_texel`]); may be empty.
     pub bytes_per_texel: Vec<u32>,
     pub shadow_res: Vec<u32>,
     pub splats: Vec<SplatMode>,

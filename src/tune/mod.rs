@@ -3,9 +3,9 @@
 //!
 //! The procedure, the same for every technique that has parameters (the derived ones, whose
 //! default is "derived per frame", stay derived):
-//! - **budgets**: each candidate runs at the largest configuration it keeps within each byte
-//!   budget per texel ([`crate::shadow::fit_bytes_per_texel`]), at the technique's own precision
-//!   ([`free_params`] says why the search leaves it);
+//! - **budgets**: each candidate runs at the largest configuration whose resident bytes fit
+//!   each byte budget per texel ([`crate::shadow::fit_bytes_per_texel`]), at the technique's own
+//!   precision ([`free_params`] says why the search leaves it);
 //! - **score**: the mean, over the training scenes and the budgets the starting values fit, of
 //!   the RMS difference of T from `exact` at the points the frame shades (the sweep's RMS T
 //!   column, [`crate::render::Renderer::probe_shaded`]); a candidate that does not fit one of
