@@ -23,6 +23,10 @@
 //!   mirrored through its target, as `tests/moments.rs` reverses them); a candidate that does
 //!   not is out, so the error alone cannot pick a value that makes the shadow flicker as the
 //!   view turns;
+//! - **convergence**: for a technique the registry holds to converge with its budget
+//!   (`converges_with_budget`), a candidate whose error on a training scene rises from one byte
+//!   budget to a larger one (by more than [`RISE_BOUND`]) is out: the shipped defaults must not
+//!   trade the large budgets' accuracy for the small ones';
 //! - **held out**: the starting and the chosen values are scored again on held-out scenes (by
 //!   default the thesis scene), which the search never saw.
 //!
@@ -84,6 +88,22 @@ pub const PAPER: &[(&str, f32, &str)] = &[
 /// a technique the registry does not hold order independent (`tests/moments.rs` holds `msm`'s
 /// defaults to it).
 pub const ORDER_RMS_BOUND: f64 = 0.01;
+
+/// How much a converging technique's RMS T error may rise from one byte budget to a larger one
+/// on a training scene before `tune` rejects the candidate: (relative, absolute), the error at
+/// the larger budget at most `relative` times the smaller's plus `absolute` (room for the
+/// rounding of configurations that differ by one channel).
+pub const RISE_BOUND: (f64, f64) = (1.05, 1e-4);
+
+/// Whether errors `(budget, error)` of one scene never rise with the budget beyond
+/// [`RISE_BOUND`].
+pub fn falls_with_budget(errors: &[(u32, f64)]) -> bool {
+    let mut by_budget = errors.to_vec();
+    by_budget.sort_by_key(|&(b, _)| b);
+    by_budget
+        .windows(2)
+        .all(|w| w[1].1 <= w[0].1 * RISE_BOUND.0 + RISE_BOUND.1)
+}
 
 /// A parameter file as `--params FILE` reads it and `tune` writes it.
 #[derive(Clone, Debug, Default, Serialize, Deserialize)]
@@ -402,8 +422,9 @@ type Pairs = Vec<(usize, u32)>;
 pub type Report<'a> = dyn FnMut(u32, &BTreeMap<String, ParamValue>, Option<f64>) + 'a;
 
 /// The (scene, budget) pairs `values` is scored over, and its mean RMS T error there; `None`
-/// when it does not fit one of `pairs`, or fails the stability bound ([`ORDER_RMS_BOUND`]) on
-/// one. With `pairs` `None`, every pair it fits.
+/// when it does not fit one of `pairs`, fails the stability bound ([`ORDER_RMS_BOUND`]) on
+/// one, or (a converging technique) its error rises with the budget on a scene
+/// ([`falls_with_budget`]). With `pairs` `None`, every pair it fits.
 fn mean_error(
     gpu: &Gpu,
     cases: &mut [Case],
@@ -417,6 +438,7 @@ fn mean_error(
         .collect();
     let want = pairs.unwrap_or(&all);
     let mut scored = Vec::new();
+    let mut errors: Vec<(usize, u32, f64)> = Vec::new();
     let mut sum = 0.0;
     for &(i, bytes) in want {
         match cases[i].config(entry, values, bytes) {
@@ -426,7 +448,9 @@ fn mean_error(
                 {
                     return Ok(None);
                 }
-                sum += cases[i].score(gpu, &config)?;
+                let error = cases[i].score(gpu, &config)?;
+                sum += error;
+                errors.push((i, bytes, error));
                 scored.push((i, bytes));
             }
             None if pairs.is_some() => return Ok(None),
@@ -435,6 +459,18 @@ fn mean_error(
     }
     if scored.is_empty() {
         return Ok(None);
+    }
+    if entry.converges_with_budget {
+        for i in 0..cases.len() {
+            let scene: Vec<(u32, f64)> = errors
+                .iter()
+                .filter(|e| e.0 == i)
+                .map(|e| (e.1, e.2))
+                .collect();
+            if !falls_with_budget(&scene) {
+                return Ok(None);
+            }
+        }
     }
     Ok(Some((sum / scored.len() as f64, scored)))
 }
@@ -466,8 +502,9 @@ pub fn tune_technique(
     )?
     else {
         anyhow::bail!(
-            "tune: {} at its starting values fits none of the byte budgets {:?}, or its T moves \
-             by more than {ORDER_RMS_BOUND} RMS when the draw order reverses",
+            "tune: {} at its starting values fits none of the byte budgets {:?}, its T moves \
+             by more than {ORDER_RMS_BOUND} RMS when the draw order reverses, or its error rises \
+             with the budget on a training scene",
             entry.name,
             options.bytes_per_texel
         );
@@ -617,6 +654,30 @@ mod tests {
         }
         assert_eq!(round_sig(0.0123456), 0.0123);
         assert_eq!(round_sig(123.456), 123.0);
+    }
+
+    #[test]
+    fn an_error_that_rises_with_the_budget_is_caught() {
+        // dom on a held-out scene with the defaults before this check: 8, 16, 24 channels.
+        assert!(!falls_with_budget(&[
+            (16, 0.0029),
+            (32, 0.0009),
+            (48, 0.0013)
+        ]));
+        // Falling, flat, or within the bound's rounding room: kept (in any order given).
+        assert!(falls_with_budget(&[
+            (48, 0.0010),
+            (12, 0.0040),
+            (24, 0.0020)
+        ]));
+        assert!(falls_with_budget(&[
+            (12, 0.0040),
+            (24, 0.0040),
+            (48, 0.0040)
+        ]));
+        assert!(falls_with_budget(&[(12, 0.0020), (24, 0.00215)]));
+        assert!(!falls_with_budget(&[(12, 0.0020), (24, 0.0023)]));
+        assert!(falls_with_budget(&[(12, 0.0020)]));
     }
 
     #[test]
