@@ -200,3 +200,34 @@ fn a_deep_capture_bands_within_a_limit_and_resolves_the_same_nodes() {
         assert!(image == limited, "{name}: the frame changed with the bands");
     }
 }
+
+#[test]
+fn each_technique_builds_within_the_bytes_its_formula_plans_before_a_build() {
+    // What a byte budget fits configurations by (the memory formula before a build: the least
+    // scratch the build can shed to) is bytes the build can really be held to: given exactly
+    // those, it builds, holds no more, and renders the frame it renders unlimited (the volume
+    // in slabs of one z-slice).
+    let gpu = gpu();
+    let case = small_plume();
+    let (scene, particles) = &case;
+    let pixels = u64::from(scene.output.width_px) * u64::from(scene.output.height_px);
+    for name in ["volume", "osm", "dom", "fom", "msm", "tmsm", "bsm", "esm"] {
+        let entry = smokeshadow::shadow::find(name).unwrap();
+        let channels = 8.max(entry.min_channels);
+        let params = technique(name, channels, 64, SplatMode::Segment).params;
+        let planned =
+            smokeshadow::shadow::planned_memory(entry, &params, particles.len() as u64, pixels)
+                .bytes;
+        let (image, _, _) = render_limited(&gpu, &case, name, channels, 64, None);
+        let (limited, held, counters) =
+            render_limited(&gpu, &case, name, channels, 64, Some(planned));
+        assert!(held <= planned, "{name}: held {held} of {planned} planned");
+        assert!(
+            image == limited,
+            "{name}: the frame changed within its planned bytes"
+        );
+        if name == "volume" {
+            assert_eq!(counter(&counters, "slab_depth"), 1, "{counters:?}");
+        }
+    }
+}

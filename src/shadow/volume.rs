@@ -231,7 +231,8 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     // slab (`slab_scratch_bytes`), 32 bytes per job of capacity and 4 per entry of the row-block
     // table's. Before a build (no counters) it plans the least the build can take: slabs of one
     // z-slice, a job a particle and the row-block table's first capacity (it grows by a few
-    // bytes a particle; the build sheds slab depth to fit it).
+    // bytes a particle where the limit leaves room; else every slab scatters by job, which
+    // needs no table).
     memory: |c| {
         let g = grid_side(c.resolution_px(), c.channels());
         let planned = c.counters.is_empty();
@@ -616,6 +617,8 @@ pub struct Volume {
     memory: MemoryLedger,
     /// The adapter's largest storage binding.
     binding_limit: u64,
+    /// Whether the row-block table holds this frame's, so that slabs may scatter by row.
+    by_row: bool,
     /// Last frame: jobs and (particle, voxel row) pairs.
     last_jobs: u32,
     last_rows: u64,
@@ -777,6 +780,7 @@ impl Volume {
             lookup_bind_group,
             memory,
             binding_limit: gpu.limits.max_storage_buffer_binding_size,
+            by_row: true,
             last_jobs: 0,
             last_rows: 0,
         })
@@ -901,12 +905,13 @@ impl GrowingBuffer {
     }
 
     /// Grows it to hold `count` elements (a power of two, or exactly `count` where a power of
-    /// two would not fit one binding of `binding_limit` bytes or the memory limit).
+    /// two would not fit one binding of `binding_limit` bytes, or would leave less than
+    /// `keep_free` bytes of the memory limit).
     fn reserve(
         &mut self,
         memory: &mut MemoryLedger,
         device: &wgpu::Device,
-        binding_limit: u64,
+        (binding_limit, keep_free): (u64, u64),
         count: u32,
     ) -> Result<(), ShadowError> {
         if count <= self.capacity {
@@ -916,7 +921,7 @@ impl GrowingBuffer {
         let room = memory.remaining_bytes() + u64::from(self.capacity) * self.element_bytes;
         let mut capacity = count.next_power_of_two();
         let bytes = u64::from(capacity) * self.element_bytes;
-        if bytes > binding_limit || bytes > room {
+        if bytes > binding_limit || bytes.saturating_add(keep_free) > room {
             capacity = count;
         }
         memory.forget(self.label);
@@ -992,22 +997,33 @@ impl ShadowTechnique for Volume {
             limit: u64::from(u32::MAX),
         })?;
         let count = plan.jobs.len() as u32;
-        self.jobs
-            .reserve(&mut self.memory, device, self.binding_limit, count)?;
-        self.row_blocks.reserve(
-            &mut self.memory,
-            device,
-            self.binding_limit,
-            plan.row_blocks.len() as u32,
-        )?;
+        // Room for one z-slice's scratch is kept beside the jobs and the row blocks.
+        let limits = (self.binding_limit, slab_scratch_bytes(self.side, 1));
+        self.jobs.reserve(&mut self.memory, device, limits, count)?;
+        // The row-block table serves the scatter by row alone: where growing it would leave no
+        // room for one z-slice's scratch under the memory limit, every slab scatters by job
+        // (the same sums), and the table stays as it is.
+        let blocks = plan.row_blocks.len() as u32;
+        let held = |b: &GrowingBuffer| u64::from(b.capacity) * b.element_bytes;
+        let slabs_held = self
+            .slabs
+            .as_ref()
+            .map_or(0, |s| slab_scratch_bytes(self.side, s.depth));
+        let room = self.memory.remaining_bytes() + held(&self.row_blocks) + slabs_held;
+        self.by_row = blocks <= self.row_blocks.capacity
+            || u64::from(blocks) * 4 + slab_scratch_bytes(self.side, 1) <= room;
+        if self.by_row {
+            self.row_blocks
+                .reserve(&mut self.memory, device, limits, blocks)?;
+            gpu.queue.write_buffer(
+                &self.row_blocks.buffer,
+                0,
+                bytemuck::cast_slice(&plan.row_blocks),
+            );
+        }
         (self.last_jobs, self.last_rows) = (count, plan.rows);
         gpu.queue
             .write_buffer(&self.jobs.buffer, 0, bytemuck::cast_slice(&plan.jobs));
-        gpu.queue.write_buffer(
-            &self.row_blocks.buffer,
-            0,
-            bytemuck::cast_slice(&plan.row_blocks),
-        );
         gpu.queue.write_buffer(
             &self.lookup_params,
             0,
@@ -1066,7 +1082,7 @@ impl ShadowTechnique for Volume {
             // whatever the backend's barriers within a pass. A slab no particle reaches still
             // converts its zeros (and the density volume's share).
             // By row, or by job where that runs fewer invocations (thin slabs).
-            let (scatter, scatter_dispatch) = match work.by_job() {
+            let (scatter, scatter_dispatch) = match work.by_job() || !self.by_row {
                 false => {
                     let (x, y) = scatter_groups(work.rows.1 - work.rows.0);
                     (&self.scatter, [x, y, 1])
