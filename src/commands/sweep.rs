@@ -334,50 +334,43 @@ fn print_table(results: &SweepResults, folder: &Path) {
             ),
         }
     }
-    // The answer at equal bytes, as the report gives it.
-    for b in sweep::report::byte_budgets(results) {
-        let at = sweep::report::at_byte_budget(results, b);
-        let ranked: Vec<String> = at
+    // The answers at equal bytes and at equal time (on this adapter), as the report gives them:
+    // each cell as `technique channels (FLIP[, ratio])`, or `none` when no cell answers.
+    let line = |cells: &[&sweep::CellResult], ratio: bool, none: &str| {
+        let ranked: Vec<String> = cells
             .iter()
             .map(|c| {
-                format!(
-                    "{} {} ({:.4})",
-                    c.technique,
-                    c.channels,
-                    c.vs_exact.map_or(f64::NAN, |e| e.flip_mean)
-                )
-            })
-            .collect();
-        println!(
-            "at {b} bytes a texel, by FLIP vs exact: {}",
-            match ranked.is_empty() {
-                true => "no technique fits".to_owned(),
-                false => ranked.join(", "),
-            }
-        );
-    }
-    // And at equal time, on this adapter.
-    if results.cells.iter().any(|c| c.overhead_ratio.is_some()) {
-        for &ratio in sweep::report::TIME_BUDGETS {
-            let ranked: Vec<String> = sweep::report::at_time_budget(results, ratio)
-                .iter()
-                .map(|c| {
-                    format!(
-                        "{} {} ({:.4}, {:.2}x)",
+                let flip = c.vs_exact.map_or(f64::NAN, |e| e.flip_mean);
+                match ratio {
+                    false => format!("{} {} ({flip:.4})", c.technique, c.channels),
+                    true => format!(
+                        "{} {} ({flip:.4}, {:.2}x)",
                         c.technique,
                         c.channels,
-                        c.vs_exact.map_or(f64::NAN, |e| e.flip_mean),
                         c.overhead_ratio.unwrap_or(f64::NAN)
-                    )
-                })
-                .collect();
+                    ),
+                }
+            })
+            .collect();
+        match ranked.is_empty() {
+            true => none.to_owned(),
+            false => ranked.join(", "),
+        }
+    };
+    for b in sweep::report::byte_budgets(results) {
+        let at = sweep::report::at_byte_budget(results, b);
+        println!(
+            "at {b} bytes a texel, by FLIP vs exact: {}",
+            line(&at, false, "no technique fits")
+        );
+    }
+    if results.cells.iter().any(|c| c.overhead_ratio.is_some()) {
+        for &ratio in sweep::report::TIME_BUDGETS {
+            let at = sweep::report::at_time_budget(results, ratio);
             println!(
                 "within {ratio:.1}x none's frame time on {}, by FLIP vs exact: {}",
                 results.metadata.adapter,
-                match ranked.is_empty() {
-                    true => "no technique is that fast".to_owned(),
-                    false => ranked.join(", "),
-                }
+                line(&at, true, "no technique is that fast")
             );
         }
     }

@@ -239,41 +239,35 @@ impl LightBuffers {
         ordered: bool,
         label: &str,
     ) -> Result<Self, AllocationError> {
-        let names = [
-            format!("{label}.lighting"),
-            format!("{label}.light_ranges"),
-            format!("{label}.light_order"),
-        ];
-        for name in &names {
-            memory.forget(name);
-        }
-        let lighting = memory.buffer(
-            device,
-            &wgpu::BufferDescriptor {
-                label: Some(&names[0]),
-                size: capacity.max(1) * std::mem::size_of::<ParticleLight>() as u64,
-                // COPY_SRC: read back for `read` (tests and the sweep's error at lighting points).
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-                mapped_at_creation: false,
-            },
+        let mut buffer = |what: &str, size: u64, usage: wgpu::BufferUsages| {
+            let name = format!("{label}.{what}");
+            memory.forget(&name);
+            memory.buffer(
+                device,
+                &wgpu::BufferDescriptor {
+                    label: Some(&name),
+                    size,
+                    usage,
+                    mapped_at_creation: false,
+                },
+            )
+        };
+        use wgpu::BufferUsages as U;
+        let lighting = buffer(
+            "lighting",
+            capacity.max(1) * std::mem::size_of::<ParticleLight>() as u64,
+            // COPY_SRC: read back for `read` (tests and the sweep's error at lighting points).
+            U::STORAGE | U::COPY_SRC,
         )?;
-        let ranges = memory.buffer(
-            device,
-            &wgpu::BufferDescriptor {
-                label: Some(&names[1]),
-                size: u64::from(max_batches.max(1)) * RANGE_STRIDE,
-                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            },
+        let ranges = buffer(
+            "light_ranges",
+            u64::from(max_batches.max(1)) * RANGE_STRIDE,
+            U::UNIFORM | U::COPY_DST,
         )?;
-        let order = memory.buffer(
-            device,
-            &wgpu::BufferDescriptor {
-                label: Some(&names[2]),
-                size: if ordered { capacity.max(4) * 4 } else { 16 },
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            },
+        let order = buffer(
+            "light_order",
+            if ordered { capacity.max(4) * 4 } else { 16 },
+            U::STORAGE | U::COPY_DST,
         )?;
         let read_bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some(&format!("{label}.light_bind_group")),
@@ -320,7 +314,6 @@ impl LightBuffers {
         })
     }
 
-    /// Bytes allocated (lighting, ranges and order).
     /// Writes the order a range set `ordered` lights its particles in: `order[i]` is the
     /// instance the lighting of slot i lights (at most the capacity).
     pub fn write_order(&self, queue: &wgpu::Queue, order: &[u32]) {

@@ -338,11 +338,6 @@ impl MemoryLedger {
         self.budget.total_bytes.saturating_sub(self.total_bytes())
     }
 
-    /// The total this ledger may hold ([`MemoryBudget::total_bytes`]).
-    pub fn limit_bytes(&self) -> u64 {
-        self.budget.total_bytes
-    }
-
     /// The part of [`MemoryLedger::total_bytes`] recorded as transient: build scratch the
     /// lookup never reads (a deep capture's uncompressed lists).
     pub fn transient_bytes(&self) -> u64 {
@@ -357,6 +352,28 @@ impl MemoryLedger {
     pub fn entries(&self) -> &[LedgerEntry] {
         &self.entries
     }
+}
+
+/// The largest `n` in `range` for which `fits(n)` holds, `fits` true up to some `n` and false
+/// beyond (bytes that grow with `n`): how scratch that can shed sizes itself to what a memory
+/// limit leaves. `None` when not even the range's first fits.
+pub fn largest_that_fits(
+    range: std::ops::RangeInclusive<u32>,
+    fits: impl Fn(u32) -> bool,
+) -> Option<u32> {
+    let (mut lo, mut hi) = range.into_inner();
+    if lo > hi || !fits(lo) {
+        return None;
+    }
+    while lo < hi {
+        let mid = lo + (hi - lo).div_ceil(2);
+        if fits(mid) {
+            lo = mid;
+        } else {
+            hi = mid - 1;
+        }
+    }
+    Some(lo)
 }
 
 /// Bytes of a texture as described (all mips and layers; block-compressed formats included).
@@ -418,6 +435,15 @@ mod tests {
         assert_eq!(ledger.peak_bytes(), 142);
         ledger.reserve("regrown scratch", 20, true).unwrap();
         assert_eq!((ledger.total_bytes(), ledger.peak_bytes()), (122, 142));
+    }
+
+    #[test]
+    fn the_largest_that_fits_is_found_at_either_end_and_between() {
+        assert_eq!(largest_that_fits(1..=100, |n| n <= 37), Some(37));
+        assert_eq!(largest_that_fits(1..=100, |_| true), Some(100));
+        assert_eq!(largest_that_fits(1..=100, |n| n <= 1), Some(1));
+        assert_eq!(largest_that_fits(1..=100, |_| false), None);
+        assert_eq!(largest_that_fits(0..=u32::MAX, |n| n <= 5), Some(5));
     }
 
     #[test]

@@ -14,7 +14,7 @@ pub mod trace;
 
 pub use fragments::{FragmentTally, TargetWrites};
 pub use layout::MirrorLayout;
-pub use memory::{AllocationError, LedgerEntry, MemoryBudget, MemoryLedger};
+pub use memory::{AllocationError, LedgerEntry, MemoryBudget, MemoryLedger, largest_that_fits};
 pub use readback::{
     Rgba16fImage, read_buffer, read_texture_r16f, read_texture_rgba8, read_texture_rgba16f,
 };
@@ -503,6 +503,12 @@ pub const ROW_TEXELS: u32 = 4096;
 /// texture in whole tiles of rows (lavapipe pads its height to a multiple of 4), so the rows
 /// are asked for, and counted, as the driver holds them.
 pub const ROW_TILE: u64 = 4;
+
+/// The most rows a row texture may have on a device whose 2D textures are at most
+/// `max_dimension` texels a side: whole tiles of [`ROW_TILE`] rows.
+pub fn max_texture_rows(max_dimension: u32) -> u64 {
+    u64::from(max_dimension) / ROW_TILE * ROW_TILE
+}
 
 /// Width and height of a row texture for `texels` elements: rows of [`ROW_TEXELS`], the one row
 /// narrower when there are fewer, at least 1x1; more than one row padded to whole tiles of

@@ -251,16 +251,10 @@ fn list_bytes(segment_capacity: u64, node_texels: bool) -> u64 {
 /// The most segments lists may hold in `room` bytes (at most `max_segments`, one binding's): a
 /// technique under a memory limit captures in bands of what its limit leaves.
 fn segments_in(room: u64, node_texels: bool, max_segments: u32) -> u32 {
-    let fits = |c: u32| list_bytes(u64::from(c), node_texels) <= room;
-    if fits(max_segments) {
-        return max_segments;
-    }
-    let (mut lo, mut hi) = (0u32, max_segments);
-    while lo < hi {
-        let mid = lo + (hi - lo).div_ceil(2);
-        if fits(mid) { lo = mid } else { hi = mid - 1 }
-    }
-    lo
+    crate::gpu::largest_that_fits(0..=max_segments, |c| {
+        list_bytes(u64::from(c), node_texels) <= room
+    })
+    .unwrap_or(0)
 }
 
 /// The texel order's bytes at `resolution`: 64 entries of 4 bytes for every 8x8 tile of the map.
@@ -292,8 +286,7 @@ fn node_buffer_bytes(segment_capacity: u64, node_texels: bool) -> u64 {
 fn max_band_segments(gpu: &Gpu) -> u32 {
     let binding =
         gpu.limits.max_storage_buffer_binding_size / SEGMENT_BYTES.max(NODE_BYTES_PER_SEGMENT);
-    let rows = u64::from(gpu.limits.max_texture_dimension_2d) / crate::gpu::ROW_TILE
-        * crate::gpu::ROW_TILE;
+    let rows = crate::gpu::max_texture_rows(gpu.limits.max_texture_dimension_2d);
     let texture = rows * u64::from(ROW_TEXELS) / node_texel_count(1, true);
     u32::try_from(binding.min(texture)).unwrap_or(u32::MAX)
 }

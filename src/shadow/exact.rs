@@ -802,9 +802,8 @@ impl ShadowTechnique for Exact {
     fn build(&mut self, gpu: &Gpu, mut inputs: BuildInputs<'_>) -> Result<(), ShadowError> {
         let device = &gpu.device;
         // The entries one texture holds: whole rows, as many as the adapter allows.
-        let max_rows = u64::from(gpu.limits.max_texture_dimension_2d) / crate::gpu::ROW_TILE
-            * crate::gpu::ROW_TILE;
-        let max_entries = u64::from(ROW_TEXELS) * max_rows;
+        let max_entries = u64::from(ROW_TEXELS)
+            * crate::gpu::max_texture_rows(gpu.limits.max_texture_dimension_2d);
         let limit = max_entries * ENTRY_BYTES;
         let fits = |entries: u64| entries <= max_entries;
         self.upload_spheres(gpu, inputs.light.position, inputs.instances)?;

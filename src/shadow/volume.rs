@@ -302,16 +302,9 @@ pub fn slab_scratch_bytes(side: u32, depth: u32) -> u64 {
 /// fewest passes the memory allows. `None` when not even one z-slice fits.
 fn deepest_slab(side: u32, max_depth: u32, available: u64) -> Option<u32> {
     // The scratch grows with the depth (the per-slab uniforms shrink, by far less).
-    let fits = |d: u32| slab_scratch_bytes(side, d) <= available;
-    if !fits(1) {
-        return None;
-    }
-    let (mut lo, mut hi) = (1u32, max_depth.max(1));
-    while lo < hi {
-        let mid = lo + (hi - lo).div_ceil(2);
-        if fits(mid) { lo = mid } else { hi = mid - 1 }
-    }
-    Some(lo)
+    crate::gpu::largest_that_fits(1..=max_depth.max(1), |d| {
+        slab_scratch_bytes(side, d) <= available
+    })
 }
 
 /// Keep in sync with `VolumeParams` in shaders/shadow/volume.wgsl.
@@ -563,7 +556,7 @@ pub fn plan(
         })
         .collect::<Vec<VolumeJob>>();
     // By first z-slice (stable: ties keep the instance order), so that the jobs that can reach
-    // a slab are one run ([`VoxelPlan::slab_rows`]).
+    // a slab are one run ([`VoxelPlan::slabs`]).
     jobs.sort_by_key(|j| unpack3(j.lo)[2]);
     let mut rows = 0u64;
     for job in &mut jobs {
@@ -788,16 +781,19 @@ impl Volume {
 }
 
 impl Volume {
+    /// The bytes of the slab scratch it holds now (0 before its first build).
+    fn slab_bytes(&self) -> u64 {
+        self.slabs
+            .as_ref()
+            .map_or(0, |s| slab_scratch_bytes(self.side, s.depth))
+    }
+
     /// Sizes the slab scratch to the deepest slab the memory limit leaves room for (after the
     /// grid, the jobs and the row blocks), within one storage binding: the whole grid in one
     /// slab where it fits, else as few slabs as the limit allows (the grid is the same either
     /// way). Reallocates only when that depth changes.
     fn fit_slabs(&mut self, device: &wgpu::Device) -> Result<(), ShadowError> {
-        let held = self
-            .slabs
-            .as_ref()
-            .map_or(0, |s| slab_scratch_bytes(self.side, s.depth));
-        let room = self.memory.remaining_bytes() + held;
+        let room = self.memory.remaining_bytes() + self.slab_bytes();
         let max_depth = slab_depth(self.side, self.binding_limit);
         // Not even one z-slice fits: allocate one anyway, for the ledger's one line.
         let depth = deepest_slab(self.side, max_depth, room).unwrap_or(1);
@@ -904,6 +900,11 @@ impl GrowingBuffer {
         })
     }
 
+    /// The bytes it holds.
+    fn bytes(&self) -> u64 {
+        u64::from(self.capacity) * self.element_bytes
+    }
+
     /// Grows it to hold `count` elements (a power of two, or exactly `count` where a power of
     /// two would not fit one binding of `binding_limit` bytes, or would leave less than
     /// `keep_free` bytes of the memory limit).
@@ -918,7 +919,7 @@ impl GrowingBuffer {
             return Ok(());
         }
         // What the buffer may take: the limit's remaining bytes and its own, which it frees.
-        let room = memory.remaining_bytes() + u64::from(self.capacity) * self.element_bytes;
+        let room = memory.remaining_bytes() + self.bytes();
         let mut capacity = count.next_power_of_two();
         let bytes = u64::from(capacity) * self.element_bytes;
         if bytes > binding_limit || bytes.saturating_add(keep_free) > room {
@@ -1004,12 +1005,7 @@ impl ShadowTechnique for Volume {
         // room for one z-slice's scratch under the memory limit, every slab scatters by job
         // (the same sums), and the table stays as it is.
         let blocks = plan.row_blocks.len() as u32;
-        let held = |b: &GrowingBuffer| u64::from(b.capacity) * b.element_bytes;
-        let slabs_held = self
-            .slabs
-            .as_ref()
-            .map_or(0, |s| slab_scratch_bytes(self.side, s.depth));
-        let room = self.memory.remaining_bytes() + held(&self.row_blocks) + slabs_held;
+        let room = self.memory.remaining_bytes() + self.row_blocks.bytes() + self.slab_bytes();
         self.by_row = blocks <= self.row_blocks.capacity
             || u64::from(blocks) * 4 + slab_scratch_bytes(self.side, 1) <= room;
         if self.by_row {
@@ -1209,23 +1205,22 @@ mod tests {
         let expected = glam::Vec3::new(4.5, 2.5, 2.5) / 32.0;
         assert!((voxel - expected).abs().max_element() < 1e-6, "{voxel}");
         assert!((plan.origin - (glam::Vec3::new(-1.0, -1.0, -1.5) - expected)).length() < 1e-5);
-        let unpack = |v: u32| [v & 1023, (v >> 10) & 1023, v >> 20];
         // Jobs go by their first z-slice: the small sphere's box starts at the first inner one.
         assert_eq!(plan.jobs[0].radius, 0.5);
         // The big sphere's box starts in the first inner voxel along x and y, and 0.5 m (6.4
         // voxels) in along z, where the small sphere reaches further; it spans 2 m of x.
-        assert_eq!(unpack(plan.jobs[1].lo), [1, 1, 7]);
-        let size = unpack(plan.jobs[1].size);
+        assert_eq!(unpack3(plan.jobs[1].lo), [1, 1, 7]);
+        let size = unpack3(plan.jobs[1].size);
         assert!((14..=16).contains(&size[0]), "{size:?}");
         // Row numbering is a prefix sum of size_y · size_z.
-        let s0 = unpack(plan.jobs[0].size);
+        let s0 = unpack3(plan.jobs[0].size);
         let rows0 = u64::from(s0[1] * s0[2]);
         assert_eq!(plan.jobs[1].row_start as u64, rows0);
-        let s1 = unpack(plan.jobs[1].size);
+        let s1 = unpack3(plan.jobs[1].size);
         assert_eq!(plan.rows, rows0 + u64::from(s1[1] * s1[2]));
         // Every box stays clear of the border voxels.
         for job in &plan.jobs {
-            let (lo, size) = (unpack(job.lo), unpack(job.size));
+            let (lo, size) = (unpack3(job.lo), unpack3(job.size));
             for a in 0..3 {
                 assert!(lo[a] >= 1 && lo[a] + size[a] < side, "{lo:?} {size:?}");
             }

@@ -255,48 +255,16 @@ fn equal_bytes(body: &mut String, results: &SweepResults, variants: &Variants) {
     );
     for &b in &budgets {
         let at = at_byte_budget(results, b);
-        let Some(first) = at.first() else {
-            let _ = writeln!(
-                body,
-                "<tr><td>{b} bytes</td><td>no technique fits</td><td></td></tr>"
-            );
-            continue;
-        };
-        let tied: Vec<&&CellResult> = at
-            .iter()
-            .filter(|c| flip_exact(c) - flip_exact(first) < spread)
-            .collect();
-        let label = |c: &CellResult| e(&variants.cell_label(c));
-        let verdict = if tied.len() == 1 {
-            format!("<b>{}</b>", label(first))
-        } else {
-            format!(
-                "tied: {}",
-                tied.iter()
-                    .map(|c| format!("<b>{}</b>", label(c)))
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            )
-        };
-        let ranked = at
-            .iter()
-            .enumerate()
-            .map(|(i, c)| {
-                format!(
-                    "{}. {} ({:.4}, {})",
-                    i + 1,
-                    label(c),
-                    flip_exact(c),
-                    c.rms_transmittance_error
-                        .map_or("—".into(), |t| format!("{t:.4}"))
-                )
-            })
-            .collect::<Vec<_>>()
-            .join("; ");
-        let _ = writeln!(
+        answer_row(
             body,
-            "<tr><td>{b} bytes</td><td style=\"text-align: left\">{verdict}</td>\
-             <td style=\"text-align: left; white-space: normal\">{ranked}</td></tr>"
+            &format!("{b} bytes"),
+            "no technique fits",
+            &at,
+            variants,
+            |c| {
+                c.rms_transmittance_error
+                    .map_or("—".into(), |t| format!("{t:.4}"))
+            },
         );
     }
     body.push_str("</table>\n");
@@ -316,7 +284,6 @@ fn equal_time(body: &mut String, results: &SweepResults, variants: &Variants) {
     if !results.cells.iter().any(|c| c.overhead_ratio.is_some()) {
         return;
     }
-    let spread = super::gallery::FLIP_SPREAD;
     let m = &results.metadata;
     let _ = writeln!(
         body,
@@ -333,47 +300,20 @@ fn equal_time(body: &mut String, results: &SweepResults, variants: &Variants) {
     );
     for &ratio in TIME_BUDGETS {
         let at = at_time_budget(results, ratio);
-        let Some(first) = at.first() else {
-            let _ = writeln!(
-                body,
-                "<tr><td>≤ {ratio:.1}x none</td><td>no technique is that fast</td><td></td></tr>"
-            );
-            continue;
-        };
-        let label = |c: &CellResult| e(&variants.cell_label(c));
-        let tied: Vec<&&CellResult> = at
-            .iter()
-            .filter(|c| flip_exact(c) - flip_exact(first) < spread)
-            .collect();
-        let verdict = match tied.len() {
-            1 => format!("<b>{}</b>", label(first)),
-            _ => format!(
-                "tied: {}",
-                tied.iter()
-                    .map(|c| format!("<b>{}</b>", label(c)))
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            ),
-        };
-        let ranked = at
-            .iter()
-            .enumerate()
-            .map(|(i, c)| {
+        let budget = format!("≤ {ratio:.1}x none");
+        answer_row(
+            body,
+            &budget,
+            "no technique is that fast",
+            &at,
+            variants,
+            |c| {
                 format!(
-                    "{}. {} ({:.4}, {:.2}x, {})",
-                    i + 1,
-                    label(c),
-                    flip_exact(c),
+                    "{:.2}x, {}",
                     c.overhead_ratio.unwrap_or(f64::NAN),
                     report::bytes(c.resident_bytes)
                 )
-            })
-            .collect::<Vec<_>>()
-            .join("; ");
-        let _ = writeln!(
-            body,
-            "<tr><td>≤ {ratio:.1}x none</td><td style=\"text-align: left\">{verdict}</td>\
-             <td style=\"text-align: left; white-space: normal\">{ranked}</td></tr>"
+            },
         );
     }
     body.push_str("</table>\n");
@@ -398,6 +338,58 @@ fn equal_time(body: &mut String, results: &SweepResults, variants: &Variants) {
             listed.join("; ")
         );
     }
+}
+
+/// One row of an answer table: the budget, its verdict (the best, or the leaders tied within
+/// the spread another CPU's rounding gives) and the cells `at` ranked, each with its FLIP vs
+/// `exact` and `detail`; `none` where no cell answers it.
+fn answer_row(
+    body: &mut String,
+    budget: &str,
+    none: &str,
+    at: &[&CellResult],
+    variants: &Variants,
+    detail: impl Fn(&CellResult) -> String,
+) {
+    let Some(first) = at.first() else {
+        let _ = writeln!(body, "<tr><td>{budget}</td><td>{none}</td><td></td></tr>");
+        return;
+    };
+    let spread = super::gallery::FLIP_SPREAD;
+    let label = |c: &CellResult| e(&variants.cell_label(c));
+    let tied: Vec<&&CellResult> = at
+        .iter()
+        .filter(|c| flip_exact(c) - flip_exact(first) < spread)
+        .collect();
+    let verdict = match tied.len() {
+        1 => format!("<b>{}</b>", label(first)),
+        _ => format!(
+            "tied: {}",
+            tied.iter()
+                .map(|c| format!("<b>{}</b>", label(c)))
+                .collect::<Vec<_>>()
+                .join(", ")
+        ),
+    };
+    let ranked = at
+        .iter()
+        .enumerate()
+        .map(|(i, c)| {
+            format!(
+                "{}. {} ({:.4}, {})",
+                i + 1,
+                label(c),
+                flip_exact(c),
+                detail(c)
+            )
+        })
+        .collect::<Vec<_>>()
+        .join("; ");
+    let _ = writeln!(
+        body,
+        "<tr><td>{budget}</td><td style=\"text-align: left\">{verdict}</td>\
+         <td style=\"text-align: left; white-space: normal\">{ranked}</td></tr>"
+    );
 }
 
 /// The cells no other beats on both frame time (relative to `none`'s) and FLIP vs `exact`, at

@@ -30,7 +30,8 @@ pub struct SweepOptions {
     pub techniques: Vec<String>,
     pub channels: Vec<u32>,
     /// Byte budgets per shadow-map texel (`--bytes-per-texel`): each technique at the largest
-    /// configuration whose resident bytes fit each ([`shadow::fit_bytes_per_texel`]); may be empty.
+    /// configuration whose resident bytes fit each ([`shadow::fit_bytes_per_texel`]); may be
+    /// empty.
     pub bytes_per_texel: Vec<u32>,
     pub shadow_res: Vec<u32>,
     pub splats: Vec<SplatMode>,
@@ -321,8 +322,8 @@ fn plan(scene: &Scene, options: &SweepOptions) -> anyhow::Result<(Vec<Plan>, Vec
 /// with the same channels used (a channel budget's, or another byte budget's) answers it too;
 /// else a new cell, off the channel axis. A technique whose result does not depend on the
 /// budget answers every byte budget it fits with its one cell. The cell's technique is held to
-/// the smallest budget's bytes ([`shadow::TechniqueParams::memory_limit_bytes`]). `Err`: why it fits
-/// none.
+/// the smallest budget's bytes ([`shadow::TechniqueParams::memory_limit_bytes`]). `Err`: why
+/// it fits none.
 fn plan_byte_budget(
     scene: &Scene,
     entry: &'static shadow::TechniqueEntry,
