@@ -18,7 +18,7 @@ pub use memory::{AllocationError, LedgerEntry, MemoryBudget, MemoryLedger, large
 pub use readback::{
     Rgba16fImage, read_buffer, read_texture_r16f, read_texture_rgba8, read_texture_rgba16f,
 };
-pub use timing::{CLOCK_TOLERANCE, GpuTimer, PassSpan, PassTimes, clock_warning};
+pub use timing::{CLOCK_TOLERANCE, GpuTimer, MAX_TIMED_PASSES, PassSpan, PassTimes, clock_warning};
 
 use std::fmt;
 

@@ -23,10 +23,13 @@
 use super::fragments::FragmentCounter;
 use super::{FragmentTally, Gpu, GpuError, TargetWrites};
 
-/// Most passes one frame may time, the frame's start included: half-angle slicing records a
-/// lighting, an eye and a light pass per slice, and under a point light one light pass per cube
-/// face, so 32 slices x (2 + 6) = 256 of them, beside the occluders' and the builds' six faces.
-const MAX_PASSES: u32 = 320;
+/// Most passes one frame may time, the frame's start included (two timestamps each: 4096, the
+/// most queries one set may hold in wgpu): half-angle slicing records a lighting, an eye and a
+/// light pass per slice, and under a point light one light pass per cube face, so
+/// [`crate::shadow::half_angle::MAX_HAS_SLICES`] x (2 + 6) = 1,920 of them, beside the
+/// occluders' and the builds' six faces.
+pub const MAX_TIMED_PASSES: u32 = 2048;
+const MAX_PASSES: u32 = MAX_TIMED_PASSES;
 
 /// Name of the empty pass that marks the frame's start (not reported as a pass).
 const FRAME_START: &str = "frame start";

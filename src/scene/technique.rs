@@ -147,8 +147,9 @@ impl OccluderMode {
 /// set; each technique reads the ones its registry entry (`shadow::TechniqueEntry`) declares.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct TechniqueParams {
-    /// Channel budget, 1..=32 (each technique may have a larger minimum); what it buys is the
-    /// technique's budget caption (`shadow::TechniqueEntry::budget_caption`).
+    /// Channel budget, 1..=32 (`has`: up to 240 batches; each technique may have a larger
+    /// minimum); what it buys is the technique's budget caption
+    /// (`shadow::TechniqueEntry::budget_caption`).
     pub channels: u32,
     /// Square shadow-map resolution in pixels (light buffer for `has`, list grid for `exact`).
     pub resolution_px: u32,

@@ -46,6 +46,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     role: Role::Contender,
     budget_caption: |_| "front, back, optical depth (any budget)".to_owned(),
     min_channels: 3,
+    max_channels: super::MAX_CHANNELS,
     in_default_sweep: true,
     in_default_compare: true,
     build_reads_back: false,

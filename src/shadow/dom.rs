@@ -113,6 +113,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     role: Role::Contender,
     budget_caption: |channels| format!("1 depth + {} layers", channels.saturating_sub(1)),
     min_channels: 2,
+    max_channels: super::MAX_CHANNELS,
     in_default_sweep: true,
     in_default_compare: true,
     build_reads_back: false,

@@ -139,6 +139,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     role: Role::Contender,
     budget_caption: |b| format!("{} nodes per texel", nodes_per_texel(b)),
     min_channels: 4,
+    max_channels: super::MAX_CHANNELS,
     // Not in the default sweep: on lavapipe the 10 cells of dsm and avsm on thesis_plume take
     // about 17 s together (`sweep --techniques dsm,avsm`: 17.8 s with `none` and the reference;
     // 36.8 s two changes before, 240 s for 8 cells before their resolve and search got faster:

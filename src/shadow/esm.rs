@@ -48,6 +48,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     role: Role::Contender,
     budget_caption: |_| "1 start depth (any budget)".to_owned(),
     min_channels: 1,
+    max_channels: super::MAX_CHANNELS,
     in_default_sweep: true,
     in_default_compare: true,
     build_reads_back: false,

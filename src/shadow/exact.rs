@@ -86,6 +86,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     role: Role::Reference,
     budget_caption: |_| "no budget (closed form)".to_owned(),
     min_channels: 1,
+    max_channels: super::MAX_CHANNELS,
     in_default_sweep: false,
     in_default_compare: false,
     build_reads_back: true,

@@ -48,12 +48,20 @@ use crate::gpu::{AllocationError, Gpu, MemoryLedger, TargetWrites};
 use crate::shaders;
 use crate::sim::Particle;
 
+/// The most batches `has` draws in: each is a lighting, an eye and a light pass (under a point
+/// light, one light pass per cube face: eight), and the frame's timer holds
+/// [`crate::gpu::MAX_TIMED_PASSES`], so that every pass of the largest budget is timed with 128
+/// to spare. Above the 32 channels of the map techniques: a slice costs 256 bytes (its lighting
+/// range), not a map channel, so a byte budget buys many.
+pub const MAX_HAS_SLICES: u32 = (crate::gpu::MAX_TIMED_PASSES - 128) / 8;
+
 pub const ENTRY: TechniqueEntry = TechniqueEntry {
     name: "has",
     description: "half-angle slicing: S batches along the half-angle, eye and light interleaved",
     role: Role::Contender,
     budget_caption: |channels| format!("{channels} slices (batches)"),
     min_channels: 1,
+    max_channels: MAX_HAS_SLICES,
     in_default_sweep: true,
     in_default_compare: true,
     build_reads_back: false,
@@ -764,8 +772,15 @@ impl HalfAngle {
 }
 
 impl ProbePass for HalfAngle {
-    /// T at a point as the slicing sees it: the light buffer after every batch that lies wholly
-    /// before the point along the half-angle axis.
+    /// T at a point as the frame reads it. With owners (a frame's shaded points): a particle's
+    /// lighting point through the light buffer as the batches before its particle's left it
+    /// (the frame lights a batch's particles, all four points of each, before drawing the batch
+    /// into the light buffer); an opaque point (the ground, the boxes: no owner) through the
+    /// light buffer after every batch, which is what the frame's opaque pass reads (the build
+    /// fills it with every particle), so that a box in front of smoke along the light is
+    /// shadowed by the smoke behind it, as it is in the frame: the light buffer holds optical
+    /// depth, not where along the ray it lies. Without owners, a point in the smoke as a
+    /// particle there would be lit: through the batches wholly before it along the half-angle.
     fn probe(&mut self, gpu: &Gpu, inputs: ProbeInputs<'_>) -> anyhow::Result<Vec<f32>> {
         Self::check_point_light(
             inputs.particles,
@@ -789,11 +804,9 @@ impl ProbePass for HalfAngle {
                     .dot(slicing.axis)
             })
             .collect();
-        // Group the points by how many batches lie before them: for a particle's lighting
-        // point, the batches before its particle's (the frame lights a batch's particles, all
-        // four points of each, from the light buffer the batches before it left); for a free
-        // point, those wholly before it along the half-angle axis.
-        // (Only a probe with owners needs each particle's batch: free points go by their key.)
+        // Group the points by how many batches lie before them: a lighting point's particle's
+        // batch, every batch for an opaque point, those wholly before a free point along the
+        // axis. (Only a probe with owners needs each particle's batch.)
         let mut batch_of_particle = vec![0usize; inputs.owners.map_or(0, |_| order.len())];
         if !batch_of_particle.is_empty() {
             for (k, batch) in batches.iter().enumerate() {
@@ -804,9 +817,9 @@ impl ProbePass for HalfAngle {
         }
         let mut groups: Vec<Vec<usize>> = vec![Vec::new(); batches.len() + 1];
         for (i, p) in inputs.points.iter().enumerate() {
-            let owner = inputs.owners.map_or(NO_OWNER, |o| o[i]);
-            let group = match batch_of_particle.get(owner as usize) {
-                Some(&k) => k,
+            let group = match inputs.owners.map(|o| o[i]) {
+                Some(NO_OWNER) => batches.len(),
+                Some(owner) => batch_of_particle[owner as usize],
                 None => last_keys.partition_point(|&k| k < p.dot(slicing.axis)),
             };
             groups[group].push(i);

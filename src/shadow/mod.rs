@@ -308,9 +308,10 @@ pub struct ProbeInputs<'a> {
     pub probe: &'a probe::Probe,
     pub points: &'a [glam::Vec3],
     /// For each point, the index in `particles` of the particle whose lighting point it is
-    /// (`render::shaded::point_owners`), or [`NO_OWNER`]: a technique whose frame lights a
-    /// particle's points together (`has`, batch by batch) gives an owned point the T its
-    /// particle's lighting sees. `None`: every point is free.
+    /// (`render::shaded::point_owners`), or [`NO_OWNER`] for an opaque surface's point: a
+    /// technique whose frame lights a particle's points together (`has`, batch by batch) gives
+    /// an owned point the T its particle's lighting sees, and an opaque one the T the frame's
+    /// opaque pass reads. `None`: every point is free (in the smoke, as a particle there).
     pub owners: Option<&'a [u32]>,
     /// As [`ParticlePassInputs::other_faces`].
     pub other_faces: Vec<OtherFace<'a>>,
@@ -557,7 +558,7 @@ pub fn fit_bytes_per_texel(
         planned_use(entry, &params, particles, frame_pixels)
     };
     let allowed = f64::from(budget);
-    let Some(largest) = (entry.min_channels..=MAX_CHANNELS)
+    let Some(largest) = (entry.min_channels..=entry.max_channels)
         .rev()
         .find(|&c| at(c).1 <= allowed)
     else {
@@ -596,6 +597,10 @@ pub struct TechniqueEntry {
     pub budget_caption: fn(u32) -> String,
     /// Smallest channel budget the technique can work with.
     pub min_channels: u32,
+    /// Largest channel budget: [`MAX_CHANNELS`] where a channel is a map's (eight RGBA16F
+    /// attachments); `has`'s budget is batches, each a set of passes and 256 bytes of ranges
+    /// ([`half_angle::MAX_HAS_SLICES`]).
+    pub max_channels: u32,
     /// Whether the default sweep and the default comparison include it.
     pub in_default_sweep: bool,
     pub in_default_compare: bool,
@@ -869,14 +874,14 @@ pub fn find(name: &str) -> Result<&'static TechniqueEntry, ShadowError> {
 
 /// Checks the channel budget against the technique's range.
 pub fn check_channels(entry: &TechniqueEntry, channels: u32) -> Result<(), ShadowError> {
-    if (entry.min_channels..=MAX_CHANNELS).contains(&channels) {
+    if (entry.min_channels..=entry.max_channels).contains(&channels) {
         Ok(())
     } else {
         Err(ShadowError::ChannelsOutOfRange {
             technique: entry.name,
             channels,
             min: entry.min_channels,
-            max: MAX_CHANNELS,
+            max: entry.max_channels,
         })
     }
 }

@@ -349,6 +349,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
         format!("{} power moments ({} channels)", plan.count, plan.used)
     },
     min_channels: 5,
+    max_channels: super::MAX_CHANNELS,
     in_default_sweep: true,
     in_default_compare: true,
     build_reads_back: false,

@@ -13,6 +13,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     role: Role::FrameBaseline,
     budget_caption: |_| "no maps".to_owned(),
     min_channels: 1,
+    max_channels: super::MAX_CHANNELS,
     in_default_sweep: false,
     in_default_compare: false,
     build_reads_back: false,

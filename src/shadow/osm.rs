@@ -60,6 +60,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     role: Role::Contender,
     budget_caption: |channels| format!("{channels} slices"),
     min_channels: 1,
+    max_channels: super::MAX_CHANNELS,
     in_default_sweep: true,
     in_default_compare: true,
     build_reads_back: false,

@@ -42,6 +42,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     role: Role::Contender,
     budget_caption: |_| "no map (N light samples)".to_owned(),
     min_channels: 1,
+    max_channels: super::MAX_CHANNELS,
     in_default_sweep: false,
     in_default_compare: false,
     build_reads_back: false,

@@ -217,6 +217,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
         )
     },
     min_channels: 1,
+    max_channels: super::MAX_CHANNELS,
     in_default_sweep: true,
     in_default_compare: true,
     build_reads_back: false,

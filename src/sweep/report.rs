@@ -439,7 +439,7 @@ fn budget_limits(results: &SweepResults, largest: u32) -> Vec<String> {
             let params = crate::shadow::TechniqueParams::new(channels, cell.shadow_res);
             crate::shadow::planned_bytes_per_texel(entry, &params, u64::from(m.particles), pixels)
         };
-        let (least, most) = (kept(entry.min_channels), kept(crate::shadow::MAX_CHANNELS));
+        let (least, most) = (kept(entry.min_channels), kept(entry.max_channels));
         let name = format!("<code>{}</code>", entry.name);
         if most - least < 1.0 && !entry.uses_budget {
             notes.push(format!(
@@ -451,12 +451,12 @@ fn budget_limits(results: &SweepResults, largest: u32) -> Vec<String> {
                 "{name} holds {least:.1} to {most:.1} bytes a texel from {} to {}: its budget \
                  buys it passes (time), not memory, so it runs at its largest wherever it fits",
                 (entry.budget_caption)(entry.min_channels),
-                (entry.budget_caption)(crate::shadow::MAX_CHANNELS),
+                (entry.budget_caption)(entry.max_channels),
             ));
         } else if most < f64::from(largest) {
             notes.push(format!(
                 "{name} holds at most {most:.1} bytes a texel ({}), whatever the budget",
-                (entry.budget_caption)(crate::shadow::MAX_CHANNELS)
+                (entry.budget_caption)(entry.max_channels)
             ));
         }
     }

@@ -220,9 +220,11 @@ fn plan(scene: &Scene, options: &SweepOptions) -> anyhow::Result<(Vec<Plan>, Vec
             continue;
         }
         for &b in &options.channels {
-            if !(1..=shadow::MAX_CHANNELS).contains(&b) {
+            let most = shadow::REGISTRY.iter().map(|e| e.max_channels).max();
+            if !(1..=most.unwrap_or(shadow::MAX_CHANNELS)).contains(&b) {
                 anyhow::bail!(
-                    "--channels {b} is out of range: allowed 1..={}",
+                    "--channels {b} is out of range: allowed 1..={} (above {}: has only)",
+                    most.unwrap_or(shadow::MAX_CHANNELS),
                     shadow::MAX_CHANNELS
                 );
             }

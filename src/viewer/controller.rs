@@ -530,7 +530,7 @@ impl Controller {
         self.step_channels(|c| c.saturating_sub(1));
     }
 
-    /// A: one channel more (not above [`shadow::MAX_CHANNELS`]).
+    /// A: one channel more (not above its technique's largest).
     pub fn more_channels(&mut self) {
         self.step_channels(|c| c + 1);
     }
@@ -538,7 +538,7 @@ impl Controller {
     fn step_channels(&mut self, step: impl FnOnce(u32) -> u32) {
         let entry = shadow::find(&self.state.a.technique).expect("registered");
         let c = &mut self.state.a.channels;
-        *c = step(*c).clamp(entry.min_channels, shadow::MAX_CHANNELS);
+        *c = step(*c).clamp(entry.min_channels, entry.max_channels);
     }
 
     /// A: the next technique a side can pick (wrapping round), its budget clamped to it.
@@ -1105,9 +1105,7 @@ pub fn comparable_techniques() -> Vec<&'static str> {
 /// Keeps a side's budget within what its technique accepts.
 pub fn clamp_channels(side: &mut Side) {
     let entry = shadow::find(&side.technique).expect("registered");
-    side.channels = side
-        .channels
-        .clamp(entry.min_channels, shadow::MAX_CHANNELS);
+    side.channels = side.channels.clamp(entry.min_channels, entry.max_channels);
 }
 
 /// What a budget means for a technique, for the slider's caption.

@@ -194,11 +194,8 @@ fn side_editor(ui: &mut egui::Ui, label: &str, side: &mut Side) {
     if side.source == Source::Technique {
         let entry = shadow::find(&side.technique).expect("registered");
         ui.add(
-            egui::Slider::new(
-                &mut side.channels,
-                entry.min_channels..=shadow::MAX_CHANNELS,
-            )
-            .text(format!("Channels {label}")),
+            egui::Slider::new(&mut side.channels, entry.min_channels..=entry.max_channels)
+                .text(format!("Channels {label}")),
         );
         ui.label(budget_meaning(&side.technique, side.channels));
     }
