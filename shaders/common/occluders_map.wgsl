@@ -18,18 +18,25 @@ fn occluder_visibility(p: vec3<f32>) -> f32 {
     if frame.occluders.w == 0.0 && frame.light_pos.y >= frame.ground.x {
         return 1.0;
     }
-    let l = light_coords(p);
-    if !l.inside {
+    // The occluders' map frames the whole cone (the smoke's maps may be fitted to the smoke).
+    let clip = frame.occluder_clip_from_world * vec4<f32>(p, 1.0);
+    if clip.w <= 1e-6 {
         return 1.0;
     }
+    let ndc = clip.xy / clip.w;
+    if any(abs(ndc) > vec2<f32>(1.0, 1.0)) {
+        return 1.0;
+    }
+    let map_uv = ndc * vec2<f32>(0.5, -0.5) + vec2<f32>(0.5, 0.5);
+    let dist_m = distance(p, frame.light_pos.xyz);
     let side = frame.occluders.z;
-    let texel_m = 2.0 * l.dist_m * (1.0 / side) / max(frame.light_clip_from_world[1][1], 1e-6);
-    let reference = (l.dist_m - 1.5 * texel_m) * frame.occluders.y;
+    let texel_m = 2.0 * dist_m * (1.0 / side) / max(frame.occluder_clip_from_world[1][1], 1e-6);
+    let reference = (dist_m - 1.5 * texel_m) * frame.occluders.y;
     let texel_uv = 1.0 / side;
     var lit = 0.0;
     for (var dy = -1; dy <= 1; dy++) {
         for (var dx = -1; dx <= 1; dx++) {
-            let uv = l.uv + vec2<f32>(f32(dx), f32(dy)) * texel_uv;
+            let uv = map_uv + vec2<f32>(f32(dx), f32(dy)) * texel_uv;
             lit += textureSampleCompareLevel(occluder_map, occluder_sampler, uv, reference);
         }
     }

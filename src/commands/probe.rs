@@ -95,7 +95,12 @@ pub fn run(args: &ProbeArgs, adapter: &AdapterPreference) -> anyhow::Result<()> 
     // The light's depth range encloses a density volume too.
     renderer.load_volume(&gpu, &scene)?;
     let grid = renderer.medium().grid().cloned();
-    let light = LightSpace::faces_with(&scene.light, &particles, renderer.medium().bounds())[0];
+    let light = LightSpace::faces_with(
+        &scene.light,
+        &particles,
+        renderer.medium().bounds(),
+        scene.shadow.framing,
+    )[0];
 
     let mut points = vec![args.at];
     if let Some(n) = args.along_light {

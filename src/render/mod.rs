@@ -510,6 +510,16 @@ impl Renderer {
 
     /// Side of the occluders' depth map the lighting reads; `None` for the reference, which
     /// tests the boxes exactly and draws no map.
+    /// Texels of a `res`² map, summed over the light's faces, whose ray crosses the smoke of
+    /// `particles` (and the scene's density volume) in the scene's framing.
+    pub fn texels_covering_smoke(&self, scene: &Scene, particles: &[Particle], res: u32) -> u64 {
+        let bounds = self.medium.bounds();
+        LightSpace::faces_with(&scene.light, particles, bounds, scene.shadow.framing)
+            .iter()
+            .map(|face| face.texels_covering_smoke(particles, bounds, res))
+            .sum()
+    }
+
     pub fn occluder_map_px(&self) -> Option<u32> {
         self.faces[0].occluders.map_px()
     }
@@ -1134,7 +1144,12 @@ impl Renderer {
         self.prepare_medium(gpu, scene, particles.len())?;
 
         let camera = CameraMatrices::new(scene, width, height);
-        let lights = LightSpace::faces_with(&scene.light, particles, self.medium.bounds());
+        let lights = LightSpace::faces_with(
+            &scene.light,
+            particles,
+            self.medium.bounds(),
+            scene.shadow.framing,
+        );
         let reads_occluder_map = shadow::find(&self.technique_config.name).map_or(true, |e| {
             e.reads_occluder_map(&self.technique_config.params)
         });
@@ -1632,7 +1647,7 @@ fn frame_uniforms(
     let clip_from_world = camera.clip_from_world();
     let s = &scene.shading;
     let (occluder_clip_from_world, occluder_far_m) =
-        occluders::clip_from_world(scene, light.view_from_world, light.tan_half_fov);
+        occluders::clip_from_world(scene, light.cone_view_from_world, light.cone_tan_half_fov);
     FrameUniforms {
         clip_from_world: clip_from_world.to_cols_array_2d(),
         world_from_clip: clip_from_world.inverse().to_cols_array_2d(),

@@ -182,8 +182,13 @@ pub fn verify(
     let points = check_points(scene, particles, (width, height), grid.as_deref());
     let positions: Vec<Vec3> = points.iter().map(|(p, _)| *p).collect();
     let gpu_t = renderer.probe_with_occluders(gpu, scene, particles, &positions)?;
-    let far_m =
-        LightSpace::faces_with(&scene.light, particles, renderer.medium().bounds())[0].far_m;
+    let far_m = LightSpace::faces_with(
+        &scene.light,
+        particles,
+        renderer.medium().bounds(),
+        scene.shadow.framing,
+    )[0]
+    .far_m;
     let epsilon_m = occluders::epsilon_m(scene.light.position, far_m);
     let light = scene.light.position;
     let cpu_t: Vec<Option<f64>> = positions

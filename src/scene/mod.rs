@@ -21,7 +21,7 @@ use serde::{Deserialize, Serialize};
 
 pub use crate::medium::scene::VolumeSpec;
 
-pub use technique::{OccluderMode, ParamValue, SplatMode, TechniqueParams};
+pub use technique::{Framing, OccluderMode, ParamValue, SplatMode, TechniqueParams};
 pub use validate::LIMITS;
 
 /// The thesis experiment (chapter 4), embedded so the binary runs without any file.
@@ -519,6 +519,10 @@ pub struct ShadowSettings {
     /// in the smoke's shadow) or `map` (a filtered depth map of `occluder_resolution_px`, as an
     /// engine would; the reference stays exact).
     pub occluders: OccluderMode,
+    /// How a spotlight's light space frames the smoke: `fit` (default: the smoke's light-space
+    /// bounds within the cone, fitted each frame, as engines fit shadow frusta) or `cone` (the
+    /// whole cone: the thesis' framing). A point light's cube faces are always whole.
+    pub framing: Framing,
     /// Technique-specific parameters (`[shadow.params]`, e.g. `dom_layer_ratio = 2` or
     /// `osm_interp = "cubic"`): each key is declared, documented and checked by its technique's
     /// registry entry (`smokeshadow info` lists them); absent keys take the entry's defaults.
@@ -698,6 +702,7 @@ impl Default for ShadowSettings {
             occluder_resolution_px: DEFAULT_OCCLUDER_RESOLUTION_PX,
             splat: defaults.splat,
             occluders: defaults.occluders,
+            framing: Framing::default(),
             params: BTreeMap::new(),
         }
     }

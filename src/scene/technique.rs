@@ -142,6 +142,33 @@ impl OccluderMode {
     }
 }
 
+/// How a spotlight's light space frames the smoke: the square frustum every map (and `exact`'s
+/// tiles, and the occluders' map) is drawn in.
+#[derive(
+    Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize, clap::ValueEnum,
+)]
+#[serde(rename_all = "snake_case")]
+pub enum Framing {
+    /// Fitted to the smoke's light-space bounds each frame (the particles' spheres and the
+    /// density volume's box, within the cone): the default, as engines fit a shadow frustum to
+    /// its casters, so that every technique's texels fall on smoke. The volume's grid is fitted
+    /// to the same smoke (its world box).
+    #[default]
+    Fit,
+    /// The whole spotlight cone (4% wider for its penumbra): the thesis' framing, in which the
+    /// smoke covers a fraction of the texels.
+    Cone,
+}
+
+impl Framing {
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Fit => "fit",
+            Self::Cone => "cone",
+        }
+    }
+}
+
 /// The parameters every technique receives: the budget, the resolution and the splat mode that
 /// all of them share, and the values of technique-specific parameters ([`ParamSpec`]) that were
 /// set; each technique reads the ones its registry entry (`shadow::TechniqueEntry`) declares.

@@ -903,6 +903,8 @@ mod tests {
             mean_radius_m,
             mean_dist_m,
             face: None,
+            cone_view_from_world: glam::Mat4::IDENTITY,
+            cone_tan_half_fov: 0.5,
         }
     }
 

@@ -89,6 +89,12 @@ pub struct CellResult {
     /// before it existed.
     #[serde(default)]
     pub transient_bytes: u64,
+    /// Texels of the light's `shadow_res`² map (summed over a point light's faces) whose ray
+    /// crosses smoke in this cell's frame ([`crate::shadow::LightSpace::texels_covering_smoke`]),
+    /// in the scene's framing (`shadow.framing`): what a map's resolution buys on this smoke.
+    /// The same for every technique at one resolution; 0 in cells written before it existed.
+    #[serde(default)]
+    pub smoke_texels: u64,
     /// GPU time of the technique's shadow build passes.
     pub gpu_shadow_ms: Timing,
     /// GPU time of everything else in the frame: opaque, particles (with their lighting), tone

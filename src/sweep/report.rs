@@ -908,6 +908,7 @@ pub(crate) mod tests {
             particle_res: Default::default(),
             resident_bytes: bytes,
             transient_bytes: 0,
+            smoke_texels: 0,
             gpu_shadow_ms: timing(1.0),
             gpu_render_ms: timing(4.0),
             cpu_sort_ms: timing(0.5),

@@ -292,7 +292,7 @@ impl Worker {
                 point,
                 samples,
             } => {
-                let light = LightSpace::fit(&frame.scene.light, &frame.particles);
+                let light = LightSpace::cone(&frame.scene.light, &frame.particles);
                 let origin = frame.scene.light.position;
                 let dir = (point - origin).normalize_or(Vec3::NEG_Y);
                 let n = samples.max(2);
