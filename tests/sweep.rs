@@ -151,6 +151,17 @@ fn a_tiny_sweep_writes_consistent_tables_charts_and_a_report() {
     }
 
     let html = std::fs::read_to_string(dir.join("index.html")).unwrap();
+    // The report states the framing and the filtering every technique shares, with the texels
+    // that hold smoke as results.csv counts them (the same at every cell of one resolution).
+    let smoke: Vec<&str> = rows.iter().map(|r| get(r, "smoke_texels")).collect();
+    assert!(smoke.windows(2).all(|w| w[0] == w[1]), "{smoke:?}");
+    assert!(smoke[0].parse::<u64>().unwrap() > 0);
+    assert!(
+        html.contains("No technique prefilters")
+            && html.contains(&format!("{} of a", smoke[0]))
+            && html.contains("fitted to the smoke"),
+        "the report states the footing"
+    );
     let links = smokeshadow::compare::referenced_paths(&html);
     assert!(links.len() > 10, "{links:?}");
     for link in links {

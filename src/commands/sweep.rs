@@ -357,6 +357,7 @@ fn print_table(results: &SweepResults, folder: &Path) {
             false => ranked.join(", "),
         }
     };
+    println!("{}", sweep::report::same_footing(results, false));
     for b in sweep::report::byte_budgets(results) {
         let at = sweep::report::at_byte_budget(results, b);
         println!(

@@ -973,6 +973,7 @@ mod tests {
 
     fn metadata() -> SweepMetadata {
         SweepMetadata {
+            framing: crate::scene::Framing::Fit,
             tool_version: "0.1.0".into(),
             scene: "thesis_plume".into(),
             description: String::new(),

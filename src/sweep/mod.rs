@@ -240,6 +240,11 @@ impl Machine {
     }
 }
 
+/// The framing of results and plans written before `shadow.framing` existed.
+pub(crate) fn cone_framing() -> crate::scene::Framing {
+    crate::scene::Framing::Cone
+}
+
 /// What a cell's ratios and errors depend on, recorded in the cell by the process that measured
 /// it: every process that measures cells of a scene measures `none` and renders `exact` itself
 /// first, so a cell is self-contained wherever it was measured.
@@ -281,6 +286,10 @@ pub struct SkippedCell {
 pub struct SweepMetadata {
     pub tool_version: String,
     pub scene: String,
+    /// The scene's `shadow.framing`, every technique's (`cone` in results written before it
+    /// existed, which all framed the cone).
+    #[serde(default = "cone_framing")]
+    pub framing: crate::scene::Framing,
     /// The scene's one-sentence description (may be empty).
     #[serde(default, skip_serializing_if = "String::is_empty")]
     pub description: String,

@@ -116,6 +116,7 @@ fn metadata_line(body: &mut String, results: &SweepResults) {
 /// and the most accurate cell over every budget.
 fn answer(body: &mut String, results: &SweepResults, variants: &Variants, pareto: &[bool]) {
     body.push_str("<h2>Answer</h2>\n");
+    let _ = writeln!(body, "<p>{}</p>", same_footing(results, true));
     equal_bytes(body, results, variants);
     equal_time(body, results, variants);
     body.push_str(&report::studies_paragraph());
@@ -237,6 +238,40 @@ pub fn byte_budgets(results: &SweepResults) -> Vec<u32> {
 }
 
 /// The techniques ranked at each byte budget, and what a budget cannot buy each.
+/// The framing and the filtering every technique of the sweep shares, in one sentence (names in
+/// `<code>` for the report when `html`, in backticks otherwise).
+pub fn same_footing(results: &SweepResults, html: bool) -> String {
+    let exact = match html {
+        true => "<code>exact</code>",
+        false => "`exact`",
+    };
+    let m = &results.metadata;
+    let framing = match m.framing {
+        crate::scene::Framing::Fit => "fitted to the smoke's light-space bounds within the cone",
+        crate::scene::Framing::Cone => "over the whole spotlight cone (the thesis' framing)",
+    };
+    let coverage = results
+        .cells
+        .iter()
+        .filter(|c| c.smoke_texels > 0)
+        .map(|c| (c.shadow_res, c.smoke_texels))
+        .min()
+        .map_or(String::new(), |(res, texels)| {
+            let all = u64::from(res).pow(2);
+            format!(
+                ": {texels} of a {res}² map's {all} texels hold smoke ({:.0}%)",
+                100.0 * texels as f64 / all as f64
+            )
+        });
+    format!(
+        "The same footing for every technique: every light-space map (and {exact}'s tiles) is \
+         framed {framing}{coverage}; the volume's grid spans the smoke's world box. \
+         No technique prefilters: a map's texel holds the chord through its centre, a volume \
+         voxel the extinction at its centre; lookups interpolate bilinearly (the volume \
+         trilinearly)."
+    )
+}
+
 fn equal_bytes(body: &mut String, results: &SweepResults, variants: &Variants) {
     let budgets = byte_budgets(results);
     if budgets.is_empty() {
@@ -939,6 +974,7 @@ pub(crate) mod tests {
     pub(crate) fn results() -> SweepResults {
         SweepResults {
             metadata: SweepMetadata {
+                framing: crate::scene::Framing::Fit,
                 tool_version: "0.1.0".into(),
                 scene: "thesis_plume".into(),
                 description: String::new(),

@@ -944,6 +944,7 @@ impl ScenePlan<'_> {
             particles: crate::particles::count(s) as u32,
             width_px: s.output.width_px,
             height_px: s.output.height_px,
+            framing: s.shadow.framing,
             cells: self
                 .plans
                 .iter()
@@ -1382,6 +1383,7 @@ pub(super) fn assemble(
         particles: planned.particles,
         width_px: planned.width_px,
         height_px: planned.height_px,
+        framing: planned.framing,
         adapter: distinct(&|m| m.adapter.clone(), fallback.map(|m| m.adapter.clone())),
         backend: distinct(&|m| m.backend.clone(), fallback.map(|m| m.backend.clone())),
         driver: distinct(&|m| m.driver.clone(), fallback.map(|m| m.driver.clone())),

@@ -95,6 +95,9 @@ pub struct PlannedScene {
     pub particles: u32,
     pub width_px: u32,
     pub height_px: u32,
+    /// The scene's `shadow.framing` (plans written before it existed framed the cone).
+    #[serde(default = "super::cone_framing")]
+    pub framing: crate::scene::Framing,
     pub cells: Vec<PlannedCell>,
     pub skipped: Vec<SkippedCell>,
 }
