@@ -220,6 +220,82 @@ fn resume_runs_only_the_missing_cells_and_ends_with_the_same_table() {
     );
 }
 
+/// `--memory`: at each resolution every technique's cell holds at most the total, and the answer
+/// names each technique once, at its most accurate resolution, as the table has it.
+#[test]
+fn memory_budgets_give_each_technique_its_best_resolution_within_the_total() {
+    let dir = scratch("sweep-memory");
+    let out = smokeshadow(&[
+        "sweep",
+        "--size",
+        "160x120",
+        "--techniques",
+        "osm,dom",
+        "--channels",
+        "8",
+        "--shadow-res",
+        "64,128",
+        "--memory",
+        "256KiB,48KiB",
+        "--warmup",
+        "0",
+        "--frames",
+        "1",
+        "-o",
+        dir.to_str().unwrap(),
+    ])
+    .output()
+    .unwrap();
+    ok(&out);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let rows = csv_rows(&dir.join("results.csv"));
+    for total in [256u64 << 10, 48 << 10] {
+        let cells: Vec<&Vec<(String, String)>> = rows
+            .iter()
+            .filter(|r| {
+                get(r, "memory_budgets")
+                    .split(';')
+                    .any(|b| b == total.to_string())
+            })
+            .collect();
+        // osm and dom at 64² and 128² (48 KiB is 3 bytes a texel at 128²: dom's smallest holds
+        // 4, so it answers at 64² alone).
+        let expected = if total == 256 << 10 { 4 } else { 3 };
+        assert_eq!(cells.len(), expected, "{total}: {cells:?}");
+        for c in &cells {
+            let resident: u64 = get(c, "resident_bytes").parse().unwrap();
+            assert!(resident <= total, "{total}: {c:?}");
+        }
+        // The stdout answer: each technique once, at its best FLIP of its cells.
+        let line = stdout
+            .lines()
+            .find(|l| l.starts_with(&format!("at {} in all", smokeshadow::report::bytes(total))))
+            .unwrap_or_else(|| panic!("no answer line for {total}:\n{stdout}"));
+        for technique in ["osm", "dom"] {
+            let best = cells
+                .iter()
+                .filter(|c| get(c, "technique") == technique)
+                .min_by(|a, b| {
+                    let f =
+                        |r: &Vec<(String, String)>| get(r, "flip_vs_exact").parse::<f64>().unwrap();
+                    f(a).total_cmp(&f(b))
+                })
+                .unwrap();
+            let named = format!(
+                "{technique} {} at {}²",
+                get(best, "channels"),
+                get(best, "shadow_res")
+            );
+            assert_eq!(line.matches(&format!("{technique} ")).count(), 1, "{line}");
+            assert!(line.contains(&named), "{line} lacks {named}");
+        }
+    }
+    assert!(
+        stdout.contains("skipped dom at 48.0 KiB at 128²"),
+        "{stdout}"
+    );
+}
+
 #[test]
 fn bad_sweep_input_gets_one_line() {
     let file = scratch("sweep-file");
@@ -244,6 +320,11 @@ fn bad_sweep_input_gets_one_line() {
         (
             vec!["sweep", "--techniques", "magic", "-o", "/tmp/x"],
             "\"magic\"",
+        ),
+        (vec!["sweep", "--memory", "12", "-o", "/tmp/x"], "\"12\""),
+        (
+            vec!["sweep", "--memory", "1.5B", "-o", "/tmp/x"],
+            "whole bytes",
         ),
         (
             vec!["sweep", "--channels", "300", "-o", "/tmp/x"],

@@ -30,7 +30,7 @@ pub struct SweepArgs {
     /// `-o` (no GPU needed); refuses shards of different sweeps, and names missing cells.
     #[arg(long, num_args = 1.., value_name = "DIR",
           conflicts_with_all = ["scene", "scenes", "shard", "resume", "exr", "techniques",
-                                "channels", "bytes_per_texel", "shadow_res", "splat", "particle_res", "params", "param_set", "frames",
+                                "channels", "bytes_per_texel", "memory", "shadow_res", "splat", "particle_res", "params", "param_set", "frames",
                                 "warmup", "cell_seconds", "size", "particles"])]
     pub merge: Option<Vec<PathBuf>>,
     #[command(flatten)]
@@ -48,9 +48,17 @@ pub struct SweepArgs {
     /// osm_precision=single`, ...), and the report's answer compares at these; the channel
     /// budgets stay the thesis' view. A technique that fits no configuration is skipped with
     /// the bytes it needs.
-    #[arg(long, value_name = "BYTES,...|none", default_value = "48,24,12",
-          value_parser = parse_byte_budgets)]
-    pub bytes_per_texel: ByteBudgets,
+    /// Default 48,24,12, or none with `--memory`.
+    #[arg(long, value_name = "BYTES,...|none", value_parser = parse_byte_budgets)]
+    pub bytes_per_texel: Option<ByteBudgets>,
+    /// Memory budgets in total bytes, comma-separated, with a unit (`12MiB,6MiB,3MiB`; B, KiB,
+    /// MiB, GiB, KB, MB, GB): at each `--shadow-res`, each technique at the largest
+    /// configuration whose resident bytes fit (a whole number of bytes a texel there), and the
+    /// answer at each names every technique at its most accurate of the swept resolutions (its
+    /// shape chosen on this scene, as every technique's is). Replaces the default
+    /// `--bytes-per-texel`.
+    #[arg(long, value_name = "SIZE,...", value_delimiter = ',', value_parser = parse_memory)]
+    pub memory: Vec<u64>,
     /// Shadow-map resolutions, comma-separated.
     #[arg(long, value_delimiter = ',', default_value = "512")]
     pub shadow_res: Vec<u32>,
@@ -142,7 +150,12 @@ pub fn run(args: &SweepArgs, adapter: &AdapterPreference) -> anyhow::Result<()> 
     let options = SweepOptions {
         techniques: crate::shadow::expand_all(&args.techniques),
         channels: args.channels.clone(),
-        bytes_per_texel: args.bytes_per_texel.0.clone(),
+        bytes_per_texel: match (&args.bytes_per_texel, args.memory.is_empty()) {
+            (Some(b), _) => b.0.clone(),
+            (None, true) => sweep::DEFAULT_BYTES_PER_TEXEL.to_vec(),
+            (None, false) => Vec::new(),
+        },
+        memory: args.memory.clone(),
         shadow_res: args.shadow_res.clone(),
         splats: args.splat.clone(),
         particle_res: args.particle_res.clone(),
@@ -326,9 +339,15 @@ fn print_table(results: &SweepResults, folder: &Path) {
         }
     }
     for s in &results.skipped {
-        match s.bytes_per_texel {
-            Some(b) => println!("skipped {} at {b} bytes a texel: {}", s.technique, s.reason),
-            None => println!(
+        match (s.bytes_per_texel, s.memory) {
+            (Some(b), _) => println!("skipped {} at {b} bytes a texel: {}", s.technique, s.reason),
+            (None, Some((total, res))) => println!(
+                "skipped {} at {} at {res}²: {}",
+                s.technique,
+                crate::report::bytes(total),
+                s.reason
+            ),
+            (None, None) => println!(
                 "skipped {} at {} channels: {}",
                 s.technique, s.channels, s.reason
             ),
@@ -363,6 +382,29 @@ fn print_table(results: &SweepResults, folder: &Path) {
         println!(
             "at {b} bytes a texel, by FLIP vs exact: {}",
             line(&at, false, "no technique fits")
+        );
+    }
+    for total in sweep::report::memory_budgets(results) {
+        let at = sweep::report::at_memory_budget(results, total);
+        let ranked: Vec<String> = at
+            .iter()
+            .map(|c| {
+                format!(
+                    "{} {} at {}² ({:.4})",
+                    c.technique,
+                    c.channels,
+                    c.shadow_res,
+                    c.vs_exact.as_ref().map_or(f64::NAN, |e| e.flip_mean)
+                )
+            })
+            .collect();
+        println!(
+            "at {} in all, by FLIP vs exact (each at its best of the swept resolutions): {}",
+            crate::report::bytes(total),
+            match ranked.is_empty() {
+                true => "no technique fits".to_owned(),
+                false => ranked.join(", "),
+            }
         );
     }
     if results.cells.iter().any(|c| c.overhead_ratio.is_some()) {
@@ -402,6 +444,37 @@ fn parse_byte_budgets(s: &str) -> Result<ByteBudgets, String> {
         }
     }
     Ok(ByteBudgets(out))
+}
+
+/// Parses one `--memory` size: a number and a unit (B, KiB, MiB, GiB, KB, MB, GB), whole bytes.
+fn parse_memory(s: &str) -> Result<u64, String> {
+    let t = s.trim();
+    let split = t
+        .find(|c: char| !(c.is_ascii_digit() || c == '.'))
+        .unwrap_or(t.len());
+    let (number, unit) = t.split_at(split);
+    let scale: u64 = match unit.trim() {
+        "B" => 1,
+        "KiB" => 1 << 10,
+        "MiB" => 1 << 20,
+        "GiB" => 1 << 30,
+        "KB" => 1_000,
+        "MB" => 1_000_000,
+        "GB" => 1_000_000_000,
+        _ => {
+            return Err(format!(
+                "\"{t}\" is not a memory size: give a number and a unit, B, KiB, MiB, GiB, KB, MB \
+                 or GB (e.g. 12MiB)"
+            ));
+        }
+    };
+    let bytes = number.parse::<f64>().ok().map(|n| n * scale as f64);
+    match bytes {
+        Some(b) if b >= 1.0 && b.fract() == 0.0 && b <= 1e12 => Ok(b as u64),
+        _ => Err(format!(
+            "\"{t}\" is not a memory size: give whole bytes, 1 B to 1 TB (e.g. 12MiB)"
+        )),
+    }
 }
 
 /// Parses `--cell-seconds`: a positive, finite number of seconds.

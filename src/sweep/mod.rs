@@ -27,7 +27,10 @@ use serde::{Deserialize, Serialize};
 use crate::render::ParticleRes;
 use crate::shadow::SplatMode;
 
-pub use run::{CSV_COLUMNS, SHADED_STRIDE_PX, SweepOptions, SweepOutcome, run, write_results};
+pub use run::{
+    CSV_COLUMNS, DEFAULT_BYTES_PER_TEXEL, SHADED_STRIDE_PX, SweepOptions, SweepOutcome, run,
+    write_results,
+};
 pub use shard::{Shard, ShardManifest, merge};
 
 /// Median, minimum and maximum of a measurement over the timed frames, milliseconds.
@@ -66,6 +69,10 @@ pub struct CellResult {
     /// answers none (and in cells written before the axis existed).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub byte_budgets: Vec<u32>,
+    /// The memory budgets, total bytes (`--memory`), this cell is the technique's
+    /// configuration for at its resolution; empty when it answers none.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub memory_budgets: Vec<u64>,
     /// Whether `channels` is one of the channel budgets asked for (`--channels`): the thesis'
     /// channel view; a cell only a byte budget asked for is `false`.
     #[serde(default = "channel_axis_default")]
@@ -278,6 +285,9 @@ pub struct SkippedCell {
     /// The byte budget per texel it was skipped at (`channels` is then 0), if it was one.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub bytes_per_texel: Option<u32>,
+    /// The memory budget (total bytes) and the resolution it was skipped at, if it was one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub memory: Option<(u64, u32)>,
     pub reason: String,
 }
 

@@ -118,6 +118,7 @@ fn answer(body: &mut String, results: &SweepResults, variants: &Variants, pareto
     body.push_str("<h2>Answer</h2>\n");
     let _ = writeln!(body, "<p>{}</p>", same_footing(results, true));
     equal_bytes(body, results, variants);
+    equal_memory(body, results, variants);
     equal_time(body, results, variants);
     body.push_str(&report::studies_paragraph());
     let mut front: Vec<&CellResult> = results
@@ -194,6 +195,43 @@ pub fn at_byte_budget(results: &SweepResults, bytes: u32) -> Vec<&CellResult> {
     at
 }
 
+/// The memory budgets (total bytes, `--memory`) the cells answer, largest first.
+pub fn memory_budgets(results: &SweepResults) -> Vec<u64> {
+    let mut budgets: Vec<u64> = results
+        .cells
+        .iter()
+        .flat_map(|c| c.memory_budgets.iter().copied())
+        .collect();
+    budgets.sort_unstable_by(|a, b| b.cmp(a));
+    budgets.dedup();
+    budgets
+}
+
+/// Each technique's most accurate cell (FLIP vs `exact`) of those that answer the memory budget
+/// `total` (one a swept resolution, every technique alike), most accurate first: the answer at
+/// equal total memory, each technique at its best shape.
+pub fn at_memory_budget(results: &SweepResults, total: u64) -> Vec<&CellResult> {
+    let mut best: Vec<&CellResult> = Vec::new();
+    for c in results.cells.iter().filter(|c| {
+        c.memory_budgets.contains(&total)
+            && c.particle_res == ParticleRes::Full
+            && flip_exact(c).is_finite()
+    }) {
+        match best.iter_mut().find(|b| b.technique == c.technique) {
+            Some(b) if flip_exact(c) < flip_exact(b) => *b = c,
+            Some(_) => {}
+            None => best.push(c),
+        }
+    }
+    best.sort_by(|a, b| {
+        flip_exact(a)
+            .total_cmp(&flip_exact(b))
+            .then(a.resident_bytes.cmp(&b.resident_bytes))
+            .then(super::registry_index(&a.technique).cmp(&super::registry_index(&b.technique)))
+    });
+    best
+}
+
 /// The frame-time budgets of the time answer: a technique's frame at most this many times the
 /// frame without self-shadowing (`none`'s, timed in the same run).
 pub const TIME_BUDGETS: &[f64] = &[1.5, 2.0, 4.0];
@@ -237,7 +275,6 @@ pub fn byte_budgets(results: &SweepResults) -> Vec<u32> {
     budgets
 }
 
-/// The techniques ranked at each byte budget, and what a budget cannot buy each.
 /// The framing and the filtering every technique of the sweep shares, in one sentence (names in
 /// `<code>` for the report when `html`, in backticks otherwise).
 pub fn same_footing(results: &SweepResults, html: bool) -> String {
@@ -272,6 +309,35 @@ pub fn same_footing(results: &SweepResults, html: bool) -> String {
     )
 }
 
+/// The techniques ranked at each memory budget (total bytes), each at its best resolution.
+fn equal_memory(body: &mut String, results: &SweepResults, variants: &Variants) {
+    let budgets = memory_budgets(results);
+    if budgets.is_empty() {
+        return;
+    }
+    let _ = writeln!(
+        body,
+        "<p>At equal total memory: at each swept shadow-map resolution, each technique at the \
+         largest configuration whose resident bytes fit the budget; then each technique at its \
+         most accurate of those resolutions (its shape chosen on this scene, every technique's \
+         alike), ranked by FLIP mean against <code>exact</code>.</p>\n<table><tr>\
+         <th>memory</th><th>answer</th><th>ranked (FLIP vs exact, resolution)</th></tr>"
+    );
+    for &total in &budgets {
+        let at = at_memory_budget(results, total);
+        answer_row(
+            body,
+            &report::bytes(total),
+            "no technique fits",
+            &at,
+            variants,
+            |c| format!("{}²", c.shadow_res),
+        );
+    }
+    body.push_str("</table>\n");
+}
+
+/// The techniques ranked at each byte budget, and what a budget cannot buy each.
 fn equal_bytes(body: &mut String, results: &SweepResults, variants: &Variants) {
     let budgets = byte_budgets(results);
     if budgets.is_empty() {
@@ -936,6 +1002,7 @@ pub(crate) mod tests {
             technique: technique.into(),
             channels,
             byte_budgets: Vec::new(),
+            memory_budgets: Vec::new(),
             channel_axis: true,
             channels_used: if technique == "fom" { 11 } else { channels },
             shadow_res: 512,
@@ -1010,6 +1077,7 @@ pub(crate) mod tests {
                 technique: "dom".into(),
                 channels: 1,
                 bytes_per_texel: None,
+                memory: None,
                 reason: "dom needs at least 2 channels".into(),
             }],
             exact_image: "images/exact.png".into(),

@@ -33,6 +33,11 @@ pub struct SweepOptions {
     /// configuration whose resident bytes fit each ([`shadow::fit_bytes_per_texel`]); may be
     /// empty.
     pub bytes_per_texel: Vec<u32>,
+    /// Memory budgets in total bytes (`--memory`): at each map resolution, each technique at
+    /// the largest configuration whose resident bytes fit (a whole number of bytes a texel at
+    /// that resolution), and the answer at each names every technique at its most accurate of
+    /// the swept resolutions; may be empty.
+    pub memory: Vec<u64>,
     pub shadow_res: Vec<u32>,
     pub splats: Vec<SplatMode>,
     /// Resolutions of the particle pass (`--particle-res`; each its own cell).
@@ -63,6 +68,7 @@ impl Default for SweepOptions {
             techniques: shadow::default_sweep(),
             channels: vec![24, 16, 8, 6],
             bytes_per_texel: DEFAULT_BYTES_PER_TEXEL.to_vec(),
+            memory: Vec::new(),
             shadow_res: vec![512],
             splats: vec![SplatMode::Segment],
             particle_res: vec![ParticleRes::Full],
@@ -117,6 +123,8 @@ struct Plan {
     particle_res: ParticleRes,
     /// The byte budgets per texel this cell is the technique's configuration for.
     byte_budgets: Vec<u32>,
+    /// The memory budgets (total bytes) it is the configuration for at its resolution.
+    memory_budgets: Vec<u64>,
     /// Whether a channel budget asked for it (else only byte budgets did).
     channel_axis: bool,
 }
@@ -139,6 +147,7 @@ impl Plan {
             },
             particle_res: ParticleRes::Full,
             byte_budgets: Vec::new(),
+            memory_budgets: Vec::new(),
             channel_axis: true,
         }
     }
@@ -215,6 +224,7 @@ fn plan(scene: &Scene, options: &SweepOptions) -> anyhow::Result<(Vec<Plan>, Vec
                 technique: entry.name.to_owned(),
                 channels: first_budget(entry, &options.channels).unwrap_or(options.channels[0]),
                 bytes_per_texel: None,
+                memory: None,
                 reason: refusal.to_string(),
             });
             continue;
@@ -233,6 +243,7 @@ fn plan(scene: &Scene, options: &SweepOptions) -> anyhow::Result<(Vec<Plan>, Vec
                     technique: entry.name.to_owned(),
                     channels: b,
                     bytes_per_texel: None,
+                    memory: None,
                     reason: err.to_string(),
                 });
             } else if !entry.uses_budget && Some(b) != first_budget(entry, &options.channels) {
@@ -240,6 +251,7 @@ fn plan(scene: &Scene, options: &SweepOptions) -> anyhow::Result<(Vec<Plan>, Vec
                     technique: entry.name.to_owned(),
                     channels: b,
                     bytes_per_texel: None,
+                    memory: None,
                     reason: format!(
                         "{} gives the same result at any budget ({}): measured once, at {} channels",
                         entry.name,
@@ -263,6 +275,7 @@ fn plan(scene: &Scene, options: &SweepOptions) -> anyhow::Result<(Vec<Plan>, Vec
                     technique: entry.name.to_owned(),
                     channels: b,
                     bytes_per_texel: None,
+                    memory: None,
                     reason: shadow::ShadowError::ParticleResUnsupported {
                         technique: entry.name,
                         res: particle_res.name(),
@@ -291,11 +304,44 @@ fn plan(scene: &Scene, options: &SweepOptions) -> anyhow::Result<(Vec<Plan>, Vec
                                 .push(Plan::new(scene, entry.name, b, res, splat).at(particle_res));
                         }
                     }
+                    let first_axes = s == 0 && particle_res == options.particle_res[0];
+                    for &total in &options.memory {
+                        let area = u64::from(res).pow(2);
+                        let planned = match total % area {
+                            0 => u32::try_from(total / area)
+                                .map_err(|_| "more than 4 GiB a texel".to_owned())
+                                .and_then(|bytes| {
+                                    plan_byte_budget(
+                                        scene,
+                                        entry,
+                                        Budget::Memory(bytes, total),
+                                        (res, splat, particle_res),
+                                        &mut cells,
+                                    )
+                                }),
+                            _ => Err(format!(
+                                "{} is not a whole number of bytes a texel at {res}² ({:.2})",
+                                crate::report::bytes(total),
+                                total as f64 / area as f64
+                            )),
+                        };
+                        if let Err(reason) = planned
+                            && first_axes
+                        {
+                            skipped.push(SkippedCell {
+                                technique: entry.name.to_owned(),
+                                channels: 0,
+                                bytes_per_texel: None,
+                                memory: Some((total, res)),
+                                reason,
+                            });
+                        }
+                    }
                     for &bytes in &options.bytes_per_texel {
                         if let Err(reason) = plan_byte_budget(
                             scene,
                             entry,
-                            bytes,
+                            Budget::PerTexel(bytes),
                             (res, splat, particle_res),
                             &mut cells,
                         ) {
@@ -307,6 +353,7 @@ fn plan(scene: &Scene, options: &SweepOptions) -> anyhow::Result<(Vec<Plan>, Vec
                                     technique: entry.name.to_owned(),
                                     channels: 0,
                                     bytes_per_texel: Some(bytes),
+                                    memory: None,
                                     reason,
                                 });
                             }
@@ -329,10 +376,17 @@ fn plan(scene: &Scene, options: &SweepOptions) -> anyhow::Result<(Vec<Plan>, Vec
 fn plan_byte_budget(
     scene: &Scene,
     entry: &'static shadow::TechniqueEntry,
-    bytes: u32,
+    budget: Budget,
     (res, splat, particle_res): (u32, SplatMode, ParticleRes),
     cells: &mut Vec<Plan>,
 ) -> Result<(), String> {
+    let bytes = match budget {
+        Budget::PerTexel(b) | Budget::Memory(b, _) => b,
+    };
+    let record = |p: &mut Plan| match budget {
+        Budget::PerTexel(b) => p.byte_budgets.push(b),
+        Budget::Memory(_, total) => p.memory_budgets.push(total),
+    };
     let base = Plan::new(scene, entry.name, entry.min_channels, res, splat).at(particle_res);
     let particles = crate::particles::count(scene);
     let pixels = u64::from(scene.output.width_px) * u64::from(scene.output.height_px);
@@ -354,18 +408,26 @@ fn plan_byte_budget(
     };
     match same {
         Some(p) => {
-            p.byte_budgets.push(bytes);
+            record(p);
             hold(p);
         }
         None => {
             let mut p = Plan::new(scene, entry.name, fit.channels, res, splat).at(particle_res);
-            p.byte_budgets.push(bytes);
+            record(&mut p);
             p.channel_axis = false;
             hold(&mut p);
             cells.push(p);
         }
     }
     Ok(())
+}
+
+/// A byte budget: per texel (`--bytes-per-texel`), or a total (`--memory`) with the bytes a
+/// texel it is at the cell's resolution.
+#[derive(Clone, Copy, Debug)]
+enum Budget {
+    PerTexel(u32),
+    Memory(u32, u64),
 }
 
 /// The first of `budgets` that `entry` accepts: where a technique whose result does not depend
@@ -732,6 +794,7 @@ impl<'a> Sweeper<'a> {
             technique: plan.config.name.clone(),
             channels: plan.config.params.channels,
             byte_budgets: plan.byte_budgets.clone(),
+            memory_budgets: plan.memory_budgets.clone(),
             channel_axis: plan.channel_axis,
             channels_used,
             shadow_res: plan.config.params.resolution_px,
@@ -1288,6 +1351,7 @@ pub fn run(
                     // The budgets it answers are this run's (they do not change what it measured).
                     let cell = CellResult {
                         byte_budgets: o.plan.byte_budgets.clone(),
+                        memory_budgets: o.plan.memory_budgets.clone(),
                         channel_axis: o.plan.channel_axis,
                         ..cell.clone()
                     };
@@ -1494,6 +1558,7 @@ pub const CSV_COLUMNS: &[&str] = &[
     "technique",
     "channels",
     "byte_budgets",
+    "memory_budgets",
     "channels_used",
     "shadow_res",
     "splat",
@@ -1550,6 +1615,11 @@ pub(super) fn csv_row(c: &CellResult) -> Vec<String> {
         c.byte_budgets
             .iter()
             .map(u32::to_string)
+            .collect::<Vec<_>>()
+            .join(";"),
+        c.memory_budgets
+            .iter()
+            .map(u64::to_string)
             .collect::<Vec<_>>()
             .join(";"),
         c.channels_used.to_string(),
