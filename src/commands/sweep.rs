@@ -353,16 +353,21 @@ fn print_table(results: &SweepResults, folder: &Path) {
             ),
         }
     }
-    // The answers at equal bytes and at equal time (on this adapter), as the report gives them:
-    // each cell as `technique channels (FLIP[, ratio])`, or `none` when no cell answers.
-    let line = |cells: &[&sweep::CellResult], ratio: bool, none: &str| {
+    // The answers at equal bytes, equal memory and equal time (on this adapter), as the report
+    // gives them: each cell as `technique channels[ at res²] (FLIP[, ratio])`, or `none` when no
+    // cell answers.
+    let line = |cells: &[&sweep::CellResult], detail: Detail, none: &str| {
         let ranked: Vec<String> = cells
             .iter()
             .map(|c| {
                 let flip = c.vs_exact.map_or(f64::NAN, |e| e.flip_mean);
-                match ratio {
-                    false => format!("{} {} ({flip:.4})", c.technique, c.channels),
-                    true => format!(
+                match detail {
+                    Detail::Flip => format!("{} {} ({flip:.4})", c.technique, c.channels),
+                    Detail::Resolution => format!(
+                        "{} {} at {}² ({flip:.4})",
+                        c.technique, c.channels, c.shadow_res
+                    ),
+                    Detail::Ratio => format!(
                         "{} {} ({flip:.4}, {:.2}x)",
                         c.technique,
                         c.channels,
@@ -381,30 +386,15 @@ fn print_table(results: &SweepResults, folder: &Path) {
         let at = sweep::report::at_byte_budget(results, b);
         println!(
             "at {b} bytes a texel, by FLIP vs exact: {}",
-            line(&at, false, "no technique fits")
+            line(&at, Detail::Flip, "no technique fits")
         );
     }
     for total in sweep::report::memory_budgets(results) {
         let at = sweep::report::at_memory_budget(results, total);
-        let ranked: Vec<String> = at
-            .iter()
-            .map(|c| {
-                format!(
-                    "{} {} at {}² ({:.4})",
-                    c.technique,
-                    c.channels,
-                    c.shadow_res,
-                    c.vs_exact.as_ref().map_or(f64::NAN, |e| e.flip_mean)
-                )
-            })
-            .collect();
         println!(
             "at {} in all, by FLIP vs exact (each at its best of the swept resolutions): {}",
             crate::report::bytes(total),
-            match ranked.is_empty() {
-                true => "no technique fits".to_owned(),
-                false => ranked.join(", "),
-            }
+            line(&at, Detail::Resolution, "no technique fits")
         );
     }
     if results.cells.iter().any(|c| c.overhead_ratio.is_some()) {
@@ -413,10 +403,20 @@ fn print_table(results: &SweepResults, folder: &Path) {
             println!(
                 "within {ratio:.1}x none's frame time on {}, by FLIP vs exact: {}",
                 results.metadata.adapter,
-                line(&at, true, "no technique is that fast")
+                line(&at, Detail::Ratio, "no technique is that fast")
             );
         }
     }
+}
+
+/// What an answer line gives of each cell beside its FLIP.
+#[derive(Clone, Copy)]
+enum Detail {
+    Flip,
+    /// Its map resolution (the answer at equal memory).
+    Resolution,
+    /// Its frame time over `none`'s (the answer at equal time).
+    Ratio,
 }
 
 /// `--bytes-per-texel`'s budgets (empty for `none`).

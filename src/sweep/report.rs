@@ -197,32 +197,49 @@ pub fn at_byte_budget(results: &SweepResults, bytes: u32) -> Vec<&CellResult> {
 
 /// The memory budgets (total bytes, `--memory`) the cells answer, largest first.
 pub fn memory_budgets(results: &SweepResults) -> Vec<u64> {
-    let mut budgets: Vec<u64> = results
+    budgets_of(results, |c| &c.memory_budgets)
+}
+
+/// The budgets of one kind (`of`) the cells answer, largest first.
+fn budgets_of<T: Copy + Ord>(
+    results: &SweepResults,
+    of: impl Fn(&CellResult) -> &Vec<T>,
+) -> Vec<T> {
+    let mut budgets: Vec<T> = results
         .cells
         .iter()
-        .flat_map(|c| c.memory_budgets.iter().copied())
+        .flat_map(|c| of(c).iter().copied())
         .collect();
     budgets.sort_unstable_by(|a, b| b.cmp(a));
     budgets.dedup();
     budgets
 }
 
-/// Each technique's most accurate cell (FLIP vs `exact`) of those that answer the memory budget
-/// `total` (one a swept resolution, every technique alike), most accurate first: the answer at
-/// equal total memory, each technique at its best shape.
-pub fn at_memory_budget(results: &SweepResults, total: u64) -> Vec<&CellResult> {
+/// Each technique's most accurate of `cells` (FLIP vs `exact`; the first of equals), in the
+/// order their techniques first appear.
+fn most_accurate_per_technique<'a>(
+    cells: impl Iterator<Item = &'a CellResult>,
+) -> Vec<&'a CellResult> {
     let mut best: Vec<&CellResult> = Vec::new();
-    for c in results.cells.iter().filter(|c| {
-        c.memory_budgets.contains(&total)
-            && c.particle_res == ParticleRes::Full
-            && flip_exact(c).is_finite()
-    }) {
+    for c in cells {
         match best.iter_mut().find(|b| b.technique == c.technique) {
             Some(b) if flip_exact(c) < flip_exact(b) => *b = c,
             Some(_) => {}
             None => best.push(c),
         }
     }
+    best
+}
+
+/// Each technique's most accurate cell (FLIP vs `exact`) of those that answer the memory budget
+/// `total` (one a swept resolution, every technique alike), most accurate first: the answer at
+/// equal total memory, each technique at its best shape.
+pub fn at_memory_budget(results: &SweepResults, total: u64) -> Vec<&CellResult> {
+    let mut best = most_accurate_per_technique(results.cells.iter().filter(|c| {
+        c.memory_budgets.contains(&total)
+            && c.particle_res == ParticleRes::Full
+            && flip_exact(c).is_finite()
+    }));
     best.sort_by(|a, b| {
         flip_exact(a)
             .total_cmp(&flip_exact(b))
@@ -240,20 +257,13 @@ pub const TIME_BUDGETS: &[f64] = &[1.5, 2.0, 4.0];
 /// times `none`'s (its `overhead_ratio`, full particle resolution), most accurate first (then
 /// faster, registry order): the answer at equal time.
 pub fn at_time_budget(results: &SweepResults, ratio: f64) -> Vec<&CellResult> {
-    let mut best: Vec<&CellResult> = Vec::new();
-    for c in results.cells.iter().filter(|c| {
+    let mut best = most_accurate_per_technique(results.cells.iter().filter(|c| {
         c.particle_res == ParticleRes::Full
             && flip_exact(c).is_finite()
             && c.overhead_ratio.is_some_and(|r| r <= ratio)
             && crate::shadow::find(&c.technique)
                 .is_ok_and(|t| t.role == crate::shadow::Role::Contender)
-    }) {
-        match best.iter_mut().find(|b| b.technique == c.technique) {
-            Some(b) if flip_exact(c) < flip_exact(b) => *b = c,
-            Some(_) => {}
-            None => best.push(c),
-        }
-    }
+    }));
     best.sort_by(|a, b| {
         flip_exact(a)
             .total_cmp(&flip_exact(b))
@@ -265,14 +275,7 @@ pub fn at_time_budget(results: &SweepResults, ratio: f64) -> Vec<&CellResult> {
 
 /// The byte budgets the cells answer, largest first.
 pub fn byte_budgets(results: &SweepResults) -> Vec<u32> {
-    let mut budgets: Vec<u32> = results
-        .cells
-        .iter()
-        .flat_map(|c| c.byte_budgets.iter().copied())
-        .collect();
-    budgets.sort_unstable_by(|a, b| b.cmp(a));
-    budgets.dedup();
-    budgets
+    budgets_of(results, |c| &c.byte_budgets)
 }
 
 /// The framing and the filtering every technique of the sweep shares, in one sentence (names in
