@@ -182,6 +182,12 @@ fn plan(scene: &Scene, options: &SweepOptions) -> anyhow::Result<(Vec<Plan>, Vec
     };
     non_empty("techniques", options.techniques.is_empty())?;
     non_empty("channels", options.channels.is_empty())?;
+    // The largest channel budget any technique takes (`has`'s slices, above the maps' 32).
+    let most_channels = shadow::REGISTRY
+        .iter()
+        .map(|e| e.max_channels)
+        .max()
+        .unwrap_or(shadow::MAX_CHANNELS);
     non_empty("shadow-res", options.shadow_res.is_empty())?;
     non_empty("splat", options.splats.is_empty())?;
     non_empty("particle-res", options.particle_res.is_empty())?;
@@ -230,11 +236,10 @@ fn plan(scene: &Scene, options: &SweepOptions) -> anyhow::Result<(Vec<Plan>, Vec
             continue;
         }
         for &b in &options.channels {
-            let most = shadow::REGISTRY.iter().map(|e| e.max_channels).max();
-            if !(1..=most.unwrap_or(shadow::MAX_CHANNELS)).contains(&b) {
+            if !(1..=most_channels).contains(&b) {
                 anyhow::bail!(
-                    "--channels {b} is out of range: allowed 1..={} (above {}: has only)",
-                    most.unwrap_or(shadow::MAX_CHANNELS),
+                    "--channels {b} is out of range: allowed 1..={most_channels} (above {}: has \
+                     only)",
                     shadow::MAX_CHANNELS
                 );
             }
@@ -344,19 +349,16 @@ fn plan(scene: &Scene, options: &SweepOptions) -> anyhow::Result<(Vec<Plan>, Vec
                             Budget::PerTexel(bytes),
                             (res, splat, particle_res),
                             &mut cells,
-                        ) {
-                            let first = res == options.shadow_res[0]
-                                && s == 0
-                                && particle_res == options.particle_res[0];
-                            if first {
-                                skipped.push(SkippedCell {
-                                    technique: entry.name.to_owned(),
-                                    channels: 0,
-                                    bytes_per_texel: Some(bytes),
-                                    memory: None,
-                                    reason,
-                                });
-                            }
+                        ) && first_axes
+                            && res == options.shadow_res[0]
+                        {
+                            skipped.push(SkippedCell {
+                                technique: entry.name.to_owned(),
+                                channels: 0,
+                                bytes_per_texel: Some(bytes),
+                                memory: None,
+                                reason,
+                            });
                         }
                     }
                 }
