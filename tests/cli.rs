@@ -65,11 +65,15 @@ fn bad_inputs_get_one_clear_line_and_leave_no_file() {
         ),
         (
             vec!["render", "--channels", "0", "-o", out],
-            vec!["--channels 0", "1..=32"],
+            vec!["--channels 0", "1..=128"],
         ),
         (
-            vec!["render", "--channels", "33", "-o", out],
-            vec!["--channels 33", "1..=32"],
+            vec!["render", "--channels", "129", "-o", out],
+            vec!["--channels 129", "1..=128"],
+        ),
+        (
+            vec!["render", "--technique", "fom", "--channels", "33", "-o", out],
+            vec!["--channels 33", "3..=32"],
         ),
         (
             vec!["render", "--channels", "-4", "-o", out],
@@ -93,15 +97,15 @@ fn bad_inputs_get_one_clear_line_and_leave_no_file() {
         ),
         (
             vec!["render", "--technique", "dom", "--channels", "1", "-o", out],
-            vec!["dom", "allowed 2..=32"],
+            vec!["dom", "allowed 2..=128"],
         ),
         (
             vec!["render", "--technique", "fom", "--channels", "2", "-o", out],
             vec!["fom", "allowed 3..=32"],
         ),
         (
-            vec!["render", "--param", "dom_layer_ratio=9", "-o", out],
-            vec!["dom_layer_ratio", "1..=4"],
+            vec!["render", "--param", "dom_layer_growth=2000", "-o", out],
+            vec!["dom_layer_growth", "1..=1000"],
         ),
         (
             vec!["render", "--param", "dom_thickness_m=-1", "-o", out],

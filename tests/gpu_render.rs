@@ -409,8 +409,8 @@ fn build_fragment_counts_are_whole_passes_over_the_cheapest_builds_billboards() 
         particle_res: Default::default(),
         sorts: vec![Default::default()],
     };
-    // DOM's start from the particles' own spheres (the paper's): its depth pass then draws the
-    // same billboards as its layers (the tuned default enlarges them by 1.02).
+    // DOM's start from the particles' own spheres (the paper's, and the tuned default): its
+    // depth pass then draws the same billboards as its layers (set here whatever tune chooses).
     let mut scene = reduced_plume();
     scene
         .shadow

@@ -209,7 +209,7 @@ fn technique_parameters_take_numbers_and_the_names_of_choices() {
     use smokeshadow::shadow::{check_params, find_param};
     let text = format!(
         "{THESIS_PLUME_TOML}\n[shadow.params]\nosm_interp = \"cubic\"\ndom_interp = 1\n\
-         dom_layer_ratio = 2\n"
+         dom_layer_growth = 2\n"
     );
     let scene = Scene::from_toml_str(&text, "choices.toml").unwrap();
     let params = scene.shadow.params(8);
@@ -217,7 +217,7 @@ fn technique_parameters_take_numbers_and_the_names_of_choices() {
     let value = |key| params.get(find_param(key).unwrap());
     assert_eq!(value("osm_interp"), Some(1.0));
     assert_eq!(value("dom_interp"), Some(1.0));
-    assert_eq!(value("dom_layer_ratio"), Some(2.0));
+    assert_eq!(value("dom_layer_growth"), Some(2.0));
     assert_eq!(
         scene.shadow.params["osm_interp"],
         ParamValue::Choice("cubic".to_owned())

@@ -63,13 +63,13 @@ fn exact_matches_the_analytic_sphere_and_layered_techniques_converge_to_it() {
         // `dom` on uniform layers from the sphere itself, the paper's: the tuned default's
         // geometric layers are thickest at the back, so a point just behind the sphere may lie
         // in the last layer around its exit and see part of the chord's optical depth
-        // (measured: 0.013 at 24 channels), and its 1.02x start lies just before the entry.
+        // (measured: 0.013 at 24 channels with the former fixed ratio 1.33 between layers).
         let configs: Vec<_> = [4, 8, 24]
             .iter()
             .map(|&b| {
                 let mut c = technique(name, b.max(entry.min_channels), res, SplatMode::Segment);
                 if name == "dom" {
-                    for key in ["dom_layer_ratio", "dom_start_dilation"] {
+                    for key in ["dom_layer_growth", "dom_start_dilation"] {
                         smokeshadow::shadow::set_param(&mut c.params, key, &1.0.into()).unwrap();
                     }
                 }
@@ -434,14 +434,21 @@ fn error_against_exact_on_the_plume_shrinks_as_the_budget_grows() {
 
 /// On the default settings (the scenes' own, whose splat is the reference's segment model)
 /// every technique the registry marks as converging has an RMS T error against `exact` that
-/// does not rise from 6 to 8 to 16 to 24 channels: on the thesis scene and two gallery scenes
-/// of other shapes (two plumes with a gap between them, a tall column). A rise beyond 1e-4
-/// (the half-float maps' rounding at the 160x120 frame's shaded points) fails.
+/// does not rise from 6 to 8 to 16 to 24 channels, and on to 48 and 96 where its registry line
+/// goes that far (`osm` and `dom` in several passes, `has` in more slices): on the thesis scene,
+/// two gallery scenes
+/// of other shapes (two plumes with a gap between them, a tall column) and the held-out scenes
+/// no parameter was chosen on (`scene::HOLDOUT`: a jet along the light's rays, a dense
+/// smoulder under a faint veil). A rise beyond 1e-4 (the half-float maps' rounding at the
+/// 160x120 frame's shaded points) fails; where a technique goes past 24 channels the error must
+/// also fall in all (96 below 24).
 #[test]
 fn on_the_default_settings_no_converging_techniques_error_rises_with_its_budget() {
     let gpu = gpu();
-    let budgets = [6, 8, 16, 24];
-    for name in ["thesis_plume", "two_plumes", "column"] {
+    let scenes = ["thesis_plume", "two_plumes", "column"]
+        .into_iter()
+        .chain(smokeshadow::scene::HOLDOUT.iter().copied());
+    for name in scenes {
         let mut scene = Scene::embedded(name).unwrap();
         scene.output.width_px = 160;
         scene.output.height_px = 120;
@@ -458,17 +465,60 @@ fn on_the_default_settings_no_converging_techniques_error_rises_with_its_budget(
         };
         let exact = probe_all(&gpu, &scene, &particles, &[config("exact", 1)], &points).remove(0);
         for entry in smokeshadow::shadow::contenders().filter(|e| e.converges_with_budget) {
+            let budgets: Vec<u32> = [6, 8, 16, 24, 48, 96]
+                .into_iter()
+                .filter(|&b| b <= entry.max_channels)
+                .collect();
             let configs: Vec<_> = budgets.iter().map(|&b| config(entry.name, b)).collect();
             let errors: Vec<f64> = probe_all(&gpu, &scene, &particles, &configs, &points)
                 .iter()
                 .map(|t| rms_difference(t, &exact))
                 .collect();
+            println!("{name}: {} at {budgets:?}: {errors:?}", entry.name);
             assert!(
                 errors.windows(2).all(|w| w[1] <= w[0] + 1e-4),
-                "{name}: {}'s error rises with its budget (6, 8, 16, 24 channels): {errors:?}",
+                "{name}: {}'s error rises with its budget ({budgets:?} channels): {errors:?}",
                 entry.name
             );
+            if budgets.len() == 6 {
+                assert!(
+                    errors[5] < errors[3],
+                    "{name}: {} gains nothing from 24 to 96 channels: {errors:?}",
+                    entry.name
+                );
+            }
         }
+    }
+}
+
+/// A layered map built in several passes is the map one pass builds: on an adapter with
+/// WebGPU's default 32 bytes a sample (4 RGBA16F targets a pass, 2 RGBA32F), every layered
+/// technique at 24 channels probes the same T on the plume as with lavapipe's 128 bytes (one
+/// pass): the same fragments add the same values to each target, in the same order.
+#[test]
+fn layered_maps_built_in_several_passes_equal_the_map_built_in_one() {
+    let one = gpu();
+    let mut several = gpu();
+    several.limits.max_color_attachment_bytes_per_sample = 32;
+    let formats = [wgpu::TextureFormat::Rgba16Float; 6];
+    assert_eq!(
+        smokeshadow::shadow::layered::target_passes(&formats, &several.limits).map(|p| p.len()),
+        Some(2),
+        "24 half-float channels take two passes at 32 bytes a sample"
+    );
+    let scene = reduced_plume();
+    let particles = simulate(&scene);
+    let points = shaded_points(&scene, &particles, (W, H), 8, None);
+    let res = scene.shadow.resolution_px;
+    for name in ["osm", "dom", "fom", "msm", "tmsm"] {
+        let config = [technique(name, 24, res, SplatMode::Segment)];
+        let a = probe_all(&one, &scene, &particles, &config, &points).remove(0);
+        let b = probe_all(&several, &scene, &particles, &config, &points).remove(0);
+        let off = max_difference(&a, &b);
+        assert!(
+            off <= 1e-6,
+            "{name}: T built in several passes differs from one pass by {off}"
+        );
     }
 }
 
@@ -883,7 +933,7 @@ fn budgets_below_a_techniques_minimum_name_it() {
         .unwrap()
         .to_string();
         assert!(
-            err.contains(&format!("allowed {min}..=32")),
+            err.contains(&format!("allowed {min}..={}", entry.max_channels)),
             "{name}: {err}"
         );
     }
@@ -892,12 +942,12 @@ fn budgets_below_a_techniques_minimum_name_it() {
         W,
         H,
         OUTPUT_FORMAT,
-        &technique("osm", 33, scene.shadow.resolution_px, SplatMode::Point),
+        &technique("osm", 129, scene.shadow.resolution_px, SplatMode::Point),
     )
     .err()
     .unwrap()
     .to_string();
-    assert!(err.contains("1..=32"), "{err}");
+    assert!(err.contains("1..=128"), "{err}");
 }
 
 /// T at `points` for one configuration, and the technique's counters after that frame.

@@ -130,6 +130,14 @@ fn bad_tuning_input_and_parameter_files_get_one_line() {
             "where the answers are given",
         ),
         (
+            vec!["tune", "--scenes", "holdout_jet"],
+            "held out from tuning",
+        ),
+        (
+            vec!["tune", "--held-out", "holdout_stack"],
+            "held out from tuning",
+        ),
+        (
             vec![
                 "render",
                 "--params",

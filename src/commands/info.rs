@@ -42,32 +42,36 @@ pub fn run(args: &InfoArgs, preference: &AdapterPreference) -> anyhow::Result<()
         yes_no(gpu.features.contains(wgpu::Features::FLOAT32_FILTERABLE))
     );
     println!(
-        "  colour attachments: {} (32-channel budgets need {})",
-        l.max_color_attachments,
-        gpu::REQUIRED_COLOR_ATTACHMENTS
-    );
-    println!(
-        "  colour bytes per sample: {} (32 channels of RGBA16F need {})",
-        l.max_color_attachment_bytes_per_sample,
-        gpu::REQUIRED_BYTES_PER_SAMPLE
+        "  colour attachments: {}, colour bytes per sample: {}",
+        l.max_color_attachments, l.max_color_attachment_bytes_per_sample
     );
     println!("  max 2D texture size: {}", l.max_texture_dimension_2d);
-    let ok = l.max_color_attachments >= gpu::REQUIRED_COLOR_ATTACHMENTS
-        && l.max_color_attachment_bytes_per_sample >= gpu::REQUIRED_BYTES_PER_SAMPLE;
-    println!(
-        "  every budget 1..={} usable: {}",
-        shadow::MAX_CHANNELS,
-        yes_no(ok)
-    );
+    // A 32-channel half-float layered map: 8 RGBA16F targets, in as many passes as the limits
+    // need (budgets past one pass build in several, the same maps).
+    let formats = [wgpu::TextureFormat::Rgba16Float; 8];
+    match shadow::layered::target_passes(&formats, l) {
+        Some(passes) => println!(
+            "  a {}-channel half-float layered map builds in {} pass{}",
+            shadow::MAX_CHANNELS,
+            passes.len(),
+            if passes.len() == 1 { "" } else { "es" }
+        ),
+        None => {
+            println!("  layered maps: unusable (an RGBA16F target exceeds the bytes per sample)")
+        }
+    }
     println!(
         "embedded scenes (any command takes their name for a scene file; * = in the gallery, \
-         scene::GALLERY; t = training, only `tune` uses it):"
+         scene::GALLERY; t = training, only `tune` uses it; h = held out, only the convergence \
+         tests use it):"
     );
     for (name, _) in crate::scene::EMBEDDED {
         let gallery = if crate::scene::GALLERY.contains(name) {
             '*'
         } else if crate::scene::TRAINING.contains(name) {
             't'
+        } else if crate::scene::HOLDOUT.contains(name) {
+            'h'
         } else {
             ' '
         };

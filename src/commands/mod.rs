@@ -62,7 +62,7 @@ pub struct ParamArgs {
           value_parser = crate::tune::ParamSet::parse)]
     pub set: Option<crate::tune::ParamSet>,
     /// A technique parameter, KEY=VALUE (repeatable; over the scene's `[shadow.params]`), e.g.
-    /// `--param dom_layer_ratio=2` or `--param osm_interp=cubic`. `smokeshadow info` lists
+    /// `--param dom_layer_growth=2` or `--param osm_interp=cubic`. `smokeshadow info` lists
     /// every key with its range or choices.
     #[arg(long = "param", value_name = "KEY=VALUE", value_parser = crate::shadow::parse_param,
           allow_negative_numbers = true)]

@@ -90,6 +90,15 @@ pub fn run(args: &TuneArgs, adapter: &AdapterPreference) -> anyhow::Result<()> {
         [n] if n == "none" => Vec::new(),
         list => list.to_vec(),
     };
+    for name in training_names.iter().chain(&held_names) {
+        if crate::scene::HOLDOUT.contains(&name.as_str()) {
+            anyhow::bail!(
+                "{name} is held out from tuning ({}): the convergence tests check the chosen \
+                 values on smoke no parameter was chosen for",
+                crate::scene::HOLDOUT.join(", ")
+            );
+        }
+    }
     let entries: Vec<&'static shadow::TechniqueEntry> = match &args.techniques {
         None => shadow::contenders()
             .filter(|e| !crate::tune::free_params(e).is_empty())

@@ -136,11 +136,6 @@ pub const OPTIONAL_FEATURES: wgpu::Features = wgpu::Features::TIMESTAMP_QUERY
 /// budgets ([`Gpu::loop_budget`]).
 pub const LLVMPIPE_LOOP_BUDGET: u32 = 60_000;
 
-/// Minimum colour attachments: 8 RGBA targets carry a 32-channel budget.
-pub const REQUIRED_COLOR_ATTACHMENTS: u32 = 8;
-/// Minimum bytes per sample: 8 RGBA16F targets.
-pub const REQUIRED_BYTES_PER_SAMPLE: u32 = 64;
-
 /// The device, queue and what we learnt about the adapter.
 pub struct Gpu {
     pub device: wgpu::Device,

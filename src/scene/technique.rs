@@ -3,7 +3,7 @@
 //! the scene, which owns its settings; the techniques' registry (`crate::shadow`) declares
 //! which parameters exist and checks values against them.
 //!
-//! A parameter is a number in a range (`dom_layer_ratio = 2`) or one of a few named choices
+//! A parameter is a number in a range (`dom_layer_growth = 2`) or one of a few named choices
 //! (`osm_interp = "cubic"`): a [`ParamSpec`] with `choices` takes the choice's name or its
 //! index, and the technique reads the index.
 

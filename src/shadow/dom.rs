@@ -3,7 +3,9 @@
 //! One channel holds, per shadow-map texel, the light depth where the smoke starts (a first pass
 //! min-blends each fragment's start depth); the other B - 1 channels are opacity layers that
 //! begin there and so follow the shape of the smoke. Layer spacing is uniform
-//! (`dom_layer_ratio` = 1) or geometric (1.33 by default, chosen by `smokeshadow tune`). By default the layers of each texel span from its own
+//! (`dom_layer_growth` = 1) or geometric, the last layer G times as thick as the first whatever
+//! the budget (so that every layer thins as layers are added; G chosen by `smokeshadow tune`).
+//! By default the layers of each texel span from its own
 //! start to the far bound of the smoke, so no layer is wasted in front of the smoke and no point
 //! lies beyond the last one; with a fixed `dom_thickness_m`, points beyond the last layer map to
 //! the last layer, as the paper recommends (the smoke farther along the ray is then lost).
@@ -44,16 +46,20 @@ pub const THICKNESS: ParamSpec = ParamSpec {
     tuned: true,
 };
 
-/// `dom_layer_ratio`: geometric layer spacing.
-pub const LAYER_RATIO: ParamSpec = ParamSpec {
-    key: "dom_layer_ratio",
+/// `dom_layer_growth`: geometric layer spacing.
+pub const LAYER_GROWTH: ParamSpec = ParamSpec {
+    key: "dom_layer_growth",
     unit: "-",
-    doc: "ratio between successive layer thicknesses; 1 spaces the layers uniformly, more packs \
-          them towards the lit side where transmittance changes fastest",
+    doc: "the last layer's thickness over the first's, the layers between growing geometrically \
+          (each G^(1/(L-1)) times the one before); 1 spaces them uniformly, more packs them \
+          towards the lit side where transmittance changes fastest. Fixed whatever the budget, \
+          so that more layers make every layer thinner: the ratio between successive layers \
+          falls towards 1 and the lookup converges (a fixed ratio leaves the back layers a \
+          fixed share of the depth at every budget)",
     min: 1.0,
-    max: 4.0,
+    max: 1000.0,
     // chosen by `smokeshadow tune` on the training scenes (docs/tuned_params.toml).
-    default: Some(1.33),
+    default: Some(3.27),
     choices: &[],
     integer: false,
     tuned: true,
@@ -73,8 +79,9 @@ pub const START_DILATION: ParamSpec = ParamSpec {
           or before it",
     min: 1.0,
     max: 4.0,
-    // chosen by `smokeshadow tune` on the training scenes (docs/tuned_params.toml).
-    default: Some(1.02),
+    // chosen by `smokeshadow tune` on the training scenes (docs/tuned_params.toml): the
+    // particles' own spheres.
+    default: Some(1.0),
     choices: &[],
     integer: false,
     tuned: true,
@@ -82,6 +89,7 @@ pub const START_DILATION: ParamSpec = ParamSpec {
 
 pub const SPEC: LayeredSpec = LayeredSpec {
     name: "dom",
+    max_channels: super::layered::MAX_MULTI_PASS_CHANNELS,
     build_shader: "shadow/dom_build.wgsl",
     // One channel is the depth where the smoke starts; the rest are layers (24 -> 23).
     plan: |channels| ChannelPlan {
@@ -91,7 +99,7 @@ pub const SPEC: LayeredSpec = LayeredSpec {
     },
     depth_channel: true,
     layer_thickness: Some(&THICKNESS),
-    layer_ratio: Some(&LAYER_RATIO),
+    layer_growth: Some(&LAYER_GROWTH),
     interp: Some(&INTERP),
     start_dilation: Some(&START_DILATION),
     sigma: false,
@@ -113,11 +121,11 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     role: Role::Contender,
     budget_caption: |channels| format!("1 depth + {} layers", channels.saturating_sub(1)),
     min_channels: 2,
-    max_channels: super::MAX_CHANNELS,
+    max_channels: SPEC.max_channels,
     in_default_sweep: true,
     in_default_compare: true,
     build_reads_back: false,
-    params: &[THICKNESS, LAYER_RATIO, INTERP, START_DILATION, PRECISION],
+    params: &[THICKNESS, LAYER_GROWTH, INTERP, START_DILATION, PRECISION],
     order_independent: true,
     converges_with_budget: true,
     compresses_captured_lists: false,

@@ -56,11 +56,12 @@ fn plan(channels: u32) -> ChannelPlan {
 
 pub const FOM: LayeredSpec = LayeredSpec {
     name: "fom",
+    max_channels: super::MAX_CHANNELS,
     build_shader: "shadow/fom_build.wgsl",
     plan,
     depth_channel: false,
     layer_thickness: None,
-    layer_ratio: None,
+    layer_growth: None,
     interp: None,
     start_dilation: None,
     sigma: false,
@@ -76,6 +77,7 @@ pub const FOM: LayeredSpec = LayeredSpec {
 
 pub const FOM_SIGMA: LayeredSpec = LayeredSpec {
     name: "fom_sigma",
+    max_channels: super::MAX_CHANNELS,
     sigma: true,
     precision: PrecisionSpec::Param(&SIGMA_PRECISION),
     ..FOM
@@ -87,7 +89,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     role: Role::Contender,
     budget_caption: harmonics_caption,
     min_channels: 3,
-    max_channels: super::MAX_CHANNELS,
+    max_channels: FOM.max_channels,
     in_default_sweep: true,
     in_default_compare: true,
     build_reads_back: false,
@@ -113,7 +115,7 @@ pub const SIGMA_ENTRY: TechniqueEntry = TechniqueEntry {
     role: Role::Contender,
     budget_caption: harmonics_caption,
     min_channels: 3,
-    max_channels: super::MAX_CHANNELS,
+    max_channels: FOM_SIGMA.max_channels,
     in_default_sweep: true,
     in_default_compare: true,
     build_reads_back: false,

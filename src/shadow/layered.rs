@@ -1,7 +1,11 @@
 //! Shared machinery of the layered techniques (`osm`, `dom`, `fom`, `fom_sigma`): values packed
 //! 4 to a half-float render target, written in one MRT pass of light-facing billboards with
-//! additive blending (no sort), and read by a lookup shader through 8 texture slots
-//! (`shaders/shadow/layered.wgsl`, `layered_build.wgsl`).
+//! additive blending (no sort), and read by a lookup shader from one array texture and one
+//! remainder (`shaders/shadow/layered.wgsl`, `layered_build.wgsl`). A pass writes at most 8
+//! targets (32 channels); a budget past them, or past the adapter's bytes per sample, draws the
+//! particles once per group of targets ([`target_passes`]: the thesis' multi-pass opacity maps),
+//! which the lookups that read a channel by index (`osm`, `dom`) allow up to
+//! [`MAX_MULTI_PASS_CHANNELS`].
 //!
 //! Each technique is a [`LayeredSpec`] in its own module: how its budget maps to packed channels
 //! and which build shader defines what each fragment writes: `prepare_values(splat, pixel)`
@@ -11,6 +15,8 @@
 //! ledger says so). Channels are half floats, or 32-bit floats where a technique needs them
 //! ([`Precision`]). A spec with a depth channel (`dom`) gets a first pass that min-blends the
 //! depth where the smoke starts into one more R16F channel.
+
+use std::ops::Range;
 
 use bytemuck::{Pod, Zeroable};
 
@@ -22,8 +28,12 @@ use crate::frame::gpu_data::{BILLBOARD_VERTICES, ParticleInstance};
 use crate::gpu::{AllocationError, Gpu, MemoryLedger, TargetWrites, uniform_entry};
 use crate::shaders;
 
-/// Most render targets a layered technique writes (8 x 4 = 32 channels).
+/// Most render targets one build pass writes (8 x 4 = 32 channels).
 pub const MAX_TARGETS: u32 = 8;
+/// Largest budget of the layered maps whose lookups read each channel by index (`osm`, `dom`):
+/// 32 targets, built in 4 passes. Those that weigh every channel at once (`fom`, `msm`, `tmsm`)
+/// keep them in registers and stop at [`super::MAX_CHANNELS`].
+pub const MAX_MULTI_PASS_CHANNELS: u32 = 128;
 /// Binding of the depth channel in the lookup and layer-build groups.
 const DEPTH_BINDING: u32 = 4;
 /// Format of the depth channel (normalised light depth, min-blended).
@@ -43,6 +53,9 @@ pub struct ChannelPlan {
 /// One layered technique: everything that differs between `osm`, `dom` and `fom`.
 pub struct LayeredSpec {
     pub name: &'static str,
+    /// Its largest budget: [`MAX_MULTI_PASS_CHANNELS`] for a lookup that reads channels by
+    /// index, [`super::MAX_CHANNELS`] for one that reads them all (`layered_channels`).
+    pub max_channels: u32,
     /// Build shader (under `shaders/`) defining `target_values` (and `fs_depth` with a depth
     /// channel).
     pub build_shader: &'static str,
@@ -51,9 +64,10 @@ pub struct LayeredSpec {
     /// Whether a first pass writes the depth where the smoke starts (`dom`).
     pub depth_channel: bool,
     /// The parameters, if any, that set the depth range the layers cover (0 in the shader:
-    /// from each texel's start to the far bound) and their spacing ratio (1 when absent).
+    /// from each texel's start to the far bound) and the last layer's thickness over the
+    /// first's (1 when absent: uniform layers; [`layer_ratio`]).
     pub layer_thickness: Option<&'static ParamSpec>,
-    pub layer_ratio: Option<&'static ParamSpec>,
+    pub layer_growth: Option<&'static ParamSpec>,
     /// The parameter, if any, choosing how Ω is interpolated between boundaries
     /// ([`interp_param`]: linear, or the monotone cubic); linear when absent.
     pub interp: Option<&'static ParamSpec>,
@@ -96,16 +110,30 @@ impl MomentParams {
 }
 
 impl LayeredSpec {
-    /// Every build module for every target count, for the naga test.
+    /// Every build module for every target count of one pass, and its largest budget in
+    /// passes of 8 targets and of 1, for the naga test.
     pub fn all_build_shaders(&self) -> Vec<(String, String)> {
-        (1..=MAX_TARGETS)
-            .map(|targets| {
+        let most = self.max_channels.div_ceil(4);
+        let one_pass = (1..=MAX_TARGETS)
+            .map(|targets| (targets, std::iter::once(0..targets).collect::<Vec<_>>()));
+        let passes = |per: u32| -> Vec<Range<u32>> {
+            (0..most.div_ceil(per))
+                .map(|p| p * per..((p + 1) * per).min(most))
+                .collect()
+        };
+        one_pass
+            .chain([(most, passes(MAX_TARGETS)), (most, passes(1))])
+            .map(|(targets, passes)| {
                 (
-                    format!("{}.build[{targets} targets]", self.name),
-                    // (A budget that packs about that many targets.)
+                    format!(
+                        "{}.build[{targets} targets in {} passes]",
+                        self.name,
+                        passes.len()
+                    ),
+                    // (A budget that packs that many targets.)
                     build_shader_source(
                         self,
-                        targets,
+                        &passes,
                         &super::TechniqueParams::new(4 * targets, 512),
                     ),
                 )
@@ -212,6 +240,15 @@ pub fn moment_bias(spec: &LayeredSpec, params: &TechniqueParams, count: u32) -> 
     }
 }
 
+/// The ratio between successive layers' thicknesses when the last of `layers` is `growth` times
+/// as thick as the first: growth^(1/(layers - 1)), which falls towards 1 as layers are added.
+pub fn layer_ratio(growth: f32, layers: u32) -> f32 {
+    match layers {
+        0 | 1 => 1.0,
+        n => growth.powf(1.0 / (n - 1) as f32),
+    }
+}
+
 /// Format of packed target `index` for `packed` channels of `precision`.
 pub fn target_format(packed: u32, index: u32, precision: Precision) -> wgpu::TextureFormat {
     use wgpu::TextureFormat as F;
@@ -301,30 +338,81 @@ pub const fn precision_param(
     }
 }
 
-/// The generated fragment entry point writing one vec4 per target.
-fn build_outputs_wgsl(targets: u32) -> String {
-    let fields: String = (0..targets)
-        .map(|i| format!("    @location({i}) t{i}: vec4<f32>,\n"))
+/// The generated fragment entry points: for pass `g` of `passes`, `fs_build_{g}` and
+/// `fs_build_volume_{g}` writing one vec4 per target of its range (target `i` of the pass is
+/// packed target `range.start + i`).
+fn build_outputs_wgsl(passes: &[Range<u32>]) -> String {
+    passes
+        .iter()
+        .enumerate()
+        .map(|(g, range)| pass_outputs_wgsl(g, range))
+        .collect()
+}
+
+fn pass_outputs_wgsl(g: usize, range: &Range<u32>) -> String {
+    let fields: String = range
+        .clone()
+        .map(|t| format!("    @location({}) t{t}: vec4<f32>,\n", t - range.start))
         .collect();
-    let writes: String = (0..targets)
-        .map(|i| format!("    out.t{i} = target_values(prepared, {i}u);\n"))
+    let writes: String = range
+        .clone()
+        .map(|t| format!("    out.t{t} = target_values(prepared, {t}u);\n"))
         .collect();
-    let sums: String = (0..targets)
-        .map(|i| format!("        out.t{i} += target_values(prepared, {i}u);\n"))
+    let sums: String = range
+        .clone()
+        .map(|t| format!("        out.t{t} += target_values(prepared, {t}u);\n"))
         .collect();
     format!(
-        "struct BuildOut {{\n{fields}}};\n\n@fragment\nfn fs_build(in: BuildVertexOut) -> BuildOut {{\n    \
+        "struct BuildOut{g} {{\n{fields}}};\n\n@fragment\nfn fs_build_{g}(in: BuildVertexOut) -> BuildOut{g} {{\n    \
          let splat = splat_fragment(in, layered.splat == 1u);\n    \
-         let prepared = prepare_values(splat, in.clip.xy);\n    var out: BuildOut;\n{writes}    return out;\n}}\n\n\
+         let prepared = prepare_values(splat, in.clip.xy);\n    var out: BuildOut{g};\n{writes}    return out;\n}}\n\n\
          // The volume's steps along the texel's light ray (shaders/shadow/volume_splat.wgsl),\n\
          // summed as their fragments would be (every target blends additively).\n\
-         @fragment\nfn fs_build_volume(in: VolumeVertexOut) -> BuildOut {{\n    \
+         @fragment\nfn fs_build_volume_{g}(in: VolumeVertexOut) -> BuildOut{g} {{\n    \
          let ray = volume_light_ray(in.ndc);\n    if ray.steps == 0u {{\n        discard;\n    }}\n    \
-         var out: BuildOut;\n    for (var i = 0u; i < ray.steps; i++) {{\n        \
+         var out: BuildOut{g};\n    for (var i = 0u; i < ray.steps; i++) {{\n        \
          let splat = volume_splat(ray, i, layered.splat == 1u);\n        \
          if splat.optical_depth <= 0.0 {{\n            continue;\n        }}\n        \
-         let prepared = prepare_values(splat, in.clip.xy);\n{sums}    }}\n    return out;\n}}\n"
+         let prepared = prepare_values(splat, in.clip.xy);\n{sums}    }}\n    return out;\n}}\n\n"
     )
+}
+
+/// The build's passes: the packed targets in order, grouped so that each pass writes at most
+/// [`MAX_TARGETS`] of them, within the adapter's colour attachments and bytes per sample (each
+/// target aligned to its component size, as wgpu counts them). One pass when a budget's targets
+/// fit the adapter; above 32 channels, or on an adapter with fewer bytes per sample (WebGPU's
+/// default is 32), the particles are drawn once per group: the thesis' multi-pass opacity maps.
+/// None when one target alone does not fit.
+pub fn target_passes(
+    formats: &[wgpu::TextureFormat],
+    limits: &wgpu::Limits,
+) -> Option<Vec<Range<u32>>> {
+    let per_pass = MAX_TARGETS.min(limits.max_color_attachments);
+    let mut passes: Vec<Range<u32>> = Vec::new();
+    let mut bytes = 0u32;
+    for (t, format) in (0u32..).zip(formats) {
+        let cost = format.target_pixel_byte_cost()?;
+        let align = format.target_component_alignment()?;
+        let open = passes
+            .last()
+            .filter(|r| r.len() < per_pass as usize)
+            .map(|_| bytes.next_multiple_of(align) + cost)
+            .filter(|&b| b <= limits.max_color_attachment_bytes_per_sample);
+        match (open, passes.last_mut()) {
+            (Some(b), Some(last)) => {
+                last.end = t + 1;
+                bytes = b;
+            }
+            _ => {
+                if cost > limits.max_color_attachment_bytes_per_sample || per_pass == 0 {
+                    return None;
+                }
+                passes.push(t..t + 1);
+                bytes = cost;
+            }
+        }
+    }
+    Some(passes)
 }
 
 /// The lookup's compile-time constants ([`super::TechniqueEntry::lookup_constants`]): the
@@ -349,16 +437,16 @@ pub fn lookup_constants(
     constants
 }
 
-/// The full build shader of `spec` for `targets` render targets, after the lookup's constants
-/// for `params` (the build shaders import their lookups).
+/// The full build shader of `spec` for render targets written in `passes`, after the lookup's
+/// constants for `params` (the build shaders import their lookups).
 pub fn build_shader_source(
     spec: &LayeredSpec,
-    targets: u32,
+    passes: &[Range<u32>],
     params: &super::TechniqueParams,
 ) -> String {
     let constants = shaders::u32_constants(&lookup_constants(spec, params));
     shaders::compose_after(&constants, spec.build_shader, &[])
-        .replace("//{{BUILD_OUTPUTS}}", &build_outputs_wgsl(targets))
+        .replace("//{{BUILD_OUTPUTS}}", &build_outputs_wgsl(passes))
 }
 
 /// The packed maps: the full 4-channel targets as layers of one array texture, and the 1-, 2- or
@@ -458,17 +546,25 @@ pub struct Layered {
     params_buffer: wgpu::Buffer,
     /// The render-target views, in channel order: the full RGBA layers, then the remainder.
     targets: Vec<wgpu::TextureView>,
-    /// What each fragment of the build pass writes to them (for the bench's fragment counts).
-    target_writes: TargetWrites,
-    build_pipeline: wgpu::RenderPipeline,
+    /// The build's passes, each drawing every particle into its group of targets.
+    build: Vec<BuildPass>,
     build_bind_group: wgpu::BindGroup,
-    /// The density volume's draw into the same targets.
-    volume: VolumeBuild,
     /// The depth channel's pass, for specs that have one.
     depth: Option<DepthPass>,
     lookup_layout: wgpu::BindGroupLayout,
     lookup_bind_group: wgpu::BindGroup,
     memory: MemoryLedger,
+}
+
+/// One pass of the build ([`target_passes`]).
+struct BuildPass {
+    /// The packed targets it writes.
+    targets: Range<u32>,
+    pipeline: wgpu::RenderPipeline,
+    /// The density volume's draw into the same targets.
+    volume: VolumeBuild,
+    /// What each of its fragments writes (for the bench's fragment counts).
+    writes: TargetWrites,
 }
 
 struct DepthPass {
@@ -657,7 +753,7 @@ pub(crate) struct VolumeBuild {
     device: wgpu::Device,
     module: wgpu::ShaderModule,
     label: String,
-    fragment_entry: &'static str,
+    fragment_entry: String,
     layouts: Vec<wgpu::BindGroupLayout>,
     targets: Vec<(wgpu::TextureFormat, wgpu::BlendComponent)>,
     pipeline: std::sync::OnceLock<wgpu::RenderPipeline>,
@@ -668,7 +764,7 @@ impl VolumeBuild {
         device: &wgpu::Device,
         module: &wgpu::ShaderModule,
         label: String,
-        fragment_entry: &'static str,
+        fragment_entry: impl Into<String>,
         layouts: &[&wgpu::BindGroupLayout],
         targets: &[(wgpu::TextureFormat, wgpu::BlendComponent)],
     ) -> Self {
@@ -676,7 +772,7 @@ impl VolumeBuild {
             device: device.clone(),
             module: module.clone(),
             label,
-            fragment_entry,
+            fragment_entry: fragment_entry.into(),
             layouts: layouts.iter().map(|l| (*l).clone()).collect(),
             targets: targets.to_vec(),
             pipeline: std::sync::OnceLock::new(),
@@ -696,7 +792,7 @@ impl VolumeBuild {
                 &self.device,
                 &self.label,
                 &self.module,
-                ("vs_volume", self.fragment_entry),
+                ("vs_volume", &self.fragment_entry),
                 &layouts,
                 &self.targets,
                 false,
@@ -833,22 +929,16 @@ impl Layered {
                 feature: "FLOAT32_BLENDABLE and FLOAT32_FILTERABLE (32-bit float maps)",
             });
         }
-        let bytes_per_sample: u32 = formats
-            .iter()
-            .map(|f| f.target_pixel_byte_cost().unwrap_or(8))
-            .sum();
-        if target_count > gpu.limits.max_color_attachments
-            || bytes_per_sample > gpu.limits.max_color_attachment_bytes_per_sample
-        {
+        let Some(passes) = target_passes(&formats, &gpu.limits) else {
             return Err(ShadowError::AdapterLimit {
                 technique: spec.name,
                 channels: params.channels,
-                needed: target_count,
-                bytes_per_sample,
+                needed: 1,
+                bytes_per_sample: formats[0].target_pixel_byte_cost().unwrap_or(0),
                 allowed_attachments: gpu.limits.max_color_attachments,
                 allowed_bytes: gpu.limits.max_color_attachment_bytes_per_sample,
             });
-        }
+        };
 
         let name = spec.name;
         let res = params.resolution_px;
@@ -889,29 +979,43 @@ impl Layered {
         let module = shaders::module(
             device,
             &format!("{name}.build"),
-            &build_shader_source(spec, target_count, params),
+            &build_shader_source(spec, &passes, params),
         );
-        let additive: Vec<_> = formats.iter().map(|&f| (f, ADDITIVE)).collect();
-        let (build_pipeline, build_bind_group, volume, depth) = match &depth_view {
+        // One pipeline per pass, for its particles and for the volume, into its targets.
+        let build_passes = |label: &str, layout: &wgpu::BindGroupLayout| -> Vec<BuildPass> {
+            (0..)
+                .zip(&passes)
+                .map(|(g, range)| {
+                    let formats = &formats[range.start as usize..range.end as usize];
+                    let additive: Vec<_> = formats.iter().map(|&f| (f, ADDITIVE)).collect();
+                    BuildPass {
+                        targets: range.clone(),
+                        pipeline: billboard_pipeline(
+                            device,
+                            &format!("{label}[{g}]"),
+                            &module,
+                            &format!("fs_build_{g}"),
+                            &[Some(ctx.frame_layout), Some(layout)],
+                            formats,
+                            ADDITIVE,
+                        ),
+                        volume: VolumeBuild::new(
+                            device,
+                            &module,
+                            format!("{label}.volume[{g}]"),
+                            format!("fs_build_volume_{g}"),
+                            &[ctx.frame_layout, layout],
+                            &additive,
+                        ),
+                        writes: TargetWrites::of(formats),
+                    }
+                })
+                .collect()
+        };
+        let (build, build_bind_group, depth) = match &depth_view {
             None => (
-                billboard_pipeline(
-                    device,
-                    &format!("{name}.build"),
-                    &module,
-                    "fs_build",
-                    &[Some(ctx.frame_layout), Some(&params_layout)],
-                    &formats,
-                    ADDITIVE,
-                ),
+                build_passes(&format!("{name}.build"), &params_layout),
                 params_bind_group,
-                VolumeBuild::new(
-                    device,
-                    &module,
-                    format!("{name}.build.volume"),
-                    "fs_build_volume",
-                    &[ctx.frame_layout, &params_layout],
-                    &additive,
-                ),
                 None,
             ),
             Some(depth_view) => {
@@ -946,24 +1050,8 @@ impl Layered {
                     &[(DEPTH_FORMAT, MIN_BLEND)],
                 );
                 (
-                    billboard_pipeline(
-                        device,
-                        &format!("{name}.build.layers"),
-                        &module,
-                        "fs_build",
-                        &[Some(ctx.frame_layout), Some(&layer_layout)],
-                        &formats,
-                        ADDITIVE,
-                    ),
+                    build_passes(&format!("{name}.build.layers"), &layer_layout),
                     layer_bind_group,
-                    VolumeBuild::new(
-                        device,
-                        &module,
-                        format!("{name}.build.layers.volume"),
-                        "fs_build_volume",
-                        &[ctx.frame_layout, &layer_layout],
-                        &additive,
-                    ),
                     Some(DepthPass {
                         view: depth_view.clone(),
                         pipeline: depth_pipeline,
@@ -1032,10 +1120,8 @@ impl Layered {
             params: params.clone(),
             params_buffer,
             targets,
-            target_writes: TargetWrites::of(&formats),
-            build_pipeline,
+            build,
             build_bind_group,
-            volume,
             depth,
             lookup_layout,
             lookup_bind_group,
@@ -1061,11 +1147,13 @@ impl Layered {
                 .layer_thickness
                 .and_then(|p| self.params.get(p))
                 .unwrap_or(0.0),
-            dom_ratio: self
-                .spec
-                .layer_ratio
-                .and_then(|p| self.params.get(p))
-                .unwrap_or(1.0),
+            dom_ratio: layer_ratio(
+                self.spec
+                    .layer_growth
+                    .and_then(|p| self.params.get(p))
+                    .unwrap_or(1.0),
+                self.plan.count,
+            ),
             full_targets: self.full_targets,
             _pad0: 0,
             cubic: u32::from(
@@ -1178,37 +1266,40 @@ impl ShadowTechnique for Layered {
                     }
                 });
         }
-        let attachments: Vec<_> = self
-            .targets
-            .iter()
-            .map(|view| cleared_attachment(view, wgpu::Color::TRANSPARENT))
-            .collect();
-        let mut pass = inputs
-            .encoder
-            .begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("layered.build"),
-                color_attachments: &attachments,
-                depth_stencil_attachment: None,
-                timestamp_writes: inputs.timer.pass("shadow"),
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
-        inputs
-            .timer
-            .count_fragments(&mut pass, "shadow", self.target_writes, |pass| {
-                draw_particles(
-                    pass,
-                    &self.build_pipeline,
-                    inputs.frame_bind_group,
-                    &self.build_bind_group,
-                    particles,
-                    inputs.particle_count,
-                );
-                if inputs.volume.is_some() {
-                    self.volume
-                        .draw(pass, inputs.frame_bind_group, &self.build_bind_group);
-                }
-            });
+        for build in &self.build {
+            let attachments: Vec<_> = self.targets
+                [build.targets.start as usize..build.targets.end as usize]
+                .iter()
+                .map(|view| cleared_attachment(view, wgpu::Color::TRANSPARENT))
+                .collect();
+            let mut pass = inputs
+                .encoder
+                .begin_render_pass(&wgpu::RenderPassDescriptor {
+                    label: Some("layered.build"),
+                    color_attachments: &attachments,
+                    depth_stencil_attachment: None,
+                    timestamp_writes: inputs.timer.pass("shadow"),
+                    occlusion_query_set: None,
+                    multiview_mask: None,
+                });
+            inputs
+                .timer
+                .count_fragments(&mut pass, "shadow", build.writes, |pass| {
+                    draw_particles(
+                        pass,
+                        &build.pipeline,
+                        inputs.frame_bind_group,
+                        &self.build_bind_group,
+                        particles,
+                        inputs.particle_count,
+                    );
+                    if inputs.volume.is_some() {
+                        build
+                            .volume
+                            .draw(pass, inputs.frame_bind_group, &self.build_bind_group);
+                    }
+                });
+        }
         Ok(())
     }
 }
@@ -1228,6 +1319,67 @@ mod tests {
         assert_eq!(half(24, 5), F::Rgba16Float);
         assert_eq!(target_format(23, 5, Precision::Single), F::Rgba32Float);
         assert_eq!(target_format(5, 1, Precision::Single), F::R32Float);
+    }
+
+    #[test]
+    fn passes_hold_the_adapters_attachments_and_bytes_per_sample() {
+        let formats = |packed: u32, precision| -> Vec<_> {
+            (0..packed.div_ceil(4))
+                .map(|i| target_format(packed, i, precision))
+                .collect()
+        };
+        let half = |packed| formats(packed, Precision::Half);
+        // WebGPU's default limits: 8 attachments, 32 bytes a sample, so 4 RGBA16F (8 bytes)
+        // targets a pass, or 2 RGBA32F; a 2-byte R16F remainder still fits beside 3 RGBA16F.
+        let mut limits = wgpu::Limits::default();
+        assert_eq!(limits.max_color_attachment_bytes_per_sample, 32);
+        assert_eq!(target_passes(&half(24), &limits), Some(vec![0..4, 4..6]));
+        assert_eq!(
+            target_passes(&half(13), &limits),
+            Some(std::iter::once(0..4).collect())
+        );
+        assert_eq!(
+            target_passes(&formats(12, Precision::Single), &limits),
+            Some(vec![0..2, 2..3])
+        );
+        // lavapipe's 128 bytes: 32 channels in one pass, 128 in four of 8.
+        limits.max_color_attachment_bytes_per_sample = 128;
+        assert_eq!(
+            target_passes(&half(32), &limits),
+            Some(std::iter::once(0..8).collect())
+        );
+        assert_eq!(
+            target_passes(&half(MAX_MULTI_PASS_CHANNELS), &limits),
+            Some(vec![0..8, 8..16, 16..24, 24..32])
+        );
+        assert_eq!(target_passes(&half(37), &limits), Some(vec![0..8, 8..10]));
+        // Fewer attachments: fewer a pass.
+        limits.max_color_attachments = 3;
+        assert_eq!(target_passes(&half(24), &limits), Some(vec![0..3, 3..6]));
+        // A target that fits no pass.
+        limits.max_color_attachment_bytes_per_sample = 4;
+        assert_eq!(target_passes(&half(4), &limits), None);
+    }
+
+    #[test]
+    fn layers_thin_as_they_are_added_at_a_fixed_growth() {
+        // The last layer over the first is the growth at every count, so the ratio between
+        // successive layers falls towards 1 (and the thickest layer's share with it).
+        for layers in [5, 11, 23, 47, 127] {
+            let r = layer_ratio(3.27, layers);
+            assert!(
+                (r.powi(layers as i32 - 1) - 3.27).abs() < 1e-3,
+                "{layers}: {r}"
+            );
+        }
+        assert!(layer_ratio(3.27, 127) < layer_ratio(3.27, 23));
+        let last_share = |layers: u32| {
+            let r = f64::from(layer_ratio(3.27, layers));
+            r.powi(layers as i32 - 1) * (r - 1.0) / (r.powi(layers as i32) - 1.0)
+        };
+        assert!(last_share(127) < 0.5 * last_share(23) && last_share(23) < 0.3 * last_share(5));
+        assert_eq!(layer_ratio(1.0, 23), 1.0);
+        assert_eq!(layer_ratio(8.0, 1), 1.0);
     }
 
     #[test]

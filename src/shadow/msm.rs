@@ -43,7 +43,7 @@ pub const BIAS: ParamSpec = ParamSpec {
     max: 0.5,
     // chosen by `smokeshadow tune` on the training scenes (docs/tuned_params.toml); the moment-based
     // OIT papers use 5e-7 to 5e-5 for 4 to 8 single-float moments (`--params paper`).
-    default: Some(2.6e-6),
+    default: Some(1.57e-6),
     choices: &[],
     integer: false,
     tuned: true,
@@ -214,7 +214,7 @@ pub const OVERESTIMATION: ParamSpec = ParamSpec {
     min: 0.0,
     max: 1.0,
     // chosen by `smokeshadow tune` on the training scenes (docs/tuned_params.toml) (the papers: 0.25).
-    default: Some(0.428),
+    default: Some(0.41),
     choices: &[],
     integer: false,
     tuned: true,
@@ -292,11 +292,12 @@ fn memory(plan: fn(u32) -> ChannelPlan) -> impl Fn(&MemoryCase<'_>) -> MemoryUse
 
 pub const MSM: LayeredSpec = LayeredSpec {
     name: "msm",
+    max_channels: super::MAX_CHANNELS,
     build_shader: "shadow/msm_build.wgsl",
     plan: power_plan,
     depth_channel: false,
     layer_thickness: None,
-    layer_ratio: None,
+    layer_growth: None,
     interp: None,
     start_dilation: None,
     sigma: false,
@@ -316,6 +317,7 @@ pub const MSM: LayeredSpec = LayeredSpec {
 
 pub const TMSM: LayeredSpec = LayeredSpec {
     name: "tmsm",
+    max_channels: super::MAX_CHANNELS,
     build_shader: "shadow/tmsm_build.wgsl",
     plan: trig_plan,
     moments: Some(MomentParams {
@@ -349,7 +351,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
         format!("{} power moments ({} channels)", plan.count, plan.used)
     },
     min_channels: 5,
-    max_channels: super::MAX_CHANNELS,
+    max_channels: MSM.max_channels,
     in_default_sweep: true,
     in_default_compare: true,
     build_reads_back: false,

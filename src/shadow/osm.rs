@@ -30,6 +30,7 @@ pub const PRECISION: ParamSpec = precision_param(
 
 pub const SPEC: LayeredSpec = LayeredSpec {
     name: "osm",
+    max_channels: super::layered::MAX_MULTI_PASS_CHANNELS,
     build_shader: "shadow/osm_build.wgsl",
     plan: |channels| ChannelPlan {
         count: channels,
@@ -38,7 +39,7 @@ pub const SPEC: LayeredSpec = LayeredSpec {
     },
     depth_channel: false,
     layer_thickness: None,
-    layer_ratio: None,
+    layer_growth: None,
     interp: Some(&INTERP),
     start_dilation: None,
     sigma: false,
@@ -60,7 +61,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     role: Role::Contender,
     budget_caption: |channels| format!("{channels} slices"),
     min_channels: 1,
-    max_channels: super::MAX_CHANNELS,
+    max_channels: SPEC.max_channels,
     in_default_sweep: true,
     in_default_compare: true,
     build_reads_back: false,

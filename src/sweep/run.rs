@@ -237,10 +237,15 @@ fn plan(scene: &Scene, options: &SweepOptions) -> anyhow::Result<(Vec<Plan>, Vec
         }
         for &b in &options.channels {
             if !(1..=most_channels).contains(&b) {
+                let beyond: Vec<String> = shadow::REGISTRY
+                    .iter()
+                    .filter(|e| e.max_channels > shadow::MAX_CHANNELS)
+                    .map(|e| format!("{} to {}", e.name, e.max_channels))
+                    .collect();
                 anyhow::bail!(
-                    "--channels {b} is out of range: allowed 1..={most_channels} (above {}: has \
-                     only)",
-                    shadow::MAX_CHANNELS
+                    "--channels {b} is out of range: allowed 1..={most_channels} (above {}: {})",
+                    shadow::MAX_CHANNELS,
+                    beyond.join(", ")
                 );
             }
             if let Err(err) = shadow::check_channels(entry, b) {
