@@ -72,7 +72,15 @@ fn bad_inputs_get_one_clear_line_and_leave_no_file() {
             vec!["--channels 129", "1..=128"],
         ),
         (
-            vec!["render", "--technique", "fom", "--channels", "33", "-o", out],
+            vec![
+                "render",
+                "--technique",
+                "fom",
+                "--channels",
+                "33",
+                "-o",
+                out,
+            ],
             vec!["--channels 33", "3..=32"],
         ),
         (

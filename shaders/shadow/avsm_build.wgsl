@@ -6,7 +6,9 @@
 // an interlock would) or by (z0, z1, optical depth) (`sorted`, independent of the draw order).
 // A segment adds an entry node at z0 (T of the curve there) and an exit node at z1; T is linear
 // inside it, so the nodes behind its entry are multiplied by its ramp, 1 at z0 to
-// e^-optical_depth at z1 and beyond. While the curve has more than N = deep.nodes_per_texel
+// e^-optical_depth at z1 and beyond (`avsm_chord = linear`, the paper's). With
+// `avsm_chord = pieces` the chord enters as CHORD_PIECES linear pieces, their ends at the
+// chord's exponential T, and the ramp is exponential. While the curve has more than N = deep.nodes_per_texel
 // nodes, the interior node whose removal loses the least area under it (the triangle with its
 // neighbours) goes; the first and last nodes stay.
 // Keep `DeepParams` in sync with src/shadow/deep_nodes.rs. The CPU mirror is
@@ -17,9 +19,11 @@
 @group(2) @binding(0) var<uniform> deep: DeepParams;
 @group(2) @binding(1) var<storage, read_write> out_nodes: array<vec2<f32>>;
 
-// The curve's slots, CURVE_NODES: the budget's N plus the two nodes a segment inserts before its
-// removals, a constant composed before this file (src/shadow/avsm.rs, `compress_constants`).
+// The curve's slots, CURVE_NODES: the budget's N plus the CHORD_PIECES + 1 nodes a segment
+// inserts before its removals, constants composed before this file (src/shadow/avsm.rs,
+// `compress_constants`).
 const_assert CURVE_NODES >= 4u;
+const_assert CHORD_PIECES >= 1u;
 
 // One texel's transmittance curve while it is built: nodes (z[k], t[k]) sorted by z, the first
 // `count` of them meaningful (the others hold leftovers that every step masks out).
@@ -73,18 +77,33 @@ fn insert_node(c: ptr<function, Curve>, z: f32, t: f32) {
     (*c).count = n + 1u;
 }
 
+// Depth of the end of piece j (0..=CHORD_PIECES) of a segment's chord.
+fn piece_depth(s: Segment, j: u32) -> f32 {
+    return s.z0 + (s.z1 - s.z0) * f32(j) / f32(CHORD_PIECES);
+}
+
 fn insert_segment(c: ptr<function, Curve>, s: Segment) {
     let t_exit = exp(-s.optical_depth);
     let t_entry = curve_at(c, s.z0);
     let t_behind = curve_at(c, s.z1) * t_exit;
+    // The interior piece ends' T, read off the curve before the ramp changes it (none for the
+    // linear chord): the curve's T there times the chord's own exponential T.
+    var inner: array<f32, CHORD_PIECES>;
+    #unroll j 1..CHORD_PIECES
+        inner[j] = curve_at(c, piece_depth(s, j)) * exp(-s.optical_depth * f32(j) / f32(CHORD_PIECES));
+    #end_unroll
     let width = max(s.z1 - s.z0, 1e-12);
     let n = (*c).count;
     #unroll k 0..CURVE_NODES
         let z = (*c).z[k];
-        let ramped = (*c).t[k] * mix(1.0, t_exit, min((z - s.z0) / width, 1.0));
-        (*c).t[k] = select((*c).t[k], ramped, k < n && z > s.z0);
+        let u = min((z - s.z0) / width, 1.0);
+        let ramp = select(mix(1.0, t_exit, u), exp(-s.optical_depth * u), CHORD_PIECES > 1u);
+        (*c).t[k] = select((*c).t[k], (*c).t[k] * ramp, k < n && z > s.z0);
     #end_unroll
     insert_node(c, s.z0, t_entry);
+    #unroll j 1..CHORD_PIECES
+        insert_node(c, piece_depth(s, j), inner[j]);
+    #end_unroll
     insert_node(c, s.z1, t_behind);
 }
 
@@ -110,10 +129,11 @@ fn remove_least_area(c: ptr<function, Curve>) {
 }
 
 // Segments inserted per round (see src/shadow/deep_capture.rs): the curve's steps are written
-// out, not looped, so one insertion loops four times at most (the loop over the segments and
-// the removals' `while`: two removals and its exit); twice that, for a margin. Keep in sync
-// with `avsm::rounds`.
-const ITERATIONS_PER_SEGMENT: u32 = 8u;
+// out, not looped, so one insertion loops 2·CHORD_PIECES + 2 times at most (the loop over the
+// segments, and the removals' `while`: CHORD_PIECES + 1 removals and its exit; the interior
+// nodes are written out too, but counted); twice that, for a margin. Keep in sync with
+// `avsm::iterations_per_segment`.
+const ITERATIONS_PER_SEGMENT: u32 = 2u * (2u * CHORD_PIECES + 2u);
 
 fn segments_per_round() -> u32 {
     return max(1u, capture.loop_budget / ITERATIONS_PER_SEGMENT);

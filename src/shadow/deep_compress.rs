@@ -288,21 +288,38 @@ impl AvsmCurve {
         evaluate(&self.nodes, z, 1.0)
     }
 
-    /// Inserts a segment: an entry node at z0 with the curve's T there, an exit node at z1 with
-    /// the curve's T there times e^−optical_depth, and every node behind z0 multiplied by the
-    /// segment's ramp (1 at z0, e^−optical_depth at z1 and beyond).
-    pub fn insert_segment(&mut self, s: Segment) {
+    /// Inserts a segment as `pieces` linear pieces: an entry node at z0 with the curve's T
+    /// there, an exit node at z1 with the curve's T there times e^−optical_depth, and every node
+    /// behind z0 multiplied by the segment's ramp (1 at z0, e^−optical_depth at z1 and beyond).
+    /// One piece is the paper's chord, its ramp linear; more put the pieces' interior ends at
+    /// the curve's T times the chord's own exponential T, and ramp exponentially
+    /// (`avsm_chord = pieces`).
+    pub fn insert_segment(&mut self, s: Segment, pieces: u32) {
         let t_exit = (-s.optical_depth).exp();
         let t_entry = self.at(s.z0);
         let t_behind = self.at(s.z1) * t_exit;
+        let share = |j: u32| j as f32 / pieces as f32;
+        let depth = |j: u32| s.z0 + (s.z1 - s.z0) * share(j);
+        let inner: Vec<Node> = (1..pieces)
+            .map(|j| {
+                let z = depth(j);
+                Node::new(z, self.at(z) * (-s.optical_depth * share(j)).exp())
+            })
+            .collect();
         let width = (s.z1 - s.z0).max(1e-12);
         for n in &mut self.nodes {
             if n.z > s.z0 {
                 let u = ((n.z - s.z0) / width).min(1.0);
-                n.value *= 1.0 + (t_exit - 1.0) * u;
+                n.value *= match pieces {
+                    1 => 1.0 + (t_exit - 1.0) * u,
+                    _ => (-s.optical_depth * u).exp(),
+                };
             }
         }
         self.insert_node(Node::new(s.z0, t_entry));
+        for node in inner {
+            self.insert_node(node);
+        }
         self.insert_node(Node::new(s.z1, t_behind));
     }
 
@@ -331,12 +348,12 @@ impl AvsmCurve {
 }
 
 /// `avsm`'s curve of one texel under `limit` (≥ 2) nodes: `segments` inserted in the order
-/// given (draw order, or sorted by depth), the least-area interior node removed after each while
-/// there are more than `limit`.
-pub fn avsm_compress(segments: &[Segment], limit: usize) -> Vec<Node> {
+/// given (draw order, or sorted by depth), each as `pieces` linear pieces, the least-area
+/// interior node removed after each while there are more than `limit`.
+pub fn avsm_compress(segments: &[Segment], limit: usize, pieces: u32) -> Vec<Node> {
     let mut curve = AvsmCurve::default();
     for &s in segments {
-        curve.insert_segment(s);
+        curve.insert_segment(s, pieces);
         while curve.nodes.len() > limit {
             curve.remove_least_area();
         }
@@ -574,9 +591,9 @@ mod tests {
         // scales A's exit by its ramp at the middle (3/4): 3/8, and leaves at 1/2 · 1/2.
         let half = std::f32::consts::LN_2;
         let mut curve = AvsmCurve::default();
-        curve.insert_segment(Segment::new(0.0, 2.0, half));
+        curve.insert_segment(Segment::new(0.0, 2.0, half), 1);
         assert_eq!(curve.nodes, nodes(&[(0.0, 1.0), (2.0, 0.5)]));
-        curve.insert_segment(Segment::new(1.0, 3.0, half));
+        curve.insert_segment(Segment::new(1.0, 3.0, half), 1);
         let expected = [(0.0, 1.0), (1.0, 0.75), (2.0, 0.375), (3.0, 0.25)];
         assert_eq!(curve.nodes.len(), 4);
         for (n, (z, t)) in curve.nodes.iter().zip(expected) {
@@ -588,8 +605,78 @@ mod tests {
         assert_eq!(curve.nodes.len(), 3);
         assert_eq!((curve.nodes[1].z, curve.nodes[2].z), (2.0, 3.0));
         let sorted = [Segment::new(0.0, 2.0, half), Segment::new(1.0, 3.0, half)];
-        assert_eq!(avsm_compress(&sorted, 3), curve.nodes);
-        assert_eq!(avsm_compress(&sorted, 4).len(), 4);
+        assert_eq!(avsm_compress(&sorted, 3, 1), curve.nodes);
+        assert_eq!(avsm_compress(&sorted, 4, 1).len(), 4);
+    }
+
+    /// T through overlapping chords, each of uniform extinction along the ray: the product of
+    /// every chord's exp(−optical depth × the share of it in front of z).
+    fn closed_form_t(segments: &[Segment], z: f32) -> f32 {
+        let omega: f32 = segments
+            .iter()
+            .map(|s| s.optical_depth * ((z - s.z0) / (s.z1 - s.z0)).clamp(0.0, 1.0))
+            .sum();
+        (-omega).exp()
+    }
+
+    /// RMS of a curve's T against the closed form at 400 depths over the segments' span.
+    fn rms_against_closed_form(nodes: &[Node], segments: &[Segment]) -> f32 {
+        let (lo, hi) = (
+            segments[0].z0,
+            segments.iter().map(|s| s.z1).fold(0.0, f32::max),
+        );
+        let sum: f32 = (0..400)
+            .map(|i| {
+                let z = lo + (hi - lo) * i as f32 / 399.0;
+                (evaluate(nodes, z, 1.0) - closed_form_t(segments, z)).powi(2)
+            })
+            .sum();
+        (sum / 400.0).sqrt()
+    }
+
+    #[test]
+    fn a_chord_in_pieces_converges_to_its_exponential_where_the_linear_chord_cannot() {
+        // One thick chord (optical depth 3): linear T inside it is off exp(−3u) by up to 0.3
+        // at any budget; in P pieces the error falls like 1/P².
+        let one = [Segment::new(0.0, 1.0, 3.0)];
+        let max_off = |pieces| {
+            let nodes = avsm_compress(&one, 64, pieces);
+            (0..=100)
+                .map(|i| {
+                    let z = i as f32 / 100.0;
+                    (evaluate(&nodes, z, 1.0) - (-3.0 * z).exp()).abs()
+                })
+                .fold(0.0f32, f32::max)
+        };
+        assert!(max_off(1) > 0.25, "{}", max_off(1));
+        let offs: Vec<f32> = [2, 4, 8].into_iter().map(max_off).collect();
+        assert!(
+            offs[0] < 0.5 * max_off(1) && offs[1] < 0.35 * offs[0],
+            "{offs:?}"
+        );
+        assert!(offs[2] < 0.35 * offs[1], "{offs:?}");
+        // Eight overlapping chords (a column of spheres along the ray), inserted in a draw
+        // order unrelated to depth: the linear chord stops gaining from 8 nodes on, the pieces
+        // (ceil(N/4) a chord, as `avsm_chord = pieces` inserts them) keep gaining.
+        let column: Vec<Segment> = (0..8)
+            .map(|i| Segment::new(i as f32 * 0.5, i as f32 * 0.5 + 1.0, 1.2))
+            .collect();
+        let shuffled = &insertion_orders(&column, 7)[2];
+        let error = |limit: usize, pieces: u32| {
+            rms_against_closed_form(&avsm_compress(shuffled, limit, pieces), &column)
+        };
+        let limits = [4, 8, 12, 16];
+        let linear: Vec<f32> = limits.iter().map(|&n| error(n, 1)).collect();
+        let pieces: Vec<f32> = limits
+            .iter()
+            .map(|&n| error(n, (n as u32).div_ceil(4)))
+            .collect();
+        println!("linear chord {linear:?}, in pieces {pieces:?}");
+        assert!(
+            pieces.windows(2).all(|w| w[1] < w[0]),
+            "pieces must converge: {pieces:?}"
+        );
+        assert!(pieces[3] < 0.5 * linear[3], "{pieces:?} against {linear:?}");
     }
 
     /// The insertion orders `avsm` may see: sorted by depth, reversed, and a deterministic
@@ -611,9 +698,10 @@ mod tests {
             let sorted = random_segments(seed, 40);
             let total: f32 = sorted.iter().map(|s| s.optical_depth).sum();
             let last_exit = sorted.iter().map(|s| s.z1).fold(f32::MIN, f32::max);
+            let cases = [(2, 1), (3, 1), (8, 1), (16, 1), (8, 2), (16, 4)];
             for (order, segments) in insertion_orders(&sorted, seed).iter().enumerate() {
-                for limit in [2, 3, 8, 16] {
-                    let curve = avsm_compress(segments, limit);
+                for (limit, pieces) in cases {
+                    let curve = avsm_compress(segments, limit, pieces);
                     assert_eq!(curve.len(), limit);
                     // The first node is the nearest entry, where T is still 1.
                     assert_eq!(curve[0], Node::new(sorted[0].z0, 1.0), "order {order}");
@@ -643,10 +731,10 @@ mod tests {
                 Segment::new(z0, z0 + 0.5, 0.1 + 0.05 * i as f32)
             })
             .collect();
-        let reference = avsm_compress(&sorted, 2 * sorted.len());
+        let reference = avsm_compress(&sorted, 2 * sorted.len(), 1);
         assert_eq!(reference.len(), 2 * sorted.len());
         for segments in insertion_orders(&sorted, 7) {
-            let curve = avsm_compress(&segments, 2 * sorted.len());
+            let curve = avsm_compress(&segments, 2 * sorted.len(), 1);
             for (a, b) in curve.iter().zip(&reference) {
                 assert_eq!(a.z, b.z);
                 assert!((a.value - b.value).abs() < 1e-6, "{curve:?}");
@@ -655,7 +743,7 @@ mod tests {
         // Under a budget the order matters: the removals see different curves.
         let compressed: Vec<_> = insertion_orders(&sorted, 7)
             .iter()
-            .map(|segments| avsm_compress(segments, 6))
+            .map(|segments| avsm_compress(segments, 6, 1))
             .collect();
         assert!(compressed.iter().any(|c| c != &compressed[0]));
     }

@@ -74,12 +74,16 @@ pub struct DeepNodesSpec {
     /// Rounds the compression takes over lists of at most `max_list` segments when a dispatch
     /// may loop `loop_budget` times (see `deep_capture`'s module doc; the shader splits its work
     /// by the same arithmetic).
-    pub rounds: fn(max_list: u32, loop_budget: u32) -> u32,
+    pub rounds: fn(max_list: u32, loop_budget: u32, params: &TechniqueParams) -> u32,
     /// What the capture's resolve leaves for the compression under these parameters.
     pub resolve: fn(&TechniqueParams) -> Resolve,
-    /// The compression's compile-time constants for N nodes per texel, composed before its
-    /// shader (`const NAME: u32 = V;`, which its `#unroll` blocks may be bounded by).
-    pub compress_constants: fn(nodes_per_texel: u32) -> Vec<(&'static str, u32)>,
+    /// The compression's compile-time constants for N nodes per texel under `params`, composed
+    /// before its shader (`const NAME: u32 = V;`, which its `#unroll` blocks may be bounded by).
+    pub compress_constants:
+        fn(nodes_per_texel: u32, params: &TechniqueParams) -> Vec<(&'static str, u32)>,
+    /// The parameter sets whose compression shaders differ at a budget (the naga test composes
+    /// each).
+    pub shader_variants: fn(channels: u32) -> Vec<TechniqueParams>,
 }
 
 impl DeepNodesSpec {
@@ -90,19 +94,22 @@ impl DeepNodesSpec {
             format!("{}.capture", self.name),
             shaders::compose("shadow/deep_capture.wgsl", &[]),
         )];
-        for n in [nodes_per_texel(4), nodes_per_texel(super::MAX_CHANNELS)] {
-            out.push((
-                format!("{}.compress.{n}_nodes", self.name),
-                self.compress_shader(n),
-            ));
+        for channels in [4, super::MAX_CHANNELS] {
+            let n = nodes_per_texel(channels);
+            for (v, params) in (self.shader_variants)(channels).iter().enumerate() {
+                out.push((
+                    format!("{}.compress.{n}_nodes.variant{v}", self.name),
+                    self.compress_shader(n, params),
+                ));
+            }
         }
         out
     }
 
-    /// The compression shader for N nodes per texel, after its constants.
-    fn compress_shader(&self, nodes_per_texel: u32) -> String {
+    /// The compression shader for N nodes per texel under `params`, after its constants.
+    fn compress_shader(&self, nodes_per_texel: u32, params: &TechniqueParams) -> String {
         shaders::compose_after(
-            &shaders::u32_constants(&(self.compress_constants)(nodes_per_texel)),
+            &shaders::u32_constants(&(self.compress_constants)(nodes_per_texel, params)),
             self.build_shader,
             &[],
         )
@@ -145,6 +152,7 @@ pub struct DeepNodes {
     spec: &'static DeepNodesSpec,
     resolution: u32,
     nodes_per_texel: u32,
+    params: TechniqueParams,
     capture: DeepCapture,
     /// Held with the bind groups that use them (the ledger records their sizes).
     _params_buffer: wgpu::Buffer,
@@ -239,7 +247,7 @@ impl DeepNodes {
         let module = shaders::module(
             device,
             &label("compress"),
-            &spec.compress_shader(nodes_per_texel),
+            &spec.compress_shader(nodes_per_texel, params),
         );
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some(&label("compress.pipeline_layout")),
@@ -276,6 +284,7 @@ impl DeepNodes {
             spec,
             resolution: res,
             nodes_per_texel,
+            params: params.clone(),
             capture,
             _params_buffer: params_buffer,
             _nodes: nodes,
@@ -343,11 +352,12 @@ impl ShadowTechnique for DeepNodes {
             gpu.queue
                 .write_buffer(stats, 0, &vec![0; self.spec.stats_bytes() as usize]);
         }
-        let (spec, pipeline, compress_bind_group, resolution) = (
+        let (spec, pipeline, compress_bind_group, resolution, params) = (
             self.spec,
             &self.compress_pipeline,
             &self.compress_bind_group,
             self.resolution,
+            &self.params,
         );
         let frame_bind_group = inputs.frame_bind_group;
         // The compression of each band, over the band's rows of the capture, in rounds.
@@ -363,7 +373,7 @@ impl ShadowTechnique for DeepNodes {
             pass.set_bind_group(1, band.capture, &[]);
             pass.set_bind_group(2, compress_bind_group, &[]);
             let groups = (resolution.div_ceil(8), band.band.rows().div_ceil(8));
-            let rounds = (spec.rounds)(band.max_list, band.loop_budget);
+            let rounds = (spec.rounds)(band.max_list, band.loop_budget, params);
             band.rounds.dispatch(&mut pass, rounds, groups);
         };
         self.capture.record(

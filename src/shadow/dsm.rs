@@ -39,7 +39,7 @@
 
 use super::deep_capture::Resolve;
 use super::deep_nodes::{DeepNodes, DeepNodesSpec, nodes_per_texel};
-use super::{Role, TechniqueEntry};
+use super::{Role, TechniqueEntry, TechniqueParams};
 
 /// The grain of the per-texel tolerance: ε is the smallest multiple of Ω_max / 2^12 whose fit
 /// takes at most N nodes (0.1% of the ray's optical depth; the mean ε is a few percent of it at
@@ -60,9 +60,10 @@ pub const SPEC: DeepNodesSpec = DeepNodesSpec {
     bisection_steps: BISECTION_STEPS,
     stats_words: 5,
     stats_counters: tolerance_counters,
-    rounds,
+    rounds: |max_list, loop_budget, _| rounds(max_list, loop_budget),
     resolve: |_| Resolve::Nodes,
-    compress_constants: |_| Vec::new(),
+    compress_constants: |_, _| Vec::new(),
+    shader_variants: |channels| vec![TechniqueParams::new(channels, 512)],
 };
 
 /// Steps of the per-texel search, one greedy fit each (shaders/shadow/dsm_build.wgsl), at most:
