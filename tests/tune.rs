@@ -29,6 +29,10 @@ fn tune_scores_every_technique_alike_and_writes_a_file_the_other_commands_read()
         "128x96",
         "--bytes-per-texel",
         "24",
+        "--memory",
+        "768KiB",
+        "--shape-res",
+        "128,256",
         "-o",
         file.to_str().unwrap(),
     ]);
@@ -52,6 +56,29 @@ fn tune_scores_every_technique_alike_and_writes_a_file_the_other_commands_read()
         // The chosen values are the best scored, the starting values among them.
         assert!(r.chosen_training <= r.start_training, "{t}: {r:?}");
         assert!(r.start_held_out.is_some() && r.chosen_held_out.is_some());
+    }
+    // Each technique's shape at 768 KiB: the resolution of the lowest mean error it printed.
+    assert_eq!(
+        (record.memory.clone(), record.shape_resolutions.clone()),
+        (vec![768 << 10], vec![128, 256])
+    );
+    for t in ["esm", "volume"] {
+        let printed: Vec<(u32, f64)> = stderr
+            .lines()
+            .filter_map(|l| l.strip_prefix(&format!("{t} shape at 768.0 KiB: ")))
+            .filter_map(|rest| {
+                let (res, score) = rest.split_once("² -> ")?;
+                Some((res.parse().ok()?, score.parse().ok()?))
+            })
+            .collect();
+        assert_eq!(printed.len(), 2, "{t}: {stderr}");
+        let best = printed
+            .iter()
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .unwrap();
+        let shape = p.shapes[t]["786432"];
+        assert_eq!(shape.resolution, best.0, "{t}: {printed:?}");
+        assert!((shape.training - best.1).abs() < 1e-5, "{t}: {printed:?}");
     }
     let keys: Vec<&str> = p.params.keys().map(String::as_str).collect();
     assert_eq!(
@@ -173,7 +200,7 @@ fn bad_tuning_input_and_parameter_files_get_one_line() {
 fn the_shipped_defaults_are_the_committed_output_of_tune_on_training_scenes_only() {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/tuned_params.toml");
     let file = read(&path);
-    let record = file.tune.expect("the committed file records its command");
+    let record = file.tune.clone().expect("the committed file records its command");
     assert!(
         record.command.starts_with("smokeshadow tune"),
         "{}",
@@ -187,6 +214,17 @@ fn the_shipped_defaults_are_the_committed_output_of_tune_on_training_scenes_only
             "{scene} is not a training scene"
         );
     }
+    // Its shapes are chosen over the budgets and resolutions it records, and the sweep's
+    // shipped shapes are the file's.
+    assert!(!file.shapes.is_empty(), "the committed file has shapes");
+    for (technique, by_memory) in &file.shapes {
+        shadow::find(technique).unwrap();
+        for (total, shape) in by_memory {
+            assert!(record.memory.contains(&total.parse().unwrap()), "{technique} {total}");
+            assert!(record.shape_resolutions.contains(&shape.resolution));
+        }
+    }
+    assert_eq!(smokeshadow::tune::shipped_shapes(), file.shapes());
     // Every tuned technique's every free parameter is in the file, at the registry's default.
     for name in record.techniques.keys() {
         let entry = shadow::find(name).unwrap();

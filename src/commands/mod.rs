@@ -90,7 +90,8 @@ pub struct TechniqueArgs {
     /// Shadow technique (see `smokeshadow info` for the list).
     #[arg(long, short = 't', default_value = "osm")]
     pub technique: String,
-    /// Channel budget: render-target components, 1..=32 (`has`: batches, up to 240).
+    /// Channel budget: render-target components, 1..=32 (`osm`, `dom`: up to 128 in several
+    /// passes; `has`: batches, up to 240).
     #[arg(long, short = 'c', default_value_t = 24, allow_negative_numbers = true)]
     pub channels: u32,
     /// Shadow-map resolution in pixels (default: the scene's `shadow.resolution_px`).

@@ -166,6 +166,15 @@ pub fn run(args: &SweepArgs, adapter: &AdapterPreference) -> anyhow::Result<()> 
         exr: args.exr,
         gallery: args.scenes.is_some(),
         shard: args.shard,
+        // A parameter file's shapes where it has them, else those the shipped defaults were
+        // chosen with.
+        shapes: args
+            .params
+            .set
+            .as_ref()
+            .map(|s| s.1.clone())
+            .filter(|s| !s.is_empty())
+            .unwrap_or_else(crate::tune::shipped_shapes),
     };
     let gpu = Gpu::new(adapter)?;
     let outcome = sweep::run(&gpu, &scenes, &options, &args.output)?;
@@ -363,9 +372,15 @@ fn print_table(results: &SweepResults, folder: &Path) {
                 let flip = c.vs_exact.map_or(f64::NAN, |e| e.flip_mean);
                 match detail {
                     Detail::Flip => format!("{} {} ({flip:.4})", c.technique, c.channels),
-                    Detail::Resolution => format!(
-                        "{} {} at {}² ({flip:.4})",
-                        c.technique, c.channels, c.shadow_res
+                    Detail::Resolution(total) => format!(
+                        "{} {} at {}²{} ({flip:.4})",
+                        c.technique,
+                        c.channels,
+                        c.shadow_res,
+                        match sweep::report::shape_tuned(results, total, c) {
+                            true => "",
+                            false => " best here",
+                        }
                     ),
                     Detail::Ratio => format!(
                         "{} {} ({flip:.4}, {:.2}x)",
@@ -392,9 +407,11 @@ fn print_table(results: &SweepResults, folder: &Path) {
     for total in sweep::report::memory_budgets(results) {
         let at = sweep::report::at_memory_budget(results, total);
         println!(
-            "at {} in all, by FLIP vs exact (each at its best of the swept resolutions): {}",
+            "at {} in all, by FLIP vs exact (each at the map resolution tune chose on the \
+             training scenes, or, marked \"best here\", its most accurate on this scene where \
+             tune chose none of the swept): {}",
             crate::report::bytes(total),
-            line(&at, Detail::Resolution, "no technique fits")
+            line(&at, Detail::Resolution(total), "no technique fits")
         );
     }
     if results.cells.iter().any(|c| c.overhead_ratio.is_some()) {
@@ -413,8 +430,8 @@ fn print_table(results: &SweepResults, folder: &Path) {
 #[derive(Clone, Copy)]
 enum Detail {
     Flip,
-    /// Its map resolution (the answer at equal memory).
-    Resolution,
+    /// Its map resolution, and whether `tune` chose it (the answer at this total memory).
+    Resolution(u64),
     /// Its frame time over `none`'s (the answer at equal time).
     Ratio,
 }
@@ -447,7 +464,7 @@ fn parse_byte_budgets(s: &str) -> Result<ByteBudgets, String> {
 }
 
 /// Parses one `--memory` size: a number and a unit (B, KiB, MiB, GiB, KB, MB, GB), whole bytes.
-fn parse_memory(s: &str) -> Result<u64, String> {
+pub(crate) fn parse_memory(s: &str) -> Result<u64, String> {
     let t = s.trim();
     let split = t
         .find(|c: char| !(c.is_ascii_digit() || c == '.'))

@@ -32,6 +32,22 @@ pub struct TuneArgs {
     #[arg(long, value_delimiter = ',', default_value = "48,24,12",
           value_parser = clap::value_parser!(u32).range(1..=1024))]
     pub bytes_per_texel: Vec<u32>,
+    /// Memory budgets in total bytes (as `sweep --memory` takes them: `12MiB,6MiB,3MiB`), or
+    /// `none`: for each, every technique's map resolution is chosen among `--shape-res` on the
+    /// training scenes (its largest configuration that fits the budget there, its chosen
+    /// parameters), and written as `[shapes]`; a sweep's answer at equal total memory takes
+    /// each technique at that resolution.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        value_name = "SIZE,...|none",
+        default_value = "12MiB,6MiB,3MiB"
+    )]
+    pub memory: Vec<String>,
+    /// The map resolutions the shapes are chosen among.
+    #[arg(long, value_delimiter = ',', default_value = "256,512,1024",
+          value_parser = clap::value_parser!(u32).range(1..=8192))]
+    pub shape_res: Vec<u32>,
     /// Candidates scored per technique, the starting values included.
     #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u32).range(1..=1000))]
     pub evaluations: u32,
@@ -114,6 +130,24 @@ pub fn run(args: &TuneArgs, adapter: &AdapterPreference) -> anyhow::Result<()> {
             })
             .collect::<anyhow::Result<_>>()?,
     };
+    let memory: Vec<u64> = match args.memory.as_slice() {
+        [n] if n == "none" => Vec::new(),
+        list => list
+            .iter()
+            .map(|s| super::sweep::parse_memory(s).map_err(|e| anyhow::anyhow!("--memory {e}")))
+            .collect::<anyhow::Result<_>>()?,
+    };
+    if args.shape_res.is_empty() && !memory.is_empty() {
+        anyhow::bail!("--shape-res is empty: give the map resolutions to choose among");
+    }
+    // The techniques whose shapes are chosen: those named, or every contender that shadows the
+    // training scenes' particles (with parameters or not: a resolution is every technique's).
+    let shape_entries: Vec<&'static shadow::TechniqueEntry> = match &args.techniques {
+        Some(_) => entries.clone(),
+        None => shadow::contenders()
+            .filter(|e| e.shadows_particles)
+            .collect(),
+    };
     let mut starting = shadow::TechniqueParams::new(8, 512);
     for (key, value) in args.params.all() {
         shadow::set_param(&mut starting, key, value)?;
@@ -186,6 +220,49 @@ pub fn run(args: &TuneArgs, adapter: &AdapterPreference) -> anyhow::Result<()> {
         );
         tuned.push(t);
     }
+    let mut shapes = Vec::new();
+    for entry in shape_entries {
+        let values = tuned
+            .iter()
+            .find(|t| t.technique == entry.name)
+            .map(|t| t.chosen.clone())
+            .unwrap_or_default();
+        let mut report = |total: u64, res: u32, score: Option<f64>| {
+            eprintln!(
+                "{} shape at {}: {res}² -> {}",
+                entry.name,
+                crate::report::bytes(total),
+                score.map_or("fits no configuration".to_owned(), |s| format!("{s:.5}"))
+            );
+        };
+        let chosen = crate::tune::choose_shapes(
+            &gpu,
+            &mut training,
+            entry,
+            &values,
+            &memory,
+            &args.shape_res,
+            &mut report,
+        )?;
+        if !chosen.is_empty() {
+            println!(
+                "{:<10} shapes: {}",
+                entry.name,
+                chosen
+                    .iter()
+                    .rev()
+                    .map(|(total, s)| format!(
+                        "{}² at {} ({:.5})",
+                        s.resolution,
+                        crate::report::bytes(*total),
+                        s.training
+                    ))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            );
+        }
+        shapes.push((entry.name, chosen));
+    }
     let command = std::iter::once("smokeshadow".to_owned())
         .chain(std::env::args().skip(1))
         .collect::<Vec<_>>()
@@ -197,11 +274,16 @@ pub fn run(args: &TuneArgs, adapter: &AdapterPreference) -> anyhow::Result<()> {
         bytes_per_texel: options.bytes_per_texel.clone(),
         evaluations: options.evaluations,
         seed: options.seed,
+        memory: memory.clone(),
+        shape_resolutions: match memory.is_empty() {
+            true => Vec::new(),
+            false => args.shape_res.clone(),
+        },
         adapter: gpu.describe(),
         tool_version: env!("CARGO_PKG_VERSION").to_owned(),
         techniques: BTreeMap::new(),
     };
-    crate::tune::write_params_file(&args.output, record, &tuned)?;
+    crate::tune::write_params_file(&args.output, record, &tuned, &shapes)?;
     println!(
         "{} techniques tuned in {:.0} s; parameters: {} (read it with --params {})",
         tuned.len(),

@@ -975,6 +975,7 @@ mod tests {
     fn metadata() -> SweepMetadata {
         SweepMetadata {
             framing: crate::scene::Framing::Fit,
+            shapes: Default::default(),
             tool_version: "0.1.0".into(),
             scene: "thesis_plume".into(),
             description: String::new(),

@@ -300,6 +300,10 @@ pub struct SweepMetadata {
     /// existed, which all framed the cone).
     #[serde(default = "cone_framing")]
     pub framing: crate::scene::Framing,
+    /// The map resolution `tune` chose per technique and memory budget (total bytes) on the
+    /// training scenes: the answer at equal total memory takes each technique at it.
+    #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
+    pub shapes: crate::tune::Shapes,
     /// The scene's one-sentence description (may be empty).
     #[serde(default, skip_serializing_if = "String::is_empty")]
     pub description: String,

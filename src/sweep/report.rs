@@ -231,15 +231,32 @@ fn most_accurate_per_technique<'a>(
     best
 }
 
-/// Each technique's most accurate cell (FLIP vs `exact`) of those that answer the memory budget
-/// `total` (one a swept resolution, every technique alike), most accurate first: the answer at
-/// equal total memory, each technique at its best shape.
+/// Each technique's cell that answers the memory budget `total` (one per swept resolution),
+/// most accurate first: the answer at equal total memory, every technique at the map resolution
+/// `tune` chose for it on the training scenes ([`crate::tune::Shapes`], the results' metadata)
+/// where that resolution was swept, else at its most accurate of those swept, on this scene
+/// ([`shape_tuned`] says which); of several cells there (splats), the most accurate.
 pub fn at_memory_budget(results: &SweepResults, total: u64) -> Vec<&CellResult> {
-    let mut best = most_accurate_per_technique(results.cells.iter().filter(|c| {
-        c.memory_budgets.contains(&total)
-            && c.particle_res == ParticleRes::Full
-            && flip_exact(c).is_finite()
-    }));
+    let answering: Vec<&CellResult> = results
+        .cells
+        .iter()
+        .filter(|c| {
+            c.memory_budgets.contains(&total)
+                && c.particle_res == ParticleRes::Full
+                && flip_exact(c).is_finite()
+        })
+        .collect();
+    let tuned_swept = |technique: &str| {
+        answering
+            .iter()
+            .any(|d| d.technique == technique && shape_tuned(results, total, d))
+    };
+    let mut best = most_accurate_per_technique(
+        answering
+            .iter()
+            .copied()
+            .filter(|c| !tuned_swept(&c.technique) || shape_tuned(results, total, c)),
+    );
     best.sort_by(|a, b| {
         flip_exact(a)
             .total_cmp(&flip_exact(b))
@@ -247,6 +264,17 @@ pub fn at_memory_budget(results: &SweepResults, total: u64) -> Vec<&CellResult> 
             .then(super::registry_index(&a.technique).cmp(&super::registry_index(&b.technique)))
     });
     best
+}
+
+/// Whether `cell` is at the map resolution `tune` chose for its technique at the memory budget
+/// `total` on the training scenes.
+pub fn shape_tuned(results: &SweepResults, total: u64, cell: &CellResult) -> bool {
+    results
+        .metadata
+        .shapes
+        .get(&cell.technique)
+        .and_then(|by_memory| by_memory.get(&total))
+        == Some(&cell.shadow_res)
 }
 
 /// The frame-time budgets of the time answer: a technique's frame at most this many times the
@@ -321,9 +349,11 @@ fn equal_memory(body: &mut String, results: &SweepResults, variants: &Variants) 
     let _ = writeln!(
         body,
         "<p>At equal total memory: at each swept shadow-map resolution, each technique at the \
-         largest configuration whose resident bytes fit the budget; then each technique at its \
-         most accurate of those resolutions (its shape chosen on this scene, every technique's \
-         alike), ranked by FLIP mean against <code>exact</code>.</p>\n<table><tr>\
+         largest configuration whose resident bytes fit the budget; then each technique at the \
+         resolution <code>smokeshadow tune</code> chose for it at this budget on the training \
+         scenes (as its parameters were), or, marked <i>best here</i>, where tune chose none of \
+         the swept resolutions, at its most accurate of them on this scene; ranked by FLIP mean \
+         against <code>exact</code>.</p>\n<table><tr>\
          <th>memory</th><th>answer</th><th>ranked (FLIP vs exact, resolution)</th></tr>"
     );
     for &total in &budgets {
@@ -334,7 +364,10 @@ fn equal_memory(body: &mut String, results: &SweepResults, variants: &Variants) 
             "no technique fits",
             &at,
             variants,
-            |c| format!("{}²", c.shadow_res),
+            |c| match shape_tuned(results, total, c) {
+                true => format!("{}²", c.shadow_res),
+                false => format!("{}², <i>best here</i>", c.shadow_res),
+            },
         );
     }
     body.push_str("</table>\n");
@@ -1045,6 +1078,7 @@ pub(crate) mod tests {
         SweepResults {
             metadata: SweepMetadata {
                 framing: crate::scene::Framing::Fit,
+                shapes: Default::default(),
                 tool_version: "0.1.0".into(),
                 scene: "thesis_plume".into(),
                 description: String::new(),

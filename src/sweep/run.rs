@@ -60,6 +60,10 @@ pub struct SweepOptions {
     /// Run only the cells whose stable index is K mod N, and write a shard manifest instead of
     /// the tables and report.
     pub shard: Option<Shard>,
+    /// The map resolution `tune` chose per technique and memory budget on the training scenes
+    /// (the shipped `docs/tuned_params.toml`'s, or a `--params FILE`'s): the answer at equal
+    /// total memory takes each technique at it where it was swept.
+    pub shapes: crate::tune::Shapes,
 }
 
 impl Default for SweepOptions {
@@ -79,6 +83,7 @@ impl Default for SweepOptions {
             exr: false,
             gallery: false,
             shard: None,
+            shapes: crate::tune::shipped_shapes(),
         }
     }
 }
@@ -999,6 +1004,8 @@ struct ScenePlan<'a> {
     keys: BTreeMap<String, String>,
     /// [`Scene::content_hash`], computed once.
     scene_sha256: String,
+    /// The map resolutions `tune` chose ([`SweepOptions::shapes`]).
+    shapes: crate::tune::Shapes,
 }
 
 impl ScenePlan<'_> {
@@ -1015,6 +1022,7 @@ impl ScenePlan<'_> {
             width_px: s.output.width_px,
             height_px: s.output.height_px,
             framing: s.shadow.framing,
+            shapes: self.shapes.clone(),
             cells: self
                 .plans
                 .iter()
@@ -1078,6 +1086,7 @@ fn plan_scenes<'a>(
             skipped,
             keys,
             scene_sha256,
+            shapes: options.shapes.clone(),
         });
         first_index += n;
     }
@@ -1455,6 +1464,7 @@ pub(super) fn assemble(
         width_px: planned.width_px,
         height_px: planned.height_px,
         framing: planned.framing,
+        shapes: planned.shapes.clone(),
         adapter: distinct(&|m| m.adapter.clone(), fallback.map(|m| m.adapter.clone())),
         backend: distinct(&|m| m.backend.clone(), fallback.map(|m| m.backend.clone())),
         driver: distinct(&|m| m.driver.clone(), fallback.map(|m| m.driver.clone())),

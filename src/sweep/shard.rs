@@ -98,6 +98,9 @@ pub struct PlannedScene {
     /// The scene's `shadow.framing` (plans written before it existed framed the cone).
     #[serde(default = "super::cone_framing")]
     pub framing: crate::scene::Framing,
+    /// The map resolutions `tune` chose, per technique and memory budget.
+    #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
+    pub shapes: crate::tune::Shapes,
     pub cells: Vec<PlannedCell>,
     pub skipped: Vec<SkippedCell>,
 }

@@ -115,6 +115,47 @@ pub struct ParamsFile {
     /// KEY = VALUE, as a scene's `[shadow.params]`.
     #[serde(default)]
     pub params: BTreeMap<String, ParamValue>,
+    /// The map resolution `tune` chose per technique and memory budget (total bytes, as a
+    /// string key): `[shapes.dom]` `12582912 = { resolution = 256, training = 0.0012 }`.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub shapes: BTreeMap<String, BTreeMap<String, Shape>>,
+}
+
+/// A technique's shape at one memory budget: the map resolution whose largest fitting
+/// configuration had the lowest mean RMS T error over the training scenes, and that error.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Shape {
+    pub resolution: u32,
+    pub training: f64,
+}
+
+/// The resolutions `tune` chose: technique -> memory budget (total bytes) -> map resolution.
+/// A sweep's answer at equal total memory takes each technique at its chosen resolution (where
+/// it swept it), so that shapes, like parameters, are chosen on scenes apart from the answer's.
+pub type Shapes = BTreeMap<String, BTreeMap<u64, u32>>;
+
+impl ParamsFile {
+    /// Its shapes, by memory budget in bytes (a key that is not a whole number is skipped).
+    pub fn shapes(&self) -> Shapes {
+        self.shapes
+            .iter()
+            .map(|(technique, by_memory)| {
+                let by_memory = by_memory
+                    .iter()
+                    .filter_map(|(total, s)| Some((total.parse().ok()?, s.resolution)))
+                    .collect();
+                (technique.clone(), by_memory)
+            })
+            .collect()
+    }
+}
+
+/// The shapes the shipped defaults come with (`docs/tuned_params.toml`, built in).
+pub fn shipped_shapes() -> Shapes {
+    toml::from_str::<ParamsFile>(include_str!("../../docs/tuned_params.toml"))
+        .map(|f| f.shapes())
+        .unwrap_or_default()
 }
 
 /// What `tune` records beside its values.
@@ -126,6 +167,11 @@ pub struct TuneRecord {
     pub bytes_per_texel: Vec<u32>,
     pub evaluations: u32,
     pub seed: u64,
+    /// The memory budgets (total bytes) and map resolutions the shapes were chosen over.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub memory: Vec<u64>,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub shape_resolutions: Vec<u32>,
     pub adapter: String,
     pub tool_version: String,
     /// Per technique tuned: its errors at the starting and the chosen values.
@@ -143,14 +189,19 @@ pub struct TechniqueRecord {
     pub chosen_held_out: Option<f64>,
 }
 
-/// A parameter set as `--params` gives it ([`param_set`]).
+/// A parameter set as `--params` gives it ([`param_set`]), and the file's shapes (none for
+/// `paper`).
 #[derive(Clone, Debug, PartialEq)]
-pub struct ParamSet(pub Vec<(String, ParamValue)>);
+pub struct ParamSet(pub Vec<(String, ParamValue)>, pub Shapes);
 
 impl ParamSet {
     /// Parses `--params FILE|paper`.
     pub fn parse(name: &str) -> Result<Self, String> {
-        param_set(name).map(Self)
+        let shapes = match name {
+            "paper" => Shapes::new(),
+            _ => read_params_file(name)?.shapes(),
+        };
+        param_set(name).map(|set| Self(set, shapes))
     }
 }
 
@@ -163,6 +214,21 @@ pub fn param_set(name: &str) -> Result<Vec<(String, ParamValue)>, String> {
             .map(|(key, value, _)| ((*key).to_owned(), ParamValue::Number(*value)))
             .collect());
     }
+    let file = read_params_file(name)?;
+    file.params
+        .iter()
+        .map(|(key, value)| {
+            let spec = shadow::find_param(key).map_err(|e| format!("--params {name}: {e}"))?;
+            let value = spec
+                .canonical(value)
+                .map_err(|e| format!("--params {name}: {e}"))?;
+            Ok((spec.key.to_owned(), value))
+        })
+        .collect()
+}
+
+/// A parameter file, read and decoded. `Err`: one line naming the file and what is wrong.
+fn read_params_file(name: &str) -> Result<ParamsFile, String> {
     let path = Path::new(name);
     let text = std::fs::read_to_string(path).map_err(|err| {
         format!("--params {name}: cannot read it ({err}); give a parameter file or `paper`")
@@ -178,16 +244,7 @@ pub fn param_set(name: &str) -> Result<Vec<(String, ParamValue)>, String> {
             _ => format!("--params {name}: {}", text.replace('\n', " ")),
         }
     })?;
-    file.params
-        .iter()
-        .map(|(key, value)| {
-            let spec = shadow::find_param(key).map_err(|e| format!("--params {name}: {e}"))?;
-            let value = spec
-                .canonical(value)
-                .map_err(|e| format!("--params {name}: {e}"))?;
-            Ok((spec.key.to_owned(), value))
-        })
-        .collect()
+    Ok(file)
 }
 
 /// What the search varies: a technique's parameters that have a default (the derived ones stay
@@ -330,15 +387,20 @@ impl Case {
     }
 
     /// The technique `entry` with `values` set over the scene's parameters, at the
-    /// configuration that fits `bytes` per texel (`None`: it fits none).
+    /// configuration that fits `bytes` per texel (`None`: it fits none), at the scene's map
+    /// resolution or at `resolution`.
     fn config(
         &self,
         entry: &TechniqueEntry,
         values: &BTreeMap<String, ParamValue>,
         bytes: u32,
+        resolution: Option<u32>,
     ) -> Option<TechniqueConfig> {
         let mut params: TechniqueParams = self.scene.shadow.params(entry.min_channels);
         params.values.extend(values.clone());
+        if let Some(res) = resolution {
+            params.resolution_px = res;
+        }
         let particles = self.particles.len() as u64;
         let pixels = u64::from(self.scene.output.width_px) * u64::from(self.scene.output.height_px);
         let fit = shadow::fit_bytes_per_texel(entry, &params, bytes, particles, pixels).ok()?;
@@ -441,7 +503,7 @@ fn mean_error(
     let mut errors: Vec<(usize, u32, f64)> = Vec::new();
     let mut sum = 0.0;
     for &(i, bytes) in want {
-        match cases[i].config(entry, values, bytes) {
+        match cases[i].config(entry, values, bytes, None) {
             Some(config) => {
                 if !entry.order_independent
                     && cases[i].order_change(gpu, &config)? > ORDER_RMS_BOUND
@@ -595,8 +657,63 @@ pub fn tune_technique(
     })
 }
 
-/// Writes `tuned` as a parameter file at `path`, atomically.
-pub fn write_params_file(path: &Path, record: TuneRecord, tuned: &[Tuned]) -> anyhow::Result<()> {
+/// Each memory budget's shape for `entry` with `values`: of `resolutions`, the one whose largest
+/// configuration within the budget (a whole number of bytes a texel there) fits on every
+/// training scene with the lowest mean RMS T error over them (the first of equals), and that
+/// error; a budget no resolution fits is left out. `report` hears of each (budget, resolution,
+/// mean error or `None`).
+pub fn choose_shapes(
+    gpu: &Gpu,
+    cases: &mut [Case],
+    entry: &TechniqueEntry,
+    values: &BTreeMap<String, ParamValue>,
+    memory: &[u64],
+    resolutions: &[u32],
+    report: &mut dyn FnMut(u64, u32, Option<f64>),
+) -> anyhow::Result<BTreeMap<u64, Shape>> {
+    let mut shapes = BTreeMap::new();
+    for &total in memory {
+        let mut best: Option<Shape> = None;
+        for &res in resolutions {
+            let area = u64::from(res).pow(2);
+            let bytes = (total % area == 0)
+                .then(|| u32::try_from(total / area).ok())
+                .flatten();
+            let mut errors = Vec::new();
+            for case in cases.iter_mut() {
+                let Some(config) = bytes.and_then(|b| case.config(entry, values, b, Some(res)))
+                else {
+                    break;
+                };
+                errors.push(case.score(gpu, &config)?);
+            }
+            let mean = (errors.len() == cases.len() && !errors.is_empty())
+                .then(|| errors.iter().sum::<f64>() / errors.len() as f64);
+            report(total, res, mean);
+            if let Some(m) = mean
+                && best.is_none_or(|b| m < b.training)
+            {
+                best = Some(Shape {
+                    resolution: res,
+                    training: m,
+                });
+            }
+        }
+        if let Some(b) = best {
+            shapes.insert(total, b);
+        }
+    }
+    Ok(shapes)
+}
+
+/// Writes `tuned` and the chosen `shapes` (per technique) as a parameter file at `path`,
+/// atomically.
+pub fn write_params_file(
+    path: &Path,
+    record: TuneRecord,
+    tuned: &[Tuned],
+    shapes: &[(&str, BTreeMap<u64, Shape>)],
+) -> anyhow::Result<()> {
     let mut record = record;
     let mut params = BTreeMap::new();
     for t in tuned {
@@ -614,12 +731,22 @@ pub fn write_params_file(path: &Path, record: TuneRecord, tuned: &[Tuned]) -> an
     let file = ParamsFile {
         tune: Some(record),
         params,
+        shapes: shapes
+            .iter()
+            .filter(|(_, s)| !s.is_empty())
+            .map(|(technique, s)| {
+                let by_memory = s.iter().map(|(total, s)| (total.to_string(), *s)).collect();
+                ((*technique).to_owned(), by_memory)
+            })
+            .collect(),
     };
     let text = format!(
         "# Written by `smokeshadow tune` (src/tune/mod.rs describes the procedure). `--params \
          FILE` reads [params]; [tune] records how they were chosen: the command, the training and \
          held-out scenes, and each technique's mean RMS T error against exact there at its \
-         starting values and at the chosen ones.\n{}",
+         starting values and at the chosen ones; [shapes] the map resolution chosen per \
+         technique and memory budget (total bytes) on the training scenes, with its mean RMS \
+         T error there.\n{}",
         toml::to_string(&file).context("cannot encode the parameter file")?
     );
     crate::output::write_atomic(path, text.as_bytes())
