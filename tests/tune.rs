@@ -72,10 +72,7 @@ fn tune_scores_every_technique_alike_and_writes_a_file_the_other_commands_read()
             })
             .collect();
         assert_eq!(printed.len(), 2, "{t}: {stderr}");
-        let best = printed
-            .iter()
-            .min_by(|a, b| a.1.total_cmp(&b.1))
-            .unwrap();
+        let best = printed.iter().min_by(|a, b| a.1.total_cmp(&b.1)).unwrap();
         let shape = p.shapes[t]["786432"];
         assert_eq!(shape.resolution, best.0, "{t}: {printed:?}");
         assert!((shape.training - best.1).abs() < 1e-5, "{t}: {printed:?}");
@@ -200,7 +197,10 @@ fn bad_tuning_input_and_parameter_files_get_one_line() {
 fn the_shipped_defaults_are_the_committed_output_of_tune_on_training_scenes_only() {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/tuned_params.toml");
     let file = read(&path);
-    let record = file.tune.clone().expect("the committed file records its command");
+    let record = file
+        .tune
+        .clone()
+        .expect("the committed file records its command");
     assert!(
         record.command.starts_with("smokeshadow tune"),
         "{}",
@@ -220,7 +220,10 @@ fn the_shipped_defaults_are_the_committed_output_of_tune_on_training_scenes_only
     for (technique, by_memory) in &file.shapes {
         shadow::find(technique).unwrap();
         for (total, shape) in by_memory {
-            assert!(record.memory.contains(&total.parse().unwrap()), "{technique} {total}");
+            assert!(
+                record.memory.contains(&total.parse().unwrap()),
+                "{technique} {total}"
+            );
             assert!(record.shape_resolutions.contains(&shape.resolution));
         }
     }

@@ -91,9 +91,10 @@ pub fn run(args: &InfoArgs, preference: &AdapterPreference) -> anyhow::Result<()
             (false, _) => "volume",
         };
         println!(
-            "  {:<10} {role:<19} {media:<16} min {} channels (24: {})  {}",
+            "  {:<10} {role:<19} {media:<16} channels {}..={} (24: {})  {}",
             e.name,
             e.min_channels,
+            e.max_channels,
             (e.budget_caption)(24),
             e.description
         );

@@ -170,6 +170,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     params: &[INSERT, CHORD],
     order_independent: false,
     converges_with_budget: true,
+    converges_from: 1,
     compresses_captured_lists: true,
     memory: |c| SPEC.memory(c),
     lookup_shader: "shadow/avsm.wgsl",

@@ -53,6 +53,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     params: &[],
     order_independent: true,
     converges_with_budget: false,
+    converges_from: 1,
     compresses_captured_lists: false,
     // Three R16F maps and a 16-byte uniform.
     memory: |c| MemoryUse {

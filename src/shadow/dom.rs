@@ -128,6 +128,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     params: &[THICKNESS, LAYER_GROWTH, INTERP, START_DILATION, PRECISION],
     order_independent: true,
     converges_with_budget: true,
+    converges_from: 1,
     compresses_captured_lists: false,
     // One R16F start-depth channel, B - 1 layers of `dom_precision` and the uniform parameters.
     memory: |c| MemoryUse {

@@ -151,6 +151,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     params: &[],
     order_independent: true,
     converges_with_budget: true,
+    converges_from: 1,
     compresses_captured_lists: true,
     memory: |c| SPEC.memory(c),
     lookup_shader: "shadow/dsm.wgsl",

@@ -55,6 +55,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     params: &[EXPONENT],
     order_independent: true,
     converges_with_budget: false,
+    converges_from: 1,
     compresses_captured_lists: false,
     // An R16F start depth and a 16-byte uniform.
     memory: |c| MemoryUse {

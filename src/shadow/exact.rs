@@ -93,6 +93,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     params: &[],
     order_independent: true,
     converges_with_budget: false,
+    converges_from: 1,
     compresses_captured_lists: false,
     // The uniform, the per-tile counts and offsets (+1 for the total), the row sums (+1), 4
     // bytes per list entry of capacity, per particle of capacity its sphere (32 bytes: the

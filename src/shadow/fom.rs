@@ -96,6 +96,9 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     params: &[PRECISION],
     order_independent: true,
     converges_with_budget: true,
+    // From 3 harmonics on: below, adding a harmonic need not shrink the truncated series'
+    // ringing (measured on plume_65k, RMS T 0.092 at 6 channels, 2 harmonics, and 0.109 at 8).
+    converges_from: 8,
     compresses_captured_lists: false,
     memory: |c| coefficient_memory(&FOM, c),
     lookup_shader: "shadow/fom.wgsl",
@@ -122,6 +125,7 @@ pub const SIGMA_ENTRY: TechniqueEntry = TechniqueEntry {
     params: &[SIGMA_PRECISION],
     order_independent: true,
     converges_with_budget: true,
+    converges_from: 1,
     compresses_captured_lists: false,
     memory: |c| coefficient_memory(&FOM_SIGMA, c),
     lookup_shader: "shadow/fom.wgsl",

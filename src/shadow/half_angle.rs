@@ -68,6 +68,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     params: &[],
     order_independent: false,
     converges_with_budget: true,
+    converges_from: 1,
     compresses_captured_lists: false,
     // R16F light buffer, RGBA16F eye buffer, the re-sorted instances (32 bytes each, capacity a
     // power of two from 1024), their lighting (64 bytes each), one 256-byte lighting range per

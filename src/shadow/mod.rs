@@ -617,6 +617,10 @@ pub struct TechniqueEntry {
     /// Whether its error against `exact` shrinks as the budget grows (segment splats, where the
     /// splat mode applies); the convergence tests hold every such technique to it.
     pub converges_with_budget: bool,
+    /// The smallest channel budget from which, where it converges, its error falls with every
+    /// larger one on the default settings (1: from its smallest; `fom` 8, where three harmonics
+    /// start: the tests over the gallery and the held-out scenes hold it from there).
+    pub converges_from: u32,
     /// Whether it keeps each texel's captured segment list whole when the budget holds it and
     /// compresses it only beyond (`dsm`, `avsm`): on one particle every budget holds the lists,
     /// so the analytic-sphere test holds its T to be the same at every budget.

@@ -363,6 +363,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     order_independent: false,
     // The bound brackets T rather than converging to it (a uniform chord stays a few steps).
     converges_with_budget: false,
+    converges_from: 1,
     compresses_captured_lists: false,
     memory: |c| memory(power_plan)(c),
     lookup_shader: "shadow/msm.wgsl",

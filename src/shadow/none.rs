@@ -20,6 +20,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     params: &[],
     order_independent: true,
     converges_with_budget: false,
+    converges_from: 1,
     compresses_captured_lists: false,
     memory: |_| MemoryUse {
         channels: 0,

@@ -68,6 +68,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     params: &[INTERP, PRECISION],
     order_independent: true,
     converges_with_budget: true,
+    converges_from: 1,
     compresses_captured_lists: false,
     // B slices of `osm_precision` and the uniform parameters.
     memory: |c| MemoryUse {

@@ -49,6 +49,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     params: &[LIGHT_STEPS],
     order_independent: true,
     converges_with_budget: false,
+    converges_from: 1,
     compresses_captured_lists: false,
     // Its one uniform.
     memory: |_| MemoryUse {

@@ -229,6 +229,7 @@ pub const ENTRY: TechniqueEntry = TechniqueEntry {
     // The default light-aligned field converges (0.0042 at 6 channels to 0.0018 at 24 on
     // thesis_plume, see the header); the light-independent one stays at 0.021 from 6 to 24.
     converges_with_budget: true,
+    converges_from: 1,
     compresses_captured_lists: false,
     // The R16F grid (G³ · 2 bytes, G = round(cbrt(res² · B))) and the 32-byte lookup uniform;
     // transient: per slab a 64-byte uniform, the u32 scratch and the padded f16 staging of one
