@@ -54,9 +54,10 @@ pub struct SweepArgs {
     /// Memory budgets in total bytes, comma-separated, with a unit (`12MiB,6MiB,3MiB`; B, KiB,
     /// MiB, GiB, KB, MB, GB): at each `--shadow-res`, each technique at the largest
     /// configuration whose resident bytes fit (a whole number of bytes a texel there), and the
-    /// answer at each names every technique at its most accurate of the swept resolutions (its
-    /// shape chosen on this scene, as every technique's is). Replaces the default
-    /// `--bytes-per-texel`.
+    /// answer at each names every technique at the resolution `smokeshadow tune` chose for it
+    /// on the training scenes (the shipped `docs/tuned_params.toml`'s `[shapes]`, or a
+    /// `--params FILE`'s), or, where tune chose none of the swept, at its most accurate of them
+    /// here, marked "best here". Replaces the default `--bytes-per-texel`.
     #[arg(long, value_name = "SIZE,...", value_delimiter = ',', value_parser = parse_memory)]
     pub memory: Vec<u64>,
     /// Shadow-map resolutions, comma-separated.

@@ -35,8 +35,8 @@ pub struct SweepOptions {
     pub bytes_per_texel: Vec<u32>,
     /// Memory budgets in total bytes (`--memory`): at each map resolution, each technique at
     /// the largest configuration whose resident bytes fit (a whole number of bytes a texel at
-    /// that resolution), and the answer at each names every technique at its most accurate of
-    /// the swept resolutions; may be empty.
+    /// that resolution), and the answer at each names every technique at its tuned resolution
+    /// ([`Self::shapes`]) or its most accurate of the swept; may be empty.
     pub memory: Vec<u64>,
     pub shadow_res: Vec<u32>,
     pub splats: Vec<SplatMode>,
