@@ -6,14 +6,14 @@
 
 mod common;
 
-use common::{ReversedOrder, gpu, probe_all, reduced_plume, sphere, technique};
+use common::{PlumeAgainstExact, ReversedOrder, gpu, probe_all, sphere, technique};
 use glam::Vec3;
 use smokeshadow::render::TechniqueConfig;
-use smokeshadow::render::shaded::{rms_difference, shaded_points};
+use smokeshadow::render::shaded::rms_difference;
 use smokeshadow::scene::Scene;
 use smokeshadow::shadow::moment_math::{Basis, Moments, Reconstruction};
 use smokeshadow::shadow::{LightSpace, SplatMode, closed_form, find_param};
-use smokeshadow::sim::{Particle, simulate};
+use smokeshadow::sim::Particle;
 
 /// The two families, by registry name.
 const FAMILIES: [&str; 2] = ["msm", "tmsm"];
@@ -226,27 +226,14 @@ fn the_bounds_bracket_the_closed_form_and_tighten_as_the_moments_grow() {
 #[test]
 fn error_against_exact_on_the_plume_falls_as_the_moments_grow() {
     let gpu = gpu();
-    let scene = reduced_plume();
-    let particles = simulate(&scene);
-    let points = shaded_points(&scene, &particles, (256, 192), 4, None);
-    let res = scene.shadow.resolution_px;
-    let exact = probe_all(
-        &gpu,
-        &scene,
-        &particles,
-        &[technique("exact", 1, res, SplatMode::Segment)],
-        &points,
-    )
-    .remove(0);
+    let plume = PlumeAgainstExact::new(&gpu, 4);
+    let res = plume.res();
     for name in FAMILIES {
         let configs: Vec<_> = ROOT_BUDGETS
             .iter()
             .map(|&b| config(name, b, res, &[]))
             .collect();
-        let errors: Vec<f64> = probe_all(&gpu, &scene, &particles, &configs, &points)
-            .iter()
-            .map(|t| rms_difference(t, &exact))
-            .collect();
+        let errors = plume.errors(&gpu, &configs);
         println!("{name}: RMS T error against exact at 5/7/9 channels: {errors:?}");
         assert!(
             errors[2] < errors[0],

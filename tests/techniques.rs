@@ -5,7 +5,8 @@
 mod common;
 
 use common::{
-    REDUCED_H as H, REDUCED_W as W, ReversedOrder, gpu, probe_all, reduced_plume, sphere, technique,
+    PlumeAgainstExact, REDUCED_H as H, REDUCED_W as W, ReversedOrder, gpu, probe_all,
+    reduced_plume, sphere, technique,
 };
 use glam::Vec3;
 use smokeshadow::gpu::Gpu;
@@ -379,23 +380,13 @@ fn exact_agrees_with_its_cpu_mirror_on_the_plume() {
 #[test]
 fn error_against_exact_on_the_plume_shrinks_as_the_budget_grows() {
     let gpu = gpu();
-    let scene = reduced_plume();
-    let particles = simulate(&scene);
-    let points = shaded_points(&scene, &particles, (W, H), 4, None);
-    let res = scene.shadow.resolution_px;
+    let plume = PlumeAgainstExact::new(&gpu, 4);
+    let res = plume.res();
     let budgets = [6, 8, 16, 24];
-    let exact = probe_all(
-        &gpu,
-        &scene,
-        &particles,
-        &[technique("exact", 1, res, SplatMode::Segment)],
-        &points,
-    )
-    .remove(0);
 
     println!(
         "RMS transmittance error against exact over {} shaded points (thesis_plume, {res}² map)",
-        points.len()
+        plume.points.len()
     );
     println!(
         "{:<10} {:<8} {:>9} {:>9} {:>9} {:>9}",
@@ -408,10 +399,7 @@ fn error_against_exact_on_the_plume_shrinks_as_the_budget_grows() {
                 .iter()
                 .map(|&b| technique(name, b, res, splat))
                 .collect();
-            let errors: Vec<f64> = probe_all(&gpu, &scene, &particles, &configs, &points)
-                .iter()
-                .map(|t| rms_difference(t, &exact))
-                .collect();
+            let errors = plume.errors(&gpu, &configs);
             println!(
                 "{name:<10} {:<8} {:>9.5} {:>9.5} {:>9.5} {:>9.5}",
                 splat.name(),
@@ -628,18 +616,8 @@ fn avsm_inserts_in_draw_order_by_default_and_sorted_insertion_does_not_depend_on
 #[test]
 fn avsm_chords_in_pieces_keep_converging_where_the_linear_chord_stops() {
     let gpu = gpu();
-    let scene = reduced_plume();
-    let particles = simulate(&scene);
-    let points = shaded_points(&scene, &particles, (W, H), 4, None);
-    let res = scene.shadow.resolution_px;
-    let exact = probe_all(
-        &gpu,
-        &scene,
-        &particles,
-        &[technique("exact", 1, res, SplatMode::Segment)],
-        &points,
-    )
-    .remove(0);
+    let plume = PlumeAgainstExact::new(&gpu, 4);
+    let res = plume.res();
     let budgets = [8, 16, 24, 32];
     let errors = |chord: &str| -> Vec<f64> {
         let configs: Vec<_> = budgets
@@ -655,10 +633,7 @@ fn avsm_chords_in_pieces_keep_converging_where_the_linear_chord_stops() {
                 c
             })
             .collect();
-        probe_all(&gpu, &scene, &particles, &configs, &points)
-            .iter()
-            .map(|t| rms_difference(t, &exact))
-            .collect()
+        plume.errors(&gpu, &configs)
     };
     let (linear, pieces) = (errors("linear"), errors("pieces"));
     println!("avsm RMS T at {budgets:?}: linear {linear:?}, pieces {pieces:?}");

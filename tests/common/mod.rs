@@ -63,6 +63,57 @@ pub fn reduced_plume() -> Scene {
     scene
 }
 
+/// The reduced plume simulated, its shaded points (every `stride`-th pixel) and `exact`'s T
+/// there: what the convergence tests compare each technique's T with.
+pub struct PlumeAgainstExact {
+    pub scene: Scene,
+    pub particles: Vec<Particle>,
+    pub points: Vec<Vec3>,
+    pub exact: Vec<f32>,
+}
+
+impl PlumeAgainstExact {
+    pub fn new(gpu: &Gpu, stride: u32) -> Self {
+        let scene = reduced_plume();
+        let particles = smokeshadow::sim::simulate(&scene);
+        let points = smokeshadow::render::shaded::shaded_points(
+            &scene,
+            &particles,
+            (REDUCED_W, REDUCED_H),
+            stride,
+            None,
+        );
+        let res = scene.shadow.resolution_px;
+        let exact = probe_all(
+            gpu,
+            &scene,
+            &particles,
+            &[technique("exact", 1, res, SplatMode::Segment)],
+            &points,
+        )
+        .remove(0);
+        Self {
+            scene,
+            particles,
+            points,
+            exact,
+        }
+    }
+
+    /// The map resolution of the scene.
+    pub fn res(&self) -> u32 {
+        self.scene.shadow.resolution_px
+    }
+
+    /// The RMS T error against `exact` of each configuration.
+    pub fn errors(&self, gpu: &Gpu, configs: &[TechniqueConfig]) -> Vec<f64> {
+        probe_all(gpu, &self.scene, &self.particles, configs, &self.points)
+            .iter()
+            .map(|t| smokeshadow::render::shaded::rms_difference(t, &self.exact))
+            .collect()
+    }
+}
+
 /// The reduced plume probed twice, with the camera in front of it and behind it: the renderer
 /// sorts the particles back to front for the camera before the build, so the light's passes see
 /// them in reversed order while the light space stays the same (order-independence tests).
