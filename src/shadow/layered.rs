@@ -387,26 +387,23 @@ pub fn target_passes(
     formats: &[wgpu::TextureFormat],
     limits: &wgpu::Limits,
 ) -> Option<Vec<Range<u32>>> {
-    let per_pass = MAX_TARGETS.min(limits.max_color_attachments);
+    let per_pass = MAX_TARGETS.min(limits.max_color_attachments) as usize;
+    let most_bytes = limits.max_color_attachment_bytes_per_sample;
     let mut passes: Vec<Range<u32>> = Vec::new();
+    // Bytes a sample of the last pass so far.
     let mut bytes = 0u32;
     for (t, format) in (0u32..).zip(formats) {
         let cost = format.target_pixel_byte_cost()?;
-        let align = format.target_component_alignment()?;
-        let open = passes
-            .last()
-            .filter(|r| r.len() < per_pass as usize)
-            .map(|_| bytes.next_multiple_of(align) + cost)
-            .filter(|&b| b <= limits.max_color_attachment_bytes_per_sample);
-        match (open, passes.last_mut()) {
-            (Some(b), Some(last)) => {
+        if cost > most_bytes || per_pass == 0 {
+            return None;
+        }
+        let joined = bytes.next_multiple_of(format.target_component_alignment()?) + cost;
+        match passes.last_mut() {
+            Some(last) if last.len() < per_pass && joined <= most_bytes => {
                 last.end = t + 1;
-                bytes = b;
+                bytes = joined;
             }
             _ => {
-                if cost > limits.max_color_attachment_bytes_per_sample || per_pass == 0 {
-                    return None;
-                }
                 passes.push(t..t + 1);
                 bytes = cost;
             }
@@ -934,7 +931,12 @@ impl Layered {
                 technique: spec.name,
                 channels: params.channels,
                 needed: 1,
-                bytes_per_sample: formats[0].target_pixel_byte_cost().unwrap_or(0),
+                // The target that fits no pass: the largest.
+                bytes_per_sample: formats
+                    .iter()
+                    .filter_map(|f| f.target_pixel_byte_cost())
+                    .max()
+                    .unwrap_or(0),
                 allowed_attachments: gpu.limits.max_color_attachments,
                 allowed_bytes: gpu.limits.max_color_attachment_bytes_per_sample,
             });

@@ -542,6 +542,21 @@ pub struct ByteFit {
     pub bytes_per_texel: f64,
 }
 
+/// The bytes a texel a memory budget of `total` bytes gives a `resolution`² map (what
+/// [`fit_bytes_per_texel`] fits a technique into), or one line saying why it gives none: not a
+/// whole number of bytes a texel there, or more than 4 GiB a texel.
+pub fn memory_per_texel(total: u64, resolution: u32) -> Result<u32, String> {
+    let area = u64::from(resolution).pow(2);
+    if !total.is_multiple_of(area) {
+        return Err(format!(
+            "{} is not a whole number of bytes a texel at {resolution}² ({:.2})",
+            crate::report::bytes(total),
+            total as f64 / area as f64
+        ));
+    }
+    u32::try_from(total / area).map_err(|_| "more than 4 GiB a texel".to_owned())
+}
+
 /// Fits `entry`, with `base`'s parameters (its precision among them), into `budget` bytes per
 /// texel at `base.resolution_px`. `Err`: one line saying why it fits no configuration.
 pub fn fit_bytes_per_texel(

@@ -186,13 +186,17 @@ pub fn at_byte_budget(results: &SweepResults, bytes: u32) -> Vec<&CellResult> {
         .filter(|c| c.byte_budgets.contains(&bytes) && c.particle_res == ParticleRes::Full)
         .filter(|c| flip_exact(c).is_finite())
         .collect();
-    at.sort_by(|a, b| {
-        flip_exact(a)
-            .total_cmp(&flip_exact(b))
-            .then(a.resident_bytes.cmp(&b.resident_bytes))
-            .then(super::registry_index(&a.technique).cmp(&super::registry_index(&b.technique)))
-    });
+    at.sort_by(|a, b| by_accuracy_then_bytes(a, b));
     at
+}
+
+/// Most accurate first (FLIP vs `exact`), then fewer resident bytes, then registry order: how
+/// the answers at a byte or a memory budget rank their cells.
+fn by_accuracy_then_bytes(a: &CellResult, b: &CellResult) -> std::cmp::Ordering {
+    flip_exact(a)
+        .total_cmp(&flip_exact(b))
+        .then(a.resident_bytes.cmp(&b.resident_bytes))
+        .then(super::registry_index(&a.technique).cmp(&super::registry_index(&b.technique)))
 }
 
 /// The memory budgets (total bytes, `--memory`) the cells answer, largest first.
@@ -257,12 +261,7 @@ pub fn at_memory_budget(results: &SweepResults, total: u64) -> Vec<&CellResult> 
             .copied()
             .filter(|c| !tuned_swept(&c.technique) || shape_tuned(results, total, c)),
     );
-    best.sort_by(|a, b| {
-        flip_exact(a)
-            .total_cmp(&flip_exact(b))
-            .then(a.resident_bytes.cmp(&b.resident_bytes))
-            .then(super::registry_index(&a.technique).cmp(&super::registry_index(&b.technique)))
-    });
+    best.sort_by(|a, b| by_accuracy_then_bytes(a, b));
     best
 }
 
@@ -340,7 +339,8 @@ pub fn same_footing(results: &SweepResults, html: bool) -> String {
     )
 }
 
-/// The techniques ranked at each memory budget (total bytes), each at its best resolution.
+/// The techniques ranked at each memory budget (total bytes), each at its tuned resolution
+/// ([`at_memory_budget`]).
 fn equal_memory(body: &mut String, results: &SweepResults, variants: &Variants) {
     let budgets = memory_budgets(results);
     if budgets.is_empty() {

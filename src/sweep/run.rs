@@ -321,25 +321,15 @@ fn plan(scene: &Scene, options: &SweepOptions) -> anyhow::Result<(Vec<Plan>, Vec
                     }
                     let first_axes = s == 0 && particle_res == options.particle_res[0];
                     for &total in &options.memory {
-                        let area = u64::from(res).pow(2);
-                        let planned = match total % area {
-                            0 => u32::try_from(total / area)
-                                .map_err(|_| "more than 4 GiB a texel".to_owned())
-                                .and_then(|bytes| {
-                                    plan_byte_budget(
-                                        scene,
-                                        entry,
-                                        Budget::Memory(bytes, total),
-                                        (res, splat, particle_res),
-                                        &mut cells,
-                                    )
-                                }),
-                            _ => Err(format!(
-                                "{} is not a whole number of bytes a texel at {res}² ({:.2})",
-                                crate::report::bytes(total),
-                                total as f64 / area as f64
-                            )),
-                        };
+                        let planned = shadow::memory_per_texel(total, res).and_then(|bytes| {
+                            plan_byte_budget(
+                                scene,
+                                entry,
+                                Budget::Memory(bytes, total),
+                                (res, splat, particle_res),
+                                &mut cells,
+                            )
+                        });
                         if let Err(reason) = planned
                             && first_axes
                         {

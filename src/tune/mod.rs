@@ -197,11 +197,11 @@ pub struct ParamSet(pub Vec<(String, ParamValue)>, pub Shapes);
 impl ParamSet {
     /// Parses `--params FILE|paper`.
     pub fn parse(name: &str) -> Result<Self, String> {
-        let shapes = match name {
-            "paper" => Shapes::new(),
-            _ => read_params_file(name)?.shapes(),
-        };
-        param_set(name).map(|set| Self(set, shapes))
+        if name == "paper" {
+            return param_set(name).map(|set| Self(set, Shapes::new()));
+        }
+        let file = read_params_file(name)?;
+        Ok(Self(checked_params(name, &file)?, file.shapes()))
     }
 }
 
@@ -214,7 +214,11 @@ pub fn param_set(name: &str) -> Result<Vec<(String, ParamValue)>, String> {
             .map(|(key, value, _)| ((*key).to_owned(), ParamValue::Number(*value)))
             .collect());
     }
-    let file = read_params_file(name)?;
+    checked_params(name, &read_params_file(name)?)
+}
+
+/// The `[params]` of the parameter file `name`, checked against the registry.
+fn checked_params(name: &str, file: &ParamsFile) -> Result<Vec<(String, ParamValue)>, String> {
     file.params
         .iter()
         .map(|(key, value)| {
@@ -675,10 +679,7 @@ pub fn choose_shapes(
     for &total in memory {
         let mut best: Option<Shape> = None;
         for &res in resolutions {
-            let area = u64::from(res).pow(2);
-            let bytes = (total % area == 0)
-                .then(|| u32::try_from(total / area).ok())
-                .flatten();
+            let bytes = shadow::memory_per_texel(total, res).ok();
             let mut errors = Vec::new();
             for case in cases.iter_mut() {
                 let Some(config) = bytes.and_then(|b| case.config(entry, values, b, Some(res)))
