@@ -10,6 +10,7 @@ pub mod diff;
 pub mod frame;
 pub mod gpu;
 pub mod medium;
+pub mod motion;
 pub mod output;
 pub mod particles;
 pub mod progress;

@@ -88,13 +88,19 @@ fn main() -> ExitCode {
                 let _ = err.print();
                 return ExitCode::SUCCESS;
             }
-            // One line: clap's first line names the argument and the problem.
+            // One line: clap's first paragraph names the problem and the argument (a missing
+            // argument's name is on the lines under "were not provided:").
             let text = err.render().to_string();
-            let line = text
+            let line: Vec<&str> = text
                 .lines()
-                .find(|l| !l.trim().is_empty())
-                .unwrap_or("invalid arguments");
-            eprintln!("{line}");
+                .skip_while(|l| l.trim().is_empty())
+                .take_while(|l| !l.trim().is_empty())
+                .map(str::trim)
+                .collect();
+            match line.is_empty() {
+                true => eprintln!("invalid arguments"),
+                false => eprintln!("{}", line.join(" ")),
+            }
             return ExitCode::from(2);
         }
     };

@@ -31,7 +31,7 @@ pub struct SweepArgs {
     #[arg(long, num_args = 1.., value_name = "DIR",
           conflicts_with_all = ["scene", "scenes", "shard", "resume", "exr", "techniques",
                                 "channels", "bytes_per_texel", "memory", "shadow_res", "splat", "particle_res", "params", "param_set", "frames",
-                                "warmup", "cell_seconds", "size", "particles"])]
+                                "warmup", "cell_seconds", "size", "particles", "animate", "fps"])]
     pub merge: Option<Vec<PathBuf>>,
     #[command(flatten)]
     pub particles: super::ParticlesArg,
@@ -93,6 +93,16 @@ pub struct SweepArgs {
     /// Output folder (created if missing).
     #[arg(long, short = 'o', default_value = "sweep")]
     pub output: PathBuf,
+    /// Smoke in motion: also render every cell over the consecutive frames from START to END
+    /// (scene time in seconds, e.g. `7.1..7.87`), `exact` at each, in this one process, and
+    /// give each cell its temporal measures (`temporal_error`, its 99.9th percentile, pops, the
+    /// shadow's T, FLIP over time: the README's "Smoke in motion"). The still measures stay at
+    /// the scene's own time.
+    #[arg(long, value_name = "START..END")]
+    pub animate: Option<String>,
+    /// Frames per second of `--animate` (default: a particle sequence's own rate, else 30).
+    #[arg(long, requires = "animate")]
+    pub fps: Option<f32>,
     /// Keep the cells an earlier (interrupted) run finished with the same settings.
     #[arg(long)]
     pub resume: bool,
@@ -148,6 +158,20 @@ pub fn run(args: &SweepArgs, adapter: &AdapterPreference) -> anyhow::Result<()> 
             })
             .collect::<anyhow::Result<_>>()?,
     };
+    // A particle sequence's own frames, unless told otherwise.
+    let fps = args.fps.unwrap_or_else(|| {
+        scenes
+            .iter()
+            .find_map(|s| s.particles.as_ref())
+            .filter(|p| crate::particles::is_sequence(&p.file))
+            .map_or(crate::motion::DEFAULT_FPS, |p| p.frame_rate_hz)
+    });
+    let animate = args
+        .animate
+        .as_deref()
+        .map(|range| crate::motion::Span::parse(range, fps))
+        .transpose()
+        .map_err(anyhow::Error::msg)?;
     let options = SweepOptions {
         techniques: crate::shadow::expand_all(&args.techniques),
         channels: args.channels.clone(),
@@ -176,6 +200,7 @@ pub fn run(args: &SweepArgs, adapter: &AdapterPreference) -> anyhow::Result<()> 
             .map(|s| s.1.clone())
             .filter(|s| !s.is_empty())
             .unwrap_or_else(crate::tune::shipped_shapes),
+        animate,
     };
     let gpu = Gpu::new(adapter)?;
     let outcome = sweep::run(&gpu, &scenes, &options, &args.output)?;
@@ -397,13 +422,43 @@ fn print_table(results: &SweepResults, folder: &Path) {
             false => ranked.join(", "),
         }
     };
+    // An animated sweep's answer in motion under each still one: the same cells by temporal
+    // error.
+    let stable = |cells: &[&sweep::CellResult]| {
+        let ranked = sweep::report::most_stable(cells);
+        if ranked.is_empty() {
+            return;
+        }
+        let listed: Vec<String> = ranked
+            .iter()
+            .map(|c| {
+                let m = c.motion.as_ref().expect("most_stable keeps moving cells");
+                format!(
+                    "{} {} ({:.2e}, {:.0} pops)",
+                    c.technique, c.channels, m.temporal_error, m.pops_per_frame
+                )
+            })
+            .collect();
+        println!(
+            "  in motion, by temporal error vs exact (pops a frame): {}",
+            listed.join(", ")
+        );
+    };
     println!("{}", sweep::report::same_footing(results, false));
+    if let Some(m) = &results.metadata.motion {
+        println!(
+            "in motion: every cell and exact over the {}; exact changes by {:.2e} a frame (mean |ΔL|, linear luminance)",
+            m.change.span.describe(),
+            m.change.luminance
+        );
+    }
     for b in sweep::report::byte_budgets(results) {
         let at = sweep::report::at_byte_budget(results, b);
         println!(
             "at {b} bytes a texel, by FLIP vs exact: {}",
             line(&at, Detail::Flip, "no technique fits")
         );
+        stable(&at);
     }
     for total in sweep::report::memory_budgets(results) {
         let at = sweep::report::at_memory_budget(results, total);
@@ -414,6 +469,7 @@ fn print_table(results: &SweepResults, folder: &Path) {
             crate::report::bytes(total),
             line(&at, Detail::Resolution(total), "no technique fits")
         );
+        stable(&at);
     }
     if results.cells.iter().any(|c| c.overhead_ratio.is_some()) {
         for &ratio in sweep::report::TIME_BUDGETS {
@@ -423,6 +479,7 @@ fn print_table(results: &SweepResults, folder: &Path) {
                 results.metadata.adapter,
                 line(&at, Detail::Ratio, "no technique is that fast")
             );
+            stable(&at);
         }
     }
 }

@@ -290,7 +290,7 @@ fn pixel_statistics(reference: &RgbImage, test: &RgbImage) -> PixelStatistics {
 }
 
 /// The sRGB decoding function (IEC 61966-2-1), `encoded` in [0, 1].
-fn srgb_to_linear(encoded: f64) -> f64 {
+pub fn srgb_to_linear(encoded: f64) -> f64 {
     if encoded <= 0.04045 {
         encoded / 12.92
     } else {

@@ -790,6 +790,13 @@ impl Renderer {
         Ok(())
     }
 
+    /// Forgets the maps the last build made, so that the next frame builds its own even where
+    /// it could reuse them (`reuse_shadow_maps`): a frame then renders exactly as one that does
+    /// not reuse, and a probe after it reads the maps it built.
+    pub fn forget_maps(&mut self) {
+        self.built_from = None;
+    }
+
     /// Loads `scene`'s density volume, if it has one and it is not the one loaded, as a frame
     /// of it does first (so that its grid is there before any frame: `Renderer::medium`).
     pub fn load_volume(&mut self, gpu: &Gpu, scene: &Scene) -> Result<(), ShadowError> {

@@ -746,6 +746,14 @@ impl Scene {
         })
     }
 
+    /// The same scene at simulated time `time_s` (its `sim.duration_s`): what a frame of an
+    /// animation renders.
+    pub fn at_time(&self, time_s: f32) -> Self {
+        let mut scene = self.clone();
+        scene.sim.duration_s = time_s;
+        scene
+    }
+
     /// What the scene is, in a sentence: its `description`, or for an embedded scene that has
     /// none (the thesis scenes keep theirs empty, so their baselines' hash stays) and whose smoke,
     /// camera and light are the embedded scene's, the first sentence of its header comment

@@ -95,7 +95,7 @@ pub fn write_charts(results: &SweepResults, dir: &Path) -> anyhow::Result<Vec<Ch
     let charts_dir = dir.join(CHARTS_DIR);
     std::fs::create_dir_all(&charts_dir)
         .with_context(|| format!("cannot create folder {}", charts_dir.display()))?;
-    let plots = [
+    let mut plots = vec![
         error_vs_bytes(results),
         transmittance_error_vs_bytes(results),
         time_vs_bytes(results),
@@ -103,6 +103,11 @@ pub fn write_charts(results: &SweepResults, dir: &Path) -> anyhow::Result<Vec<Ch
         error_vs_resolution(results),
         error_vs_own_baseline(results),
     ];
+    if let Some(motion) = &results.metadata.motion {
+        plots.push(temporal_error_vs_bytes(results, motion));
+        plots.push(flip_over_time(results, motion));
+        plots.push(temporal_error_over_time(results, motion));
+    }
     let mut charts = Vec::with_capacity(plots.len());
     for plot in plots {
         let svg =
@@ -128,6 +133,8 @@ enum XScale {
     LogRatio,
     /// Channel budget on a linear axis.
     Channels,
+    /// Scene time, seconds, on a linear axis.
+    Seconds,
     /// A count (particles) on a base-10 log axis against a log y axis: cost curves whose
     /// slopes read as powers ([`log_log_svg`], the bench's charts).
     LogLog,
@@ -344,6 +351,125 @@ fn error_vs_own_baseline(results: &SweepResults) -> Plot {
     }
 }
 
+/// The temporal error over the animated span over bytes: stability per memory.
+fn temporal_error_vs_bytes(results: &SweepResults, motion: &super::MotionReference) -> Plot {
+    let (series, zero_bytes) =
+        series_over_bytes(results, |c| c.motion.as_ref().map(|m| m.temporal_error));
+    Plot {
+        file_name: "temporal_error_vs_bytes.svg",
+        title: "Stability per memory: temporal error vs exact".into(),
+        caption: format!(
+            "Mean over the {} of the per-pixel |ΔI − ΔI_exact| between consecutive frames,              linear luminance (lower is steadier; 0 changes exactly as exact does), over the              bytes allocated (log scale). The dashed line is exact's own mean change a frame: a              technique near it changes about as wrongly as the image changes at all.{}",
+            motion.change.span.describe(),
+            zero_bytes_note(zero_bytes)
+        ),
+        x_scale: XScale::LogBytes,
+        x_label: "bytes allocated (log scale)".into(),
+        y_label: "temporal error (linear luminance)".into(),
+        series,
+        reference: Some(Reference {
+            y: motion.change.luminance,
+            label: "exact's change a frame".into(),
+        }),
+        legend_at: SeriesLabelPosition::UpperRight,
+    }
+}
+
+/// The cells the charts over time follow: each technique's at the smallest byte budget (where
+/// flicker shows most), else at the smallest channel budget.
+fn over_time_cells(results: &SweepResults) -> (String, Vec<&CellResult>) {
+    if let Some(&b) = super::report::byte_budgets(results).iter().min() {
+        return (
+            format!("at {b} bytes a texel"),
+            super::report::at_byte_budget(results, b),
+        );
+    }
+    let cells = shadowed(results);
+    let mut out: Vec<&CellResult> = Vec::new();
+    for t in techniques(&cells) {
+        if let Some(c) = cells
+            .iter()
+            .copied()
+            .filter(|c| c.technique == t && c.motion.is_some())
+            .min_by_key(|c| c.channels)
+        {
+            out.push(c);
+        }
+    }
+    ("at each technique's smallest channel budget".into(), out)
+}
+
+/// One series a cell over the span's times, `values` per frame (or pair: each at its later
+/// frame).
+fn series_over_time(
+    cells: &[&CellResult],
+    times: &[f32],
+    values: impl Fn(&crate::motion::Motion) -> &[f64],
+) -> Vec<Series> {
+    cells
+        .iter()
+        .enumerate()
+        .filter_map(|(i, c)| {
+            let m = c.motion.as_ref()?;
+            let v = values(m);
+            let skip = times.len().saturating_sub(v.len());
+            Some(Series {
+                label: format!("{} {}", c.technique, c.channels),
+                color: PALETTE[i % PALETTE.len()],
+                marker: MARKERS[i % MARKERS.len()],
+                points: times[skip..]
+                    .iter()
+                    .zip(v)
+                    .map(|(&t, &y)| (f64::from(t), y))
+                    .collect(),
+            })
+        })
+        .collect()
+}
+
+/// FLIP against `exact` of every frame of the span.
+fn flip_over_time(results: &SweepResults, motion: &super::MotionReference) -> Plot {
+    let (which, cells) = over_time_cells(results);
+    let times = motion.change.span.times();
+    Plot {
+        file_name: "flip_over_time.svg",
+        title: format!("FLIP vs exact over time, {which}"),
+        caption: format!(
+            "FLIP mean of each frame against exact's at the same time over the {}: a flat line              errs the same way in every frame, a jagged one is wrong differently from frame to              frame.",
+            motion.change.span.describe()
+        ),
+        x_scale: XScale::Seconds,
+        x_label: "scene time".into(),
+        y_label: "FLIP mean vs exact".into(),
+        series: series_over_time(&cells, &times, |m| &m.flip_per_frame),
+        reference: None,
+        legend_at: SeriesLabelPosition::UpperRight,
+    }
+}
+
+/// The temporal error of every frame pair of the span.
+fn temporal_error_over_time(results: &SweepResults, motion: &super::MotionReference) -> Plot {
+    let (which, cells) = over_time_cells(results);
+    let times = motion.change.span.times();
+    Plot {
+        file_name: "temporal_error_over_time.svg",
+        title: format!("Temporal error over time, {which}"),
+        caption: format!(
+            "Mean per-pixel |ΔI − ΔI_exact| of each pair of consecutive frames, at the later              frame's time, over the {}; the dashed line is exact's own mean change a frame.",
+            motion.change.span.describe()
+        ),
+        x_scale: XScale::Seconds,
+        x_label: "scene time".into(),
+        y_label: "temporal error (linear luminance)".into(),
+        series: series_over_time(&cells, &times, |m| &m.temporal_per_pair),
+        reference: Some(Reference {
+            y: motion.change.luminance,
+            label: "exact's change a frame".into(),
+        }),
+        legend_at: SeriesLabelPosition::UpperRight,
+    }
+}
+
 // ---------------------------------------------------------------------------------------------
 // Grouping cells into series.
 
@@ -549,7 +675,7 @@ fn render_svg(plot: &Plot) -> anyhow::Result<String> {
                 .filter(|&(x, y)| {
                     x.is_finite()
                         && y.is_finite()
-                        && (plot.x_scale == XScale::Channels || x > 0.0)
+                        && (matches!(plot.x_scale, XScale::Channels | XScale::Seconds) || x > 0.0)
                         && (plot.x_scale != XScale::LogLog || y > 0.0)
                 })
                 .collect();
@@ -616,6 +742,13 @@ fn render_svg(plot: &Plot) -> anyhow::Result<String> {
             TickedAxis::new(linear_range(&xs, false), &xs),
             y_range,
             &|x| number_label(*x),
+        ),
+        XScale::Seconds => draw(
+            plot,
+            &series,
+            TickedAxis::new(linear_range(&xs, false), &[]),
+            y_range,
+            &|x| format!("{} s", number_label(*x)),
         ),
         XScale::LogLog => unreachable!("drawn above"),
     }
@@ -969,6 +1102,7 @@ mod tests {
             hdr_image: None,
             settings_key: "k".into(),
             measured_against: None,
+            motion: None,
         }
     }
 
@@ -998,6 +1132,7 @@ mod tests {
             started: "2026-01-01T00:00:00Z".into(),
             wall_s: 12.5,
             shards: Vec::new(),
+            motion: None,
         }
     }
 

@@ -16,6 +16,7 @@
 //!   each cell what its ratios and errors were measured against, [`MeasuredAgainst`]), and
 //!   `--merge` assembles the shards' cells into the tables and reports without a GPU.
 
+mod animate;
 pub mod charts;
 pub mod gallery;
 pub mod report;
@@ -162,6 +163,10 @@ pub struct CellResult {
     /// existed, whose ratios are against the `none` cell of the results.
     #[serde(default)]
     pub measured_against: Option<MeasuredAgainst>,
+    /// With `--animate`: the cell over the span against `exact` over it ([`crate::motion`]);
+    /// `None` for `none` and in a still sweep.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub motion: Option<crate::motion::Motion>,
 }
 
 impl CellResult {
@@ -275,6 +280,19 @@ pub struct MeasuredAgainst {
     pub machine: Machine,
     /// The shard that measured it (`None`: an unsharded run).
     pub shard: Option<Shard>,
+    /// With `--animate`: the span and `exact`'s own change over it (the scale the cells'
+    /// temporal errors are read against), and its self-check over every frame of it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub motion: Option<MotionReference>,
+}
+
+/// `exact` over an animated sweep's span ([`MeasuredAgainst::motion`]).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct MotionReference {
+    pub change: crate::motion::ReferenceChange,
+    /// The fewest points a frame's self-check compared, and the worst |ΔT| over the frames.
+    pub check_points: usize,
+    pub check_worst: f64,
 }
 
 /// A requested cell that was not run, and why (a budget below the technique's minimum).
@@ -343,6 +361,10 @@ pub struct SweepMetadata {
     /// The shards the cells came from, `K/N` each (empty for an unsharded run).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub shards: Vec<String>,
+    /// With `--animate`: the span and `exact`'s change over it ([`MeasuredAgainst::motion`], of
+    /// the first cell that has it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub motion: Option<MotionReference>,
 }
 
 /// Everything a sweep produced: written as `results.json` (and, a row per cell, `results.csv`).

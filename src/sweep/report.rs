@@ -55,6 +55,7 @@ fn page(results: &SweepResults, charts: &[Chart]) -> String {
     let _ = writeln!(body, "<h1>{}</h1>", e(&title));
     metadata_line(&mut body, results);
     answer(&mut body, results, &variants, &pareto);
+    motion_section(&mut body, results, &variants);
     charts_section(&mut body, charts);
     table(&mut body, results, &variants, &pareto);
     skipped(&mut body, results);
@@ -174,6 +175,70 @@ fn answer(body: &mut String, results: &SweepResults, variants: &Variants, pareto
         );
     }
     body.push_str("</p>\n");
+}
+
+/// With `--animate`: what the span is, `exact`'s own change over it, and every cell's
+/// temporal measures beside its still error (README, "Smoke in motion", defines each).
+fn motion_section(body: &mut String, results: &SweepResults, variants: &Variants) {
+    let Some(motion) = &results.metadata.motion else {
+        return;
+    };
+    let c = &motion.change;
+    let _ = writeln!(
+        body,
+        "<h2>In motion</h2>\n<p>Every cell and <code>exact</code> rendered over the {span} \
+         (the still figures above are at the scene's own time). <code>exact</code> changes by \
+         {lum:.2e} a frame (mean |ΔL| per pixel, linear luminance) and its T at the shaded \
+         points by {t:.2e}; it was checked against the f64 closed form at every frame (at least \
+         {points} points each, worst |ΔT| {worst:.1e}). <i>Temporal error</i>: the mean \
+         per-pixel |ΔI − ΔI<sub>exact</sub>| between consecutive frames (0: it changes exactly \
+         as <code>exact</code> does, whatever its still error); <i>p99.9</i>: its 99.9th \
+         percentile per frame pair (mean, worst pair); <i>pops</i>: pixels a frame whose change \
+         is visible (more than 3/255 of sRGB-encoded luminance) where <code>exact</code>'s is \
+         not; <i>T temporal</i>: the same as the temporal error on the shadow's T at the \
+         particles' lighting points and the lit ground; <i>frame error</i>: the still measure \
+         on the same frames, mean |I − I<sub>exact</sub>|; FLIP over the frames: median, 95th \
+         percentile, standard deviation.</p>",
+        span = c.span.describe(),
+        lum = c.luminance,
+        t = c.transmittance,
+        points = motion.check_points,
+        worst = motion.check_worst,
+    );
+    body.push_str(
+        "<div class=\"wide\"><table><tr><th>cell</th><th>FLIP vs exact (still)</th>\
+         <th>frame error</th><th>temporal error</th><th>p99.9 (mean / worst)</th>\
+         <th>pops a frame</th><th>T temporal (p99.9)</th><th>FLIP over the frames \
+         (median / p95 / std)</th></tr>\n",
+    );
+    let mut cells: Vec<&CellResult> = results
+        .cells
+        .iter()
+        .filter(|c| c.motion.is_some())
+        .collect();
+    cells.sort_by(|a, b| temporal_error(a).total_cmp(&temporal_error(b)));
+    for cell in cells {
+        let m = cell.motion.as_ref().expect("filtered");
+        let _ = writeln!(
+            body,
+            "<tr><td style=\"text-align: left\">{}</td><td>{}</td><td>{:.2e}</td><td>{:.2e}</td>\
+             <td>{:.2e} / {:.2e}</td><td>{:.0}</td><td>{:.2e} ({:.2e})</td>\
+             <td>{:.4} / {:.4} / {:.4}</td></tr>",
+            e(&variants.cell_label(cell)),
+            metric(cell.vs_exact.map(|x| x.flip_mean)),
+            m.frame_error,
+            m.temporal_error,
+            m.temporal_p999,
+            m.temporal_p999_worst,
+            m.pops_per_frame,
+            m.t_temporal_error,
+            m.t_temporal_p999,
+            m.flip_median,
+            m.flip_p95,
+            m.flip_std,
+        );
+    }
+    body.push_str("</table></div>\n");
 }
 
 /// The cells answering byte budget `bytes` (full particle resolution: the budgets compare
@@ -354,7 +419,8 @@ fn equal_memory(body: &mut String, results: &SweepResults, variants: &Variants) 
          scenes (as its parameters were), or, marked <i>best here</i>, where tune chose none of \
          the swept resolutions, at its most accurate of them on this scene; ranked by FLIP mean \
          against <code>exact</code>.</p>\n<table><tr>\
-         <th>memory</th><th>answer</th><th>ranked (FLIP vs exact, resolution)</th></tr>"
+         <th>memory</th><th>answer</th><th>ranked (FLIP vs exact, resolution)</th>{}</tr>",
+        motion_header(results)
     );
     for &total in &budgets {
         let at = at_memory_budget(results, total);
@@ -388,7 +454,8 @@ fn equal_bytes(body: &mut String, results: &SweepResults, variants: &Variants) {
          channel, single floats 4), ranked by FLIP mean against <code>exact</code>. A best is \
          named only when it leads by more than {spread} FLIP, the spread another CPU's rounding \
          gives; within it the leaders are tied.</p>\n<table><tr><th>budget</th><th>answer</th>\
-         <th>ranked (FLIP vs exact, RMS T error)</th></tr>"
+         <th>ranked (FLIP vs exact, RMS T error)</th>{}</tr>",
+        motion_header(results)
     );
     for &b in &budgets {
         let at = at_byte_budget(results, b);
@@ -430,10 +497,11 @@ fn equal_time(body: &mut String, results: &SweepResults, variants: &Variants) {
          FLIP mean against <code>exact</code>. Timed on <b>{}</b> ({}, {}): on another adapter \
          the times, and so this answer, differ (a software rasterizer's are not a GPU's).</p>\n\
          <table><tr><th>frame time</th><th>answer</th><th>ranked (FLIP vs exact, frame time / \
-         none's, resident bytes)</th></tr>",
+         none's, resident bytes)</th>{}</tr>",
         e(&m.adapter),
         e(&m.backend),
-        e(&m.driver)
+        e(&m.driver),
+        motion_header(results)
     );
     for &ratio in TIME_BUDGETS {
         let at = at_time_budget(results, ratio);
@@ -525,8 +593,80 @@ fn answer_row(
     let _ = writeln!(
         body,
         "<tr><td>{budget}</td><td style=\"text-align: left\">{verdict}</td>\
-         <td style=\"text-align: left; white-space: normal\">{ranked}</td></tr>"
+         <td style=\"text-align: left; white-space: normal\">{ranked}</td>{}</tr>",
+        motion_cell(at, variants)
     );
+}
+
+/// The temporal errors of two renders of one animation by lavapipe on CPUs of different SIMD
+/// widths may differ by this much (an estimate, not a measurement: another CPU moves about 1.6%
+/// of pixels by 1/255, some 2e-3 of linear luminance at mid-grey, 3e-5 of a frame's mean, and
+/// the two frames of a pair each their own way): within it the most stable are tied.
+pub const TEMPORAL_SPREAD: f64 = 3e-5;
+
+/// The cells of `at` that were measured over a span, most stable first (temporal error, then
+/// registry order).
+pub fn most_stable<'a>(at: &[&'a CellResult]) -> Vec<&'a CellResult> {
+    let mut moving: Vec<&CellResult> = at.iter().copied().filter(|c| c.motion.is_some()).collect();
+    moving.sort_by(|a, b| {
+        temporal_error(a)
+            .total_cmp(&temporal_error(b))
+            .then(super::registry_index(&a.technique).cmp(&super::registry_index(&b.technique)))
+    });
+    moving
+}
+
+/// A cell's temporal error over the span (NaN for a still cell).
+pub fn temporal_error(c: &CellResult) -> f64 {
+    c.motion.as_ref().map_or(f64::NAN, |m| m.temporal_error)
+}
+
+/// The answer tables' column of the most stable, when the sweep was animated.
+fn motion_header(results: &SweepResults) -> &'static str {
+    match results.metadata.motion.is_some() {
+        true => "<th>most stable over the span (temporal error, pops a frame)</th>",
+        false => "",
+    }
+}
+
+/// An answer row's most stable cell (or those tied within [`TEMPORAL_SPREAD`]) and the cells
+/// ranked by temporal error; nothing for a still sweep.
+fn motion_cell(at: &[&CellResult], variants: &Variants) -> String {
+    let stable = most_stable(at);
+    let Some(first) = stable.first() else {
+        return match at.iter().any(|c| c.motion.is_some()) {
+            true => "<td></td>".into(),
+            false => String::new(),
+        };
+    };
+    let label = |c: &CellResult| e(&variants.cell_label(c));
+    let tied: Vec<String> = stable
+        .iter()
+        .filter(|c| temporal_error(c) - temporal_error(first) < TEMPORAL_SPREAD)
+        .map(|c| format!("<b>{}</b>", label(c)))
+        .collect();
+    let verdict = match tied.len() {
+        1 => tied[0].clone(),
+        _ => format!("tied: {}", tied.join(", ")),
+    };
+    let ranked = stable
+        .iter()
+        .enumerate()
+        .map(|(i, c)| {
+            let m = c.motion.as_ref().expect("filtered");
+            format!(
+                "{}. {} ({:.2e}, {:.0})",
+                i + 1,
+                label(c),
+                m.temporal_error,
+                m.pops_per_frame
+            )
+        })
+        .collect::<Vec<_>>()
+        .join("; ");
+    format!(
+        "<td style=\"text-align: left; white-space: normal\">{verdict}<br><span class=\"muted\">{ranked}</span></td>"
+    )
 }
 
 /// The cells no other beats on both frame time (relative to `none`'s) and FLIP vs `exact`, at
@@ -1070,6 +1210,7 @@ pub(crate) mod tests {
             hdr_image: None,
             settings_key: "k".into(),
             measured_against: None,
+            motion: None,
         }
     }
 
@@ -1101,6 +1242,7 @@ pub(crate) mod tests {
                 started: "2026-01-01T00:00:00Z".into(),
                 wall_s: 75.0,
                 shards: Vec::new(),
+                motion: None,
             },
             cells: vec![
                 cell("none", 24, 0, None),

@@ -64,6 +64,9 @@ pub struct SweepOptions {
     /// (the shipped `docs/tuned_params.toml`'s, or a `--params FILE`'s): the answer at equal
     /// total memory takes each technique at it where it was swept.
     pub shapes: crate::tune::Shapes,
+    /// `--animate`: every cell also rendered over these consecutive frames beside `exact` at
+    /// each, its temporal measures in the cell ([`crate::motion`]).
+    pub animate: Option<crate::motion::Span>,
 }
 
 impl Default for SweepOptions {
@@ -84,6 +87,7 @@ impl Default for SweepOptions {
             gallery: false,
             shard: None,
             shapes: crate::tune::shipped_shapes(),
+            animate: None,
         }
     }
 }
@@ -203,6 +207,22 @@ fn plan(scene: &Scene, options: &SweepOptions) -> anyhow::Result<(Vec<Plan>, Vec
         if !(1..=8192).contains(&res) {
             anyhow::bail!("--shadow-res {res} is out of range: allowed 1..=8192");
         }
+    }
+    // A sequence's every frame of the span is there before anything is rendered.
+    if let (Some(span), Some(source)) = (options.animate, &scene.particles)
+        && crate::particles::is_sequence(&source.file)
+        && let Some(t) = span
+            .times()
+            .into_iter()
+            .find(|&t| !source.path_at(t).is_file())
+    {
+        anyhow::bail!(
+            "--animate: {}'s frame at t = {t} s is frame {} of {}, and {} does not exist",
+            scene.name,
+            source.frame_at(t),
+            source.file,
+            source.path_at(t).display()
+        );
     }
     let mut cells = vec![
         Plan::new(
@@ -451,8 +471,12 @@ fn settings_key(scene: &Scene, scene_sha256: &str, options: &SweepOptions, plan:
         ParticleRes::Full => String::new(),
         res => format!(" particle_res={res}"),
     };
+    // Likewise a still cell's: the span is added only to an animated sweep's.
+    let animate = options.animate.map_or(String::new(), |s| {
+        format!(" animate={}..{}@{}", s.start_s, s.end_s, s.fps)
+    });
     format!(
-        "tool={} scene={} size={}x{} frames={} warmup={} cell_seconds={} exact=closed-form technique={} params={}{particle_res}",
+        "tool={} scene={} size={}x{} frames={} warmup={} cell_seconds={} exact=closed-form technique={} params={}{particle_res}{animate}",
         env!("CARGO_PKG_VERSION"),
         scene_sha256,
         scene.output.width_px,
@@ -518,6 +542,8 @@ struct Sweeper<'a> {
     keys: &'a BTreeMap<String, String>,
     /// The 24-channel images rendered or read by this process, by cell name.
     own_images: BTreeMap<String, image::RgbImage>,
+    /// With `--animate`: `exact` over the span, every cell's frames compared with it.
+    motion: Option<std::sync::Arc<super::animate::ExactFrames>>,
 }
 
 impl<'a> Sweeper<'a> {
@@ -582,6 +608,29 @@ impl<'a> Sweeper<'a> {
             exact_bytes,
             points.len()
         ));
+        let motion = match options.animate {
+            None => None,
+            Some(span) => {
+                progress.start(&format!("{}: exact over {}", scene.name, span.describe()));
+                let frames = super::animate::ExactFrames::render(
+                    gpu,
+                    &mut renderer,
+                    &target,
+                    scene,
+                    span,
+                    progress,
+                )?;
+                progress.finish(format!(
+                    "{}: exact over {}: it changes by {:.3e} a frame (mean |ΔL|, linear luminance), T by {:.3e}; checked at every frame, worst |ΔT| {:.1e}",
+                    scene.name,
+                    span.describe(),
+                    frames.change.luminance,
+                    frames.change.transmittance,
+                    frames.check_worst
+                ));
+                Some(std::sync::Arc::new(frames))
+            }
+        };
         let against = MeasuredAgainst {
             none_frame_ms: f64::NAN,
             exact_bytes,
@@ -591,6 +640,11 @@ impl<'a> Sweeper<'a> {
             exact_check_worst: Some(check.worst_difference),
             machine: Machine::of(gpu),
             shard: options.shard,
+            motion: motion.as_ref().map(|m| super::MotionReference {
+                change: m.change,
+                check_points: m.check_points,
+                check_worst: m.check_worst,
+            }),
         };
         Ok(Self {
             gpu,
@@ -607,6 +661,7 @@ impl<'a> Sweeper<'a> {
             against,
             keys,
             own_images: BTreeMap::new(),
+            motion,
         })
     }
 
@@ -791,6 +846,16 @@ impl<'a> Sweeper<'a> {
             )),
             false => None,
         };
+        // The cell over the span (not `none`, which is compared with nothing).
+        let animated = match (&self.motion, is_frame_baseline) {
+            (Some(exact), false) => {
+                let exact = std::sync::Arc::clone(exact);
+                let (recorder, frames) =
+                    exact.record(self.gpu, &mut self.renderer, &self.target, &options)?;
+                Some((recorder, frames, std::sync::Arc::clone(&exact.images)))
+            }
+            _ => None,
+        };
 
         let mut cell = CellResult {
             technique: plan.config.name.clone(),
@@ -832,6 +897,7 @@ impl<'a> Sweeper<'a> {
             hdr_image: hdr.as_ref().map(|(path, _)| path.clone()),
             settings_key: key,
             measured_against: Some(self.against.clone()),
+            motion: None,
         };
         with_ratios(&mut cell, None);
         // The 24-channel cell is its own baseline: zero error by definition, no difference
@@ -892,6 +958,9 @@ impl<'a> Sweeper<'a> {
                     )
                 },
             );
+            if let Some((recorder, frames, exact_frames)) = animated {
+                cell.motion = Some(super::animate::finish(recorder, &frames, &exact_frames)?);
+            }
             cell.vs_full_res = Some(match vs_full_res.transpose()? {
                 Some((error, _, _)) => error,
                 None => ImageError {
@@ -1263,7 +1332,10 @@ pub fn run(
         .map(|(d, own)| {
             own.len()
                 + match needs_gpu(d, own) {
-                    true => 1 + usize::from(!records_none(own)),
+                    // `exact`, its frames over the span, this process's `none`.
+                    true => {
+                        1 + usize::from(options.animate.is_some()) + usize::from(!records_none(own))
+                    }
                     false => 0,
                 }
         })
@@ -1484,6 +1556,7 @@ pub(super) fn assemble(
         started,
         wall_s,
         shards,
+        motion: against.iter().find_map(|a| a.motion.clone()),
     };
     let baseline = cells
         .iter()
@@ -1557,6 +1630,12 @@ fn summary(cell: &CellResult) -> String {
     {
         line.push_str(&format!(", FLIP vs full res {:.4}", e.flip_mean));
     }
+    if let Some(m) = &cell.motion {
+        line.push_str(&format!(
+            "; over {} frames: temporal error {:.3e} (p99.9 {:.3e}), {:.0} pops a frame, T {:.3e}",
+            m.frames, m.temporal_error, m.temporal_p999, m.pops_per_frame, m.t_temporal_error
+        ));
+    }
     line
 }
 
@@ -1597,6 +1676,17 @@ pub const CSV_COLUMNS: &[&str] = &[
     "upsample_ms_median",
     "particle_fragments",
     "flip_vs_full_res",
+    "motion_frames",
+    "temporal_error",
+    "temporal_p999",
+    "temporal_p999_worst",
+    "pops_per_frame",
+    "t_temporal_error",
+    "t_temporal_p999",
+    "frame_error",
+    "flip_t_median",
+    "flip_t_p95",
+    "flip_t_std",
     "image",
 ];
 
@@ -1616,6 +1706,12 @@ pub fn write_results(results: &SweepResults, dir: &Path) -> anyhow::Result<()> {
 /// A cell's `results.csv` row, in [`CSV_COLUMNS`] order.
 pub(super) fn csv_row(c: &CellResult) -> Vec<String> {
     let opt = |v: Option<f64>, digits: usize| v.map_or(String::new(), |v| format!("{v:.digits$}"));
+    // The temporal measures are a few 1e-4 of luminance: three significant digits.
+    let motion = |f: fn(&crate::motion::Motion) -> f64| {
+        c.motion
+            .as_ref()
+            .map_or(String::new(), |m| format!("{:.3e}", f(m)))
+    };
     vec![
         c.technique.clone(),
         c.channels.to_string(),
@@ -1661,6 +1757,21 @@ pub(super) fn csv_row(c: &CellResult) -> Vec<String> {
         c.particle_fragments
             .map_or(String::new(), |n| n.to_string()),
         opt(c.vs_full_res.map(|e| e.flip_mean), 6),
+        c.motion
+            .as_ref()
+            .map_or(String::new(), |m| m.frames.to_string()),
+        motion(|m| m.temporal_error),
+        motion(|m| m.temporal_p999),
+        motion(|m| m.temporal_p999_worst),
+        c.motion
+            .as_ref()
+            .map_or(String::new(), |m| format!("{:.2}", m.pops_per_frame)),
+        motion(|m| m.t_temporal_error),
+        motion(|m| m.t_temporal_p999),
+        motion(|m| m.frame_error),
+        motion(|m| m.flip_median),
+        motion(|m| m.flip_p95),
+        motion(|m| m.flip_std),
         c.image.clone(),
     ]
 }

@@ -1,0 +1,527 @@
+//! Smoke that moves: the span of consecutive frames an animated sweep renders
+//! (`smokeshadow sweep --animate START..END --fps F`) and what it measures of a technique over
+//! them against `exact` rendered at the same times.
+//!
+//! The thesis shows each technique "after a wind effect", and its sources name artifacts that
+//! only show in motion: opacity-map slices that particles cross pop, a deep opacity map's
+//! per-texel start depth jumps when the nearest particle changes, a tightly fitted light
+//! frustum shimmers as the smoke's bounds change. A still frame's error does not see them. So
+//! every measure here compares a technique's *change* from one frame to the next with the
+//! reference's change over the same two frames: a technique wrong by the same amount in every
+//! frame scores 0, one whose error jumps about does not.
+//!
+//! - `temporal_error`: over the frame pairs, the mean of the per-pixel
+//!   |(I_t − I_t−1) − (R_t − R_t−1)| on linear luminance (I the technique's frame, R `exact`'s);
+//! - `temporal_p999`: the 99.9th percentile of that per pair, its mean over the pairs, and its
+//!   worst pair (`temporal_p999_worst`): a few pixels that jump;
+//! - `pops_per_frame`: pixels whose change is visible (the sRGB-encoded luminance moves by
+//!   more than [`POP_THRESHOLD`], `diff`'s "visible" 3/255) where `exact`'s is not, per pair;
+//! - `t_temporal_error`, `t_temporal_p999`: the same on the shadow's transmittance at the
+//!   frame's shaded points (the particles' lighting points, the lit ground), so the shadow's
+//!   flicker is told apart from the image's;
+//! - `frame_error`: the still measure on the same frames, mean |I − R|, for the two rankings
+//!   side by side; `flip_median`, `flip_p95`, `flip_std`: the per-frame FLIP against `exact`
+//!   over the span.
+//!
+//! A new measure is a field of [`Motion`] computed in [`Recorder`], a `results.csv` column
+//! (`sweep::CSV_COLUMNS`) and a row of the README's table of them.
+
+use image::RgbImage;
+use serde::{Deserialize, Serialize};
+
+/// The most frames a span may have: the reference's frames are held in memory while every
+/// cell is rendered over them.
+pub const MAX_FRAMES: usize = 240;
+/// Frames per second of a span when none is given (and the scene's particles are no sequence).
+pub const DEFAULT_FPS: f32 = 30.0;
+/// A change of the sRGB-encoded luminance larger than this is visible: `diff`'s threshold of
+/// 3 8-bit steps ([`crate::diff::VISIBLE_THRESHOLD`]).
+pub const POP_THRESHOLD: f32 = crate::diff::VISIBLE_THRESHOLD as f32 / 255.0;
+/// The tail the `*_p999` measures give.
+pub const TAIL_QUANTILE: f64 = 0.999;
+
+/// Consecutive frames 1/`fps` apart from `start_s`, the last within half a frame of `end_s`
+/// (scene time, the scene's `sim.duration_s` at each).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Span {
+    pub start_s: f32,
+    pub end_s: f32,
+    pub fps: f32,
+}
+
+impl Span {
+    /// A span, checked: 0 <= `start_s` < `end_s` <= 600 (the scene clock's range), `fps` in
+    /// (0, 240], 2 to [`MAX_FRAMES`] frames.
+    pub fn new(start_s: f32, end_s: f32, fps: f32) -> Result<Self, String> {
+        if !(fps.is_finite() && fps > 0.0 && fps <= 240.0) {
+            return Err(format!("--fps {fps} is out of range: allowed (0, 240]"));
+        }
+        if !(start_s.is_finite() && end_s.is_finite() && start_s >= 0.0 && end_s <= 600.0) {
+            return Err(format!(
+                "--animate {start_s}..{end_s} is out of range: times in seconds within 0..600"
+            ));
+        }
+        if end_s <= start_s {
+            return Err(format!(
+                "--animate {start_s}..{end_s}: the end must come after the start"
+            ));
+        }
+        let span = Self {
+            start_s,
+            end_s,
+            fps,
+        };
+        let frames = span.frames();
+        if frames < 2 {
+            return Err(format!(
+                "--animate {start_s}..{end_s} at {fps} fps is {frames} frame: give a span of at least two frames (1/{fps} s apart)"
+            ));
+        }
+        if frames > MAX_FRAMES {
+            return Err(format!(
+                "--animate {start_s}..{end_s} at {fps} fps is {frames} frames: at most {MAX_FRAMES} (a shorter span or a lower --fps)"
+            ));
+        }
+        Ok(span)
+    }
+
+    /// Parses `START..END` (seconds) at `fps`.
+    pub fn parse(range: &str, fps: f32) -> Result<Self, String> {
+        let (a, b) = range.split_once("..").ok_or_else(|| {
+            format!("--animate \"{range}\" is not START..END (seconds, e.g. 7.1..7.87)")
+        })?;
+        let number = |s: &str| {
+            s.trim().parse::<f32>().map_err(|_| {
+                format!(
+                    "--animate \"{range}\": \"{}\" is not a number of seconds",
+                    s.trim()
+                )
+            })
+        };
+        Self::new(number(a)?, number(b)?, fps)
+    }
+
+    /// How many frames it has.
+    pub fn frames(&self) -> usize {
+        ((f64::from(self.end_s) - f64::from(self.start_s)) * f64::from(self.fps)).round() as usize
+            + 1
+    }
+
+    /// The scene time of each frame, seconds.
+    pub fn times(&self) -> Vec<f32> {
+        (0..self.frames())
+            .map(|k| (f64::from(self.start_s) + k as f64 / f64::from(self.fps)) as f32)
+            .collect()
+    }
+
+    /// "24 frames at 30 fps, t = 7.1 .. 7.87 s".
+    pub fn describe(&self) -> String {
+        let times = self.times();
+        format!(
+            "{} frames at {} fps, t = {} .. {} s",
+            times.len(),
+            self.fps,
+            self.start_s,
+            times.last().copied().unwrap_or(self.start_s)
+        )
+    }
+}
+
+/// The sRGB decoding of each 8-bit value.
+fn decode_table() -> [f32; 256] {
+    std::array::from_fn(|v| crate::diff::srgb_to_linear(v as f64 / 255.0) as f32)
+}
+
+/// The sRGB encoding (IEC 61966-2-1) of a linear value in [0, 1].
+fn srgb_encode(linear: f32) -> f32 {
+    let l = linear.clamp(0.0, 1.0);
+    if l <= 0.003_130_8 {
+        l * 12.92
+    } else {
+        1.055 * l.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+/// Each pixel's linear luminance (Rec. 709 weights of the sRGB-decoded channels): what the
+/// temporal measures compare.
+pub fn linear_luminance(image: &RgbImage) -> Vec<f32> {
+    let table = decode_table();
+    image
+        .pixels()
+        .map(|p| {
+            0.2126 * table[p[0] as usize]
+                + 0.7152 * table[p[1] as usize]
+                + 0.0722 * table[p[2] as usize]
+        })
+        .collect()
+}
+
+/// What one frame gives the measures: its luminance and the shadow's transmittance at its
+/// shaded points.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FrameSample {
+    /// Linear luminance per pixel ([`linear_luminance`]).
+    pub luminance: Vec<f32>,
+    /// T at the frame's points.
+    pub transmittance: Vec<f32>,
+    /// How many of the first points are the same in every frame of the span (the lit ground's;
+    /// the particles' lighting points follow them, comparable between two frames only when the
+    /// frames have as many points).
+    pub fixed_points: usize,
+}
+
+impl FrameSample {
+    /// Bytes it holds.
+    pub fn bytes(&self) -> u64 {
+        4 * (self.luminance.len() + self.transmittance.len()) as u64
+    }
+}
+
+/// How far a frame pair's changes are apart: the mean and the [`TAIL_QUANTILE`] of
+/// |(a1 − a0) − (b1 − b0)| over the values.
+fn change_difference(a0: &[f32], a1: &[f32], b0: &[f32], b1: &[f32]) -> (f64, f64) {
+    let mut d: Vec<f32> = a0
+        .iter()
+        .zip(a1)
+        .zip(b0.iter().zip(b1))
+        .map(|((a0, a1), (b0, b1))| ((a1 - a0) - (b1 - b0)).abs())
+        .collect();
+    if d.is_empty() {
+        return (0.0, 0.0);
+    }
+    let mean = d.iter().map(|&v| f64::from(v)).sum::<f64>() / d.len() as f64;
+    (mean, f64::from(quantile(&mut d, TAIL_QUANTILE)))
+}
+
+/// The nearest-rank `q` quantile of `values` (reordered).
+fn quantile(values: &mut [f32], q: f64) -> f32 {
+    let rank = ((q * values.len() as f64).ceil() as usize).clamp(1, values.len());
+    *values.select_nth_unstable_by(rank - 1, f32::total_cmp).1
+}
+
+/// Pixels whose luminance change from `a0` to `a1` is visible ([`POP_THRESHOLD`] on the
+/// sRGB-encoded luminance) where the change from `b0` to `b1` is not.
+fn pops(a0: &[f32], a1: &[f32], b0: &[f32], b1: &[f32]) -> u64 {
+    let visible = |x0: f32, x1: f32| (srgb_encode(x1) - srgb_encode(x0)).abs() > POP_THRESHOLD;
+    a0.iter()
+        .zip(a1)
+        .zip(b0.iter().zip(b1))
+        .filter(|((a0, a1), (b0, b1))| visible(**a0, **a1) && !visible(**b0, **b1))
+        .count() as u64
+}
+
+/// The reference's own change over a span: the scale the temporal errors are read against.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ReferenceChange {
+    pub span: Span,
+    pub frames: u32,
+    /// Mean over the frame pairs of mean |R_t − R_t−1|, linear luminance.
+    pub luminance: f64,
+    /// The same of `exact`'s T at the shaded points.
+    pub transmittance: f64,
+}
+
+impl ReferenceChange {
+    /// Of `exact`'s frames over `span`.
+    pub fn of(span: Span, frames: &[FrameSample]) -> Self {
+        let zero = |v: &[f32]| vec![0.0; v.len()];
+        let (mut lum, mut t) = (Vec::new(), Vec::new());
+        for pair in frames.windows(2) {
+            let z = zero(&pair[0].luminance);
+            lum.push(change_difference(&pair[0].luminance, &pair[1].luminance, &z, &z).0);
+            let (t0, t1) = comparable(&pair[0], &pair[1]);
+            let z = zero(t0);
+            t.push(change_difference(t0, t1, &z, &z).0);
+        }
+        Self {
+            span,
+            frames: frames.len() as u32,
+            luminance: mean(&lum),
+            transmittance: mean(&t),
+        }
+    }
+}
+
+/// The points of two frames that correspond: all of them when the frames have as many,
+/// else the fixed ones.
+fn comparable<'a>(a: &'a FrameSample, b: &'a FrameSample) -> (&'a [f32], &'a [f32]) {
+    let n = match a.transmittance.len() == b.transmittance.len() {
+        true => a.transmittance.len(),
+        false => a.fixed_points.min(b.fixed_points),
+    };
+    (&a.transmittance[..n], &b.transmittance[..n])
+}
+
+fn mean(values: &[f64]) -> f64 {
+    match values.is_empty() {
+        true => 0.0,
+        false => values.iter().sum::<f64>() / values.len() as f64,
+    }
+}
+
+/// A cell over a span, against `exact` over the same frames (module docs for each measure).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Motion {
+    /// Frames measured (pairs: one fewer).
+    pub frames: u32,
+    pub temporal_error: f64,
+    pub temporal_p999: f64,
+    pub temporal_p999_worst: f64,
+    pub pops_per_frame: f64,
+    pub t_temporal_error: f64,
+    pub t_temporal_p999: f64,
+    pub frame_error: f64,
+    pub flip_median: f64,
+    pub flip_p95: f64,
+    pub flip_std: f64,
+    /// The FLIP against `exact` of each frame, and the temporal error of each pair (the
+    /// report's charts over time).
+    #[serde(default)]
+    pub flip_per_frame: Vec<f64>,
+    #[serde(default)]
+    pub temporal_per_pair: Vec<f64>,
+}
+
+/// Takes a technique's frames over a span, in order, beside `exact`'s, and gives its
+/// [`Motion`]. Holds only the previous frame.
+#[derive(Default)]
+pub struct Recorder {
+    previous: Option<FrameSample>,
+    frames: u32,
+    image: Vec<(f64, f64)>,
+    pops: Vec<u64>,
+    shadow: Vec<(f64, f64)>,
+    frame_errors: Vec<f64>,
+}
+
+impl Recorder {
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// The technique's next frame; `exact` holds the reference's frames of the whole span (the
+    /// frame is compared with the one at its index, and its change with that one's).
+    pub fn push(&mut self, frame: FrameSample, exact: &[FrameSample]) {
+        let k = self.frames as usize;
+        let r = &exact[k];
+        let z = vec![0.0; r.luminance.len()];
+        self.frame_errors
+            .push(change_difference(&z, &frame.luminance, &z, &r.luminance).0);
+        if let Some(prev) = &self.previous {
+            let r0 = &exact[k - 1];
+            self.image.push(change_difference(
+                &prev.luminance,
+                &frame.luminance,
+                &r0.luminance,
+                &r.luminance,
+            ));
+            self.pops.push(pops(
+                &prev.luminance,
+                &frame.luminance,
+                &r0.luminance,
+                &r.luminance,
+            ));
+            let (a0, a1) = comparable(prev, &frame);
+            let (b0, b1) = comparable(r0, r);
+            self.shadow.push(change_difference(a0, a1, b0, b1));
+        }
+        self.previous = Some(frame);
+        self.frames += 1;
+    }
+
+    /// The measures, with the per-frame FLIP against `exact` (`flips`, one a frame).
+    pub fn finish(self, flips: &[f64]) -> Motion {
+        let first = |v: &[(f64, f64)]| v.iter().map(|p| p.0).collect::<Vec<f64>>();
+        let second = |v: &[(f64, f64)]| v.iter().map(|p| p.1).collect::<Vec<f64>>();
+        let mut sorted = flips.to_vec();
+        sorted.sort_by(f64::total_cmp);
+        let at = |q: f64| match sorted.is_empty() {
+            true => 0.0,
+            false => sorted[((q * sorted.len() as f64).ceil() as usize).clamp(1, sorted.len()) - 1],
+        };
+        let flip_mean = mean(flips);
+        let variance = mean(
+            &flips
+                .iter()
+                .map(|f| (f - flip_mean).powi(2))
+                .collect::<Vec<f64>>(),
+        );
+        Motion {
+            frames: self.frames,
+            temporal_error: mean(&first(&self.image)),
+            temporal_p999: mean(&second(&self.image)),
+            temporal_p999_worst: second(&self.image).into_iter().fold(0.0, f64::max),
+            pops_per_frame: mean(&self.pops.iter().map(|&p| p as f64).collect::<Vec<f64>>()),
+            t_temporal_error: mean(&first(&self.shadow)),
+            t_temporal_p999: mean(&second(&self.shadow)),
+            frame_error: mean(&self.frame_errors),
+            flip_median: at(0.5),
+            flip_p95: at(0.95),
+            flip_std: variance.sqrt(),
+            flip_per_frame: flips.to_vec(),
+            temporal_per_pair: first(&self.image),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sample(luminance: Vec<f32>, transmittance: Vec<f32>) -> FrameSample {
+        FrameSample {
+            luminance,
+            transmittance,
+            fixed_points: 0,
+        }
+    }
+
+    /// A technique's frames and exact's, as luminance rows of one value per pixel.
+    fn measure(technique: &[Vec<f32>], exact: &[Vec<f32>]) -> Motion {
+        let exact: Vec<FrameSample> = exact.iter().map(|l| sample(l.clone(), vec![])).collect();
+        let mut r = Recorder::new();
+        for l in technique {
+            r.push(sample(l.clone(), vec![]), &exact);
+        }
+        r.finish(&vec![0.0; technique.len()])
+    }
+
+    #[test]
+    fn spans_count_their_frames_and_refuse_what_they_cannot_render() {
+        let s = Span::parse("7.5..7.9", 30.0).unwrap();
+        assert_eq!(s.frames(), 13);
+        let t = s.times();
+        assert!((t[1] - t[0] - 1.0 / 30.0).abs() < 1e-6);
+        assert!((t[12] - 7.9).abs() < 1e-5);
+        assert_eq!(s.describe(), "13 frames at 30 fps, t = 7.5 .. 7.9 s");
+        for (range, fps, says) in [
+            ("3..2", 30.0, "after the start"),
+            ("7", 30.0, "is not START..END"),
+            ("a..2", 30.0, "\"a\" is not a number"),
+            ("1..1.01", 30.0, "at least two frames"),
+            ("0..100", 30.0, "at most 240"),
+            ("-1..2", 30.0, "out of range"),
+            ("1..2", 0.0, "--fps 0 is out of range"),
+        ] {
+            let err = Span::parse(range, fps).unwrap_err();
+            assert!(err.contains(says), "{range} at {fps}: {err}");
+        }
+    }
+
+    #[test]
+    fn luminance_decodes_srgb_and_weighs_the_channels() {
+        let mut img = RgbImage::new(3, 1);
+        img.put_pixel(0, 0, image::Rgb([255, 255, 255]));
+        img.put_pixel(1, 0, image::Rgb([0, 255, 0]));
+        img.put_pixel(2, 0, image::Rgb([188, 188, 188]));
+        let l = linear_luminance(&img);
+        assert!((l[0] - 1.0).abs() < 1e-6);
+        assert!((l[1] - 0.7152).abs() < 1e-6);
+        // sRGB 188/255 = 0.737 decodes to ((0.737 + 0.055) / 1.055)^2.4 = 0.5029.
+        assert!((l[2] - 0.5029).abs() < 1e-3, "{}", l[2]);
+    }
+
+    #[test]
+    fn a_technique_that_equals_exact_or_errs_alike_in_every_frame_has_no_temporal_error() {
+        let exact = vec![
+            vec![0.1, 0.2, 0.3],
+            vec![0.2, 0.25, 0.5],
+            vec![0.4, 0.1, 0.2],
+        ];
+        let same = measure(&exact, &exact);
+        assert_eq!(same.temporal_error, 0.0);
+        assert_eq!(same.temporal_p999, 0.0);
+        assert_eq!(same.pops_per_frame, 0.0);
+        assert_eq!(same.frame_error, 0.0);
+        // Darker by 0.05 everywhere, always: a still error of 0.05, no temporal one.
+        let offset: Vec<Vec<f32>> = exact
+            .iter()
+            .map(|f| f.iter().map(|v| v - 0.05).collect())
+            .collect();
+        let m = measure(&offset, &exact);
+        assert!(m.temporal_error < 1e-7, "{}", m.temporal_error);
+        assert!((m.frame_error - 0.05).abs() < 1e-7);
+        assert_eq!(m.pops_per_frame, 0.0);
+    }
+
+    #[test]
+    fn a_frozen_technique_errs_by_exacts_whole_change() {
+        // exact moves by 0.1 then 0.3 per pixel; the technique stands still: its temporal
+        // error is exact's mean change, (0.1 + 0.3) / 2.
+        let exact = vec![vec![0.2; 4], vec![0.3; 4], vec![0.6; 4]];
+        let frozen = vec![vec![0.2; 4]; 3];
+        let m = measure(&frozen, &exact);
+        assert!(
+            (m.temporal_error - 0.2).abs() < 1e-6,
+            "{}",
+            m.temporal_error
+        );
+        assert!((m.temporal_p999 - 0.2).abs() < 1e-6);
+        assert!((m.temporal_p999_worst - 0.3).abs() < 1e-6);
+        assert_eq!(m.pops_per_frame, 0.0, "a frozen frame never pops");
+        let change = ReferenceChange::of(
+            Span::new(0.0, 2.0 / 30.0, 30.0).unwrap(),
+            &exact
+                .iter()
+                .map(|l| sample(l.clone(), vec![]))
+                .collect::<Vec<_>>(),
+        );
+        assert!((change.luminance - 0.2).abs() < 1e-6);
+    }
+
+    #[test]
+    fn one_pixel_that_jumps_is_the_tail_and_a_pop() {
+        // 2000 pixels; exact still; one technique pixel jumps from 0.2 to 0.4 and back.
+        let exact = vec![vec![0.2f32; 2000]; 3];
+        let mut jump = exact.clone();
+        jump[1][7] = 0.4;
+        let m = measure(&jump, &exact);
+        // Mean over pixels: 0.2 / 2000 per pair.
+        assert!((m.temporal_error - 0.2 / 2000.0).abs() < 1e-8);
+        // The 99.9th percentile of 2000 values is the 1998th smallest: 0 (one outlier).
+        assert_eq!(m.temporal_p999, 0.0);
+        // Each pair: the jump is visible (sRGB 0.48 -> 0.66), exact's 0 is not.
+        assert_eq!(m.pops_per_frame, 1.0);
+        // Three jumping pixels of 2000 reach the tail (the 1998th value of the sorted changes).
+        let mut three = exact.clone();
+        for i in [1, 2, 3] {
+            three[1][i] = 0.4;
+        }
+        assert!((measure(&three, &exact).temporal_p999 - 0.2).abs() < 1e-6);
+        // A change exact makes too does not pop, whatever its size difference.
+        let mut both = exact.clone();
+        both[1][7] = 0.5;
+        let mut ex = exact.clone();
+        ex[1][7] = 0.4;
+        assert_eq!(measure(&both, &ex).pops_per_frame, 0.0);
+        // A change below 3/255 of sRGB-encoded luminance is not visible.
+        let mut small = exact.clone();
+        small[1][7] = 0.2 + 0.002;
+        assert_eq!(measure(&small, &exact).pops_per_frame, 0.0);
+    }
+
+    #[test]
+    fn the_shadows_change_compares_only_points_that_correspond() {
+        let f = |t: Vec<f32>, fixed| FrameSample {
+            luminance: vec![0.0],
+            transmittance: t,
+            fixed_points: fixed,
+        };
+        // Two fixed points then particle points; frame 1 has a particle more (its points do
+        // not correspond), so only the fixed ones count.
+        let exact = vec![f(vec![0.5, 0.5, 0.9], 2), f(vec![0.6, 0.5, 0.1, 0.1], 2)];
+        let mut r = Recorder::new();
+        r.push(f(vec![0.5, 0.5, 0.9], 2), &exact);
+        r.push(f(vec![0.5, 0.7, 0.8, 0.8], 2), &exact);
+        let m = r.finish(&[0.1, 0.3]);
+        // |0 - 0.1| and |0.2 - 0| over the two fixed points.
+        assert!(
+            (m.t_temporal_error - 0.15).abs() < 1e-6,
+            "{}",
+            m.t_temporal_error
+        );
+        assert!((m.flip_median - 0.1).abs() < 1e-12);
+        assert!((m.flip_p95 - 0.3).abs() < 1e-12);
+        assert!((m.flip_std - 0.1).abs() < 1e-12);
+    }
+}

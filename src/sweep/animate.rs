@@ -1,0 +1,223 @@
+//! The animated sweep (`--animate START..END`, [`crate::motion`]): `exact` rendered once per
+//! scene over the span, each frame's particles, points and reference kept; then every cell
+//! rendered over the same frames on the sweep's one renderer (its pipelines built once, its
+//! maps built every frame), each frame's image and T compared with the reference's.
+//!
+//! A frame of the span is the scene at that time ([`Scene::at_time`]): the emitters simulated
+//! forward step by step (one [`Simulation`] over the whole span), a particle sequence's frame
+//! nearest the time.
+
+use std::sync::Arc;
+
+use anyhow::Context;
+use glam::Vec3;
+use image::RgbImage;
+
+use crate::gpu::Gpu;
+use crate::motion::{FrameSample, Recorder, ReferenceChange, Span, linear_luminance};
+use crate::progress::Progress;
+use crate::render::shaded::{lit_opaque_points, particle_lighting_points};
+use crate::render::{OffscreenTarget, RenderOptions, Renderer};
+use crate::scene::Scene;
+use crate::sim::{Particle, Simulation};
+
+/// The most particles whose lighting points a frame's transmittance is compared at (every
+/// k-th particle beyond it): the reference's T of every frame is held in memory.
+const MAX_POINT_PARTICLES: usize = 16_384;
+/// The most bytes the reference's frames may hold (particles, points, images, samples).
+const MAX_HELD_BYTES: u64 = 2 << 30;
+
+/// One frame of the span: the scene at its time, its particles and the points its shadow is
+/// compared at.
+pub(super) struct Frame {
+    pub scene: Scene,
+    pub particles: Vec<Particle>,
+    /// The lit ground's points first (the same every frame: `fixed`), then the lighting
+    /// points of every k-th particle.
+    pub points: Vec<Vec3>,
+    pub owners: Vec<u32>,
+    pub fixed: usize,
+}
+
+/// `exact` over the span: what every cell's frames are compared with.
+pub(super) struct ExactFrames {
+    pub frames: Vec<Frame>,
+    pub samples: Vec<FrameSample>,
+    /// Its 8-bit frames, shared with each cell's comparison thread (FLIP per frame).
+    pub images: Arc<Vec<RgbImage>>,
+    pub change: ReferenceChange,
+    /// The worst |ΔT| of its self-check over every frame, and the fewest points one compared.
+    pub check_worst: f64,
+    pub check_points: usize,
+}
+
+/// The span's frames of `scene`: the emitters stepped forward once over the span, or the
+/// particle file read at each time.
+fn frames(scene: &Scene, span: &Span, (w, h): (u32, u32)) -> anyhow::Result<Vec<Frame>> {
+    let mut sim = scene.particles.is_none().then(|| Simulation::new(scene));
+    let camera = crate::render::CameraMatrices::new(scene, w, h);
+    let ground = lit_opaque_points(scene, &camera, w, h, super::SHADED_STRIDE_PX);
+    let mut out = Vec::new();
+    for t in span.times() {
+        let at = scene.at_time(t);
+        let particles = match (&mut sim, &at.particles) {
+            (Some(sim), _) => {
+                sim.advance_to(t);
+                sim.particles()
+            }
+            (None, Some(source)) => source
+                .particles_at(t)
+                .with_context(|| format!("--animate: the particles at t = {t} s"))?,
+            (None, None) => unreachable!("a scene without a particle file simulates"),
+        };
+        let stride = particles.len().div_ceil(MAX_POINT_PARTICLES).max(1);
+        let mut points = ground.clone();
+        let mut owners = vec![crate::shadow::NO_OWNER; ground.len()];
+        for (i, p) in particles.iter().enumerate().step_by(stride) {
+            points.extend(particle_lighting_points(
+                camera.position,
+                std::slice::from_ref(p),
+            ));
+            owners.extend([i as u32; 4]);
+        }
+        out.push(Frame {
+            scene: at,
+            particles,
+            points,
+            owners,
+            fixed: ground.len(),
+        });
+    }
+    Ok(out)
+}
+
+impl ExactFrames {
+    /// Renders `exact` (the `renderer`'s technique) at every frame of `span`, checks it against
+    /// the closed form at each, and keeps what the cells are compared with. Refuses a span
+    /// whose frames would hold more than [`MAX_HELD_BYTES`].
+    pub fn render(
+        gpu: &Gpu,
+        renderer: &mut Renderer,
+        target: &OffscreenTarget,
+        scene: &Scene,
+        span: Span,
+        progress: &mut Progress,
+    ) -> anyhow::Result<Self> {
+        let size = renderer.size();
+        let frames = progress.suspend(|| frames(scene, &span, size))?;
+        let pixels = u64::from(size.0) * u64::from(size.1);
+        let held: u64 = frames
+            .iter()
+            .map(|f| {
+                (f.particles.len() * std::mem::size_of::<Particle>()) as u64
+                    + f.points.len() as u64 * 20
+                    + pixels * 7
+            })
+            .sum();
+        if held > MAX_HELD_BYTES {
+            anyhow::bail!(
+                "--animate: {} of {} at {}x{} hold {} in memory (the reference's frames): at most {}; give fewer frames or a smaller --size",
+                span.describe(),
+                scene.name,
+                size.0,
+                size.1,
+                crate::report::bytes(held),
+                crate::report::bytes(MAX_HELD_BYTES)
+            );
+        }
+        let (mut samples, mut images) = (Vec::new(), Vec::new());
+        let (mut check_worst, mut check_points) = (0.0f64, usize::MAX);
+        for f in &frames {
+            renderer.render(
+                gpu,
+                &f.scene,
+                &f.particles,
+                &RenderOptions::default(),
+                &target.view,
+            )?;
+            let image = read_rgb(gpu, target)?;
+            let transmittance =
+                renderer.probe_shaded(gpu, &f.scene, &f.particles, &f.points, &f.owners)?;
+            let check = progress.suspend(|| {
+                crate::render::reference_check::verify(renderer, gpu, &f.scene, &f.particles)
+            })?;
+            check_worst = check_worst.max(check.worst_difference);
+            check_points = check_points.min(check.points);
+            samples.push(FrameSample {
+                luminance: linear_luminance(&image),
+                transmittance,
+                fixed_points: f.fixed,
+            });
+            images.push(image);
+        }
+        let change = ReferenceChange::of(span, &samples);
+        Ok(Self {
+            frames,
+            samples,
+            images: Arc::new(images),
+            change,
+            check_worst,
+            check_points,
+        })
+    }
+
+    /// Renders the `renderer`'s technique at every frame (the frame builds its maps, the probe
+    /// reuses them) and records each against the reference's: the recorder and the frames,
+    /// for the FLIP per frame on the cell's comparison thread ([`finish`]).
+    pub fn record(
+        &self,
+        gpu: &Gpu,
+        renderer: &mut Renderer,
+        target: &OffscreenTarget,
+        options: &RenderOptions,
+    ) -> anyhow::Result<(Recorder, Vec<RgbImage>)> {
+        let options = RenderOptions {
+            reuse_shadow_maps: true,
+            ..*options
+        };
+        let mut recorder = Recorder::new();
+        let mut images = Vec::with_capacity(self.frames.len());
+        for f in &self.frames {
+            // The frame as any other (its own build and draw), then its T from the same maps.
+            renderer.forget_maps();
+            renderer.render(gpu, &f.scene, &f.particles, &options, &target.view)?;
+            let image = read_rgb(gpu, target)?;
+            let transmittance =
+                renderer.probe_shaded(gpu, &f.scene, &f.particles, &f.points, &f.owners)?;
+            recorder.push(
+                FrameSample {
+                    luminance: linear_luminance(&image),
+                    transmittance,
+                    fixed_points: f.fixed,
+                },
+                &self.samples,
+            );
+            images.push(image);
+        }
+        Ok((recorder, images))
+    }
+}
+
+/// The cell's motion from what [`ExactFrames::record`] gave: the FLIP of every frame against
+/// the reference's (in parallel), then the measures.
+pub(super) fn finish(
+    recorder: Recorder,
+    images: &[RgbImage],
+    exact: &[RgbImage],
+) -> anyhow::Result<crate::motion::Motion> {
+    use rayon::prelude::*;
+    let flips: Vec<f64> = images
+        .par_iter()
+        .zip(exact.par_iter())
+        .map(|(image, reference)| {
+            crate::diff::compare_with(reference, image, crate::diff::Ssim::Skip)
+                .map(|c| c.metrics.flip_mean)
+        })
+        .collect::<Result<_, _>>()?;
+    Ok(recorder.finish(&flips))
+}
+
+fn read_rgb(gpu: &Gpu, target: &OffscreenTarget) -> anyhow::Result<RgbImage> {
+    let rgba = crate::gpu::read_texture_rgba8(gpu, &target.texture)?;
+    Ok(image::DynamicImage::ImageRgba8(rgba).into_rgb8())
+}
