@@ -117,12 +117,14 @@ impl Span {
     /// "24 frames at 30 fps, t = 7.1 .. 7.87 s".
     pub fn describe(&self) -> String {
         let times = self.times();
+        // Milliseconds: a frame time 1/30 s after a round start is not round in f32.
+        let ms = |t: f32| (f64::from(t) * 1e3).round() / 1e3;
         format!(
             "{} frames at {} fps, t = {} .. {} s",
             times.len(),
             self.fps,
-            self.start_s,
-            times.last().copied().unwrap_or(self.start_s)
+            ms(self.start_s),
+            ms(times.last().copied().unwrap_or(self.start_s))
         )
     }
 }
