@@ -272,6 +272,23 @@ fn the_thesis_plume_in_motion_measures_what_its_frames_show() {
         assert!(dir.join("charts").join(chart).is_file(), "{chart}");
         assert!(html.contains(chart), "{chart} in the report");
     }
+    // The side-by-side: exact and the chosen cells, a frame of the span each, at half size.
+    let animation = r
+        .animation
+        .as_ref()
+        .expect("an animated sweep's side-by-side");
+    assert_eq!(animation.tiles[0], "exact");
+    assert!(html.contains(&animation.file));
+    let decoder = png::Decoder::new(std::io::BufReader::new(
+        std::fs::File::open(dir.join(&animation.file)).unwrap(),
+    ));
+    let reader = decoder.read_info().unwrap();
+    let info = reader.info();
+    assert_eq!(info.animation_control.unwrap().num_frames, 4);
+    assert_eq!(
+        (info.width, info.height),
+        (64 * animation.tiles.len() as u32, 48)
+    );
     // The CSV has the columns, filled for every cell but `none`.
     let mut reader = csv::Reader::from_path(dir.join("results.csv")).unwrap();
     let header = reader.headers().unwrap().clone();

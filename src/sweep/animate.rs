@@ -221,3 +221,65 @@ fn read_rgb(gpu: &Gpu, target: &OffscreenTarget) -> anyhow::Result<RgbImage> {
     let rgba = crate::gpu::read_texture_rgba8(gpu, &target.texture)?;
     Ok(image::DynamicImage::ImageRgba8(rgba).into_rgb8())
 }
+
+/// The side-by-side's file in a scene's folder.
+pub(super) const ANIMATION_FILE: &str = "motion.png";
+
+impl ExactFrames {
+    /// Renders each of `cells` (a label, its technique and options) over the span and writes
+    /// `exact` and them side by side, each frame at half size, as an animated PNG at `path`
+    /// playing at the span's rate (written to a temporary file, then renamed).
+    pub fn write_animation(
+        &self,
+        gpu: &Gpu,
+        renderer: &mut Renderer,
+        target: &OffscreenTarget,
+        cells: &[(&crate::render::TechniqueConfig, RenderOptions)],
+        path: &std::path::Path,
+    ) -> anyhow::Result<()> {
+        let half = |image: &RgbImage| {
+            image::imageops::resize(
+                image,
+                (image.width() / 2).max(1),
+                (image.height() / 2).max(1),
+                image::imageops::FilterType::Triangle,
+            )
+        };
+        let mut columns: Vec<Vec<RgbImage>> = vec![self.images.iter().map(half).collect()];
+        for (config, options) in cells {
+            renderer.set_technique(gpu, config)?;
+            let mut frames = Vec::with_capacity(self.frames.len());
+            for f in &self.frames {
+                renderer.forget_maps();
+                renderer.render(gpu, &f.scene, &f.particles, options, &target.view)?;
+                frames.push(half(&read_rgb(gpu, target)?));
+            }
+            columns.push(frames);
+        }
+        let (w, h) = columns[0][0].dimensions();
+        let strip = |k: usize| {
+            let mut out = RgbImage::new(w * columns.len() as u32, h);
+            for (i, column) in columns.iter().enumerate() {
+                image::imageops::replace(&mut out, &column[k], i64::from(w) * i as i64, 0);
+            }
+            out
+        };
+        let mut bytes = Vec::new();
+        {
+            let mut encoder = png::Encoder::new(&mut bytes, w * columns.len() as u32, h);
+            encoder.set_color(png::ColorType::Rgb);
+            encoder.set_depth(png::BitDepth::Eight);
+            encoder.set_animated(self.frames.len() as u32, 0)?;
+            // 1/fps seconds a frame: 100 / (100 fps), exact to a hundredth of a frame per second
+            // (fps is at most 240).
+            let fps = self.change.span.fps;
+            encoder.set_frame_delay(100, (f64::from(fps) * 100.0).round().max(1.0) as u16)?;
+            let mut writer = encoder.write_header()?;
+            for k in 0..self.frames.len() {
+                writer.write_image_data(strip(k).as_raw())?;
+            }
+            writer.finish()?;
+        }
+        crate::output::write_atomic(path, &bytes)
+    }
+}

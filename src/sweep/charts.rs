@@ -1149,6 +1149,7 @@ mod tests {
             }],
             exact_image: "images/exact.png".into(),
             exact_hdr_image: None,
+            animation: None,
         }
     }
 

@@ -379,4 +379,19 @@ pub struct SweepResults {
     /// And of its HDR frame as OpenEXR (`--exr`).
     #[serde(default)]
     pub exact_hdr_image: Option<String>,
+    /// With `--animate`: the span's frames of `exact` and a few chosen cells side by side, as
+    /// an animated PNG ([`Animation`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub animation: Option<Animation>,
+}
+
+/// An animated sweep's side-by-side: `exact` and the cells [`report::animated_cells`] chose,
+/// left to right, each frame of the span at half size, as an animated PNG (APNG: every
+/// browser plays it, and a viewer that does not shows its first frame).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Animation {
+    /// Relative to the scene's folder.
+    pub file: String,
+    /// The tiles' labels, left to right (`exact` first).
+    pub tiles: Vec<String>,
 }

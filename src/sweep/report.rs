@@ -239,6 +239,23 @@ fn motion_section(body: &mut String, results: &SweepResults, variants: &Variants
         );
     }
     body.push_str("</table></div>\n");
+    if let Some(a) = &results.animation {
+        let _ = writeln!(
+            body,
+            "<figure><a href=\"{x}\"><img src=\"{x}\" alt=\"the span side by side\" \
+             style=\"max-width: 100%\"></a><figcaption>Left to right: {} over the {}, each at \
+             half size (an animated PNG; chosen: at each budget from the smallest, the most \
+             accurate still and the most stable in motion, and at the smallest the least \
+             stable).</figcaption></figure>",
+            a.tiles
+                .iter()
+                .map(|t| format!("<b>{}</b>", e(t)))
+                .collect::<Vec<_>>()
+                .join(", "),
+            c.span.describe(),
+            x = e(&a.file),
+        );
+    }
 }
 
 /// The cells answering byte budget `bytes` (full particle resolution: the budgets compare
@@ -614,6 +631,46 @@ pub fn most_stable<'a>(at: &[&'a CellResult]) -> Vec<&'a CellResult> {
             .then(super::registry_index(&a.technique).cmp(&super::registry_index(&b.technique)))
     });
     moving
+}
+
+/// The cells an animated sweep shows side by side with `exact` ([`super::Animation`]): at each
+/// byte budget from the smallest (where they differ most), else each memory budget, else over
+/// every cell, the most accurate still and the most stable in motion, and at the first of them
+/// the least stable too; three at most.
+pub fn animated_cells(results: &SweepResults) -> Vec<&CellResult> {
+    let mut budgets: Vec<Vec<&CellResult>> = byte_budgets(results)
+        .into_iter()
+        .rev()
+        .map(|b| at_byte_budget(results, b))
+        .collect();
+    if budgets.is_empty() {
+        budgets = memory_budgets(results)
+            .into_iter()
+            .rev()
+            .map(|m| at_memory_budget(results, m))
+            .collect();
+    }
+    if budgets.is_empty() {
+        let mut all: Vec<&CellResult> = results
+            .cells
+            .iter()
+            .filter(|c| flip_exact(c).is_finite())
+            .collect();
+        all.sort_by(|a, b| by_accuracy_then_bytes(a, b));
+        budgets.push(all);
+    }
+    let mut out: Vec<&CellResult> = Vec::new();
+    for at in &budgets {
+        let stable = most_stable(at);
+        // At the smallest budget also the least stable: what its flicker looks like.
+        let least = stable.last().filter(|_| out.is_empty());
+        for c in at.first().into_iter().chain(stable.first()).chain(least) {
+            if out.len() < 3 && c.motion.is_some() && !out.iter().any(|o| o.image == c.image) {
+                out.push(c);
+            }
+        }
+    }
+    out
 }
 
 /// A cell's temporal error over the span (NaN for a still cell).
@@ -1261,6 +1318,7 @@ pub(crate) mod tests {
             }],
             exact_image: "images/exact.png".into(),
             exact_hdr_image: None,
+            animation: None,
         }
     }
 

@@ -665,6 +665,49 @@ impl<'a> Sweeper<'a> {
         })
     }
 
+    /// With `--animate`: `exact` and the cells [`super::report::animated_cells`] chooses of
+    /// `results` side by side over the span, written to the scene's folder.
+    fn write_animation(
+        &mut self,
+        plans: &[Plan],
+        results: &SweepResults,
+    ) -> anyhow::Result<Option<super::Animation>> {
+        let Some(exact) = self.motion.clone() else {
+            return Ok(None);
+        };
+        let chosen: Vec<(&Plan, &CellResult)> = super::report::animated_cells(results)
+            .into_iter()
+            .filter_map(|c| {
+                let plan = plans
+                    .iter()
+                    .find(|p| c.image == format!("images/{}.png", p.name))?;
+                Some((plan, c))
+            })
+            .collect();
+        let cells: Vec<(&TechniqueConfig, RenderOptions)> = chosen
+            .iter()
+            .map(|(p, _)| (&p.config, p.options()))
+            .collect();
+        let file = super::animate::ANIMATION_FILE;
+        exact.write_animation(
+            self.gpu,
+            &mut self.renderer,
+            &self.target,
+            &cells,
+            &self.dir.join(file),
+        )?;
+        let mut tiles = vec![shadow::reference().name.to_owned()];
+        tiles.extend(
+            chosen
+                .iter()
+                .map(|(_, c)| format!("{} {}", c.technique, c.channels)),
+        );
+        Ok(Some(super::Animation {
+            file: file.to_owned(),
+            tiles,
+        }))
+    }
+
     /// Renders `config` once and returns the frame.
     fn render_image(&mut self, plan: &Plan) -> anyhow::Result<image::RgbImage> {
         self.renderer.set_technique(self.gpu, &plan.config)?;
@@ -1332,9 +1375,12 @@ pub fn run(
         .map(|(d, own)| {
             own.len()
                 + match needs_gpu(d, own) {
-                    // `exact`, its frames over the span, this process's `none`.
+                    // `exact`, its frames over the span, this process's `none` (and with
+                    // `--animate`, unsharded, the side-by-side over the span).
                     true => {
-                        1 + usize::from(options.animate.is_some()) + usize::from(!records_none(own))
+                        1 + usize::from(options.animate.is_some())
+                            * (1 + usize::from(options.shard.is_none()))
+                            + usize::from(!records_none(own))
                     }
                     false => 0,
                 }
@@ -1452,9 +1498,26 @@ pub fn run(
         if let Some(p) = pending.take() {
             finish(p, &mut progress, &mut cells)?;
         }
+        // An animated sweep's side-by-side, from the cells the results choose.
+        let mut animation = None;
+        if let (Some(sw), None) = (sweeper.as_mut(), options.shard)
+            && sw.motion.is_some()
+        {
+            progress.start(&format!("{}: the span side by side", sp.scene.name));
+            animation = sw.write_animation(&sp.plans, &metadata_now(&cells))?;
+            if let Some(a) = &animation {
+                progress.finish(format!(
+                    "{}: {} over the span side by side: {}",
+                    sp.scene.name,
+                    a.tiles.join(", "),
+                    scene_dir.join(&a.file).display()
+                ));
+            }
+        }
         drop(sweeper);
         if options.shard.is_none() {
-            let r = metadata_now(&cells);
+            let mut r = metadata_now(&cells);
+            r.animation = animation;
             write_results(&r, scene_dir)?;
             let charts = super::charts::write_charts(&r, scene_dir)?;
             super::report::write_html(&r, &charts, scene_dir)?;
@@ -1579,6 +1642,7 @@ pub(super) fn assemble(
             .join(EXACT_HDR_IMAGE)
             .is_file()
             .then(|| EXACT_HDR_IMAGE.to_owned()),
+        animation: None,
     }
 }
 
