@@ -539,7 +539,7 @@ mod cloud {
         for coverage in [0.0, 0.3, 0.6, 0.9] {
             let params = layer(coverage);
             let grid = baker
-                .bake(&gpu, &mut ledger, &noise, &params, DIMS)
+                .bake(&gpu, &mut ledger, &noise, &params, DIMS, glam::Vec3::ZERO)
                 .unwrap();
             assert_eq!(grid.values.len(), (DIMS.x * DIMS.y * DIMS.z) as usize);
             // The mirror at a lattice of voxels: the same integer lattice and hash, the same
@@ -678,7 +678,7 @@ mod coverage_map {
             coverage_map: 1.0,
         };
         let grid = CloudBaker::new(&gpu)
-            .bake(&gpu, &mut ledger, &noise, &params, dims)
+            .bake(&gpu, &mut ledger, &noise, &params, dims, glam::Vec3::ZERO)
             .unwrap();
         // The mirror, map included, at a lattice of voxels (tolerance as for the bake without
         // the map).
@@ -718,12 +718,81 @@ mod coverage_map {
             ..params
         };
         let without = CloudBaker::new(&gpu)
-            .bake(&gpu, &mut ledger, &noise, &unmapped, dims)
+            .bake(&gpu, &mut ledger, &noise, &unmapped, dims, glam::Vec3::ZERO)
             .unwrap();
         let clear_without = columns(&without.values);
         assert!(
             clear_without < 0.5 * clear_with_map,
             "{clear_without} vs {clear_with_map}"
         );
+    }
+
+    #[test]
+    fn the_wind_carries_the_clouds_noise_through_its_layer() {
+        use smokeshadow::medium::cloud_noise::baked_density_drifted;
+        let gpu = gpu();
+        let mut ledger = MemoryLedger::for_device(&gpu.limits);
+        let seed = 5;
+        let noise = CloudNoiseGenerator::new(&gpu)
+            .generate(&gpu, &mut ledger, seed)
+            .unwrap();
+        let dims = UVec3::new(40, 12, 40);
+        let params = CloudParams {
+            origin_xz_m: [0.0, 0.0],
+            size_xz_m: [8000.0, 8000.0],
+            altitude_m: 1000.0,
+            thickness_m: 1000.0,
+            coverage: 0.7,
+            density_per_m: 0.04,
+            top_fraction: 1.0,
+            shape_period_m: 3000.0,
+            detail_period_m: 600.0,
+            coverage_map: 1.0,
+        };
+        let baker = CloudBaker::new(&gpu);
+        // One voxel's step along x (8000 m / 40) of wind, and a drift that is no voxel step.
+        let step = Vec3::new(200.0, 0.0, 0.0);
+        let still = baker
+            .bake(&gpu, &mut ledger, &noise, &params, dims, Vec3::ZERO)
+            .unwrap();
+        let moved = baker
+            .bake(&gpu, &mut ledger, &noise, &params, dims, step)
+            .unwrap();
+        let at = |g: &[f32], i: u32, j: u32, k: u32| g[((k * dims.y + j) * dims.x + i) as usize];
+        // Carried by one voxel: voxel i + 1 now holds what voxel i held (inside the box, whose
+        // edges stay), to the bake's f32 rounding of the voxel centres.
+        for k in (0..dims.z).step_by(3) {
+            for j in 0..dims.y {
+                for i in 0..dims.x - 1 {
+                    let (before, after) =
+                        (at(&still.values, i, j, k), at(&moved.values, i + 1, j, k));
+                    assert!(
+                        (before - after).abs() < 1e-4 * params.density_per_m,
+                        "({i}, {j}, {k}): {before} -> {after}"
+                    );
+                }
+            }
+        }
+        // Any drift: the GPU's bake is the CPU mirror's, noise and coverage map carried, the
+        // layer's box where it stands.
+        let drift = Vec3::new(1234.5, 0.0, -567.25);
+        let grid = baker
+            .bake(&gpu, &mut ledger, &noise, &params, dims, drift)
+            .unwrap();
+        for k in (0..dims.z).step_by(5) {
+            for j in (0..dims.y).step_by(3) {
+                for i in (0..dims.x).step_by(5) {
+                    let index = UVec3::new(i, j, k);
+                    let p = bake_voxel_centre(&params, dims, index);
+                    let cpu = baked_density_drifted(seed, p, &params, drift);
+                    let gpu_value = at(&grid.values, i, j, k);
+                    assert!(
+                        (gpu_value - cpu).abs() < 1e-4 * params.density_per_m,
+                        "{index}: GPU {gpu_value}, CPU {cpu}"
+                    );
+                }
+            }
+        }
+        assert!(grid.values != still.values, "the cloud moved");
     }
 }

@@ -579,3 +579,44 @@ fn a_particle_crossing_an_opacity_slice_steps_the_shadow_where_exact_stays_smoot
     // dom: its layers start at the particle, so they move with it (0.003, measured).
     assert!(dom < 0.2 * osm, "dom moves by {dom}, osm by {osm}");
 }
+
+#[test]
+fn the_procedural_cloud_drifts_on_its_wind() {
+    // The embedded cloud (a 16 m/s wind) over a minute, one frame every 20 s: its noise moves
+    // 320 m a frame through the layer, and every cell changes with it.
+    let dir = scratch("motion-cloud");
+    let mut args = vec![
+        "sweep",
+        "cloud",
+        "--techniques",
+        "volume",
+        "--channels",
+        "8",
+        "--animate",
+        "0..60",
+        "--fps",
+        "0.05",
+        "-o",
+        dir.to_str().unwrap(),
+    ];
+    args.extend_from_slice(SMALL);
+    ok(&smokeshadow(&args));
+    let r = results(&dir);
+    let motion = r.metadata.motion.as_ref().unwrap();
+    assert_eq!(motion.change.frames, 4);
+    assert!(
+        motion.change.luminance > 1e-3,
+        "{}",
+        motion.change.luminance
+    );
+    assert!(motion.check_worst < smokeshadow::render::reference_check::TOLERANCE);
+    let volume = r.cells.iter().find(|c| c.technique == "volume").unwrap();
+    let m = volume.motion.as_ref().unwrap();
+    // It follows the drift: its change differs from exact's by less than exact changes.
+    assert!(
+        m.temporal_error > 0.0 && m.temporal_error < motion.change.luminance,
+        "{} vs exact's {}",
+        m.temporal_error,
+        motion.change.luminance
+    );
+}

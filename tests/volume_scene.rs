@@ -75,6 +75,10 @@ fn a_volume_table_parses_and_its_bad_fields_are_named() {
             "procedural = \"cloud\"\n[volume.cloud]\ncoverage = 1.5\n",
             "volume.cloud.coverage = 1.5",
         ),
+        (
+            "procedural = \"cloud\"\n[volume.cloud]\nwind_m_per_s = [5.0, 2000.0]\n",
+            "volume.cloud.wind_m_per_s[1] = 2000 is out of range",
+        ),
         ("shape = \"box\"\ncolour = 1\n", "unknown field `colour`"),
     ] {
         let err = Scene::from_toml_str(&format!("{base}{body}"), "t")

@@ -14,6 +14,9 @@ struct BakeParams {
     voxel_m: vec4<f32>,
     // xyz: voxels along x, y, z; w: the noise's seed (the coverage map's).
     dims: vec4<u32>,
+    // xyz: how far the wind has carried the noise and the coverage map, metres (the layer's
+    // box stays where it is).
+    drift_m: vec4<f32>,
 };
 
 @group(0) @binding(0) var<uniform> cloud: CloudParams;
@@ -58,10 +61,10 @@ fn bake_main(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     let p = bake.first_voxel_m.xyz + vec3<f32>(id) * bake.voxel_m.xyz;
-    let shape = sample_repeat(shape_noise, cloud_shape_uvw(p, cloud), SHAPE_SIZE);
-    let detail = sample_repeat(detail_noise, cloud_detail_uvw(p, cloud), DETAIL_SIZE).xyz;
-    let p_layer = cloud_layer_point(p, cloud);
-    let coverage = cloud_coverage_map(bake.dims.w, p_layer, cloud);
-    let density = cloud_density(p_layer, shape, detail, coverage, cloud);
+    let q = p - bake.drift_m.xyz;
+    let shape = sample_repeat(shape_noise, cloud_shape_uvw(q, cloud), SHAPE_SIZE);
+    let detail = sample_repeat(detail_noise, cloud_detail_uvw(q, cloud), DETAIL_SIZE).xyz;
+    let coverage = cloud_coverage_map(bake.dims.w, cloud_layer_point(q, cloud), cloud);
+    let density = cloud_density(cloud_layer_point(p, cloud), shape, detail, coverage, cloud);
     baked[(id.z * bake.dims.y + id.y) * bake.dims.x + id.x] = density;
 }

@@ -171,7 +171,14 @@ pub fn run(gpu: &Gpu, options: &VolumeBenchOptions) -> anyhow::Result<VolumeBenc
                     let mut grid = None;
                     let bake_ms = median_ms(options.warmup, options.frames, || {
                         let mut scratch = MemoryLedger::for_device(&gpu.limits);
-                        grid = Some(baker.bake(gpu, &mut scratch, &noise, &params, dims)?);
+                        grid = Some(baker.bake(
+                            gpu,
+                            &mut scratch,
+                            &noise,
+                            &params,
+                            dims,
+                            glam::Vec3::ZERO,
+                        )?);
                         Ok(())
                     })?;
                     let grid = grid.expect("baked at least once");

@@ -25,6 +25,7 @@ struct BakeParams {
     first_voxel_m: [f32; 4],
     voxel_m: [f32; 4],
     dims: [u32; 4],
+    drift_m: [f32; 4],
 }
 
 /// The WGSL structs mirrored here.
@@ -33,7 +34,7 @@ pub fn layouts() -> Vec<crate::gpu::MirrorLayout> {
         BakeParams,
         "medium/cloud_bake.wgsl",
         "BakeParams",
-        [first_voxel_m, voxel_m, dims]
+        [first_voxel_m, voxel_m, dims, drift_m]
     )]
 }
 
@@ -322,7 +323,8 @@ impl CloudBaker {
         Self { layout, pipeline }
     }
 
-    /// The cloud layer of `params` baked from `noise` into a grid of `dims` voxels (extinction
+    /// The cloud layer of `params`, its noise and coverage map carried by `drift` (world
+    /// metres, [`crate::medium::cloud_noise::baked_density_drifted`]), baked from `noise` into a grid of `dims` voxels (extinction
     /// in 1/m: the grid's density scale is 1), read back so that the reference's f64 mirror
     /// and the file-backed media share one type. The voxels' buffer is recorded in `ledger`
     /// as transient; the grid, once uploaded, is counted where it is uploaded.
@@ -333,6 +335,7 @@ impl CloudBaker {
         noise: &CloudNoiseTextures,
         params: &CloudParams,
         dims: UVec3,
+        drift: Vec3,
     ) -> Result<DensityGrid, CloudNoiseError> {
         let device = &gpu.device;
         let placement = bake_placement(params, dims);
@@ -346,6 +349,7 @@ impl CloudBaker {
             first_voxel_m: first_voxel.as_vec3().extend(0.0).to_array(),
             voxel_m: voxel.as_vec3().extend(0.0).to_array(),
             dims: [dims.x, dims.y, dims.z, noise.seed],
+            drift_m: drift.extend(0.0).to_array(),
         };
         let uniform = |label, contents: &[u8]| {
             device.create_buffer_init(&wgpu::util::BufferInitDescriptor {

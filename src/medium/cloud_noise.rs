@@ -574,15 +574,27 @@ pub fn sample_repeat(uvw: Vec3, size: u32, texel: impl Fn(u32, u32, u32) -> Vec4
 /// shaders/medium/cloud_bake.wgsl computes it from the seed's noise textures and coverage map:
 /// the CPU mirror a baked voxel is checked against.
 pub fn baked_density(seed: u32, p_m: Vec3, params: &CloudParams) -> f32 {
-    let shape = sample_repeat(cloud_shape_uvw(p_m, params), SHAPE_SIZE, |x, y, z| {
+    baked_density_drifted(seed, p_m, params, Vec3::ZERO)
+}
+
+/// [`baked_density`] with the noise and the coverage map carried by `drift_m` (the wind's, at
+/// some time): sampled at `p_m − drift_m`, inside the layer's box where it stands.
+pub fn baked_density_drifted(seed: u32, p_m: Vec3, params: &CloudParams, drift_m: Vec3) -> f32 {
+    let q = p_m - drift_m;
+    let shape = sample_repeat(cloud_shape_uvw(q, params), SHAPE_SIZE, |x, y, z| {
         Vec4::from_array(shape_voxel(seed, x, y, z))
     });
-    let detail = sample_repeat(cloud_detail_uvw(p_m, params), DETAIL_SIZE, |x, y, z| {
+    let detail = sample_repeat(cloud_detail_uvw(q, params), DETAIL_SIZE, |x, y, z| {
         Vec3::from_array(detail_voxel(seed, x, y, z)).extend(0.0)
     });
-    let p_layer = cloud_layer_point(p_m, params);
-    let coverage = cloud_coverage_map(seed, p_layer, params);
-    cloud_density(p_layer, shape, detail.truncate(), coverage, params)
+    let coverage = cloud_coverage_map(seed, cloud_layer_point(q, params), params);
+    cloud_density(
+        cloud_layer_point(p_m, params),
+        shape,
+        detail.truncate(),
+        coverage,
+        params,
+    )
 }
 
 #[cfg(test)]

@@ -61,7 +61,14 @@ pub struct FrameMedium {
     grid: Option<Arc<DensityGrid>>,
     gpu_grid: GpuGrid,
     ledger: MemoryLedger,
+    /// The grids made lately, by source, newest last (at most [`GRID_CACHE_BYTES`] of them): a
+    /// cloud that moves makes a grid a frame, and an animated sweep renders every cell over
+    /// the same frames, so each frame's grid is made once and uploaded again from here.
+    made: Vec<(VolumeSpec, Arc<DensityGrid>)>,
 }
+
+/// The most bytes of grids [`FrameMedium`] keeps made (CPU memory: 64 grids of 128³).
+const GRID_CACHE_BYTES: usize = 512 << 20;
 
 /// The fields of `spec` that make the grid (not the march's steps nor the shading).
 fn grid_source(spec: &VolumeSpec) -> VolumeSpec {
@@ -89,6 +96,7 @@ impl FrameMedium {
             grid: None,
             gpu_grid,
             ledger,
+            made: Vec::new(),
         })
     }
 
@@ -101,9 +109,18 @@ impl FrameMedium {
         let changed = source != self.source;
         if changed {
             let mut ledger = MemoryLedger::for_device(&gpu.limits);
-            let grid = match spec {
-                Some(spec) => Some(spec.density_grid(gpu, &mut ledger)?),
-                None => None,
+            let made = source
+                .as_ref()
+                .and_then(|s| self.made.iter().find(|(m, _)| m == s))
+                .map(|(_, g)| Arc::clone(g));
+            let grid = match (spec, made) {
+                (_, Some(grid)) => Some(grid),
+                (Some(spec), None) => {
+                    let grid = Arc::new(spec.density_grid(gpu, &mut ledger)?);
+                    self.remember(source.clone().expect("a spec has a source"), &grid);
+                    Some(grid)
+                }
+                (None, None) => None,
             };
             // A new ledger: the grid's bytes only (the bake's transients are gone).
             let mut kept = MemoryLedger::for_device(&gpu.limits);
@@ -116,18 +133,26 @@ impl FrameMedium {
                     max: MAX_REFERENCE_STEPS,
                 });
             }
-            self.gpu_grid = GpuGrid::upload(
-                gpu,
-                &mut kept,
-                grid.as_ref().unwrap_or(&DensityGrid::empty()),
-            )
-            .map_err(|e| VolumeError::Upload(e.to_string()))?;
+            let empty = DensityGrid::empty();
+            self.gpu_grid = GpuGrid::upload(gpu, &mut kept, grid.as_deref().unwrap_or(&empty))
+                .map_err(|e| VolumeError::Upload(e.to_string()))?;
             self.ledger = kept;
-            self.grid = grid.map(Arc::new);
+            self.grid = grid;
             self.source = source;
         }
         self.spec = spec.cloned();
         Ok(changed)
+    }
+
+    /// Keeps `grid`, made from `source`, forgetting the oldest beyond [`GRID_CACHE_BYTES`].
+    fn remember(&mut self, source: VolumeSpec, grid: &Arc<DensityGrid>) {
+        self.made.push((source, Arc::clone(grid)));
+        let bytes = |m: &[(VolumeSpec, Arc<DensityGrid>)]| {
+            m.iter().map(|(_, g)| 4 * g.values.len()).sum::<usize>()
+        };
+        while self.made.len() > 1 && bytes(&self.made) > GRID_CACHE_BYTES {
+            self.made.remove(0);
+        }
     }
 
     /// The grid's placement and the frame's march settings, for the frame's uniforms.

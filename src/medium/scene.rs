@@ -89,6 +89,10 @@ pub struct VolumeSpec {
     /// The folder `file` is relative to: the scene file's (not written).
     #[serde(skip)]
     pub base_dir: PathBuf,
+    /// The scene time the grid is made at, seconds (not written; [`VolumeSpec::at_time`]):
+    /// how far the cloud's wind has carried its noise. 0 for a volume that does not move.
+    #[serde(skip)]
+    pub time_s: f32,
 }
 
 impl Default for VolumeSpec {
@@ -113,6 +117,7 @@ impl Default for VolumeSpec {
             voxels: 64,
             cloud: CloudSpec::default(),
             base_dir: PathBuf::new(),
+            time_s: 0.0,
         }
     }
 }
@@ -135,6 +140,15 @@ pub struct CloudSpec {
     pub detail_period_m: f32,
     /// How much the coverage map shapes the layer, 0..1.
     pub coverage_map: f32,
+    /// The wind along x and z, m/s, each finite and at most 1000 in size: at scene time t the
+    /// cloud's noise and coverage map have moved by t times it through the layer (the layer's
+    /// box stays), so an animation (`sweep --animate`) sees the cloud drift. Default 0: still.
+    #[serde(skip_serializing_if = "is_still")]
+    pub wind_m_per_s: [f32; 2],
+}
+
+fn is_still(wind: &[f32; 2]) -> bool {
+    *wind == [0.0; 2]
 }
 
 impl Default for CloudSpec {
@@ -150,11 +164,17 @@ impl Default for CloudSpec {
             shape_period_m: 4000.0,
             detail_period_m: 800.0,
             coverage_map: 1.0,
+            wind_m_per_s: [0.0; 2],
         }
     }
 }
 
 impl CloudSpec {
+    /// How far the wind has carried the noise at `time_s`, world metres (y 0).
+    pub fn drift_m(&self, time_s: f32) -> glam::Vec3 {
+        glam::Vec3::new(self.wind_m_per_s[0], 0.0, self.wind_m_per_s[1]) * time_s
+    }
+
     /// The layer's parameters, its density 1 at the densest (the grid's scale gives the unit).
     pub fn params(&self) -> CloudParams {
         CloudParams {
@@ -322,8 +342,9 @@ impl VolumeSpec {
                 let noise = CloudNoiseGenerator::new(gpu)
                     .generate(gpu, ledger, self.cloud.seed)
                     .map_err(|e| VolumeError::Cloud(e.to_string()))?;
+                let drift = self.cloud.drift_m(self.time_s);
                 let mut grid = CloudBaker::new(gpu)
-                    .bake(gpu, ledger, &noise, &params, self.dims_for(size))
+                    .bake(gpu, ledger, &noise, &params, self.dims_for(size), drift)
                     .map_err(|e| VolumeError::Cloud(e.to_string()))?;
                 grid.density_scale_per_m = f64::from(self.density_scale_per_m);
                 grid
@@ -433,6 +454,13 @@ impl VolumeSpec {
                 self.voxels
             ));
         }
+        for (i, w) in self.cloud.wind_m_per_s.iter().enumerate() {
+            if !(w.is_finite() && w.abs() <= 1000.0) {
+                out.push(format!(
+                    "volume.cloud.wind_m_per_s[{i}] = {w} is out of range: allowed -1000..=1000 (m/s)"
+                ));
+            }
+        }
         if self.procedural == "cloud"
             && let Err(e) = self.cloud.params().validate()
         {
@@ -444,6 +472,16 @@ impl VolumeSpec {
             ));
         }
         out
+    }
+
+    /// The spec of the grid at scene time `time_s`: the procedural cloud with a wind carries
+    /// the time (its grid moves); any other volume the same grid at every time (`time_s` 0).
+    pub fn at_time(&self, time_s: f32) -> Self {
+        let moves = self.kind() == VolumeKind::Cloud && !is_still(&self.cloud.wind_m_per_s);
+        Self {
+            time_s: if moves { time_s } else { 0.0 },
+            ..self.clone()
+        }
     }
 
     /// A short description for `info` and reports.

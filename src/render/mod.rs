@@ -713,9 +713,14 @@ impl Renderer {
         if let Some(refusal) = entry.refusal(scene.volume.is_some(), particles) {
             return Err(refusal);
         }
+        // The grid at the scene's time (the procedural cloud's wind moves it).
+        let volume = scene
+            .volume
+            .as_ref()
+            .map(|v| v.at_time(scene.sim.duration_s));
         let changed = self
             .medium
-            .prepare(gpu, scene.volume.as_ref())
+            .prepare(gpu, volume.as_ref())
             .map_err(|e| ShadowError::Volume(e.to_string()))?;
         if changed {
             for face in &mut self.faces {
