@@ -31,7 +31,7 @@ pub struct SweepArgs {
     #[arg(long, num_args = 1.., value_name = "DIR",
           conflicts_with_all = ["scene", "scenes", "shard", "resume", "exr", "techniques",
                                 "channels", "bytes_per_texel", "memory", "shadow_res", "splat", "particle_res", "params", "param_set", "frames",
-                                "warmup", "cell_seconds", "size", "particles", "animate", "fps"])]
+                                "warmup", "cell_seconds", "size", "particles", "animate", "fps", "framing"])]
     pub merge: Option<Vec<PathBuf>>,
     #[command(flatten)]
     pub particles: super::ParticlesArg,
@@ -100,6 +100,11 @@ pub struct SweepArgs {
     /// the scene's own time.
     #[arg(long, value_name = "START..END")]
     pub animate: Option<String>,
+    /// How the light's maps frame the smoke, over the scene's `shadow.framing`: `fit` (each
+    /// frame), `stable` (fitted, then held in steps as the smoke moves, the shimmer fix engines
+    /// use) or `cone` (the thesis' whole cone).
+    #[arg(long, value_enum)]
+    pub framing: Option<crate::scene::Framing>,
     /// Frames per second of `--animate` (default: a particle sequence's own rate, else 30).
     #[arg(long, requires = "animate")]
     pub fps: Option<f32>,
@@ -212,6 +217,9 @@ pub fn run(args: &SweepArgs, adapter: &AdapterPreference) -> anyhow::Result<()> 
 fn prepare(args: &SweepArgs, scene: Option<&Path>) -> anyhow::Result<Scene> {
     let mut scene = super::load_scene(scene, args.particles)?;
     args.params.apply(&mut scene);
+    if let Some(framing) = args.framing {
+        scene.shadow.framing = framing;
+    }
     if let Some(size) = args.size {
         scene.output.width_px = size.width;
         scene.output.height_px = size.height;

@@ -119,6 +119,12 @@ impl LightSpace {
                 face.enclose(near, far, particles.is_empty());
             }
         }
+        if framing == Framing::Stable {
+            for face in &mut faces {
+                let (near, far) = stable_depth_range(face.near_m, face.far_m);
+                face.enclose(near, far, false);
+            }
+        }
         faces
     }
 
@@ -160,8 +166,15 @@ impl LightSpace {
         let cone_fov = (2.0 * light.cone_angle_deg.to_radians() * 1.04).min(170f32.to_radians());
         let (view, fov) = match framing {
             Framing::Cone => (cone_view, cone_fov),
-            Framing::Fit => smoke_fit(light.position, cone_view, cone_fov, particles, volume)
-                .unwrap_or((cone_view, cone_fov)),
+            Framing::Fit | Framing::Stable => smoke_fit(
+                light.position,
+                cone_view,
+                cone_fov,
+                particles,
+                volume,
+                framing == Framing::Stable,
+            )
+            .unwrap_or((cone_view, cone_fov)),
         };
         let mut space = Self::with_view(light.position, view, fov, None, particles);
         space.cone_view_from_world = cone_view;
@@ -368,6 +381,7 @@ fn smoke_fit(
     cone_fov: f32,
     particles: &[Particle],
     volume: Option<(Vec3, Vec3)>,
+    stable: bool,
 ) -> Option<(Mat4, f32)> {
     let t = (0.5 * cone_fov).tan();
     let [x0, y0, x1, y1] = tan_bounds(cone_view, particles, volume)?;
@@ -375,6 +389,10 @@ fn smoke_fit(
     if x0 >= x1 || y0 >= y1 {
         return None;
     }
+    let (x0, y0, x1, y1) = match stable {
+        true => stable_window([x0, y0, x1, y1], t),
+        false => (x0, y0, x1, y1),
+    };
     // The middle of the bounds, as a world direction, and the rectangle's corners seen from it:
     // a plane through the light maps to a line, so the rectangle's image is the quadrilateral of
     // its corners' images.
@@ -390,8 +408,61 @@ fn smoke_fit(
         }
         half = half.max(v.x.abs().max(v.y.abs()) / -v.z);
     }
-    let fov = 2.0 * (half * FIT_MARGIN).atan();
+    // A stable window has its margin already (and its size must stay a rung of the ladder).
+    let margin = if stable { 1.0 } else { FIT_MARGIN };
+    let fov = 2.0 * (half * margin).atan();
     (fov.is_finite() && fov > 0.0).then_some((view, fov))
+}
+
+/// Quarter octaves: the ladder a stable frustum's size and depth range climb.
+const STABLE_STEPS_PER_OCTAVE: f32 = 4.0;
+/// A stable frustum's aim moves in steps of its width over this (one texel of a 256² map).
+const STABLE_AIM_STEPS: f32 = 256.0;
+/// A stable depth range's start moves in steps of the range over this.
+const STABLE_DEPTH_STEPS: f32 = 8.0;
+
+/// The smallest rung of the quarter-octave ladder at or above `x` (> 0).
+fn ladder_rung(x: f32) -> f32 {
+    ((STABLE_STEPS_PER_OCTAVE * x.log2()).ceil() / STABLE_STEPS_PER_OCTAVE).exp2()
+}
+
+/// The ladder's next rung up from `x`.
+fn next_rung(x: f32) -> f32 {
+    x * (1.0 / STABLE_STEPS_PER_OCTAVE).exp2()
+}
+
+/// A stable fit's window in the cone's tan space holding the smoke's bounds `[x0, y0, x1, y1]`
+/// ([`FIT_MARGIN`] wider): a square whose half-width is a rung of the quarter-octave ladder
+/// (at most the cone's `t`) and whose middle is snapped to 1/[`STABLE_AIM_STEPS`] of its width,
+/// a rung wider where the snap would leave smoke outside it.
+fn stable_window([x0, y0, x1, y1]: [f32; 4], t: f32) -> (f32, f32, f32, f32) {
+    let need = 0.5 * (x1 - x0).max(y1 - y0) * FIT_MARGIN;
+    let mut half = ladder_rung(need.max(1e-6));
+    loop {
+        let step = 2.0 * half / STABLE_AIM_STEPS;
+        let snap = |v: f32| (v / step).round() * step;
+        let (cx, cy) = (snap(0.5 * (x0 + x1)), snap(0.5 * (y0 + y1)));
+        let fits = cx - half <= x0 && cx + half >= x1 && cy - half <= y0 && cy + half >= y1;
+        if fits || half >= t {
+            return (cx - half, cy - half, cx + half, cy + half);
+        }
+        half = next_rung(half);
+    }
+}
+
+/// A stable fit's radial depth range holding [`near`, `far`]: its length a rung of the
+/// quarter-octave ladder, its start snapped down to 1/[`STABLE_DEPTH_STEPS`] of it, a rung
+/// longer where the snap would leave the far end out.
+fn stable_depth_range(near: f32, far: f32) -> (f32, f32) {
+    let mut range = ladder_rung((far - near).max(1e-6));
+    loop {
+        let step = range / STABLE_DEPTH_STEPS;
+        let start = (near / step).floor() * step;
+        if start + range >= far {
+            return (start.max(0.0), start + range);
+        }
+        range = next_rung(range);
+    }
 }
 
 #[cfg(test)]
@@ -441,6 +512,80 @@ mod tests {
             density_per_m: 1.0,
             albedo: Vec3::ONE,
         }
+    }
+
+    #[test]
+    fn a_stable_frustum_holds_the_smoke_and_keeps_still_while_the_smoke_moves_a_little() {
+        let light = Spotlight {
+            position: Vec3::new(-6.0, 8.0, 4.0),
+            target: Vec3::new(0.4, 2.0, 0.0),
+            cone_angle_deg: 34.0,
+            ..Spotlight::default()
+        };
+        let smoke = |shift: f32| -> Vec<Particle> {
+            (0..40)
+                .map(|i| {
+                    let f = i as f32;
+                    puff(
+                        Vec3::new(1.0 + 0.05 * f + shift, 1.5 + 0.07 * f, -0.5 + 0.03 * f),
+                        0.2 + 0.01 * f,
+                    )
+                })
+                .collect()
+        };
+        let (a, b) = (smoke(0.0), smoke(1e-4));
+        let stable = |p: &[Particle]| LightSpace::faces(&light, p, Framing::Stable)[0];
+        let fit = |p: &[Particle]| LightSpace::faces(&light, p, Framing::Fit)[0];
+        // A tenth of a millimetre of drift moves the fitted frustum, not the stable one.
+        assert_ne!(fit(&a).clip_from_world, fit(&b).clip_from_world);
+        assert_eq!(stable(&a).clip_from_world, stable(&b).clip_from_world);
+        assert_eq!(
+            (stable(&a).near_m, stable(&a).far_m),
+            (stable(&b).near_m, stable(&b).far_m)
+        );
+        // It holds every sphere's centre and surface along the light's rays (within the map,
+        // within its radial range), and costs at most a quarter octave and a snap of width.
+        let s = stable(&a);
+        let f = fit(&a);
+        for p in &a {
+            let ndc = s.clip_from_world.project_point3(p.position);
+            assert!(ndc.x.abs() < 1.0 && ndc.y.abs() < 1.0, "{ndc}");
+            let d = p.position.distance(light.position);
+            assert!(s.near_m <= d - p.radius_m && s.far_m >= d + p.radius_m);
+        }
+        assert!(s.tan_half_fov >= f.tan_half_fov / FIT_MARGIN);
+        assert!(
+            s.tan_half_fov <= f.tan_half_fov * 2f32.powf(0.25) * 1.02,
+            "{} vs {}",
+            s.tan_half_fov,
+            f.tan_half_fov
+        );
+        let (fr, sr) = (f.far_m - f.near_m, s.far_m - s.near_m);
+        assert!(sr >= fr && sr <= 2.0 * fr, "{sr} vs {fr}");
+        // Half a metre of drift: the stable frustum steps to follow (and still holds it all).
+        let moved = smoke(0.5);
+        let sm = stable(&moved);
+        assert_ne!(sm.clip_from_world, s.clip_from_world);
+        for p in &moved {
+            let ndc = sm.clip_from_world.project_point3(p.position);
+            assert!(ndc.x.abs() < 1.0 && ndc.y.abs() < 1.0, "{ndc}");
+        }
+    }
+
+    #[test]
+    fn the_stable_ladders_round_up_to_quarter_octaves_and_snap_within_them() {
+        assert_eq!(ladder_rung(1.0), 1.0);
+        assert!((ladder_rung(1.01) - 2f32.powf(0.25)).abs() < 1e-6);
+        assert!((ladder_rung(0.3) - 2f32.powf(-1.5)).abs() < 1e-6);
+        let (near, far) = stable_depth_range(5.03, 7.91);
+        let range = far - near;
+        // 2.88 m rounds up to 2^1.75 = 3.36 m, its start down to an eighth of it.
+        assert!((range - 2f32.powf(1.75)).abs() < 1e-5, "{range}");
+        assert!(near <= 5.03 && far >= 7.91);
+        assert!(((near / (range / 8.0)).round() * range / 8.0 - near).abs() < 1e-5);
+        let (x0, y0, x1, y1) = stable_window([0.1, -0.2, 0.3, 0.05], 1.0);
+        assert!(x0 <= 0.1 && y0 <= -0.2 && x1 >= 0.3 && y1 >= 0.05);
+        assert!(((x1 - x0) - (y1 - y0)).abs() < 1e-6, "square");
     }
 
     #[test]

@@ -398,6 +398,11 @@ pub fn same_footing(results: &SweepResults, html: bool) -> String {
     let framing = match m.framing {
         crate::scene::Framing::Fit => "fitted to the smoke's light-space bounds within the cone",
         crate::scene::Framing::Cone => "over the whole spotlight cone (the thesis' framing)",
+        crate::scene::Framing::Stable => {
+            "fitted to the smoke's light-space bounds within the cone and held steady in steps \
+             (`framing = \"stable\"`: size and depth range in quarter octaves, aim in 1/256 of the \
+             width, depth start in eighths of the range)"
+        }
     };
     let coverage = results
         .cells
