@@ -457,3 +457,25 @@ fn the_viewer_opens_a_vdb_file_and_shows_what_render_writes_of_it() {
     let bg = shown.get_pixel(2, 2);
     assert_ne!(shown.get_pixel(80, 60), bg);
 }
+
+#[test]
+fn the_viewer_plays_an_animated_sweeps_span_frame_by_frame() {
+    let mut c = Controller::new(small_scene(), None, None);
+    let span = smokeshadow::motion::Span::parse("7.8..7.9", 30.0).unwrap();
+    c.play_span(span);
+    assert!(c.state.playing);
+    // Every frame the sweep renders, one a UI frame whatever the frame took, then round again.
+    let mut seen = vec![c.state.time_s];
+    for _ in 0..4 {
+        c.advance(0.5);
+        seen.push(c.state.time_s);
+    }
+    let times = span.times();
+    assert_eq!(&seen[..4], &times[..]);
+    assert_eq!(seen[4], times[0], "it loops");
+    assert_eq!(c.time_range(), (7.8, times[3]));
+    // A scrubbed time rejoins the frames after its nearest (7.84 s: frame 1's 7.833 s).
+    c.state.time_s = 7.84;
+    c.advance(0.01);
+    assert_eq!(c.state.time_s, times[2]);
+}

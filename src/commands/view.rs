@@ -13,12 +13,20 @@ pub struct ViewArgs {
     // which loads at its own count).
     #[command(flatten)]
     pub particles: super::ParticlesArg,
+    /// Play the frames `sweep --animate START..END` renders (scene time, seconds), one a UI
+    /// frame, looping; the time bar covers the span.
+    #[arg(long, value_name = "START..END")]
+    pub animate: Option<String>,
+    /// Frames per second of `--animate` (default: a particle sequence's own rate, else 30).
+    #[arg(long, requires = "animate")]
+    pub fps: Option<f32>,
 }
 
 pub fn run(args: &ViewArgs, adapter: &AdapterPreference) -> anyhow::Result<()> {
     crate::viewer::run(
         args.scene.clone(),
         args.particles.particles,
+        args.animate.clone().map(|range| (range, args.fps)),
         adapter.clone(),
     )
 }

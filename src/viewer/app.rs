@@ -73,6 +73,16 @@ impl DerefMut for ViewerApp {
 
 impl ViewerApp {
     pub fn new(cc: &eframe::CreationContext<'_>, scene: Scene, path: Option<String>) -> Self {
+        Self::with_span(cc, scene, path, None)
+    }
+
+    /// [`ViewerApp::new`], playing `span` (`view --animate`) from the start when given.
+    pub fn with_span(
+        cc: &eframe::CreationContext<'_>,
+        scene: Scene,
+        path: Option<String>,
+        span: Option<crate::motion::Span>,
+    ) -> Self {
         let render_state = cc.wgpu_render_state.clone();
         let gpu = render_state.as_ref().map(|rs| {
             Arc::new(Gpu::from_device(
@@ -81,7 +91,10 @@ impl ViewerApp {
                 rs.adapter.get_info(),
             ))
         });
-        let controller = Controller::new(scene, path, gpu);
+        let mut controller = Controller::new(scene, path, gpu);
+        if let Some(span) = span {
+            controller.play_span(span);
+        }
         Self {
             textures: Textures::new(render_state, &controller),
             controller,

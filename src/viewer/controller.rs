@@ -114,6 +114,9 @@ pub struct ViewState {
     pub particle_res: ParticleRes,
     /// The order of the frame's one sort (view depth, or the half-angle shared with `has`).
     pub sort: SortOrder,
+    /// `view --animate`: play the animated sweep's frames, one a UI frame, looping over the
+    /// span (else play in real time from 0 to the scene's time, or 20 s).
+    pub span: Option<crate::motion::Span>,
     /// Render at the viewport's size instead of the scene's output size.
     pub fit_window: bool,
     /// Inspector: the selected map channel (index into the flattened list) and its scale.
@@ -346,6 +349,7 @@ impl Controller {
             spherical: true,
             particle_res: ParticleRes::Full,
             sort: SortOrder::View,
+            span: None,
             fit_window: false,
             inspect_channel: 0,
             inspect_scale: 1.0,
@@ -644,10 +648,37 @@ impl Controller {
 
     // ---- Each UI frame --------------------------------------------------------------------
 
+    /// Plays `span` (the frames an animated sweep renders): from its first frame, one frame
+    /// a UI frame, looping.
+    pub fn play_span(&mut self, span: crate::motion::Span) {
+        self.state.span = Some(span);
+        self.state.time_s = span.start_s;
+        self.state.playing = true;
+    }
+
+    /// The time range the time bar and play cover: the span, or 0 to the scene's time (at
+    /// least 20 s).
+    pub fn time_range(&self) -> (f32, f32) {
+        match &self.state.span {
+            Some(s) => (s.start_s, s.times().last().copied().unwrap_or(s.end_s)),
+            None => (0.0, self.state.scene.sim.duration_s.max(20.0)),
+        }
+    }
+
     /// Time passes: the UI frame time's average, and the simulation while playing (looping
-    /// at the scene's duration, or 20 s if shorter).
+    /// at the scene's duration, or 20 s if shorter; a span frame by frame).
     pub fn advance(&mut self, dt_s: f32) {
         self.ui_frame_ms = 0.9 * self.ui_frame_ms + 0.1 * f64::from(dt_s) * 1e3;
+        if let (true, Some(span)) = (self.state.playing, self.state.span) {
+            // The frame after the nearest one, so that a scrubbed time rejoins the frames.
+            let times = span.times();
+            let k = ((self.state.time_s - span.start_s) * span.fps).round() as i64 + 1;
+            self.state.time_s = match usize::try_from(k).ok().and_then(|k| times.get(k)) {
+                Some(&t) => t,
+                None => times[0],
+            };
+            return;
+        }
         if self.state.playing {
             let end = self.state.scene.sim.duration_s.max(20.0);
             self.state.time_s += dt_s;

@@ -82,6 +82,7 @@ pub fn native_options(preference: AdapterPreference) -> eframe::NativeOptions {
 pub fn run(
     scene_path: Option<PathBuf>,
     particles: Option<u32>,
+    span: Option<(String, Option<f32>)>,
     preference: AdapterPreference,
 ) -> anyhow::Result<()> {
     let scene = crate::particles::open_scene(scene_path.as_deref())?;
@@ -89,6 +90,20 @@ pub fn run(
         Some(n) => scene.with_particles(n)?,
         None => scene,
     };
+    // The span at the sweep's default rate: a particle sequence's own, else 30 fps.
+    let span = span
+        .map(|(range, fps)| {
+            let fps = fps.unwrap_or_else(|| {
+                scene
+                    .particles
+                    .as_ref()
+                    .filter(|p| crate::particles::is_sequence(&p.file))
+                    .map_or(crate::motion::DEFAULT_FPS, |p| p.frame_rate_hz)
+            });
+            crate::motion::Span::parse(&range, fps)
+        })
+        .transpose()
+        .map_err(anyhow::Error::msg)?;
     let adapters = pollster::block_on(gpu::ranked_adapters(&gpu::instance()));
     if !adapters
         .iter()
@@ -106,7 +121,7 @@ pub fn run(
     eframe::run_native(
         "smokeshadow",
         native_options(preference),
-        Box::new(move |cc| Ok(Box::new(ViewerApp::new(cc, scene, path)))),
+        Box::new(move |cc| Ok(Box::new(ViewerApp::with_span(cc, scene, path, span)))),
     )
     .map_err(|err| anyhow::anyhow!("cannot open the viewer window: {err}"))
 }

@@ -17,8 +17,11 @@ pub fn show(controller: &mut Controller, window_shot: &WindowShot, ui: &mut egui
         if ui.button(label).clicked() {
             controller.toggle_play();
         }
-        let end = controller.state.scene.sim.duration_s.max(20.0);
-        ui.add(egui::Slider::new(&mut controller.state.time_s, 0.0..=end).text("Time (s)"));
+        let (start, end) = controller.time_range();
+        ui.add(egui::Slider::new(&mut controller.state.time_s, start..=end).text("Time (s)"));
+        if let Some(span) = &controller.state.span {
+            ui.label(format!("span: {}", span.describe()));
+        }
         let wind = &controller.state.scene.wind;
         if wind.strength_m_per_s > 0.0 {
             ui.label(format!("wind gust at {:.1} s", wind.start_s));
