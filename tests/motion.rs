@@ -4,6 +4,8 @@
 //! arithmetic; a particle sequence moves frame by frame; bad spans get one line.
 
 mod common;
+#[path = "common/vdb_writer.rs"]
+mod vdb_writer;
 
 use std::path::Path;
 
@@ -631,4 +633,82 @@ fn the_procedural_cloud_drifts_on_its_wind() {
         m.temporal_error,
         motion.change.luminance
     );
+}
+
+#[test]
+fn a_volume_sequence_moves_frame_by_frame() {
+    // Four OpenVDB files of a 16³-voxel block (0.05 m voxels) that moves 8 voxels along x a
+    // frame, at the sequence's 24 fps from t = 0.
+    let dir = scratch("motion-vdb-sequence");
+    for frame in 0..4 {
+        let mut grid = vdb_writer::Grid::float("density");
+        grid.map = vdb_writer::Map::UniformScale(0.05);
+        for (x, y, z) in [
+            (0, 0, 0),
+            (8, 0, 0),
+            (0, 8, 0),
+            (8, 8, 0),
+            (0, 0, 8),
+            (8, 0, 8),
+            (0, 8, 8),
+            (8, 8, 8),
+        ] {
+            grid.leaves
+                .push(vdb_writer::leaf([x + 8 * frame, y, z], |_| true, |_| 1.0));
+        }
+        let mut stats = vdb_writer::Stats::default();
+        std::fs::write(
+            dir.join(format!("block.{frame:04}.vdb")),
+            vdb_writer::write_file(&[grid], &mut stats),
+        )
+        .unwrap();
+    }
+    let text = smokeshadow::scene::THESIS_PLUME_TOML;
+    let (a, b) = (
+        text.find("[emitter]").unwrap(),
+        text.find("[wind]").unwrap(),
+    );
+    let scene = format!(
+        "{}[volume]\nfile = \"block.%04d.vdb\"\ndensity_scale_per_m = 4.0\ntranslate_m = [-0.6, 1.0, -0.4]\n\n{}",
+        &text[..a],
+        &text[b..]
+    )
+    .replace("duration_s = 8.0", "duration_s = 0.0");
+    let toml = dir.join("block.toml");
+    std::fs::write(&toml, scene).unwrap();
+    let out = dir.join("sweep");
+    let mut args = vec![
+        "sweep",
+        toml.to_str().unwrap(),
+        "--techniques",
+        "volume",
+        "--channels",
+        "8",
+        "--animate",
+        "0..0.125",
+        "-o",
+        out.to_str().unwrap(),
+    ];
+    args.extend_from_slice(SMALL);
+    let stdout = ok(&smokeshadow(&args));
+    let r = results(&out);
+    let motion = r.metadata.motion.as_ref().unwrap();
+    assert_eq!((motion.change.frames, motion.change.span.fps), (4, 24.0));
+    assert!(motion.change.luminance > 1e-4, "the block moves: {stdout}");
+    assert!(motion.check_worst < smokeshadow::render::reference_check::TOLERANCE);
+    // Past the last file: named before anything renders.
+    let late = smokeshadow(&[
+        "sweep",
+        toml.to_str().unwrap(),
+        "--techniques",
+        "volume",
+        "--animate",
+        "0..0.2",
+        "-o",
+        dir.join("late").to_str().unwrap(),
+    ]);
+    assert!(!late.status.success());
+    let lines = error_lines(&late);
+    assert_eq!(lines.len(), 1, "{lines:?}");
+    assert!(lines[0].contains("block.0004.vdb"), "{}", lines[0]);
 }

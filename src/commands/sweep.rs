@@ -105,7 +105,7 @@ pub struct SweepArgs {
     /// use) or `cone` (the thesis' whole cone).
     #[arg(long, value_enum)]
     pub framing: Option<crate::scene::Framing>,
-    /// Frames per second of `--animate` (default: a particle sequence's own rate, else 30).
+    /// Frames per second of `--animate` (default: a particle or volume sequence's own rate, else 30).
     #[arg(long, requires = "animate")]
     pub fps: Option<f32>,
     /// Keep the cells an earlier (interrupted) run finished with the same settings.
@@ -163,13 +163,12 @@ pub fn run(args: &SweepArgs, adapter: &AdapterPreference) -> anyhow::Result<()> 
             })
             .collect::<anyhow::Result<_>>()?,
     };
-    // A particle sequence's own frames, unless told otherwise.
+    // A file sequence's own frames, unless told otherwise.
     let fps = args.fps.unwrap_or_else(|| {
         scenes
             .iter()
-            .find_map(|s| s.particles.as_ref())
-            .filter(|p| crate::particles::is_sequence(&p.file))
-            .map_or(crate::motion::DEFAULT_FPS, |p| p.frame_rate_hz)
+            .find_map(Scene::sequence_rate_hz)
+            .unwrap_or(crate::motion::DEFAULT_FPS)
     });
     let animate = args
         .animate

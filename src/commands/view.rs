@@ -17,7 +17,7 @@ pub struct ViewArgs {
     /// frame, looping; the time bar covers the span.
     #[arg(long, value_name = "START..END")]
     pub animate: Option<String>,
-    /// Frames per second of `--animate` (default: a particle sequence's own rate, else 30).
+    /// Frames per second of `--animate` (default: a particle or volume sequence's own rate, else 30).
     #[arg(long, requires = "animate")]
     pub fps: Option<f32>,
 }

@@ -86,6 +86,12 @@ pub struct VolumeSpec {
     pub voxels: u32,
     /// The procedural cloud's layer.
     pub cloud: CloudSpec,
+    /// A file sequence's (`smoke.%04d.vdb`) frames per second, > 0, and its frame at t = 0:
+    /// the scene's time picks the frame, as a particle sequence's (default 24 and 0).
+    #[serde(skip_serializing_if = "is_default_rate")]
+    pub frame_rate_hz: f32,
+    #[serde(skip_serializing_if = "is_zero")]
+    pub frame_at_zero: i64,
     /// The folder `file` is relative to: the scene file's (not written).
     #[serde(skip)]
     pub base_dir: PathBuf,
@@ -116,6 +122,8 @@ impl Default for VolumeSpec {
             size_m: Vec3::ONE,
             voxels: 64,
             cloud: CloudSpec::default(),
+            frame_rate_hz: DEFAULT_FRAME_RATE_HZ,
+            frame_at_zero: 0,
             base_dir: PathBuf::new(),
             time_s: 0.0,
         }
@@ -149,6 +157,17 @@ pub struct CloudSpec {
 
 fn is_still(wind: &[f32; 2]) -> bool {
     *wind == [0.0; 2]
+}
+
+/// A volume sequence's frame rate unless its scene says otherwise.
+pub const DEFAULT_FRAME_RATE_HZ: f32 = 24.0;
+
+fn is_default_rate(rate: &f32) -> bool {
+    *rate == DEFAULT_FRAME_RATE_HZ
+}
+
+fn is_zero(v: &i64) -> bool {
+    *v == 0
 }
 
 impl Default for CloudSpec {
@@ -233,9 +252,27 @@ impl VolumeSpec {
         }
     }
 
-    /// The file's path, relative to the scene file's folder.
+    /// The file's path, relative to the scene file's folder: for a sequence (`%04d` or `%d`
+    /// in its name), the frame at the spec's time ([`VolumeSpec::at_time`]).
     pub fn path(&self) -> PathBuf {
-        self.base_dir.join(&self.file)
+        match self.is_sequence() {
+            true => self.base_dir.join(crate::particles::frame_name(
+                &self.file,
+                self.frame_at(self.time_s),
+            )),
+            false => self.base_dir.join(&self.file),
+        }
+    }
+
+    /// Whether its file is a numbered sequence's pattern.
+    pub fn is_sequence(&self) -> bool {
+        !self.file.is_empty() && crate::particles::is_sequence(&self.file)
+    }
+
+    /// A sequence's frame at scene time `time_s`: `frame_at_zero` + the nearest whole number
+    /// of frames at `frame_rate_hz`.
+    pub fn frame_at(&self, time_s: f32) -> i64 {
+        self.frame_at_zero + (f64::from(time_s) * f64::from(self.frame_rate_hz)).round() as i64
     }
 
     /// The file's grid placed by the file's own transform, `density_scale_per_m` of extinction
@@ -454,6 +491,12 @@ impl VolumeSpec {
                 self.voxels
             ));
         }
+        if !(self.frame_rate_hz.is_finite() && self.frame_rate_hz > 0.0) {
+            out.push(format!(
+                "volume.frame_rate_hz = {} is out of range: allowed (0, inf)",
+                self.frame_rate_hz
+            ));
+        }
         for (i, w) in self.cloud.wind_m_per_s.iter().enumerate() {
             if !(w.is_finite() && w.abs() <= 1000.0) {
                 out.push(format!(
@@ -474,10 +517,12 @@ impl VolumeSpec {
         out
     }
 
-    /// The spec of the grid at scene time `time_s`: the procedural cloud with a wind carries
-    /// the time (its grid moves); any other volume the same grid at every time (`time_s` 0).
+    /// The spec of the grid at scene time `time_s`: a file sequence and the procedural cloud
+    /// with a wind carry the time (their grid moves); any other volume the same grid at every
+    /// time (`time_s` 0).
     pub fn at_time(&self, time_s: f32) -> Self {
-        let moves = self.kind() == VolumeKind::Cloud && !is_still(&self.cloud.wind_m_per_s);
+        let moves = self.is_sequence()
+            || self.kind() == VolumeKind::Cloud && !is_still(&self.cloud.wind_m_per_s);
         Self {
             time_s: if moves { time_s } else { 0.0 },
             ..self.clone()

@@ -746,6 +746,22 @@ impl Scene {
         })
     }
 
+    /// The frame rate of the scene's file sequence (its particles', else its volume's), if it
+    /// reads one: the rate an animation of it takes unless told otherwise.
+    pub fn sequence_rate_hz(&self) -> Option<f32> {
+        let particles = self
+            .particles
+            .as_ref()
+            .filter(|p| crate::particles::is_sequence(&p.file))
+            .map(|p| p.frame_rate_hz);
+        let volume = self
+            .volume
+            .as_ref()
+            .filter(|v| v.is_sequence())
+            .map(|v| v.frame_rate_hz);
+        particles.or(volume)
+    }
+
     /// The same scene at simulated time `time_s` (its `sim.duration_s`): what a frame of an
     /// animation renders.
     pub fn at_time(&self, time_s: f32) -> Self {
@@ -788,6 +804,8 @@ impl Scene {
             hasher.update(std::fs::read(path).unwrap_or_default());
         }
         if let Some(volume) = self.volume.as_ref().filter(|v| !v.file.is_empty()) {
+            // A sequence's frame at the scene's time.
+            let volume = volume.at_time(self.sim.duration_s);
             hasher.update(volume.file_bytes().unwrap_or_default());
         }
         let digest = hasher.finalize();

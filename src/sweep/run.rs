@@ -208,6 +208,22 @@ fn plan(scene: &Scene, options: &SweepOptions) -> anyhow::Result<(Vec<Plan>, Vec
             anyhow::bail!("--shadow-res {res} is out of range: allowed 1..=8192");
         }
     }
+    // A volume sequence's too.
+    if let (Some(span), Some(volume)) = (options.animate, &scene.volume)
+        && volume.is_sequence()
+        && let Some(t) = span
+            .times()
+            .into_iter()
+            .find(|&t| !volume.at_time(t).path().is_file())
+    {
+        anyhow::bail!(
+            "--animate: {}'s volume at t = {t} s is frame {} of {}, and {} does not exist",
+            scene.name,
+            volume.frame_at(t),
+            volume.file,
+            volume.at_time(t).path().display()
+        );
+    }
     // A sequence's every frame of the span is there before anything is rendered.
     if let (Some(span), Some(source)) = (options.animate, &scene.particles)
         && crate::particles::is_sequence(&source.file)

@@ -90,15 +90,13 @@ pub fn run(
         Some(n) => scene.with_particles(n)?,
         None => scene,
     };
-    // The span at the sweep's default rate: a particle sequence's own, else 30 fps.
+    // The span at the sweep's default rate: a file sequence's own, else 30 fps.
     let span = span
         .map(|(range, fps)| {
             let fps = fps.unwrap_or_else(|| {
                 scene
-                    .particles
-                    .as_ref()
-                    .filter(|p| crate::particles::is_sequence(&p.file))
-                    .map_or(crate::motion::DEFAULT_FPS, |p| p.frame_rate_hz)
+                    .sequence_rate_hz()
+                    .unwrap_or(crate::motion::DEFAULT_FPS)
             });
             crate::motion::Span::parse(&range, fps)
         })
