@@ -31,7 +31,7 @@ pub struct SweepArgs {
     #[arg(long, num_args = 1.., value_name = "DIR",
           conflicts_with_all = ["scene", "scenes", "shard", "resume", "exr", "techniques",
                                 "channels", "bytes_per_texel", "memory", "shadow_res", "splat", "particle_res", "params", "param_set", "frames",
-                                "warmup", "cell_seconds", "size", "particles", "animate", "fps", "framing"])]
+                                "warmup", "cell_seconds", "size", "particles", "animate", "fps", "orbit", "framing"])]
     pub merge: Option<Vec<PathBuf>>,
     #[command(flatten)]
     pub particles: super::ParticlesArg,
@@ -100,6 +100,11 @@ pub struct SweepArgs {
     /// the scene's own time.
     #[arg(long, value_name = "START..END")]
     pub animate: Option<String>,
+    /// Degrees the camera turns about the vertical through its target over `--animate`'s span
+    /// (default 0): every build's draw order turns with the view (`avsm`'s insertion, the
+    /// rounding of additive sums).
+    #[arg(long, requires = "animate", allow_negative_numbers = true)]
+    pub orbit: Option<f32>,
     /// How the light's maps frame the smoke, over the scene's `shadow.framing`: `fit` (each
     /// frame), `stable` (fitted, then held in steps as the smoke moves, the shimmer fix engines
     /// use) or `cone` (the thesis' whole cone).
@@ -173,7 +178,7 @@ pub fn run(args: &SweepArgs, adapter: &AdapterPreference) -> anyhow::Result<()> 
     let animate = args
         .animate
         .as_deref()
-        .map(|range| crate::motion::Span::parse(range, fps))
+        .map(|range| crate::motion::Span::parse(range, fps)?.with_orbit(args.orbit.unwrap_or(0.0)))
         .transpose()
         .map_err(anyhow::Error::msg)?;
     let options = SweepOptions {

@@ -47,6 +47,14 @@ pub struct Span {
     pub start_s: f32,
     pub end_s: f32,
     pub fps: f32,
+    /// Degrees the camera turns about the vertical through its target over the span (0: it
+    /// stays): a view that turns reorders every build's draw order ([`Span::camera_at`]).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub orbit_deg: f32,
+}
+
+fn is_zero(v: &f32) -> bool {
+    *v == 0.0
 }
 
 impl Span {
@@ -70,6 +78,7 @@ impl Span {
             start_s,
             end_s,
             fps,
+            orbit_deg: 0.0,
         };
         let frames = span.frames();
         if frames < 2 {
@@ -83,6 +92,33 @@ impl Span {
             ));
         }
         Ok(span)
+    }
+
+    /// The span with the camera turning by `degrees` over it, checked: finite, at most 360 in
+    /// size.
+    pub fn with_orbit(self, degrees: f32) -> Result<Self, String> {
+        if !(degrees.is_finite() && degrees.abs() <= 360.0) {
+            return Err(format!(
+                "--orbit {degrees} is out of range: allowed -360..=360 degrees"
+            ));
+        }
+        Ok(Self {
+            orbit_deg: degrees,
+            ..self
+        })
+    }
+
+    /// The camera at frame time `time_s`: `camera` turned about the vertical through its
+    /// target by the share of [`Span::orbit_deg`] the span has run by then.
+    pub fn camera_at(&self, camera: &crate::scene::Camera, time_s: f32) -> crate::scene::Camera {
+        let last = self.times().last().copied().unwrap_or(self.end_s);
+        let share = ((time_s - self.start_s) / (last - self.start_s).max(f32::MIN_POSITIVE))
+            .clamp(0.0, 1.0);
+        let turn = glam::Quat::from_rotation_y((self.orbit_deg * share).to_radians());
+        crate::scene::Camera {
+            position: camera.target + turn * (camera.position - camera.target),
+            ..camera.clone()
+        }
     }
 
     /// Parses `START..END` (seconds) at `fps`.
@@ -119,8 +155,12 @@ impl Span {
         let times = self.times();
         // Milliseconds: a frame time 1/30 s after a round start is not round in f32.
         let ms = |t: f32| (f64::from(t) * 1e3).round() / 1e3;
+        let orbit = match self.orbit_deg {
+            0.0 => String::new(),
+            deg => format!(", the camera turning {deg}°"),
+        };
         format!(
-            "{} frames at {} fps, t = {} .. {} s",
+            "{} frames at {} fps, t = {} .. {} s{orbit}",
             times.len(),
             self.fps,
             ms(self.start_s),
@@ -408,6 +448,33 @@ mod tests {
             let err = Span::parse(range, fps).unwrap_err();
             assert!(err.contains(says), "{range} at {fps}: {err}");
         }
+    }
+
+    #[test]
+    fn an_orbiting_span_turns_the_camera_about_its_target_by_its_share() {
+        let span = Span::parse("1..2", 4.0).unwrap().with_orbit(90.0).unwrap();
+        let camera = crate::scene::Camera {
+            position: glam::Vec3::new(0.0, 2.0, 5.0),
+            target: glam::Vec3::new(0.0, 1.0, 0.0),
+            ..crate::scene::Camera::default()
+        };
+        // The first frame's camera is the scene's; the last has turned the whole 90°, about
+        // the vertical through the target: +z to +x, the height and the distance kept.
+        assert_eq!(span.camera_at(&camera, 1.0).position, camera.position);
+        let last = span.camera_at(&camera, 2.0).position;
+        assert!(
+            (last - glam::Vec3::new(5.0, 2.0, 0.0)).length() < 1e-5,
+            "{last}"
+        );
+        let half = span.camera_at(&camera, 1.5).position - camera.target;
+        let expected = glam::Vec3::new(5.0 * 0.5f32.sqrt(), 1.0, 5.0 * 0.5f32.sqrt());
+        assert!((half - expected).length() < 1e-5, "{half}");
+        assert!(span.describe().ends_with("the camera turning 90°"));
+        let err = Span::parse("1..2", 4.0)
+            .unwrap()
+            .with_orbit(400.0)
+            .unwrap_err();
+        assert!(err.contains("--orbit 400 is out of range"), "{err}");
     }
 
     #[test]

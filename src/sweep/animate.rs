@@ -59,7 +59,9 @@ fn frames(scene: &Scene, span: &Span, (w, h): (u32, u32)) -> anyhow::Result<Vec<
     let ground = lit_opaque_points(scene, &camera, w, h, super::SHADED_STRIDE_PX);
     let mut out = Vec::new();
     for t in span.times() {
-        let at = scene.at_time(t);
+        let mut at = scene.at_time(t);
+        at.camera = span.camera_at(&scene.camera, t);
+        let eye = at.camera.position;
         let particles = match (&mut sim, &at.particles) {
             (Some(sim), _) => {
                 sim.advance_to(t);
@@ -74,10 +76,7 @@ fn frames(scene: &Scene, span: &Span, (w, h): (u32, u32)) -> anyhow::Result<Vec<
         let mut points = ground.clone();
         let mut owners = vec![crate::shadow::NO_OWNER; ground.len()];
         for (i, p) in particles.iter().enumerate().step_by(stride) {
-            points.extend(particle_lighting_points(
-                camera.position,
-                std::slice::from_ref(p),
-            ));
+            points.extend(particle_lighting_points(eye, std::slice::from_ref(p)));
             owners.extend([i as u32; 4]);
         }
         out.push(Frame {

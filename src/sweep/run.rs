@@ -489,7 +489,11 @@ fn settings_key(scene: &Scene, scene_sha256: &str, options: &SweepOptions, plan:
     };
     // Likewise a still cell's: the span is added only to an animated sweep's.
     let animate = options.animate.map_or(String::new(), |s| {
-        format!(" animate={}..{}@{}", s.start_s, s.end_s, s.fps)
+        let orbit = match s.orbit_deg {
+            0.0 => String::new(),
+            deg => format!(" orbit={deg}"),
+        };
+        format!(" animate={}..{}@{}{orbit}", s.start_s, s.end_s, s.fps)
     });
     format!(
         "tool={} scene={} size={}x{} frames={} warmup={} cell_seconds={} exact=closed-form technique={} params={}{particle_res}{animate}",
