@@ -712,3 +712,65 @@ fn a_volume_sequence_moves_frame_by_frame() {
     assert_eq!(lines.len(), 1, "{lines:?}");
     assert!(lines[0].contains("block.0004.vdb"), "{}", lines[0]);
 }
+
+#[test]
+fn a_gallery_in_motion_ranks_each_scenes_cells_by_temporal_error_too() {
+    let dir = scratch("motion-gallery");
+    let mut args = vec![
+        "sweep",
+        "--scenes",
+        "two_plumes,thesis_wind",
+        "--techniques",
+        "osm,dom,volume",
+        "--channels",
+        "8",
+        "--animate",
+        "7.8..7.9",
+        "-o",
+        dir.to_str().unwrap(),
+    ];
+    args.extend_from_slice(SMALL);
+    let stdout = ok(&smokeshadow(&args));
+    assert!(stdout.contains("in motion"), "{stdout}");
+    let gallery: smokeshadow::sweep::gallery::GalleryResults =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("results.json")).unwrap()).unwrap();
+    // Each scene's motion ranks are its cells ordered by temporal error.
+    for scene in &gallery.scenes {
+        let ranks: Vec<_> = gallery
+            .gallery
+            .ranks
+            .iter()
+            .filter(|r| r.scene == scene.metadata.scene)
+            .collect();
+        assert_eq!(ranks.len(), 3);
+        let mut by_motion: Vec<_> = ranks.iter().collect();
+        by_motion.sort_by_key(|r| r.motion_rank.unwrap());
+        for w in by_motion.windows(2) {
+            assert!(w[0].temporal_error.unwrap() <= w[1].temporal_error.unwrap());
+        }
+        for r in &ranks {
+            let cell = scene
+                .cells
+                .iter()
+                .find(|c| c.technique == r.technique)
+                .unwrap();
+            assert_eq!(
+                r.temporal_error,
+                cell.motion.as_ref().map(|m| m.temporal_error)
+            );
+        }
+    }
+    // The ranking gives each technique the median of its two scenes' motion ranks.
+    for row in &gallery.gallery.ranking {
+        let mine: Vec<f64> = gallery
+            .gallery
+            .ranks
+            .iter()
+            .filter(|r| r.technique == row.technique)
+            .map(|r| f64::from(r.motion_rank.unwrap()))
+            .collect();
+        assert_eq!(row.motion_median_rank, Some((mine[0] + mine[1]) / 2.0));
+    }
+    let html = std::fs::read_to_string(dir.join("index.html")).unwrap();
+    assert!(html.contains("median rank in motion"));
+}

@@ -295,9 +295,16 @@ fn print_outcome(outcome: &SweepOutcome, dir: &Path, machine: &str) {
                 println!(
                     "\nranking at equal bytes across scenes (rank by FLIP vs exact within each scene and budget):"
                 );
+                let moving = g.ranking.iter().any(|r| r.motion_median_rank.is_some());
                 println!(
-                    "{:<16} {:>18} {:>12} {:>11} {:<16} {:>7}",
-                    "technique", "budget", "median rank", "worst rank", "worst on", "scenes"
+                    "{:<16} {:>18} {:>12} {:>11} {:<16} {:>7}{}",
+                    "technique",
+                    "budget",
+                    "median rank",
+                    "worst rank",
+                    "worst on",
+                    "scenes",
+                    if moving { "  in motion" } else { "" }
                 );
                 for row in &g.ranking {
                     let mut t = row.technique.clone();
@@ -309,13 +316,18 @@ fn print_outcome(outcome: &SweepOutcome, dir: &Path, machine: &str) {
                         t = format!("{t} {} {}", row.shadow_res, row.splat.name());
                     }
                     println!(
-                        "{:<16} {:>18} {:>12} {:>11} {:<16} {:>7}",
+                        "{:<16} {:>18} {:>12} {:>11} {:<16} {:>7}{}",
                         t,
                         row.budget.to_string(),
                         format!("{}", row.median_rank),
                         row.worst_rank,
                         row.worst_scene,
-                        row.scenes
+                        row.scenes,
+                        match (moving, row.motion_median_rank) {
+                            (true, Some(m)) => format!(" {m:>10}"),
+                            (true, None) => format!(" {:>10}", "-"),
+                            (false, _) => String::new(),
+                        }
                     );
                 }
             }

@@ -37,6 +37,7 @@ pub const RANKING_COLUMNS: &[&str] = &[
     "median_rank",
     "worst_rank",
     "worst_scene",
+    "motion_median_rank",
 ];
 
 /// One technique's rank in one scene at one budget.
@@ -56,6 +57,12 @@ pub struct Rank {
     pub flip_vs_exact: f64,
     /// Its resident bytes (scratch included, as byte budgets count them).
     pub bytes: u64,
+    /// With `--animate`: its rank among the same cells by temporal error (1 = the steadiest
+    /// against `exact`), and that error.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub motion_rank: Option<u32>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub temporal_error: Option<f64>,
 }
 
 /// A technique's ranks at one budget across the scenes.
@@ -71,6 +78,9 @@ pub struct RankingRow {
     pub worst_rank: u32,
     /// The (first) scene where it ranked worst.
     pub worst_scene: String,
+    /// With `--animate`: its median rank by temporal error across the scenes.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub motion_median_rank: Option<f64>,
 }
 
 /// What the gallery computed, as written to `DIR/results.json`.
@@ -141,7 +151,12 @@ pub fn ranks(scenes: &[SweepResults]) -> Vec<Rank> {
                     .then(x.splat.name().cmp(y.splat.name()))
             });
             let of = at.len() as u32;
+            let steadiest = super::report::most_stable(&at);
             for (i, c) in at.iter().enumerate() {
+                let motion_rank = steadiest
+                    .iter()
+                    .position(|s| std::ptr::eq(*s, *c))
+                    .map(|k| k as u32 + 1);
                 out.push(Rank {
                     scene: r.metadata.scene.clone(),
                     budget: b,
@@ -153,6 +168,8 @@ pub fn ranks(scenes: &[SweepResults]) -> Vec<Rank> {
                     of,
                     flip_vs_exact: flip(c),
                     bytes: c.resident_bytes,
+                    motion_rank,
+                    temporal_error: c.motion.as_ref().map(|m| m.temporal_error),
                 });
             }
         }
@@ -174,10 +191,10 @@ fn median(values: &[f64]) -> f64 {
 /// For each technique variant and budget: its median and worst rank across scenes, sorted by
 /// median rank, then worst rank (then registry order, larger budgets first).
 pub fn ranking(ranks: &[Rank]) -> Vec<RankingRow> {
-    let mut rows: Vec<(RankingRow, Vec<f64>)> = Vec::new();
+    let mut rows: Vec<(RankingRow, Vec<f64>, Vec<f64>)> = Vec::new();
     for r in ranks {
         let key = (r.technique.as_str(), r.shadow_res, r.splat, r.budget);
-        let found = rows.iter_mut().find(|(row, _)| {
+        let found = rows.iter_mut().find(|(row, _, _)| {
             (
                 row.technique.as_str(),
                 row.shadow_res,
@@ -186,8 +203,9 @@ pub fn ranking(ranks: &[Rank]) -> Vec<RankingRow> {
             ) == key
         });
         match found {
-            Some((row, values)) => {
+            Some((row, values, moving)) => {
                 values.push(r.rank as f64);
+                moving.extend(r.motion_rank.map(f64::from));
                 row.scenes += 1;
                 if r.rank > row.worst_rank {
                     row.worst_rank = r.rank;
@@ -204,15 +222,18 @@ pub fn ranking(ranks: &[Rank]) -> Vec<RankingRow> {
                     median_rank: f64::NAN,
                     worst_rank: r.rank,
                     worst_scene: r.scene.clone(),
+                    motion_median_rank: None,
                 },
                 vec![r.rank as f64],
+                r.motion_rank.map(f64::from).into_iter().collect(),
             )),
         }
     }
     let mut rows: Vec<RankingRow> = rows
         .into_iter()
-        .map(|(mut row, values)| {
+        .map(|(mut row, values, moving)| {
             row.median_rank = median(&values);
+            row.motion_median_rank = (!moving.is_empty()).then(|| median(&moving));
             row
         })
         .collect();
@@ -550,6 +571,8 @@ pub fn write(dir: &Path, scenes: &[SweepResults]) -> anyhow::Result<Gallery> {
             format!("{}", row.median_rank),
             row.worst_rank.to_string(),
             row.worst_scene.clone(),
+            row.motion_median_rank
+                .map_or(String::new(), |m| format!("{m}")),
         ])?;
     }
     let csv = writer.into_inner().context("cannot encode ranking.csv")?;
@@ -639,6 +662,10 @@ fn page(scenes: &[SweepResults], gallery: &Gallery) -> String {
         super::charts::palette_rgb(i)
     };
 
+    let moving = gallery
+        .ranking
+        .iter()
+        .any(|r| r.motion_median_rank.is_some());
     let _ = writeln!(
         body,
         "<h2>Ranking at equal bytes, all scenes</h2>\n<p>Within each scene and byte budget per \
@@ -648,8 +675,18 @@ fn page(scenes: &[SweepResults], gallery: &Gallery) -> String {
          bytes first). A technique whose result does not depend on the budget is ranked at every \
          budget it fits with its one cell. Below, each technique and budget with its median and worst \
          rank across the scenes, sorted by median, then worst (also \
-         <a href=\"ranking.csv\">ranking.csv</a>).</p>\n<table><tr><th>technique</th>\
-         <th>budget</th><th>median rank</th><th>worst rank</th><th>worst on</th><th>scenes</th></tr>"
+         <a href=\"ranking.csv\">ranking.csv</a>){}.</p>\n<table><tr><th>technique</th>\
+         <th>budget</th><th>median rank</th><th>worst rank</th><th>worst on</th><th>scenes</th>{}</tr>",
+        match moving {
+            true =>
+                "; with <code>--animate</code>, the median rank of the same cells by temporal \
+                     error against <code>exact</code> over the span (1 = the steadiest)",
+            false => "",
+        },
+        match moving {
+            true => "<th>median rank in motion</th>",
+            false => "",
+        }
     );
     for row in &gallery.ranking {
         let l = labels.label(&row.technique, row.shadow_res, row.splat);
@@ -657,13 +694,18 @@ fn page(scenes: &[SweepResults], gallery: &Gallery) -> String {
         let _ = writeln!(
             body,
             "<tr><td><span class=\"swatch\" style=\"background: rgb({r},{g},{b})\"></span>{}</td>\
-             <td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+             <td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td>{}</tr>",
             e(&l),
             row.budget,
             rank_text(row.median_rank),
             row.worst_rank,
             e(&row.worst_scene),
-            row.scenes
+            row.scenes,
+            match (moving, row.motion_median_rank) {
+                (true, Some(m)) => format!("<td>{}</td>", rank_text(m)),
+                (true, None) => "<td>—</td>".to_owned(),
+                (false, _) => String::new(),
+            }
         );
     }
     body.push_str("</table>\n");
@@ -796,6 +838,8 @@ mod tests {
             of: 2,
             flip_vs_exact: 0.01 * rank as f64,
             bytes: 1000,
+            motion_rank: None,
+            temporal_error: None,
         }
     }
 
