@@ -360,20 +360,27 @@ fn a_particle_sequence_moves_frame_by_frame_at_its_own_rate() {
     assert!(osm.motion.as_ref().unwrap().temporal_error > 0.0);
 
     // A span past the sequence's last file names the file.
+    refused_past_the_last_file(&toml, "osm", "7.9..8.1", "smoke.0193.ply");
+}
+
+/// `sweep SCENE --animate SPAN` of a sequence that ends before the span: one line naming the
+/// missing `file`, before anything renders.
+fn refused_past_the_last_file(scene: &Path, technique: &str, span: &str, file: &str) {
+    let dir = scene.parent().unwrap().join("late");
     let late = smokeshadow(&[
         "sweep",
-        toml.to_str().unwrap(),
+        scene.to_str().unwrap(),
         "--techniques",
-        "osm",
+        technique,
         "--animate",
-        "7.9..8.1",
+        span,
         "-o",
-        dir.join("late").to_str().unwrap(),
+        dir.to_str().unwrap(),
     ]);
     assert!(!late.status.success());
     let lines = error_lines(&late);
     assert_eq!(lines.len(), 1, "{lines:?}");
-    assert!(lines[0].contains("smoke.0193.ply"), "{}", lines[0]);
+    assert!(lines[0].contains(file), "{}", lines[0]);
 }
 
 #[test]
@@ -697,20 +704,7 @@ fn a_volume_sequence_moves_frame_by_frame() {
     assert!(motion.change.luminance > 1e-4, "the block moves: {stdout}");
     assert!(motion.check_worst < smokeshadow::render::reference_check::TOLERANCE);
     // Past the last file: named before anything renders.
-    let late = smokeshadow(&[
-        "sweep",
-        toml.to_str().unwrap(),
-        "--techniques",
-        "volume",
-        "--animate",
-        "0..0.2",
-        "-o",
-        dir.join("late").to_str().unwrap(),
-    ]);
-    assert!(!late.status.success());
-    let lines = error_lines(&late);
-    assert_eq!(lines.len(), 1, "{lines:?}");
-    assert!(lines[0].contains("block.0004.vdb"), "{}", lines[0]);
+    refused_past_the_last_file(&toml, "volume", "0..0.2", "block.0004.vdb");
 }
 
 #[test]

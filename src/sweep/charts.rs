@@ -359,7 +359,10 @@ fn temporal_error_vs_bytes(results: &SweepResults, motion: &super::MotionReferen
         file_name: "temporal_error_vs_bytes.svg",
         title: "Stability per memory: temporal error vs exact".into(),
         caption: format!(
-            "Mean over the {} of the per-pixel |ΔI − ΔI_exact| between consecutive frames,              linear luminance (lower is steadier; 0 changes exactly as exact does), over the              bytes allocated (log scale). The dashed line is exact's own mean change a frame: a              technique near it changes about as wrongly as the image changes at all.{}",
+            "Mean over the {} of the per-pixel |ΔI − ΔI_exact| between consecutive frames, \
+             linear luminance (lower is steadier; 0 changes exactly as exact does), over the \
+             bytes allocated (log scale). The dashed line is exact's own mean change a frame: a \
+             technique near it changes about as wrongly as the image changes at all.{}",
             motion.change.span.describe(),
             zero_bytes_note(zero_bytes)
         ),
@@ -435,7 +438,9 @@ fn flip_over_time(results: &SweepResults, motion: &super::MotionReference) -> Pl
         file_name: "flip_over_time.svg",
         title: format!("FLIP vs exact over time, {which}"),
         caption: format!(
-            "FLIP mean of each frame against exact's at the same time over the {}: a flat line              errs the same way in every frame, a jagged one is wrong differently from frame to              frame.",
+            "FLIP mean of each frame against exact's at the same time over the {}: a flat line \
+             errs the same way in every frame, a jagged one is wrong differently from frame to \
+             frame.",
             motion.change.span.describe()
         ),
         x_scale: XScale::Seconds,
@@ -455,7 +460,8 @@ fn temporal_error_over_time(results: &SweepResults, motion: &super::MotionRefere
         file_name: "temporal_error_over_time.svg",
         title: format!("Temporal error over time, {which}"),
         caption: format!(
-            "Mean per-pixel |ΔI − ΔI_exact| of each pair of consecutive frames, at the later              frame's time, over the {}; the dashed line is exact's own mean change a frame.",
+            "Mean per-pixel |ΔI − ΔI_exact| of each pair of consecutive frames, at the later \
+             frame's time, over the {}; the dashed line is exact's own mean change a frame.",
             motion.change.span.describe()
         ),
         x_scale: XScale::Seconds,
