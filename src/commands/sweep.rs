@@ -31,7 +31,7 @@ pub struct SweepArgs {
     #[arg(long, num_args = 1.., value_name = "DIR",
           conflicts_with_all = ["scene", "scenes", "shard", "resume", "exr", "techniques",
                                 "channels", "bytes_per_texel", "memory", "shadow_res", "splat", "particle_res", "params", "param_set", "frames",
-                                "warmup", "cell_seconds", "size", "particles", "animate", "fps", "orbit", "framing"])]
+                                "warmup", "cell_seconds", "size", "particles", "animate", "fps", "orbit", "light_orbit", "framing"])]
     pub merge: Option<Vec<PathBuf>>,
     #[command(flatten)]
     pub particles: super::ParticlesArg,
@@ -105,6 +105,10 @@ pub struct SweepArgs {
     /// rounding of additive sums).
     #[arg(long, requires = "animate", allow_negative_numbers = true)]
     pub orbit: Option<f32>,
+    /// Degrees the light turns about the vertical through its target over `--animate`'s span
+    /// (default 0): every map's frustum, slices and texels move with it.
+    #[arg(long, requires = "animate", allow_negative_numbers = true)]
+    pub light_orbit: Option<f32>,
     /// How the light's maps frame the smoke, over the scene's `shadow.framing`: `fit` (each
     /// frame), `stable` (fitted, then held in steps as the smoke moves, the shimmer fix engines
     /// use) or `cone` (the thesis' whole cone).
@@ -178,7 +182,11 @@ pub fn run(args: &SweepArgs, adapter: &AdapterPreference) -> anyhow::Result<()> 
     let animate = args
         .animate
         .as_deref()
-        .map(|range| crate::motion::Span::parse(range, fps)?.with_orbit(args.orbit.unwrap_or(0.0)))
+        .map(|range| {
+            crate::motion::Span::parse(range, fps)?
+                .with_orbit(args.orbit.unwrap_or(0.0))?
+                .with_light_orbit(args.light_orbit.unwrap_or(0.0))
+        })
         .transpose()
         .map_err(anyhow::Error::msg)?;
     let options = SweepOptions {

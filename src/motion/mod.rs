@@ -51,6 +51,10 @@ pub struct Span {
     /// stays): a view that turns reorders every build's draw order ([`Span::camera_at`]).
     #[serde(default, skip_serializing_if = "is_zero")]
     pub orbit_deg: f32,
+    /// Degrees the light turns about the vertical through its target over the span (0: it
+    /// stays): every map's frustum, slices and texels move with it ([`Span::light_at`]).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub light_orbit_deg: f32,
 }
 
 fn is_zero(v: &f32) -> bool {
@@ -79,6 +83,7 @@ impl Span {
             end_s,
             fps,
             orbit_deg: 0.0,
+            light_orbit_deg: 0.0,
         };
         let frames = span.frames();
         if frames < 2 {
@@ -108,16 +113,48 @@ impl Span {
         })
     }
 
-    /// The camera at frame time `time_s`: `camera` turned about the vertical through its
-    /// target by the share of [`Span::orbit_deg`] the span has run by then.
-    pub fn camera_at(&self, camera: &crate::scene::Camera, time_s: f32) -> crate::scene::Camera {
+    /// The span with the light turning by `degrees` over it, checked as [`Span::with_orbit`].
+    pub fn with_light_orbit(self, degrees: f32) -> Result<Self, String> {
+        if !(degrees.is_finite() && degrees.abs() <= 360.0) {
+            return Err(format!(
+                "--light-orbit {degrees} is out of range: allowed -360..=360 degrees"
+            ));
+        }
+        Ok(Self {
+            light_orbit_deg: degrees,
+            ..self
+        })
+    }
+
+    /// The turn about the vertical by `degrees` times the share of the span run at `time_s`.
+    fn turn_at(&self, degrees: f32, time_s: f32) -> glam::Quat {
         let last = self.times().last().copied().unwrap_or(self.end_s);
         let share = ((time_s - self.start_s) / (last - self.start_s).max(f32::MIN_POSITIVE))
             .clamp(0.0, 1.0);
-        let turn = glam::Quat::from_rotation_y((self.orbit_deg * share).to_radians());
+        glam::Quat::from_rotation_y((degrees * share).to_radians())
+    }
+
+    /// The camera at frame time `time_s`: `camera` turned about the vertical through its
+    /// target by the share of [`Span::orbit_deg`] the span has run by then.
+    pub fn camera_at(&self, camera: &crate::scene::Camera, time_s: f32) -> crate::scene::Camera {
+        let turn = self.turn_at(self.orbit_deg, time_s);
         crate::scene::Camera {
             position: camera.target + turn * (camera.position - camera.target),
             ..camera.clone()
+        }
+    }
+
+    /// The light at frame time `time_s`: `light` turned about the vertical through its target
+    /// by the share of [`Span::light_orbit_deg`] the span has run by then.
+    pub fn light_at(
+        &self,
+        light: &crate::scene::Spotlight,
+        time_s: f32,
+    ) -> crate::scene::Spotlight {
+        let turn = self.turn_at(self.light_orbit_deg, time_s);
+        crate::scene::Spotlight {
+            position: light.target + turn * (light.position - light.target),
+            ..light.clone()
         }
     }
 
@@ -155,10 +192,13 @@ impl Span {
         let times = self.times();
         // Milliseconds: a frame time 1/30 s after a round start is not round in f32.
         let ms = |t: f32| (f64::from(t) * 1e3).round() / 1e3;
-        let orbit = match self.orbit_deg {
+        let mut orbit = match self.orbit_deg {
             0.0 => String::new(),
             deg => format!(", the camera turning {deg}°"),
         };
+        if self.light_orbit_deg != 0.0 {
+            orbit.push_str(&format!(", the light turning {}°", self.light_orbit_deg));
+        }
         format!(
             "{} frames at {} fps, t = {} .. {} s{orbit}",
             times.len(),
@@ -470,6 +510,17 @@ mod tests {
         let expected = glam::Vec3::new(5.0 * 0.5f32.sqrt(), 1.0, 5.0 * 0.5f32.sqrt());
         assert!((half - expected).length() < 1e-5, "{half}");
         assert!(span.describe().ends_with("the camera turning 90°"));
+        // The light likewise, about its own target.
+        let light = crate::scene::Spotlight::default();
+        let turned = span.with_light_orbit(-90.0).unwrap();
+        let moved = turned.light_at(&light, 2.0);
+        assert!(
+            (moved.position.distance(light.target) - light.position.distance(light.target)).abs()
+                < 1e-4
+        );
+        assert!((moved.position.y - light.position.y).abs() < 1e-5);
+        assert_eq!(turned.light_at(&light, 1.0).position, light.position);
+        assert!(turned.describe().ends_with("the light turning -90°"));
         let err = Span::parse("1..2", 4.0)
             .unwrap()
             .with_orbit(400.0)

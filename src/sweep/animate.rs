@@ -61,6 +61,7 @@ fn frames(scene: &Scene, span: &Span, (w, h): (u32, u32)) -> anyhow::Result<Vec<
     for t in span.times() {
         let mut at = scene.at_time(t);
         at.camera = span.camera_at(&scene.camera, t);
+        at.light = span.light_at(&scene.light, t);
         let eye = at.camera.position;
         let particles = match (&mut sim, &at.particles) {
             (Some(sim), _) => {

@@ -489,10 +489,13 @@ fn settings_key(scene: &Scene, scene_sha256: &str, options: &SweepOptions, plan:
     };
     // Likewise a still cell's: the span is added only to an animated sweep's.
     let animate = options.animate.map_or(String::new(), |s| {
-        let orbit = match s.orbit_deg {
+        let mut orbit = match s.orbit_deg {
             0.0 => String::new(),
             deg => format!(" orbit={deg}"),
         };
+        if s.light_orbit_deg != 0.0 {
+            orbit.push_str(&format!(" light_orbit={}", s.light_orbit_deg));
+        }
         format!(" animate={}..{}@{}{orbit}", s.start_s, s.end_s, s.fps)
     });
     format!(
