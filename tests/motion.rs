@@ -397,6 +397,10 @@ fn bad_spans_get_one_line() {
             "\"x\" is not a number of seconds",
         ),
         (
+            vec!["--animate", "1..2", "--light-orbit", "400"],
+            "--light-orbit 400 is out of range",
+        ),
+        (
             vec!["--animate", "1..2", "--fps", "0"],
             "--fps 0 is out of range",
         ),
