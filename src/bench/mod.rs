@@ -436,8 +436,7 @@ impl CellBench<'_> {
 
     /// The tone-mapped frame the target holds, read back.
     fn read_image(&self) -> anyhow::Result<image::RgbImage> {
-        let rgba = crate::gpu::read_texture_rgba8(self.gpu, &self.target.texture)?;
-        Ok(image::DynamicImage::ImageRgba8(rgba).into_rgb8())
+        Ok(self.target.read_rgb(self.gpu)?)
     }
 
     fn measure(

@@ -153,8 +153,7 @@ pub fn run(
                 &RenderOptions::default(),
                 &target.view,
             )?;
-            let rgba = crate::gpu::read_texture_rgba8(gpu, &target.texture)?;
-            let rgb = image::DynamicImage::ImageRgba8(rgba).into_rgb8();
+            let rgb = target.read_rgb(gpu)?;
             // The reference checks itself before anything is compared with it.
             if let Some(c) = crate::render::reference_check::verify_if_reference(
                 &mut renderer,

@@ -1749,6 +1749,13 @@ impl OffscreenTarget {
         let view = texture.create_view(&Default::default());
         Self { texture, view }
     }
+
+    /// The tone-mapped frame it holds, read back as 8-bit sRGB (alpha dropped). Waits for the
+    /// GPU.
+    pub fn read_rgb(&self, gpu: &Gpu) -> Result<image::RgbImage, crate::gpu::GpuError> {
+        let rgba = crate::gpu::read_texture_rgba8(gpu, &self.texture)?;
+        Ok(image::DynamicImage::ImageRgba8(rgba).into_rgb8())
+    }
 }
 
 /// The result of [`render_offscreen`].

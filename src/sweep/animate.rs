@@ -135,7 +135,7 @@ impl ExactFrames {
                 &RenderOptions::default(),
                 &target.view,
             )?;
-            let image = read_rgb(gpu, target)?;
+            let image = target.read_rgb(gpu)?;
             let transmittance =
                 renderer.probe_shaded(gpu, &f.scene, &f.particles, &f.points, &f.owners)?;
             let check = progress.suspend(|| {
@@ -181,7 +181,7 @@ impl ExactFrames {
             // The frame as any other (its own build and draw), then its T from the same maps.
             renderer.forget_maps();
             renderer.render(gpu, &f.scene, &f.particles, &options, &target.view)?;
-            let image = read_rgb(gpu, target)?;
+            let image = target.read_rgb(gpu)?;
             let transmittance =
                 renderer.probe_shaded(gpu, &f.scene, &f.particles, &f.points, &f.owners)?;
             recorder.push(
@@ -217,11 +217,6 @@ pub(super) fn finish(
     Ok(recorder.finish(&flips))
 }
 
-fn read_rgb(gpu: &Gpu, target: &OffscreenTarget) -> anyhow::Result<RgbImage> {
-    let rgba = crate::gpu::read_texture_rgba8(gpu, &target.texture)?;
-    Ok(image::DynamicImage::ImageRgba8(rgba).into_rgb8())
-}
-
 /// The side-by-side's file in a scene's folder.
 pub(super) const ANIMATION_FILE: &str = "motion.png";
 
@@ -252,7 +247,7 @@ impl ExactFrames {
             for f in &self.frames {
                 renderer.forget_maps();
                 renderer.render(gpu, &f.scene, &f.particles, options, &target.view)?;
-                frames.push(half(&read_rgb(gpu, target)?));
+                frames.push(half(&target.read_rgb(gpu)?));
             }
             columns.push(frames);
         }

@@ -603,9 +603,7 @@ impl<'a> Sweeper<'a> {
         )?;
         let exact_bytes = renderer.shadow_bytes().0;
         let exact_tiles = counter(&renderer.technique().counters(), "tiles_per_side") as u32;
-        let exact_image =
-            image::DynamicImage::ImageRgba8(crate::gpu::read_texture_rgba8(gpu, &target.texture)?)
-                .into_rgb8();
+        let exact_image = target.read_rgb(gpu)?;
         crate::output::write_png_rgb(&dir.join(EXACT_IMAGE), &exact_image)?;
         if options.exr {
             let hdr = crate::gpu::read_texture_rgba16f(gpu, renderer.hdr_texture())?;
@@ -741,8 +739,7 @@ impl<'a> Sweeper<'a> {
             &plan.options(),
             &self.target.view,
         )?;
-        let rgba = crate::gpu::read_texture_rgba8(self.gpu, &self.target.texture)?;
-        Ok(image::DynamicImage::ImageRgba8(rgba).into_rgb8())
+        Ok(self.target.read_rgb(self.gpu)?)
     }
 
     /// The technique's own 24-channel image at the cell's resolution, splat and particle
@@ -902,8 +899,7 @@ impl<'a> Sweeper<'a> {
         }
         let (resident_bytes, transient_bytes) = self.renderer.shadow_bytes();
         let channels_used = self.renderer.technique().channels_used();
-        let rgba = crate::gpu::read_texture_rgba8(self.gpu, &self.target.texture)?;
-        let image = image::DynamicImage::ImageRgba8(rgba).into_rgb8();
+        let image = self.target.read_rgb(self.gpu)?;
         let image_path = format!("images/{}.png", plan.name);
         let hdr = match self.options.exr && record {
             true => Some((

@@ -223,8 +223,7 @@ impl Worker {
             &frame.options,
             &target.view,
         )?;
-        let rgba = crate::gpu::read_texture_rgba8(&gpu, &target.texture)?;
-        Ok(image::DynamicImage::ImageRgba8(rgba).into_rgb8())
+        Ok(target.read_rgb(&gpu)?)
     }
 
     /// A renderer for `config` at `size`: reused when one matches, else one of the three kept is
