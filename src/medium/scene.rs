@@ -269,10 +269,9 @@ impl VolumeSpec {
         !self.file.is_empty() && crate::particles::is_sequence(&self.file)
     }
 
-    /// A sequence's frame at scene time `time_s`: `frame_at_zero` + the nearest whole number
-    /// of frames at `frame_rate_hz`.
+    /// A sequence's frame at scene time `time_s` ([`crate::particles::sequence_frame`]).
     pub fn frame_at(&self, time_s: f32) -> i64 {
-        self.frame_at_zero + (f64::from(time_s) * f64::from(self.frame_rate_hz)).round() as i64
+        crate::particles::sequence_frame(self.frame_at_zero, self.frame_rate_hz, time_s)
     }
 
     /// The file's grid placed by the file's own transform, `density_scale_per_m` of extinction

@@ -350,11 +350,16 @@ pub fn frame_name(pattern: &str, frame: i64) -> String {
     }
 }
 
+/// A sequence's frame at scene time `time_s`: `frame_at_zero` + the nearest whole number of
+/// frames at `frame_rate_hz` (particle and volume sequences alike).
+pub fn sequence_frame(frame_at_zero: i64, frame_rate_hz: f32, time_s: f32) -> i64 {
+    frame_at_zero + (f64::from(time_s) * f64::from(frame_rate_hz)).round() as i64
+}
+
 impl ParticleSource {
-    /// The frame of a sequence at simulated time `time_s`: `frame_at_zero` + the nearest whole
-    /// number of frames at `frame_rate_hz`.
+    /// The frame of a sequence at simulated time `time_s` ([`sequence_frame`]).
     pub fn frame_at(&self, time_s: f32) -> i64 {
-        self.frame_at_zero + (f64::from(time_s) * f64::from(self.frame_rate_hz)).round() as i64
+        sequence_frame(self.frame_at_zero, self.frame_rate_hz, time_s)
     }
 
     /// The file to read at `time_s`: the file itself, or the sequence's frame, relative to the

@@ -208,37 +208,8 @@ fn plan(scene: &Scene, options: &SweepOptions) -> anyhow::Result<(Vec<Plan>, Vec
             anyhow::bail!("--shadow-res {res} is out of range: allowed 1..=8192");
         }
     }
-    // A volume sequence's too.
-    if let (Some(span), Some(volume)) = (options.animate, &scene.volume)
-        && volume.is_sequence()
-        && let Some(t) = span
-            .times()
-            .into_iter()
-            .find(|&t| !volume.at_time(t).path().is_file())
-    {
-        anyhow::bail!(
-            "--animate: {}'s volume at t = {t} s is frame {} of {}, and {} does not exist",
-            scene.name,
-            volume.frame_at(t),
-            volume.file,
-            volume.at_time(t).path().display()
-        );
-    }
-    // A sequence's every frame of the span is there before anything is rendered.
-    if let (Some(span), Some(source)) = (options.animate, &scene.particles)
-        && crate::particles::is_sequence(&source.file)
-        && let Some(t) = span
-            .times()
-            .into_iter()
-            .find(|&t| !source.path_at(t).is_file())
-    {
-        anyhow::bail!(
-            "--animate: {}'s frame at t = {t} s is frame {} of {}, and {} does not exist",
-            scene.name,
-            source.frame_at(t),
-            source.file,
-            source.path_at(t).display()
-        );
+    if let Some(span) = options.animate {
+        check_sequence_frames(scene, &span)?;
     }
     let mut cells = vec![
         Plan::new(
@@ -402,6 +373,42 @@ fn plan(scene: &Scene, options: &SweepOptions) -> anyhow::Result<(Vec<Plan>, Vec
         }
     }
     Ok((cells, skipped))
+}
+
+/// Every frame of `span` of the scene's file sequences (its particles', its volume's) is there
+/// before anything is rendered; else one line naming the first missing file.
+fn check_sequence_frames(scene: &Scene, span: &crate::motion::Span) -> anyhow::Result<()> {
+    // (what, its pattern, each time's frame and path) of each sequence the scene reads.
+    let particles = scene
+        .particles
+        .as_ref()
+        .filter(|s| crate::particles::is_sequence(&s.file))
+        .map(|s| {
+            let at: Vec<_> = span
+                .times()
+                .into_iter()
+                .map(|t| (t, s.frame_at(t), s.path_at(t)))
+                .collect();
+            ("particle file", s.file.as_str(), at)
+        });
+    let volume = scene.volume.as_ref().filter(|v| v.is_sequence()).map(|v| {
+        let at: Vec<_> = span
+            .times()
+            .into_iter()
+            .map(|t| (t, v.frame_at(t), v.at_time(t).path()))
+            .collect();
+        ("volume file", v.file.as_str(), at)
+    });
+    for (what, pattern, at) in particles.into_iter().chain(volume) {
+        if let Some((t, frame, path)) = at.into_iter().find(|(_, _, path)| !path.is_file()) {
+            anyhow::bail!(
+                "--animate: {}'s {what} at t = {t} s is frame {frame} of {pattern}, and {} does not exist",
+                scene.name,
+                path.display()
+            );
+        }
+    }
+    Ok(())
 }
 
 /// Adds `bytes` per texel to the cell of `entry`'s configuration that fits it (the
