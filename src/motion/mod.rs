@@ -134,6 +134,15 @@ impl Span {
         glam::Quat::from_rotation_y((degrees * share).to_radians())
     }
 
+    /// The scene as the span's frame at `time_s` shows it: at that time, its camera and light
+    /// turned by their orbits' shares ([`Span::camera_at`], [`Span::light_at`]).
+    pub fn scene_at(&self, scene: &crate::scene::Scene, time_s: f32) -> crate::scene::Scene {
+        let mut at = scene.at_time(time_s);
+        at.camera = self.camera_at(&scene.camera, time_s);
+        at.light = self.light_at(&scene.light, time_s);
+        at
+    }
+
     /// The camera at frame time `time_s`: `camera` turned about the vertical through its
     /// target by the share of [`Span::orbit_deg`] the span has run by then.
     pub fn camera_at(&self, camera: &crate::scene::Camera, time_s: f32) -> crate::scene::Camera {

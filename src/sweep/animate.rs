@@ -39,6 +39,40 @@ pub(super) struct Frame {
     pub fixed: usize,
 }
 
+impl Frame {
+    /// The frame as any other (its own build and draw, whatever the renderer built before),
+    /// read back, then T at its points from the same maps: the image and what the measures
+    /// take of it.
+    fn render(
+        &self,
+        gpu: &Gpu,
+        renderer: &mut Renderer,
+        target: &OffscreenTarget,
+        options: &RenderOptions,
+    ) -> anyhow::Result<(RgbImage, FrameSample)> {
+        renderer.forget_maps();
+        let options = RenderOptions {
+            reuse_shadow_maps: true,
+            ..*options
+        };
+        renderer.render(gpu, &self.scene, &self.particles, &options, &target.view)?;
+        let image = target.read_rgb(gpu)?;
+        let transmittance = renderer.probe_shaded(
+            gpu,
+            &self.scene,
+            &self.particles,
+            &self.points,
+            &self.owners,
+        )?;
+        let sample = FrameSample {
+            luminance: linear_luminance(&image),
+            transmittance,
+            fixed_points: self.fixed,
+        };
+        Ok((image, sample))
+    }
+}
+
 /// `exact` over the span: what every cell's frames are compared with.
 pub(super) struct ExactFrames {
     pub frames: Vec<Frame>,
@@ -59,9 +93,7 @@ fn frames(scene: &Scene, span: &Span, (w, h): (u32, u32)) -> anyhow::Result<Vec<
     let ground = lit_opaque_points(scene, &camera, w, h, super::SHADED_STRIDE_PX);
     let mut out = Vec::new();
     for t in span.times() {
-        let mut at = scene.at_time(t);
-        at.camera = span.camera_at(&scene.camera, t);
-        at.light = span.light_at(&scene.light, t);
+        let at = span.scene_at(scene, t);
         let eye = at.camera.position;
         let particles = match (&mut sim, &at.particles) {
             (Some(sim), _) => {
@@ -128,26 +160,13 @@ impl ExactFrames {
         let (mut samples, mut images) = (Vec::new(), Vec::new());
         let (mut check_worst, mut check_points) = (0.0f64, usize::MAX);
         for f in &frames {
-            renderer.render(
-                gpu,
-                &f.scene,
-                &f.particles,
-                &RenderOptions::default(),
-                &target.view,
-            )?;
-            let image = target.read_rgb(gpu)?;
-            let transmittance =
-                renderer.probe_shaded(gpu, &f.scene, &f.particles, &f.points, &f.owners)?;
+            let (image, sample) = f.render(gpu, renderer, target, &RenderOptions::default())?;
             let check = progress.suspend(|| {
                 crate::render::reference_check::verify(renderer, gpu, &f.scene, &f.particles)
             })?;
             check_worst = check_worst.max(check.worst_difference);
             check_points = check_points.min(check.points);
-            samples.push(FrameSample {
-                luminance: linear_luminance(&image),
-                transmittance,
-                fixed_points: f.fixed,
-            });
+            samples.push(sample);
             images.push(image);
         }
         let change = ReferenceChange::of(span, &samples);
@@ -161,9 +180,9 @@ impl ExactFrames {
         })
     }
 
-    /// Renders the `renderer`'s technique at every frame (the frame builds its maps, the probe
-    /// reuses them) and records each against the reference's: the recorder and the frames,
-    /// for the FLIP per frame on the cell's comparison thread ([`finish`]).
+    /// Renders the `renderer`'s technique at every frame ([`Frame::render`]) and records each
+    /// against the reference's: the recorder and the frames, for the FLIP per frame on the
+    /// cell's comparison thread ([`finish`]).
     pub fn record(
         &self,
         gpu: &Gpu,
@@ -171,27 +190,11 @@ impl ExactFrames {
         target: &OffscreenTarget,
         options: &RenderOptions,
     ) -> anyhow::Result<(Recorder, Vec<RgbImage>)> {
-        let options = RenderOptions {
-            reuse_shadow_maps: true,
-            ..*options
-        };
         let mut recorder = Recorder::new();
         let mut images = Vec::with_capacity(self.frames.len());
         for f in &self.frames {
-            // The frame as any other (its own build and draw), then its T from the same maps.
-            renderer.forget_maps();
-            renderer.render(gpu, &f.scene, &f.particles, &options, &target.view)?;
-            let image = target.read_rgb(gpu)?;
-            let transmittance =
-                renderer.probe_shaded(gpu, &f.scene, &f.particles, &f.points, &f.owners)?;
-            recorder.push(
-                FrameSample {
-                    luminance: linear_luminance(&image),
-                    transmittance,
-                    fixed_points: f.fixed,
-                },
-                &self.samples,
-            );
+            let (image, sample) = f.render(gpu, renderer, target, options)?;
+            recorder.push(sample, &self.samples);
             images.push(image);
         }
         Ok((recorder, images))

@@ -171,6 +171,11 @@ impl Plan {
         self
     }
 
+    /// Its frame's file, relative to the scene's folder.
+    fn image(&self) -> String {
+        format!("images/{}.png", self.name)
+    }
+
     fn options(&self) -> RenderOptions {
         RenderOptions {
             particle_res: self.particle_res,
@@ -494,16 +499,13 @@ fn settings_key(scene: &Scene, scene_sha256: &str, options: &SweepOptions, plan:
         ParticleRes::Full => String::new(),
         res => format!(" particle_res={res}"),
     };
-    // Likewise a still cell's: the span is added only to an animated sweep's.
+    // Likewise a still cell's: the span (all of it, as its record writes it) is added only to
+    // an animated sweep's.
     let animate = options.animate.map_or(String::new(), |s| {
-        let mut orbit = match s.orbit_deg {
-            0.0 => String::new(),
-            deg => format!(" orbit={deg}"),
-        };
-        if s.light_orbit_deg != 0.0 {
-            orbit.push_str(&format!(" light_orbit={}", s.light_orbit_deg));
-        }
-        format!(" animate={}..{}@{}{orbit}", s.start_s, s.end_s, s.fps)
+        format!(
+            " animate={}",
+            serde_json::to_string(&s).expect("a span serialises")
+        )
     });
     format!(
         "tool={} scene={} size={}x{} frames={} warmup={} cell_seconds={} exact=closed-form technique={} params={}{particle_res}{animate}",
@@ -706,9 +708,7 @@ impl<'a> Sweeper<'a> {
         let chosen: Vec<(&Plan, &CellResult)> = super::report::animated_cells(results)
             .into_iter()
             .filter_map(|c| {
-                let plan = plans
-                    .iter()
-                    .find(|p| c.image == format!("images/{}.png", p.name))?;
+                let plan = plans.iter().find(|p| c.image == p.image())?;
                 Some((plan, c))
             })
             .collect();
@@ -907,7 +907,7 @@ impl<'a> Sweeper<'a> {
         let (resident_bytes, transient_bytes) = self.renderer.shadow_bytes();
         let channels_used = self.renderer.technique().channels_used();
         let image = self.target.read_rgb(self.gpu)?;
-        let image_path = format!("images/{}.png", plan.name);
+        let image_path = plan.image();
         let hdr = match self.options.exr && record {
             true => Some((
                 format!("images/{}.exr", plan.name),
@@ -1349,7 +1349,7 @@ pub fn run(
                 Some(_) => {
                     for p in &mine {
                         remove_if_present(&scene_dir.join(format!("cells/{}.json", p.name)))?;
-                        remove_if_present(&scene_dir.join(format!("images/{}.png", p.name)))?;
+                        remove_if_present(&scene_dir.join(p.image()))?;
                         remove_if_present(&scene_dir.join(format!("images/{}.exr", p.name)))?;
                     }
                 }
