@@ -57,6 +57,16 @@ pub struct Span {
     pub light_orbit_deg: f32,
 }
 
+/// `degrees` of a turn over a span, checked (finite, at most 360 in size); `flag` names it.
+fn turn_degrees(flag: &str, degrees: f32) -> Result<f32, String> {
+    match degrees.is_finite() && degrees.abs() <= 360.0 {
+        true => Ok(degrees),
+        false => Err(format!(
+            "{flag} {degrees} is out of range: allowed -360..=360 degrees"
+        )),
+    }
+}
+
 fn is_zero(v: &f32) -> bool {
     *v == 0.0
 }
@@ -102,26 +112,16 @@ impl Span {
     /// The span with the camera turning by `degrees` over it, checked: finite, at most 360 in
     /// size.
     pub fn with_orbit(self, degrees: f32) -> Result<Self, String> {
-        if !(degrees.is_finite() && degrees.abs() <= 360.0) {
-            return Err(format!(
-                "--orbit {degrees} is out of range: allowed -360..=360 degrees"
-            ));
-        }
         Ok(Self {
-            orbit_deg: degrees,
+            orbit_deg: turn_degrees("--orbit", degrees)?,
             ..self
         })
     }
 
     /// The span with the light turning by `degrees` over it, checked as [`Span::with_orbit`].
     pub fn with_light_orbit(self, degrees: f32) -> Result<Self, String> {
-        if !(degrees.is_finite() && degrees.abs() <= 360.0) {
-            return Err(format!(
-                "--light-orbit {degrees} is out of range: allowed -360..=360 degrees"
-            ));
-        }
         Ok(Self {
-            light_orbit_deg: degrees,
+            light_orbit_deg: turn_degrees("--light-orbit", degrees)?,
             ..self
         })
     }
@@ -286,8 +286,14 @@ fn change_difference(a0: &[f32], a1: &[f32], b0: &[f32], b1: &[f32]) -> (f64, f6
 
 /// The nearest-rank `q` quantile of `values` (reordered).
 fn quantile(values: &mut [f32], q: f64) -> f32 {
-    let rank = ((q * values.len() as f64).ceil() as usize).clamp(1, values.len());
-    *values.select_nth_unstable_by(rank - 1, f32::total_cmp).1
+    *values
+        .select_nth_unstable_by(nearest_rank(values.len(), q), f32::total_cmp)
+        .1
+}
+
+/// The index, in ascending order, of the nearest-rank `q` quantile of `len` (> 0) values.
+fn nearest_rank(len: usize, q: f64) -> usize {
+    ((q * len as f64).ceil() as usize).clamp(1, len) - 1
 }
 
 /// Pixels whose luminance change from `a0` to `a1` is visible ([`POP_THRESHOLD`] on the
@@ -428,7 +434,7 @@ impl Recorder {
         sorted.sort_by(f64::total_cmp);
         let at = |q: f64| match sorted.is_empty() {
             true => 0.0,
-            false => sorted[((q * sorted.len() as f64).ceil() as usize).clamp(1, sorted.len()) - 1],
+            false => sorted[nearest_rank(sorted.len(), q)],
         };
         let flip_mean = mean(flips);
         let variance = mean(
