@@ -284,6 +284,18 @@ fn change_difference(a0: &[f32], a1: &[f32], b0: &[f32], b1: &[f32]) -> (f64, f6
     (mean, f64::from(quantile(&mut d, TAIL_QUANTILE)))
 }
 
+/// The mean of |a − b| over the values (a frame's still error, a frame pair's own change).
+fn mean_abs_difference(a: &[f32], b: &[f32]) -> f64 {
+    if a.is_empty() {
+        return 0.0;
+    }
+    a.iter()
+        .zip(b)
+        .map(|(a, b)| f64::from((a - b).abs()))
+        .sum::<f64>()
+        / a.len() as f64
+}
+
 /// The nearest-rank `q` quantile of `values` (reordered).
 fn quantile(values: &mut [f32], q: f64) -> f32 {
     *values
@@ -321,14 +333,11 @@ pub struct ReferenceChange {
 impl ReferenceChange {
     /// Of `exact`'s frames over `span`.
     pub fn of(span: Span, frames: &[FrameSample]) -> Self {
-        let zero = |v: &[f32]| vec![0.0; v.len()];
         let (mut lum, mut t) = (Vec::new(), Vec::new());
         for pair in frames.windows(2) {
-            let z = zero(&pair[0].luminance);
-            lum.push(change_difference(&pair[0].luminance, &pair[1].luminance, &z, &z).0);
+            lum.push(mean_abs_difference(&pair[1].luminance, &pair[0].luminance));
             let (t0, t1) = comparable(&pair[0], &pair[1]);
-            let z = zero(t0);
-            t.push(change_difference(t0, t1, &z, &z).0);
+            t.push(mean_abs_difference(t1, t0));
         }
         Self {
             span,
@@ -401,9 +410,8 @@ impl Recorder {
     pub fn push(&mut self, frame: FrameSample, exact: &[FrameSample]) {
         let k = self.frames as usize;
         let r = &exact[k];
-        let z = vec![0.0; r.luminance.len()];
         self.frame_errors
-            .push(change_difference(&z, &frame.luminance, &z, &r.luminance).0);
+            .push(mean_abs_difference(&frame.luminance, &r.luminance));
         if let Some(prev) = &self.previous {
             let r0 = &exact[k - 1];
             self.image.push(change_difference(
