@@ -189,8 +189,10 @@ fn the_thesis_plume_in_motion_measures_what_its_frames_show() {
     ];
     args.extend_from_slice(SMALL);
     let stdout = ok(&smokeshadow(&args));
+    // The console's span line (the per-budget "in motion, by temporal error" lines appear only
+    // under budgets a cell answers, and the time budgets depend on the machine's speed).
     assert!(
-        stdout.contains("in motion, by temporal error vs exact"),
+        stdout.contains("in motion: every cell and exact over the 4 frames"),
         "{stdout}"
     );
     let r = results(&dir);
