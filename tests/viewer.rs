@@ -479,3 +479,54 @@ fn the_viewer_plays_an_animated_sweeps_span_frame_by_frame() {
     c.advance(0.01);
     assert_eq!(c.state.time_s, times[2]);
 }
+
+#[test]
+fn the_temporal_compare_shows_a_change_beside_exacts_and_measures_it_as_the_sweep_does() {
+    let mut scene = small_scene();
+    scene.output.width_px = 160;
+    scene.output.height_px = 120;
+    let mut harness = harness(scene);
+    {
+        let c = harness.state_mut();
+        c.state.a.technique = "osm".to_owned();
+        c.state.a.channels = 4;
+        c.state.mode = CompareMode::Motion;
+    }
+    step_until(&mut harness, "the temporal compare", |app| {
+        app.settled() && app.has_motion()
+    });
+    let app = harness.state();
+    let t = app.state.time_s;
+    let (error, p999, pops, exact_change) = app.motion_measures().unwrap();
+    // The plume rises between the frames 1/30 s apart: exact changes, and osm's 4 slices do
+    // not change as it does.
+    assert!((app.frame_interval_s() - 1.0 / 30.0).abs() < 1e-6);
+    assert!(exact_change > 1e-4, "exact's change {exact_change}");
+    assert!(error > 0.0 && p999 >= error, "{error} {p999}");
+    assert!(pops > 0);
+    let osm = harness.render().unwrap();
+
+    // exact against itself: the same change, so no error, no pops, a black difference.
+    harness.state_mut().state.a.source = Source::Exact;
+    step_until(&mut harness, "exact's temporal compare", |app| {
+        app.settled() && app.has_motion()
+    });
+    let (error, p999, pops, again) = harness.state().motion_measures().unwrap();
+    assert_eq!((error, p999, pops), (0.0, 0.0, 0));
+    assert_eq!(again, exact_change, "the same frames, the same change");
+    assert_eq!(harness.state().state.time_s, t);
+    let exact = harness.render().unwrap();
+    assert!(
+        differing(&osm, &exact) > 500,
+        "the pictures did not follow A"
+    );
+}
+
+#[test]
+fn the_viewer_shows_a_volume_at_the_time_on_the_time_bar() {
+    let cloud = Scene::embedded("cloud").expect("the embedded cloud");
+    let mut c = Controller::new(cloud, None, None);
+    c.state.time_s = 3.0;
+    // The renderer takes a volume's time (the cloud's drift, a sequence's frame) from here.
+    assert_eq!(c.frame_scene().sim.duration_s, 3.0);
+}

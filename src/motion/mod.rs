@@ -34,6 +34,12 @@ use serde::{Deserialize, Serialize};
 pub const MAX_FRAMES: usize = 240;
 /// Frames per second of a span when none is given (and the scene's particles are no sequence).
 pub const DEFAULT_FPS: f32 = 30.0;
+/// The frame rate of a span over `scene` when none is given: its particle or volume
+/// sequence's own, else [`DEFAULT_FPS`].
+pub fn default_fps(scene: &crate::scene::Scene) -> f32 {
+    scene.sequence_rate_hz().unwrap_or(DEFAULT_FPS)
+}
+
 /// A change of the sRGB-encoded luminance larger than this is visible: `diff`'s threshold of
 /// 3 8-bit steps ([`crate::diff::VISIBLE_THRESHOLD`]).
 pub const POP_THRESHOLD: f32 = crate::diff::VISIBLE_THRESHOLD as f32 / 255.0;
@@ -469,6 +475,70 @@ impl Recorder {
     }
 }
 
+/// How much the change pictures amplify a change of linear luminance: 1/16 of full scale
+/// shows at full brightness (a frame's changes are a few thousandths; the sweep's own measure is
+/// of the unamplified values).
+pub const CHANGE_GAIN: f32 = 16.0;
+
+/// One frame pair of a technique beside `exact`'s, as the viewer's temporal compare shows it:
+/// each one's change from the earlier frame to the later and the difference of the changes,
+/// as pictures ([`change_picture`]), with the pair's measures as the sweep takes them.
+pub struct ChangePictures {
+    /// I_t − I_t−1 of the technique.
+    pub technique: RgbImage,
+    /// R_t − R_t−1 of `exact`.
+    pub exact: RgbImage,
+    /// (I_t − I_t−1) − (R_t − R_t−1): what the pair's `temporal_error` is the mean size of.
+    pub difference: RgbImage,
+    /// The pair's `temporal_error` and `temporal_p999` (linear luminance) and its pops.
+    pub temporal_error: f64,
+    pub temporal_p999: f64,
+    pub pops: u64,
+    /// `exact`'s own change, mean |R_t − R_t−1|: the scale to read the error against.
+    pub exact_change: f64,
+}
+
+impl ChangePictures {
+    /// Of a technique's frames `a0` (earlier) and `a1` beside `exact`'s `r0` and `r1` (all of
+    /// one size, which the caller rendered them at).
+    pub fn of(a0: &RgbImage, a1: &RgbImage, r0: &RgbImage, r1: &RgbImage) -> Self {
+        let (w, h) = a1.dimensions();
+        let [a0, a1, r0, r1] = [a0, a1, r0, r1].map(linear_luminance);
+        let (temporal_error, temporal_p999) = change_difference(&a0, &a1, &r0, &r1);
+        let change = |x0: &[f32], x1: &[f32]| -> Vec<f32> {
+            x0.iter().zip(x1).map(|(x0, x1)| x1 - x0).collect()
+        };
+        let (da, dr) = (change(&a0, &a1), change(&r0, &r1));
+        let difference: Vec<f32> = da.iter().zip(&dr).map(|(a, r)| a - r).collect();
+        Self {
+            technique: change_picture(&da, w, h),
+            exact: change_picture(&dr, w, h),
+            difference: change_picture(&difference, w, h),
+            temporal_error,
+            temporal_p999,
+            pops: pops(&a0, &a1, &r0, &r1),
+            exact_change: mean_abs_difference(&r1, &r0),
+        }
+    }
+}
+
+/// A signed change of linear luminance per pixel as a picture: brightening orange, darkening
+/// blue, black where nothing changed, [`CHANGE_GAIN`] times the change on the sRGB-encoded
+/// brightness (so 1/16 or more shows at full brightness).
+pub fn change_picture(change: &[f32], width: u32, height: u32) -> RgbImage {
+    let mut out = RgbImage::new(width, height);
+    for (pixel, &d) in out.pixels_mut().zip(change) {
+        let m = srgb_encode((d.abs() * CHANGE_GAIN).min(1.0));
+        let tint: [f32; 3] = if d > 0.0 {
+            [255.0, 153.0, 26.0]
+        } else {
+            [26.0, 153.0, 255.0]
+        };
+        pixel.0 = tint.map(|t| (t * m).round() as u8);
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -666,5 +736,46 @@ mod tests {
         assert!((m.flip_median - 0.1).abs() < 1e-12);
         assert!((m.flip_p95 - 0.3).abs() < 1e-12);
         assert!((m.flip_std - 0.1).abs() < 1e-12);
+    }
+
+    #[test]
+    fn the_change_pictures_show_each_change_and_their_difference() {
+        let grey = |v: u8| image::Rgb([v, v, v]);
+        let image = |values: [u8; 3]| {
+            let mut out = RgbImage::new(3, 1);
+            for (x, v) in values.into_iter().enumerate() {
+                out.put_pixel(x as u32, 0, grey(v));
+            }
+            out
+        };
+        // Pixel 0 brightens in both, pixel 1 darkens in the technique only, pixel 2 stays.
+        let (a0, a1) = (image([100, 200, 50]), image([140, 120, 50]));
+        let (r0, r1) = (image([100, 200, 50]), image([140, 200, 50]));
+        let p = ChangePictures::of(&a0, &a1, &r0, &r1);
+        let l = |v: u8| crate::diff::srgb_to_linear(f64::from(v) / 255.0);
+        let dark = l(120) - l(200);
+        // The pair's error is pixel 1's alone, a third of it on average; it is a pop.
+        assert!(
+            (p.temporal_error - dark.abs() / 3.0).abs() < 1e-6,
+            "{}",
+            p.temporal_error
+        );
+        assert!((p.temporal_p999 - dark.abs()).abs() < 1e-6);
+        assert_eq!(p.pops, 1);
+        assert!((p.exact_change - (l(140) - l(100)) / 3.0).abs() < 1e-6);
+        // Brightening is orange, darkening blue (the gain saturates both), unchanged black.
+        let brighten = [255, 153, 26];
+        assert_eq!(p.technique.get_pixel(0, 0).0, brighten);
+        assert_eq!(p.technique.get_pixel(1, 0).0, [26, 153, 255]);
+        assert_eq!(p.exact.get_pixel(0, 0).0, brighten);
+        assert_eq!(p.exact.get_pixel(1, 0).0, [0, 0, 0]);
+        // The difference: nothing at pixel 0 (the same change), the technique's darkening at 1.
+        assert_eq!(p.difference.get_pixel(0, 0).0, [0, 0, 0]);
+        assert_eq!(p.difference.get_pixel(1, 0).0, [26, 153, 255]);
+        assert_eq!(p.difference.get_pixel(2, 0).0, [0, 0, 0]);
+        // A small change shows in proportion: 1/64 of full scale is a quarter before encoding.
+        let q = change_picture(&[1.0 / 64.0], 1, 1);
+        let m = srgb_encode(0.25);
+        assert_eq!(q.get_pixel(0, 0).0[0], (m * 255.0).round() as u8);
     }
 }

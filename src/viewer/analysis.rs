@@ -15,7 +15,7 @@ use crate::gpu::Gpu;
 use crate::render::{OUTPUT_FORMAT, OffscreenTarget, RenderOptions, Renderer, TechniqueConfig};
 use crate::scene::Scene;
 use crate::shadow::LightSpace;
-use crate::sim::Particle;
+use crate::sim::{Particle, Simulation};
 
 /// One frame to render: the scene (camera and light as the viewer has them), its particles.
 #[derive(Clone)]
@@ -28,13 +28,15 @@ pub struct Frame {
 /// What the UI asks for.
 pub enum Request {
     /// Image metrics of `a` against `exact` (and of `b` against `a`, with the x4 difference and
-    /// FLIP map images, when `b` is given).
+    /// FLIP map images, when `b` is given; and with `motion`, the frame that many seconds
+    /// earlier rendered too, for `a`'s change beside `exact`'s).
     Compare {
         id: u64,
         frame: Frame,
         a: TechniqueConfig,
         b: Option<TechniqueConfig>,
         exact: TechniqueConfig,
+        motion: Option<f32>,
     },
     /// T along the light ray through `point` for each configuration, `samples` points across
     /// the smoke's depth range.
@@ -90,6 +92,8 @@ pub enum Reply {
         a_vs_exact: Metrics,
         /// B against A: metrics, the x4 difference and the FLIP map.
         b_vs_a: Option<Box<(Metrics, image::RgbImage, image::RgbImage)>>,
+        /// A's change from the earlier frame beside `exact`'s (`motion`), and when that frame is.
+        motion: Option<Box<(crate::motion::ChangePictures, f32)>>,
         /// Seconds the worker took.
         seconds: f64,
     },
@@ -160,14 +164,45 @@ impl Analysis {
 struct Worker {
     gpu: Arc<Gpu>,
     renderers: Vec<(TechniqueConfig, (u32, u32), Renderer, OffscreenTarget)>,
+    /// The emitters' simulation of the last earlier frame it made, and what it simulates (a
+    /// later request steps it on from there).
+    sim: Option<(SimInputs, Simulation)>,
 }
+
+/// What a simulation's particles follow from.
+type SimInputs = (Vec<crate::scene::Emitter>, crate::scene::Wind, f32);
 
 impl Worker {
     fn new(gpu: Arc<Gpu>) -> Self {
         Self {
             gpu,
             renderers: Vec::new(),
+            sim: None,
         }
+    }
+
+    /// `frame` as it was `dt_s` earlier (not before t = 0): the scene at that time, its
+    /// particles simulated to it (or a particle file's frame then).
+    fn earlier(&mut self, frame: &Frame, dt_s: f32) -> anyhow::Result<Frame> {
+        let t = (frame.scene.sim.duration_s - dt_s).max(0.0);
+        let scene = frame.scene.at_time(t);
+        let particles = match &scene.particles {
+            Some(source) => source.particles_at(t)?,
+            None => {
+                let inputs = (scene.emitters.clone(), scene.wind.clone(), scene.sim.step_s);
+                let sim = match &mut self.sim {
+                    Some((kept, sim)) if *kept == inputs => sim,
+                    slot => &mut slot.insert((inputs, Simulation::new(&scene))).1,
+                };
+                sim.advance_to(t);
+                sim.particles()
+            }
+        };
+        Ok(Frame {
+            scene,
+            particles: Arc::new(particles),
+            options: frame.options,
+        })
     }
 
     fn serve(mut self, inbox: &Receiver<Request>, outbox: &Sender<Reply>, pending: &AtomicUsize) {
@@ -260,10 +295,22 @@ impl Worker {
                 a,
                 b,
                 exact,
+                motion,
             } => {
                 let start = std::time::Instant::now();
                 let image_a = self.render(&frame, &a)?;
                 let image_exact = self.render(&frame, &exact)?;
+                let motion = match motion {
+                    None => None,
+                    Some(dt_s) => {
+                        let before = self.earlier(&frame, dt_s)?;
+                        let a0 = self.render(&before, &a)?;
+                        let r0 = self.render(&before, &exact)?;
+                        let pictures =
+                            crate::motion::ChangePictures::of(&a0, &image_a, &r0, &image_exact);
+                        Some(Box::new((pictures, before.scene.sim.duration_s)))
+                    }
+                };
                 let a_vs_exact = diff::compare(&image_exact, &image_a)?.metrics;
                 let b_vs_a = match b {
                     None => None,
@@ -281,6 +328,7 @@ impl Worker {
                     image_a,
                     a_vs_exact,
                     b_vs_a,
+                    motion,
                     seconds: start.elapsed().as_secs_f64(),
                 })
             }

@@ -42,27 +42,33 @@ pub enum CompareMode {
     Difference,
     /// The FLIP error map of B against A.
     FlipMap,
+    /// A's change from the frame before beside `exact`'s, and the difference of the two.
+    Motion,
 }
 
 impl CompareMode {
     /// Every mode with its label (their keys are rows of [`super::shortcuts::SHORTCUTS`]).
-    pub const ALL: [(CompareMode, &'static str); 6] = [
+    pub const ALL: [(CompareMode, &'static str); 7] = [
         (CompareMode::Single, "Single"),
         (CompareMode::Split, "Split"),
         (CompareMode::SideBySide, "Side by side"),
         (CompareMode::Flip, "Flip (hold B)"),
         (CompareMode::Difference, "Difference x4"),
         (CompareMode::FlipMap, "FLIP map"),
+        (CompareMode::Motion, "Change vs exact"),
     ];
 
     /// Whether B is rendered in this mode.
     pub fn shows_b(self) -> bool {
-        !matches!(self, CompareMode::Single)
+        !matches!(self, CompareMode::Single | CompareMode::Motion)
     }
 
     /// Whether the picture comes from the analysis worker (A and B read back and compared).
     pub fn analysed(self) -> bool {
-        matches!(self, CompareMode::Difference | CompareMode::FlipMap)
+        matches!(
+            self,
+            CompareMode::Difference | CompareMode::FlipMap | CompareMode::Motion
+        )
     }
 }
 
@@ -131,6 +137,8 @@ pub(super) struct AnalysisKey {
     revision: u64,
     a: TechniqueConfig,
     b: Option<TechniqueConfig>,
+    /// With A's change: the time between the two frames.
+    motion: Option<f32>,
 }
 
 /// B measured against A, and the two pictures of their difference.
@@ -152,6 +160,8 @@ pub(super) struct Analysed {
     pub(super) a_vs_exact: Metrics,
     pub(super) seconds: f64,
     pub(super) b: Option<Comparison>,
+    /// A's change beside `exact`'s (the temporal compare) and the earlier frame's time.
+    pub(super) motion: Option<(crate::motion::ChangePictures, f32)>,
 }
 
 /// The last probe's curves.
@@ -450,7 +460,33 @@ impl Controller {
                 .mode
                 .shows_b()
                 .then(|| self.config(&self.state.b)),
+            motion: (self.state.mode == CompareMode::Motion).then(|| self.frame_interval_s()),
         }
+    }
+
+    /// The time between two frames of the temporal compare: the span's, or a particle or
+    /// volume sequence's own, else [`crate::motion::DEFAULT_FPS`]'s.
+    pub fn frame_interval_s(&self) -> f32 {
+        let fps = match &self.state.span {
+            Some(span) => span.fps,
+            None => crate::motion::default_fps(&self.state.scene),
+        };
+        1.0 / fps
+    }
+
+    /// Whether A's change beside `exact`'s has arrived for the current state.
+    pub fn has_motion(&self) -> bool {
+        let key = self.analysis_key();
+        self.analysed
+            .as_ref()
+            .is_some_and(|a| a.key == key && a.motion.is_some())
+    }
+
+    /// The temporal compare's measures of the frame pair shown: temporal error, its 99.9th
+    /// percentile, pops, and `exact`'s own change (once it arrived).
+    pub fn motion_measures(&self) -> Option<(f64, f64, u64, f64)> {
+        let (p, _) = self.analysed.as_ref()?.motion.as_ref()?;
+        Some((p.temporal_error, p.temporal_p999, p.pops, p.exact_change))
     }
 
     /// The technique configuration a side stands for.
@@ -505,7 +541,8 @@ impl Controller {
     /// The scene as rendered: the orbit applied to the camera once the user moved it (until
     /// then the scene's own camera, bit for bit, so the view matches `render`).
     pub fn frame_scene(&self) -> Scene {
-        let mut scene = self.state.scene.clone();
+        // At the time shown: a volume's frame (a sequence's, the cloud's drift) follows it.
+        let mut scene = self.state.scene.at_time(self.state.time_s);
         if self.state.orbit != Orbit::from_camera(&scene.camera) {
             self.state.orbit.apply(&mut scene.camera);
         }
@@ -893,6 +930,7 @@ impl Controller {
                     image_a,
                     a_vs_exact,
                     b_vs_a,
+                    motion,
                     seconds,
                 } => {
                     if let Some(i) = self.requested.iter().position(|(r, _)| *r == id) {
@@ -913,6 +951,7 @@ impl Controller {
                                     flip_heat,
                                 }
                             }),
+                            motion: motion.map(|boxed| *boxed),
                         });
                     }
                 }
@@ -988,6 +1027,7 @@ impl Controller {
             a: key.a.clone(),
             b: key.b.clone(),
             exact,
+            motion: key.motion,
         });
         self.requested.push((self.next_request, key));
     }

@@ -93,11 +93,7 @@ pub fn run(
     // The span at the sweep's default rate: a file sequence's own, else 30 fps.
     let span = span
         .map(|(range, fps)| {
-            let fps = fps.unwrap_or_else(|| {
-                scene
-                    .sequence_rate_hz()
-                    .unwrap_or(crate::motion::DEFAULT_FPS)
-            });
+            let fps = fps.unwrap_or_else(|| crate::motion::default_fps(&scene));
             crate::motion::Span::parse(&range, fps)
         })
         .transpose()

@@ -65,6 +65,7 @@ pub const SHORTCUTS: &[Shortcut] = &[
             key(Key::Num4, Action::SetMode(CompareMode::Flip)),
             key(Key::Num5, Action::SetMode(CompareMode::Difference)),
             key(Key::Num6, Action::SetMode(CompareMode::FlipMap)),
+            key(Key::Num7, Action::SetMode(CompareMode::Motion)),
         ],
     },
     Shortcut {

@@ -19,6 +19,9 @@ pub struct Textures {
     worker: [Option<(u64, egui::TextureHandle)>; 2],
     /// The analysis' pictures: the request they answered, |A − B| × 4 and the FLIP heat map.
     comparison: Option<(u64, Option<(egui::TextureHandle, egui::TextureHandle)>)>,
+    /// The temporal compare's pictures: the request they answered, A's change, `exact`'s and
+    /// their difference.
+    motion: Option<(u64, Option<[egui::TextureHandle; 3]>)>,
     /// The inspector's image.
     pub inspector: Option<egui::TextureId>,
 }
@@ -77,6 +80,25 @@ impl Textures {
                 (a.id, pictures)
             });
         }
+        if analysed.map(|a| a.id) != self.motion.as_ref().map(|(id, _)| *id) {
+            self.motion = analysed.map(|a| {
+                let pictures = a.motion.as_ref().map(|(p, _)| {
+                    [
+                        load("viewer.change_a".to_owned(), &p.technique),
+                        load("viewer.change_exact".to_owned(), &p.exact),
+                        load("viewer.change_difference".to_owned(), &p.difference),
+                    ]
+                });
+                (a.id, pictures)
+            });
+        }
+    }
+
+    /// The temporal compare's three pictures (A's change, `exact`'s, their difference), once
+    /// they arrived.
+    pub fn motion(&self) -> Option<[egui::TextureId; 3]> {
+        let pictures = self.motion.as_ref()?.1.as_ref()?;
+        Some(pictures.each_ref().map(egui::TextureHandle::id))
     }
 
     /// Registers views A and B with egui, or re-registers them after a resize (after

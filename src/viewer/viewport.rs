@@ -39,22 +39,19 @@ pub fn show(
     } else {
         full_w / full_h
     };
-    let side_by_side = state.mode == CompareMode::SideBySide;
-    let slot = if side_by_side {
-        Vec2::new(available.x * 0.5, available.y)
-    } else {
-        available
+    // Pictures across: A and B side by side, the temporal compare's three.
+    let across = match state.mode {
+        CompareMode::SideBySide => 2.0,
+        CompareMode::Motion => 3.0,
+        _ => 1.0,
     };
+    let slot = Vec2::new(available.x / across, available.y);
     let size = if slot.x / slot.y.max(1.0) > aspect {
         Vec2::new(slot.y * aspect, slot.y)
     } else {
         Vec2::new(slot.x, slot.x / aspect)
     };
-    let total = if side_by_side {
-        Vec2::new(size.x * 2.0, size.y)
-    } else {
-        size
-    };
+    let total = Vec2::new(size.x * across, size.y);
     // Centred in the space the viewport is given: the image keeps its aspect, so it fills
     // that space's width or its height, and the rest is shared evenly around it.
     let space = Rect::from_min_size(ui.cursor().min, available);
@@ -121,6 +118,27 @@ pub fn show(
                 ui.ctx().request_repaint();
             }
         }
+        CompareMode::Motion => match textures.motion() {
+            Some(pictures) => {
+                for (i, texture) in pictures.into_iter().enumerate() {
+                    let at = image_rect.translate(Vec2::new(size.x * i as f32, 0.0));
+                    painter.image(texture, at, whole, Color32::WHITE);
+                    let label = ["A's change", "exact's change", "A's - exact's"][i];
+                    painter.text(
+                        at.left_bottom() + Vec2::new(8.0, -8.0),
+                        egui::Align2::LEFT_BOTTOM,
+                        label,
+                        egui::FontId::proportional(14.0),
+                        Color32::WHITE,
+                    );
+                }
+            }
+            None => {
+                if let Some(a) = id(0) {
+                    painter.image(a, image_rect, whole, Color32::from_gray(90));
+                }
+            }
+        },
         CompareMode::Difference | CompareMode::FlipMap => match textures.comparison(state.mode) {
             Some(texture) => {
                 painter.image(texture, image_rect, whole, Color32::WHITE);
@@ -226,11 +244,11 @@ pub fn show(
     if response.clicked()
         && let Some(p) = response.interact_pointer_pos()
     {
-        let local = if side_by_side && p.x > image_rect.right() {
-            p - Vec2::new(size.x, 0.0)
-        } else {
-            p
-        };
+        // The same point in the first picture, whichever picture was clicked.
+        let column = ((p.x - image_rect.left()) / size.x)
+            .floor()
+            .clamp(0.0, across - 1.0);
+        let local = p - Vec2::new(size.x * column, 0.0);
         if image_rect.contains(local) {
             controller.request_probe(uv_of(local));
         }
@@ -270,6 +288,27 @@ fn caption(controller: &Controller) -> String {
                     if *measured != key { " (updating)" } else { "" }
                 ),
                 None => format!("{what}: computing ..."),
+            }
+        }
+        CompareMode::Motion => {
+            let key = controller.analysis_key();
+            match controller.analysed.as_ref().and_then(|a| {
+                let (p, before) = a.motion.as_ref()?;
+                Some((&a.key, p, before))
+            }) {
+                Some((measured, p, before)) => format!(
+                    "A {}: change from t = {before:.3} s to {:.3} s, x{} (orange brighter, blue darker)\ntemporal error {:.2e} (p99.9 {:.2e}), {} pops; exact changes {:.2e}{}",
+                    state.a.label(),
+                    state.time_s,
+                    crate::motion::CHANGE_GAIN,
+                    p.temporal_error,
+                    p.temporal_p999,
+                    p.pops,
+                    p.exact_change,
+                    if *measured != key { " (updating)" } else { "" }
+                ),
+                None => "A's change vs exact's: computing ... (after the view settles, paused)"
+                    .to_owned(),
             }
         }
         _ => format!("A: {}    B: {}", label(0, &state.a), label(1, &state.b)),
