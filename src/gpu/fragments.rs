@@ -16,8 +16,9 @@
 
 use super::{Gpu, GpuError};
 
-/// Most counted recordings one frame may hold (half-angle slicing counts one per batch).
-const MAX_COUNTED: u32 = 160;
+/// Most counted recordings one frame may hold: as many as its timed passes (half-angle
+/// slicing counts one per batch and pass, up to `MAX_HAS_SLICES` batches), 16 KiB of counts.
+const MAX_COUNTED: u32 = super::timing::MAX_TIMED_PASSES;
 
 /// What each fragment of a counted pass writes: the components of its colour targets (every
 /// one is blended, the unused fourth channel of a 3-channel remainder included) and their bytes.
