@@ -769,3 +769,121 @@ fn a_gallery_in_motion_ranks_each_scenes_cells_by_temporal_error_too() {
     let html = std::fs::read_to_string(dir.join("index.html")).unwrap();
     assert!(html.contains("median rank in motion"));
 }
+
+#[test]
+fn the_shadows_history_blends_each_particles_t_with_its_last_as_the_closed_form_says() {
+    use glam::Vec3;
+    use smokeshadow::shadow::SplatMode;
+    use smokeshadow::sim::Particle;
+    const W: f32 = 0.9;
+    let mut scene = common::reduced_plume();
+    let light = scene.light.clone();
+    let axis = (light.target - light.position).normalize();
+    let side = axis.cross(Vec3::Y).normalize();
+    let at = |depth: f32, offset: f32, radius_m: f32, density_per_m: f32| Particle {
+        position: light.position + axis * depth + side * offset,
+        velocity: Vec3::ZERO,
+        age_s: 1.0,
+        radius_m,
+        density_per_m,
+        albedo: Vec3::splat(0.8),
+    };
+    // Two still particles fix the light's depth range; the lit one (index 2) sits on the axis;
+    // the blocker (index 3) starts off the axis and from frame 1 on stands in front of the lit
+    // one: its T steps down at frame 1 and stays.
+    let frame = |k: usize| {
+        let offset = if k == 0 { 1.2 } else { 0.0 };
+        vec![
+            at(4.0, 1.5, 0.3, 2.0),
+            at(8.0, -1.5, 0.3, 2.0),
+            at(6.5, 0.0, 0.25, 2.0),
+            at(5.6, offset, 0.3, 3.0),
+        ]
+    };
+    let (w, h) = (scene.output.width_px, scene.output.height_px);
+    let gpu = common::gpu();
+    let target = OffscreenTarget::new(&gpu, w, h);
+    let lit_t = |renderer: &mut Renderer, scene: &Scene, particles: &[Particle]| -> [f32; 4] {
+        renderer
+            .render(
+                &gpu,
+                scene,
+                particles,
+                &RenderOptions::default(),
+                &target.view,
+            )
+            .unwrap();
+        let lit = renderer.lit_particles(&gpu).unwrap();
+        let p = particles[2].position;
+        lit.iter()
+            .find(|l| l.center.distance(p) < 1e-5)
+            .expect("the lit particle")
+            .transmittance
+    };
+    let dom = common::technique("dom", 8, 128, SplatMode::Segment);
+    let mut renderer = Renderer::new(&gpu, w, h, OUTPUT_FORMAT, &dom).unwrap();
+    // The same technique unfiltered, frame by frame: the T the history is fed.
+    let frames = 8;
+    let raw: Vec<[f32; 4]> = (0..frames)
+        .map(|k| lit_t(&mut renderer, &scene, &frame(k)))
+        .collect();
+    assert!(
+        raw[0][0] - raw[1][0] > 0.2,
+        "the blocker steps T down: {raw:?}"
+    );
+
+    scene.shadow.history = W;
+    renderer.reset_history();
+    let mut expected = raw[0];
+    for (k, raw) in raw.iter().enumerate() {
+        let particles = frame(k);
+        let filtered = lit_t(&mut renderer, &scene, &particles);
+        // T'_0 = T_0 (no history yet), then T'_k = (1 − w) T_k + w T'_k−1.
+        if k > 0 {
+            expected = std::array::from_fn(|i| (1.0 - W) * raw[i] + W * expected[i]);
+        }
+        for i in 0..4 {
+            assert!(
+                (filtered[i] - expected[i]).abs() < 1e-5,
+                "frame {k} point {i}: {} vs the closed form {}",
+                filtered[i],
+                expected[i]
+            );
+        }
+        // The probe at the lit particle's points gives the T the frame used.
+        let eye = scene.camera.position;
+        let points = smokeshadow::render::shaded::particle_lighting_points(eye, &particles[2..3]);
+        let probed = renderer
+            .probe_shaded(&gpu, &scene, &particles, &points, &[2; 4])
+            .unwrap();
+        assert_eq!(probed, filtered.to_vec(), "frame {k}");
+    }
+    // The lag: a step's remainder after k frames is w^k of it (the frames after the first
+    // are alike).
+    let remainder = (expected[0] - raw[1][0]) / (raw[0][0] - raw[1][0]);
+    assert!(
+        (remainder - W.powi(frames as i32 - 1)).abs() < 1e-4,
+        "{remainder}"
+    );
+
+    // A particle reborn in its slot (its age went down) takes its T as it is.
+    let mut reborn = frame(frames);
+    reborn[2].age_s = 0.1;
+    let t = lit_t(&mut renderer, &scene, &reborn);
+    let mut renderer_raw = Renderer::new(&gpu, w, h, OUTPUT_FORMAT, &dom).unwrap();
+    let mut unfiltered = scene.clone();
+    unfiltered.shadow.history = 0.0;
+    assert_eq!(t, lit_t(&mut renderer_raw, &unfiltered, &reborn));
+
+    // The reference is never filtered: exact's frames are the same with and without.
+    let exact = common::technique("exact", 1, 128, SplatMode::Segment);
+    renderer.set_technique(&gpu, &exact).unwrap();
+    renderer_raw.set_technique(&gpu, &exact).unwrap();
+    for k in 0..3 {
+        assert_eq!(
+            lit_t(&mut renderer, &scene, &frame(k)),
+            lit_t(&mut renderer_raw, &unfiltered, &frame(k)),
+            "exact at frame {k}"
+        );
+    }
+}

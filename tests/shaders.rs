@@ -77,6 +77,7 @@ fn every_rust_mirror_matches_nagas_reflection_of_its_wgsl_struct() {
     let mirrors = [
         smokeshadow::frame::gpu_data::layouts(),
         smokeshadow::frame::particles::layouts(),
+        smokeshadow::render::history::layouts(),
         layered::layouts(),
         exact::layouts(),
         deep_capture::layouts(),

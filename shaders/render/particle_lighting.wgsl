@@ -8,6 +8,7 @@
 #import common/particle.wgsl
 #import shadow_technique
 #import occluders
+#import render/shadow_history.wgsl
 
 // Where the four lighting points sit, as a fraction of the radius along the billboard's axes.
 const SHADE_OFFSET: f32 = 0.5;
@@ -90,7 +91,7 @@ fn light_particles(
     let sy = select(-1.0, 1.0, (k & 2u) != 0u);
     let p = center + sx * r + sy * u;
     if in_light_face(p) {
-        let t = shadow_transmittance(p);
+        let t = filtered_t(index, k, shadow_transmittance(p));
         let albedo = particle.albedo_density.rgb;
         lit_out[index].radiance[k] = vec4<f32>(scattered_radiance(p, eye, albedo, t), t);
     }

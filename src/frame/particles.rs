@@ -85,6 +85,9 @@ pub struct ParticleLayouts {
     /// Instances, lighting, the range uniform and the lighting order as the lighting pass uses
     /// them (group 2).
     pub io: wgpu::BindGroupLayout,
+    /// The shadow's temporal history (group 3 of the renderer's lighting pass:
+    /// `crate::render::history`).
+    pub history: wgpu::BindGroupLayout,
 }
 
 impl ParticleLayouts {
@@ -115,7 +118,8 @@ impl ParticleLayouts {
                 storage(3, compute, true),
             ],
         });
-        Self { read, io }
+        let history = crate::render::history::layout(device);
+        Self { read, io, history }
     }
 }
 
@@ -126,7 +130,8 @@ pub struct ParticleLighting {
 
 impl ParticleLighting {
     /// `imports`: the technique's lookup shader (group 1, `shadow_transmittance`) and the
-    /// occluders' visibility, as `TechniqueEntry::frame_imports` gives them.
+    /// occluders' visibility, as `TechniqueEntry::frame_imports` gives them. Group 3 is the
+    /// shadow's temporal history (`crate::render::history`; off in a history never prepared).
     pub fn new(
         device: &wgpu::Device,
         name: &str,
@@ -142,7 +147,12 @@ impl ParticleLighting {
         );
         let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("particle_lighting.pipeline_layout"),
-            bind_group_layouts: &[Some(frame_layout), Some(lookup_layout), Some(&layouts.io)],
+            bind_group_layouts: &[
+                Some(frame_layout),
+                Some(lookup_layout),
+                Some(&layouts.io),
+                Some(&layouts.history),
+            ],
             immediate_size: 0,
         });
         let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
@@ -193,6 +203,7 @@ impl ParticleLighting {
         frame_bind_group: &wgpu::BindGroup,
         lookup_bind_group: &wgpu::BindGroup,
         buffers: &LightBuffers,
+        history: &wgpu::BindGroup,
         batch: u32,
         count: u32,
     ) {
@@ -202,6 +213,7 @@ impl ParticleLighting {
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, frame_bind_group, &[]);
         pass.set_bind_group(1, lookup_bind_group, &[]);
+        pass.set_bind_group(3, history, &[]);
         let offset = (u64::from(batch) * RANGE_STRIDE) as u32;
         pass.set_bind_group(2, &buffers.io_bind_group, &[offset]);
         pass.dispatch_workgroups(count.div_ceil(PARTICLES_PER_WORKGROUP), 1, 1);

@@ -17,6 +17,7 @@
 //! Long-lived state (pipelines, layouts, targets, buffers) is built in [`Renderer::new`] and when
 //! the technique or size changes; a frame only uploads uniforms and particles and records passes.
 
+pub mod history;
 pub mod mixed_res;
 pub mod reference_check;
 pub mod shaded;
@@ -199,6 +200,10 @@ pub struct Renderer {
     particle_layouts: ParticleLayouts,
     /// Lighting of the sorted instances, computed each frame before the particle pass.
     lights: LightBuffers,
+    /// The shadow's temporal history at the particles' lighting points ([`history`]), and the
+    /// frame's sort (each instance's particle index), which its probe maps points by.
+    history: history::ShadowHistory,
+    order: Vec<u32>,
     /// The frame's own buffers that grow with it (the lighting), which every technique's frame
     /// holds alike: not charged to a technique.
     frame_memory: MemoryLedger,
@@ -325,7 +330,11 @@ impl Renderer {
             true,
             "particles",
         )?;
+        let history =
+            history::ShadowHistory::new(device, &mut frame_memory, &particle_layouts.history)?;
         Ok(Self {
+            history,
+            order: Vec::new(),
             frame_memory,
             opaque_vertices: device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("opaque.vertices"),
@@ -387,6 +396,7 @@ impl Renderer {
         self.technique_config = config.clone();
         self.probe = None;
         self.built_from = None;
+        self.history.reset();
         Ok(())
     }
 
@@ -802,6 +812,33 @@ impl Renderer {
         self.built_from = None;
     }
 
+    /// Forgets the shadow's temporal history ([`history`]): the next frame's particles start
+    /// afresh, as at the first frame of a technique.
+    pub fn reset_history(&mut self) {
+        self.history.reset();
+    }
+
+    /// The weight of the shadow's temporal history the technique's frames of `scene` use:
+    /// the scene's `[shadow] history`, but 0 for the reference and `none` (never filtered) and
+    /// for a technique that lights the particles in its own pass (`has`: not filtered).
+    pub fn history_weight(&mut self, scene: &Scene) -> f32 {
+        let name = self.technique_config.name.as_str();
+        let unfiltered = name == shadow::reference().name
+            || name == "none"
+            || self.faces[0].technique.particle_pass().is_some();
+        if unfiltered {
+            0.0
+        } else {
+            scene.shadow.history
+        }
+    }
+
+    /// Bytes the shadow's temporal history holds (0 where it never ran; the placeholders'
+    /// few bytes aside).
+    pub fn history_bytes(&self) -> u64 {
+        self.history.bytes()
+    }
+
     /// Loads `scene`'s density volume, if it has one and it is not the one loaded, as a frame
     /// of it does first (so that its grid is there before any frame: `Renderer::medium`).
     pub fn load_volume(&mut self, gpu: &Gpu, scene: &Scene) -> Result<(), ShadowError> {
@@ -862,6 +899,7 @@ impl Renderer {
                 &face.frame_bind_group,
                 face.technique.bind_group(),
                 &self.lights,
+                self.history.bind_group(),
                 0,
                 particle_count,
             );
@@ -1197,6 +1235,15 @@ impl Renderer {
         let sort_start = Instant::now();
         let order = sort::back_to_front(particles, camera.position, axis);
         let sort_ms = sort_start.elapsed().as_secs_f64() * 1e3;
+        let weight = self.history_weight(scene);
+        self.history.prepare(
+            gpu,
+            &mut self.frame_memory,
+            &self.particle_layouts.history,
+            weight,
+            particles,
+            &order,
+        )?;
         // The frame's GPU clock starts here, in a submission of its own: everything after the
         // sort (the gather and upload below, the builds' mid-frame readbacks) is on it.
         self.timer.begin_frame(gpu);
@@ -1207,6 +1254,7 @@ impl Renderer {
                 .map(|&i| ParticleInstance::from_particle(&particles[i as usize])),
         );
         self.upload_particles(gpu)?;
+        self.order = order;
         let particle_count = particles.len() as u32;
 
         let mut encoder = gpu
@@ -1405,6 +1453,40 @@ impl Renderer {
                 pending.read(gpu)?
             }
         };
+        match owners {
+            Some(owners) if self.history.active() => self.filtered_at(gpu, results, owners),
+            _ => Ok(results),
+        }
+    }
+
+    /// The probe's T at a filtered frame's shaded points ([`Renderer::probe_shaded`]): at a
+    /// particle's lighting points the T the frame's lighting used, its history's
+    /// ([`history`]), read back from the lighting; elsewhere the lookup's.
+    fn filtered_at(
+        &self,
+        gpu: &Gpu,
+        mut results: Vec<f32>,
+        owners: &[u32],
+    ) -> anyhow::Result<Vec<f32>> {
+        let lights = self.lights.read(gpu, self.instances.len())?;
+        let mut instance_of = vec![0u32; self.order.len()];
+        for (instance, &particle) in self.order.iter().enumerate() {
+            instance_of[particle as usize] = instance as u32;
+        }
+        // A particle's four points follow one another in `particle_lighting_points`' order,
+        // the lighting's.
+        let mut k = 0usize;
+        for (j, &owner) in owners.iter().enumerate() {
+            if owner == shadow::NO_OWNER {
+                continue;
+            }
+            k = match j > 0 && owners[j - 1] == owner {
+                true => k + 1,
+                false => 0,
+            };
+            let light = &lights[instance_of[owner as usize] as usize];
+            results[j] = light.radiance[k % 4][3];
+        }
         Ok(results)
     }
 

@@ -540,7 +540,20 @@ pub struct ShadowSettings {
     /// registry entry (`smokeshadow info` lists them); absent keys take the entry's defaults.
     #[serde(skip_serializing_if = "BTreeMap::is_empty")]
     pub params: BTreeMap<String, ParamValue>,
+    /// The shadow's temporal history at the particles' lighting points, its weight w in
+    /// [0, 0.99]: each frame T' = (1 − w) T + w T'_prev per particle, as engines filter a
+    /// flickering shadow (0.9 their default; it lags about w / (1 − w) frames). 0, the default,
+    /// is off; the reference is never filtered (`crate::render::history`).
+    #[serde(skip_serializing_if = "is_zero_f32")]
+    pub history: f32,
 }
+
+fn is_zero_f32(v: &f32) -> bool {
+    *v == 0.0
+}
+
+/// The largest `[shadow] history` weight: a weight of 1 would never let the shadow change.
+pub const MAX_HISTORY: f32 = 0.99;
 
 impl ShadowSettings {
     /// The technique parameters these settings give for a `channels` budget.
@@ -716,6 +729,7 @@ impl Default for ShadowSettings {
             occluders: defaults.occluders,
             framing: Framing::default(),
             params: BTreeMap::new(),
+            history: 0.0,
         }
     }
 }

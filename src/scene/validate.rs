@@ -262,6 +262,13 @@ pub(super) fn validate(scene: &Scene) -> Result<(), String> {
         16,
         max_px,
     );
+    c.range(
+        "shadow.history",
+        scene.shadow.history,
+        0.0,
+        super::MAX_HISTORY,
+        true,
+    );
     for (key, value) in &scene.shadow.params {
         // Which keys exist, their ranges and their choices are the techniques' registry's to
         // say; it checks them when a technique is created from these settings

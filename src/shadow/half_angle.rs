@@ -195,6 +195,9 @@ pub struct HalfAngle {
     /// Lighting of each batch, computed just before the batch's eye pass.
     lighting: ParticleLighting,
     lights: LightBuffers,
+    /// The lighting's group 3, a shadow history never prepared (so off: `has` lights its
+    /// particles unfiltered, `crate::render::history`).
+    history: crate::render::history::ShadowHistory,
     /// The instances the last frame lit, in its lighting buffer's order.
     lit_instances: Vec<ParticleInstance>,
     particle_layouts: ParticleLayouts,
@@ -367,6 +370,13 @@ impl HalfAngle {
             instance_capacity,
             lighting,
             lights,
+            // Its placeholder buffers (a few bytes, all zero: off) are no state of the
+            // technique's, so not on its ledger.
+            history: crate::render::history::ShadowHistory::new(
+                device,
+                &mut MemoryLedger::for_device(&gpu.limits),
+                &ctx.particle_layouts.history,
+            )?,
             lit_instances: Vec::new(),
             particle_layouts: ctx.particle_layouts.clone(),
             memory,
@@ -653,6 +663,7 @@ impl ParticlePass for HalfAngle {
                     inputs.frame_bind_group,
                     &self.lookup_bind_group,
                     &self.lights,
+                    self.history.bind_group(),
                     k as u32,
                     count,
                 );
@@ -663,6 +674,7 @@ impl ParticlePass for HalfAngle {
                         other.frame_bind_group,
                         other.technique.bind_group(),
                         &self.lights,
+                        self.history.bind_group(),
                         k as u32,
                         count,
                     );
