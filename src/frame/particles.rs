@@ -197,6 +197,7 @@ impl ParticleLighting {
 
     /// Records the lighting of range `batch` (as set by [`Self::set_ranges`], `count` particles)
     /// into `pass`.
+    #[allow(clippy::too_many_arguments)]
     pub fn dispatch(
         &self,
         pass: &mut wgpu::ComputePass<'_>,
