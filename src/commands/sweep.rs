@@ -31,7 +31,7 @@ pub struct SweepArgs {
     #[arg(long, num_args = 1.., value_name = "DIR",
           conflicts_with_all = ["scene", "scenes", "shard", "resume", "exr", "techniques",
                                 "channels", "bytes_per_texel", "memory", "shadow_res", "splat", "particle_res", "params", "param_set", "frames",
-                                "warmup", "cell_seconds", "size", "particles", "animate", "fps", "orbit", "light_orbit", "framing"])]
+                                "warmup", "cell_seconds", "size", "particles", "animate", "fps", "orbit", "light_orbit", "framing", "shadow_history"])]
     pub merge: Option<Vec<PathBuf>>,
     #[command(flatten)]
     pub particles: super::ParticlesArg,
@@ -114,6 +114,12 @@ pub struct SweepArgs {
     /// use) or `cone` (the thesis' whole cone).
     #[arg(long, value_enum)]
     pub framing: Option<crate::scene::Framing>,
+    /// The shadow's temporal history weight w, over the scene's `shadow.history`: every
+    /// technique's T at the particles' lighting points blended with its last,
+    /// T' = (1 − w) T + w T'_prev (0.9: engines' default; 0: off). `exact` is never filtered,
+    /// and a technique that lights the particles itself (`has`) is skipped.
+    #[arg(long, value_name = "W", value_parser = history_weight)]
+    pub shadow_history: Option<f32>,
     /// Frames per second of `--animate` (default: a particle or volume sequence's own rate, else 30).
     #[arg(long, requires = "animate")]
     pub fps: Option<f32>,
@@ -231,6 +237,9 @@ fn prepare(args: &SweepArgs, scene: Option<&Path>) -> anyhow::Result<Scene> {
     args.params.apply(&mut scene);
     if let Some(framing) = args.framing {
         scene.shadow.framing = framing;
+    }
+    if let Some(weight) = args.shadow_history {
+        scene.shadow.history = weight;
     }
     if let Some(size) = args.size {
         scene.output.width_px = size.width;
@@ -589,5 +598,16 @@ fn positive_seconds(s: &str) -> Result<f64, String> {
     match s.parse::<f64>() {
         Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
         _ => Err(format!("\"{s}\" is not a positive number of seconds")),
+    }
+}
+
+/// `--shadow-history`: a weight in [0, [`crate::scene::MAX_HISTORY`]].
+fn history_weight(s: &str) -> Result<f32, String> {
+    let max = crate::scene::MAX_HISTORY;
+    match s.parse::<f32>() {
+        Ok(w) if (0.0..=max).contains(&w) => Ok(w),
+        _ => Err(format!(
+            "{s} is no history weight: a number from 0 (off) to {max} (0.9 is engines' default)"
+        )),
     }
 }

@@ -71,8 +71,11 @@ pub struct ShadowHistory {
     bind_group: wgpu::BindGroup,
     /// Particles the buffers hold (1 while the history was never on).
     capacity: u64,
-    /// Each particle's age in the last filtered frame; `None` after a reset.
+    /// Each particle's age in the last frame whose lighting ran filtered; `None` after a
+    /// reset. And the ages of the frame prepared since, which become it once its lighting ran
+    /// ([`ShadowHistory::lit`]; a probe prepares a frame without lighting it).
     ages: Option<Vec<f32>>,
+    prepared: Option<Vec<f32>>,
     weight: f32,
     bytes: u64,
 }
@@ -140,6 +143,7 @@ impl ShadowHistory {
             bind_group,
             capacity,
             ages: None,
+            prepared: None,
             // Unwritten: the first `prepare` writes the weight.
             weight: f32::NAN,
         })
@@ -148,6 +152,7 @@ impl ShadowHistory {
     /// Forgets every particle's history: the next filtered frame starts afresh.
     pub fn reset(&mut self) {
         self.ages = None;
+        self.prepared = None;
     }
 
     /// Sets the frame up: weight `weight` (0: off) for `particles` drawn in `order` (the sort's
@@ -180,6 +185,7 @@ impl ShadowHistory {
         }
         if weight <= 0.0 {
             self.ages = None;
+            self.prepared = None;
             return Ok(());
         }
         let ages: Vec<f32> = particles.iter().map(|p| p.age_s).collect();
@@ -193,8 +199,15 @@ impl ShadowHistory {
             .collect();
         gpu.queue
             .write_buffer(&self.ids, 0, bytemuck::cast_slice(&ids));
-        self.ages = Some(ages);
+        self.prepared = Some(ages);
         Ok(())
+    }
+
+    /// The prepared frame's lighting was recorded: its particles now have a history.
+    pub fn lit(&mut self) {
+        if let Some(ages) = self.prepared.take() {
+            self.ages = Some(ages);
+        }
     }
 
     /// Whether the last prepared frame is filtered.

@@ -820,12 +820,12 @@ impl Renderer {
 
     /// The weight of the shadow's temporal history the technique's frames of `scene` use:
     /// the scene's `[shadow] history`, but 0 for the reference and `none` (never filtered) and
-    /// for a technique that lights the particles in its own pass (`has`: not filtered).
-    pub fn history_weight(&mut self, scene: &Scene) -> f32 {
-        let name = self.technique_config.name.as_str();
-        let unfiltered = name == shadow::reference().name
-            || name == "none"
-            || self.faces[0].technique.particle_pass().is_some();
+    /// for a technique that lights the particles in its own pass (`has`, whose frames refuse
+    /// a history: [`shadow::ShadowError::HistoryUnsupported`]).
+    pub fn history_weight(&self, scene: &Scene) -> f32 {
+        let entry = shadow::find(&self.technique_config.name).ok();
+        let unfiltered =
+            entry.is_none_or(|e| e.role != shadow::Role::Contender || e.owns_particle_pass);
         if unfiltered {
             0.0
         } else {
@@ -889,6 +889,7 @@ impl Renderer {
             std::slice::from_ref(&everything),
             order.is_some(),
         );
+        self.history.lit();
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("particles.lighting"),
             timestamp_writes: self.timer.compute_pass("particles"),
@@ -1236,6 +1237,12 @@ impl Renderer {
         let order = sort::back_to_front(particles, camera.position, axis);
         let sort_ms = sort_start.elapsed().as_secs_f64() * 1e3;
         let weight = self.history_weight(scene);
+        if let Some(refusal) = shadow::find(&self.technique_config.name)
+            .ok()
+            .and_then(|e| e.history_refusal(scene.shadow.history))
+        {
+            return Err(refusal);
+        }
         self.history.prepare(
             gpu,
             &mut self.frame_memory,

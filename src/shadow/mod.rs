@@ -67,6 +67,14 @@ pub enum ShadowError {
     #[error("{0}")]
     Volume(String),
     #[error(
+        "{technique} lights its particles in its own pass, which the shadow's temporal history \
+         ([shadow] history = {weight}) does not filter: set it to 0 for {technique}"
+    )]
+    HistoryUnsupported {
+        technique: &'static str,
+        weight: f32,
+    },
+    #[error(
         "{technique} cannot shadow this scene's {particles} particles: it marches a density \
          volume only"
     )]
@@ -693,6 +701,15 @@ impl TechniqueEntry {
         (particles > 0 && !self.shadows_particles).then_some(ShadowError::ParticlesUnsupported {
             technique: self.name,
             particles,
+        })
+    }
+
+    /// Why it cannot run with the shadow's temporal history at `weight` (`[shadow] history`,
+    /// [`crate::render::history`]): a technique that lights the particles in its own pass.
+    pub fn history_refusal(&self, weight: f32) -> Option<ShadowError> {
+        (weight > 0.0 && self.owns_particle_pass).then_some(ShadowError::HistoryUnsupported {
+            technique: self.name,
+            weight,
         })
     }
 

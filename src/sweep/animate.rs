@@ -192,6 +192,9 @@ impl ExactFrames {
     ) -> anyhow::Result<(Recorder, Vec<RgbImage>)> {
         let mut recorder = Recorder::new();
         let mut images = Vec::with_capacity(self.frames.len());
+        // The span's first frame has no history of its own (`[shadow] history`), whatever the
+        // renderer drew before it.
+        renderer.reset_history();
         for f in &self.frames {
             let (image, sample) = f.render(gpu, renderer, target, options)?;
             recorder.push(sample, &self.samples);
@@ -246,6 +249,7 @@ impl ExactFrames {
         let mut columns: Vec<Vec<RgbImage>> = vec![self.images.iter().map(half).collect()];
         for (config, options) in cells {
             renderer.set_technique(gpu, config)?;
+            renderer.reset_history();
             let mut frames = Vec::with_capacity(self.frames.len());
             for f in &self.frames {
                 renderer.forget_maps();

@@ -242,7 +242,10 @@ fn plan(scene: &Scene, options: &SweepOptions) -> anyhow::Result<(Vec<Plan>, Vec
                 shadow::reference().name
             );
         }
-        if let Some(refusal) = entry.refusal(smoke.0, smoke.1) {
+        if let Some(refusal) = entry
+            .refusal(smoke.0, smoke.1)
+            .or_else(|| entry.history_refusal(scene.shadow.history))
+        {
             skipped.push(SkippedCell {
                 technique: entry.name.to_owned(),
                 channels: first_budget(entry, &options.channels).unwrap_or(options.channels[0]),
@@ -320,6 +323,7 @@ fn plan(scene: &Scene, options: &SweepOptions) -> anyhow::Result<(Vec<Plan>, Vec
                     if s > 0 && !entry.uses_splat
                         || particle_res != ParticleRes::Full && entry.owns_particle_pass
                         || entry.refusal(smoke.0, smoke.1).is_some()
+                        || entry.history_refusal(scene.shadow.history).is_some()
                     {
                         continue;
                     }

@@ -251,6 +251,8 @@ impl Worker {
         let size = (frame.scene.output.width_px, frame.scene.output.height_px);
         let gpu = self.gpu.clone();
         let (_, _, renderer, target) = self.renderer(config, size)?;
+        // Each frame on its own: the worker's frames are no sequence for a shadow history.
+        renderer.reset_history();
         renderer.render(
             &gpu,
             &frame.scene,
