@@ -88,6 +88,10 @@ fn bad_scenes_are_rejected_with_a_clear_message() {
             vec!["shadow.resolution_px = 0", "1..=8192"],
         ),
         (
+            edited("resolution_px = 512", "resolution_px = 512\nhistory = 1.0"),
+            vec!["shadow.history = 1", "[0, 0.99]"],
+        ),
+        (
             edited("cone_angle_deg = 34.0", "cone_angle_deg = 95.0"),
             vec!["light.cone_angle_deg = 95", "(0, 80)"],
         ),
