@@ -363,3 +363,63 @@ fn rgba_is_compared_as_composited_over_black() {
     assert_eq!(status, 0, "{report}");
     assert_eq!(number(&report, "max_abs_srgb"), 0.0, "{report}");
 }
+
+/// Our own FLIP (`diff::flip`, no C++) against `nv-flip`'s (NVIDIA's C++ reference code) on
+/// every committed baseline's image against its scene's `exact`, and on a pair of noisy
+/// images: their means agree within 1e-4.
+#[test]
+fn the_rust_flip_matches_nv_flips_mean_on_every_baseline_pair() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("baselines");
+    let mut pairs = Vec::new();
+    for scene in std::fs::read_dir(&root).unwrap() {
+        let dir = scene.unwrap().path();
+        if !dir.is_dir() {
+            continue;
+        }
+        let exact = image::open(dir.join("exact.png")).unwrap().to_rgb8();
+        for entry in std::fs::read_dir(&dir).unwrap() {
+            let path = entry.unwrap().path();
+            if path.extension().is_some_and(|e| e == "png") && !path.ends_with("exact.png") {
+                pairs.push((
+                    path.display().to_string(),
+                    exact.clone(),
+                    image::open(&path).unwrap().to_rgb8(),
+                ));
+            }
+        }
+    }
+    assert!(pairs.len() >= 30, "{} pairs", pairs.len());
+    // And two unrelated noisy images: every pixel differs, edges everywhere.
+    let mut state = 12345u32;
+    let mut noise = |w, h| {
+        image::RgbImage::from_fn(w, h, |_, _| {
+            image::Rgb(std::array::from_fn(|_| {
+                state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+                (state >> 24) as u8
+            }))
+        })
+    };
+    pairs.push(("noise".to_owned(), noise(97, 61), noise(97, 61)));
+    let mut worst = (0.0f64, String::new());
+    for (name, reference, test) in &pairs {
+        let ours =
+            smokeshadow::diff::flip::flip_mean(reference, test, nv_flip::DEFAULT_PIXELS_PER_DEGREE);
+        let (w, h) = reference.dimensions();
+        let map = nv_flip::flip(
+            nv_flip::FlipImageRgb8::with_data(w, h, reference.as_raw()),
+            nv_flip::FlipImageRgb8::with_data(w, h, test.as_raw()),
+            nv_flip::DEFAULT_PIXELS_PER_DEGREE,
+        );
+        let theirs = f64::from(nv_flip::FlipPool::from_image(&map).mean());
+        let d = (ours - theirs).abs();
+        if d > worst.0 {
+            worst = (d, format!("{name}: ours {ours}, nv-flip {theirs}"));
+        }
+    }
+    assert!(
+        worst.0 < 1e-4,
+        "worst over {} pairs: {}",
+        pairs.len(),
+        worst.1
+    );
+}

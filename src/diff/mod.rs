@@ -11,6 +11,7 @@
 //! ([`Metric`], `METRIC=VALUE` via [`parse_threshold`]). To add a metric: compute it in
 //! [`compare`], add the field to [`Metrics`] and, if thresholds may name it, a [`Metric`].
 
+pub mod flip;
 mod load;
 mod metric;
 
