@@ -530,3 +530,41 @@ fn the_viewer_shows_a_volume_at_the_time_on_the_time_bar() {
     // The renderer takes a volume's time (the cloud's drift, a sequence's frame) from here.
     assert_eq!(c.frame_scene().sim.duration_s, 3.0);
 }
+
+#[test]
+fn the_panels_offer_a_and_bs_parameters_and_say_what_a_volume_scene_holds() {
+    let mut c = Controller::new(small_scene(), None, None);
+    c.state.a.source = Source::Technique;
+    c.state.a.technique = "osm".to_owned();
+    c.state.b.source = Source::Exact;
+    let keys: Vec<&str> = c.shown_params().iter().map(|p| p.key).collect();
+    assert!(
+        !keys.is_empty() && keys.iter().all(|k| k.starts_with("osm_")),
+        "{keys:?}"
+    );
+    c.state.b.source = Source::Technique;
+    c.state.b.technique = "dom".to_owned();
+    let keys: Vec<&str> = c.shown_params().iter().map(|p| p.key).collect();
+    assert!(keys.iter().any(|k| k.starts_with("dom_")), "{keys:?}");
+    assert!(
+        keys.iter()
+            .all(|k| k.starts_with("osm_") || k.starts_with("dom_")),
+        "{keys:?}"
+    );
+    c.state.a.source = Source::Exact;
+    c.state.b.source = Source::Exact;
+    assert!(c.shown_params().is_empty());
+
+    // The emitter's plume: its particles; the cloud: its volume, and no infinite bounds.
+    assert!(
+        c.scene_summary().contains("particles simulated"),
+        "{}",
+        c.scene_summary()
+    );
+    let cloud = Controller::new(Scene::embedded("cloud").unwrap(), None, None);
+    let said = cloud.scene_summary();
+    assert!(
+        said.contains("procedural cloud") && !said.contains("inf"),
+        "{said}"
+    );
+}

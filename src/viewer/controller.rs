@@ -549,6 +549,55 @@ impl Controller {
         scene
     }
 
+    /// The technique parameters the panel offers: those of A's and B's techniques (none for a
+    /// side that shows `exact`), in the registry's order.
+    pub fn shown_params(&self) -> Vec<&'static shadow::ParamSpec> {
+        let names: Vec<&str> = [&self.state.a, &self.state.b]
+            .into_iter()
+            .filter(|side| side.source != Source::Exact)
+            .map(|side| side.technique.as_str())
+            .collect();
+        shadow::all_params()
+            .filter(|(entry, _)| names.contains(&entry.name))
+            .map(|(_, spec)| spec)
+            .collect()
+    }
+
+    /// What the scene on screen holds, for the scene panel: its particles (count, bounds,
+    /// extinction) and its density volume, or that it holds no smoke.
+    pub fn scene_summary(&self) -> String {
+        let scene = &self.state.scene;
+        let mut lines = Vec::new();
+        let s = self.particle_summary;
+        if s.count > 0 {
+            let source = match &scene.particles {
+                Some(source) => format!("from {}", source.path_at(self.state.time_s).display()),
+                None => "simulated".to_owned(),
+            };
+            lines.push(format!(
+                "{} particles {source}\nbounds [{:.2}, {:.2}, {:.2}] .. [{:.2}, {:.2}, {:.2}] m\nextinction {:.3} .. {:.3} /m",
+                s.count,
+                s.min.x,
+                s.min.y,
+                s.min.z,
+                s.max.x,
+                s.max.y,
+                s.max.z,
+                s.min_density_per_m,
+                s.max_density_per_m
+            ));
+        } else if scene.particles.is_some() || !scene.emitters.is_empty() {
+            lines.push("no particles at this time".to_owned());
+        }
+        if let Some(volume) = &scene.volume {
+            lines.push(volume.summary());
+        }
+        if lines.is_empty() {
+            lines.push("no smoke: no emitter, particle file or volume".to_owned());
+        }
+        lines.join("\n")
+    }
+
     // ---- What the controls do -------------------------------------------------------------
 
     /// Play / pause the simulation.

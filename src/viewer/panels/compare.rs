@@ -1,7 +1,7 @@
 //! The comparison panel: the mode, configurations A and B (source, technique, budget), and the
-//! settings they share: shadow-map resolution and splatting, every technique parameter the
-//! registry declares (a slider over its range, or buttons for its choices), billboards, render
-//! size and exposure.
+//! settings they share: shadow-map resolution and splatting, the parameters of A's and B's
+//! techniques (a slider over its range, or buttons for its choices), billboards, render size
+//! and exposure.
 
 use eframe::egui::{self, Color32};
 
@@ -71,11 +71,16 @@ pub fn show(controller: &mut Controller, ui: &mut egui::Ui) {
         );
         ui.radio_value(&mut shadow.occluders, OccluderMode::Map, "depth map (PCF)");
     });
-    // Every technique parameter the registry declares: a choice of buttons for one with named
+    // Every parameter A's and B's techniques declare: a choice of buttons for one with named
     // choices, a slider over its range otherwise, and for one whose default is derived per
     // frame, a checkbox that fixes it. Unset and default are the same setting: the scene keeps
     // only what differs from the default, so it stays canonical.
-    for (_, spec) in shadow::all_params() {
+    let shown = controller.shown_params();
+    if shown.is_empty() {
+        ui.label("(no technique parameters: A and B show exact)");
+    }
+    let shadow = &mut controller.state.scene.shadow;
+    for spec in shown {
         let range = spec.min..=spec.max;
         let text = format!("{} ({})", spec.key, spec.unit);
         let logarithmic = spec.max / spec.min.max(1e-6) > 100.0;

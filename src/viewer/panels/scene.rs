@@ -32,24 +32,8 @@ pub fn show(controller: &mut Controller, ui: &mut egui::Ui) {
     if let Some(err) = &controller.scene_error {
         ui.colored_label(Color32::RED, err);
     }
-    // What is loaded: from the scene's particle file (the frame on screen) or its emitters.
-    let summary = controller.particle_summary;
-    let source = match &controller.state.scene.particles {
-        Some(source) => format!("from {}", source.path_at(controller.state.time_s).display()),
-        None => "simulated".to_owned(),
-    };
-    ui.label(format!(
-        "{} particles {source}\nbounds [{:.2}, {:.2}, {:.2}] .. [{:.2}, {:.2}, {:.2}] m\nextinction {:.3} .. {:.3} /m",
-        summary.count,
-        summary.min.x,
-        summary.min.y,
-        summary.min.z,
-        summary.max.x,
-        summary.max.y,
-        summary.max.z,
-        summary.min_density_per_m,
-        summary.max_density_per_m
-    ));
+    // What is loaded: the particles on screen (from a file or the emitters) and the volume.
+    ui.label(controller.scene_summary());
     controller.edit_scene(|s| {
         // One header per emitter; a scene of several names them by number.
         let several = s.emitters.len() > 1;
