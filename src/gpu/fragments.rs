@@ -16,10 +16,6 @@
 
 use super::{Gpu, GpuError};
 
-/// Most counted recordings one frame may hold: as many as its timed passes (half-angle
-/// slicing counts one per batch and pass, up to `MAX_HAS_SLICES` batches), 16 KiB of counts.
-const MAX_COUNTED: u32 = super::timing::MAX_TIMED_PASSES;
-
 /// What each fragment of a counted pass writes: the components of its colour targets (every
 /// one is blended, the unused fourth channel of a 3-channel remainder included) and their bytes.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -59,11 +55,14 @@ pub(super) struct FragmentCounter {
     recorded: Vec<(&'static str, TargetWrites)>,
     /// The recordings of the frame last resolved into `resolve`.
     resolved: Vec<(&'static str, TargetWrites)>,
+    capacity: u32,
 }
 
 impl FragmentCounter {
-    /// A counter, or `None` where the device has no pipeline-statistics queries.
-    pub(super) fn new(gpu: &Gpu) -> Option<Self> {
+    /// A counter of up to `capacity` recordings a frame (the timer gives its own count of
+    /// passes: half-angle slicing counts one per batch and pass), or `None` where the device has
+    /// no pipeline-statistics queries.
+    pub(super) fn new(gpu: &Gpu, capacity: u32) -> Option<Self> {
         if !gpu.has_pipeline_statistics() {
             return None;
         }
@@ -73,16 +72,17 @@ impl FragmentCounter {
                 ty: wgpu::QueryType::PipelineStatistics(
                     wgpu::PipelineStatisticsTypes::FRAGMENT_SHADER_INVOCATIONS,
                 ),
-                count: MAX_COUNTED,
+                count: capacity,
             }),
             resolve: gpu.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("fragments.resolve"),
-                size: u64::from(MAX_COUNTED) * 8,
+                size: u64::from(capacity) * 8,
                 usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
                 mapped_at_creation: false,
             }),
             recorded: Vec::new(),
             resolved: Vec::new(),
+            capacity,
         })
     }
 
@@ -99,7 +99,7 @@ impl FragmentCounter {
         record: impl FnOnce(&mut wgpu::RenderPass<'p>),
     ) {
         let index = self.recorded.len() as u32;
-        if index >= MAX_COUNTED {
+        if index >= self.capacity {
             log::warn!("fragment counter full: pass {name} is not counted");
             record(pass);
             return;

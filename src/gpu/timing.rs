@@ -204,7 +204,7 @@ impl GpuTimer {
     pub fn set_count_fragments(&mut self, gpu: &Gpu, on: bool) -> bool {
         match (on, self.fragments.is_some()) {
             (false, _) => self.fragments = None,
-            (true, false) => self.fragments = FragmentCounter::new(gpu),
+            (true, false) => self.fragments = FragmentCounter::new(gpu, MAX_PASSES),
             (true, true) => {}
         }
         self.fragments.is_some()

@@ -19,7 +19,6 @@ use std::fmt;
 use glam::Vec3;
 use rayon::prelude::*;
 
-use crate::shadow::half_angle::Slicing;
 use crate::sim::Particle;
 
 /// The order of the frame's one sort (`--sort`).
@@ -120,6 +119,42 @@ fn ordered_bits(x: f32) -> u32 {
         !bits
     } else {
         bits | 0x8000_0000
+    }
+}
+
+/// The half-angle slicing axis (`has`, thesis ch. 5; the frame's one sort may share it) and
+/// how the eye composites along it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Slicing {
+    /// Unit half-angle axis; particles are sorted by increasing `dot(p, axis)`, which is front
+    /// to back from the light.
+    pub axis: Vec3,
+    /// True: that order is also front to back for the eye ("under"); false: back to front
+    /// ("over", the camera faces the light).
+    pub eye_front_to_back: bool,
+}
+
+impl Slicing {
+    /// The half-angle between the unit view direction and the unit light direction (the way
+    /// light travels), inverting the view when the camera faces the light.
+    pub fn new(view_dir: Vec3, light_dir: Vec3) -> Self {
+        let eye_front_to_back = view_dir.dot(light_dir) >= 0.0;
+        let view = if eye_front_to_back {
+            view_dir
+        } else {
+            -view_dir
+        };
+        let axis = (view + light_dir).try_normalize().unwrap_or(light_dir);
+        Self {
+            axis,
+            eye_front_to_back,
+        }
+    }
+
+    /// Particle indices sorted along the axis (ties by index, deterministic): the frame's radix
+    /// sort, farthest first along the reversed axis.
+    pub fn order(&self, particles: &[Particle]) -> Vec<u32> {
+        back_to_front(particles, Vec3::ZERO, -self.axis)
     }
 }
 

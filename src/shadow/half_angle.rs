@@ -126,40 +126,7 @@ pub fn layouts() -> Vec<crate::gpu::MirrorLayout> {
     )]
 }
 
-/// The slicing axis and how the eye composites along it.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Slicing {
-    /// Unit half-angle axis; particles are sorted by increasing `dot(p, axis)`, which is front
-    /// to back from the light.
-    pub axis: Vec3,
-    /// True: that order is also front to back for the eye ("under"); false: back to front
-    /// ("over", the camera faces the light).
-    pub eye_front_to_back: bool,
-}
-
-impl Slicing {
-    /// The half-angle between the unit view direction and the unit light direction (the way
-    /// light travels), inverting the view when the camera faces the light.
-    pub fn new(view_dir: Vec3, light_dir: Vec3) -> Self {
-        let eye_front_to_back = view_dir.dot(light_dir) >= 0.0;
-        let view = if eye_front_to_back {
-            view_dir
-        } else {
-            -view_dir
-        };
-        let axis = (view + light_dir).try_normalize().unwrap_or(light_dir);
-        Self {
-            axis,
-            eye_front_to_back,
-        }
-    }
-
-    /// Particle indices sorted along the axis (ties by index, deterministic): the frame's radix
-    /// sort, farthest first along the reversed axis.
-    pub fn order(&self, particles: &[Particle]) -> Vec<u32> {
-        crate::render::sort::back_to_front(particles, Vec3::ZERO, -self.axis)
-    }
-}
+pub use crate::render::sort::Slicing;
 
 /// `count` sorted particles split into `slices` batches of (nearly) equal size; empty batches
 /// are dropped when there are fewer particles than slices.

@@ -92,7 +92,7 @@ pub struct MomentParams {
     /// β, the pull towards the uniform distribution's moments.
     pub bias: &'static ParamSpec,
     /// Whether β and its target are `bias` and the uniform distribution's moments, or the
-    /// authors' table ([`super::msm::PAPER_BIAS`]).
+    /// authors' table ([`super::moment_math::PAPER_BIAS`]).
     pub bias_table: &'static ParamSpec,
     /// η, the share of the weight at the receiver's depth counted in front of it.
     pub overestimation: &'static ParamSpec,
@@ -218,7 +218,7 @@ pub fn layouts() -> Vec<crate::gpu::MirrorLayout> {
 
 /// β and the target of power moments 2, 4, 6, 8 for `spec` with `params` at `count` moments:
 /// its bias parameter towards the uniform distribution's moments (1/(k + 1)), or with its bias
-/// table at `paper` the authors' row for this count ([`super::msm::PAPER_BIAS`]).
+/// table at `paper` the authors' row for this count ([`super::moment_math::PAPER_BIAS`]).
 pub fn moment_bias(spec: &LayeredSpec, params: &TechniqueParams, count: u32) -> (f32, [f32; 4]) {
     let uniform = [1.0 / 3.0, 1.0 / 5.0, 1.0 / 7.0, 1.0 / 9.0];
     let Some(m) = spec.moments.as_ref() else {
@@ -228,7 +228,7 @@ pub fn moment_bias(spec: &LayeredSpec, params: &TechniqueParams, count: u32) -> 
     if params.choice_index(m.bias_table) != 1 {
         return one;
     }
-    match super::msm::paper_bias(m.trigonometric(), count) {
+    match super::moment_math::paper_bias(m.trigonometric(), count) {
         Some(row) => {
             let mut target = [0.0; 4];
             for (t, v) in target.iter_mut().zip(row.vector.iter().skip(1).step_by(2)) {

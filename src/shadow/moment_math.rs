@@ -376,6 +376,138 @@ fn interpolating_polynomial(nodes: &[C], values: &[f64]) -> Vec<C> {
     p
 }
 
+/// The bias the moment-based OIT authors use, per moment count and precision: Münstermann,
+/// Krumpen, Klein & Peters, "Moment-Based Order-Independent Transparency", Proc. ACM Comput.
+/// Graph. Interact. Tech. 1(1), article 7, 2018 (doi:10.1145/3203206), and the code they
+/// released with it (`MomentOIT.hlsli`, `resolveMoments`: the bias vectors; the β per count and
+/// precision as its OIT demo sets them, e.g. PixelSyncOIT's `OIT_MBOIT.cpp`,
+/// `updateMomentMode`). Power moments are lerped towards the vector by β; trigonometric moments
+/// are scaled by 1 − β (no vector). This tool stores its moments in 32-bit floats, so the
+/// lookup uses the single-float rows; the 16-bit rows are kept for the record.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PaperBias {
+    pub trigonometric: bool,
+    /// Power moments (4, 6, 8) or trigonometric moments (2, 3, 4).
+    pub moments: u32,
+    /// Bits per moment: 32 or 16.
+    pub bits: u32,
+    pub bias: f32,
+    /// The bias vector's moments 1..=N (power moments only; empty for trigonometric ones).
+    pub vector: &'static [f64],
+}
+
+pub const PAPER_BIAS: &[PaperBias] = &[
+    PaperBias {
+        trigonometric: false,
+        moments: 4,
+        bits: 32,
+        bias: 5e-7,
+        vector: &[0.0, 0.375, 0.0, 0.375],
+    },
+    PaperBias {
+        trigonometric: false,
+        moments: 6,
+        bits: 32,
+        bias: 5e-6,
+        vector: &[0.0, 0.48, 0.0, 0.451, 0.0, 0.45],
+    },
+    PaperBias {
+        trigonometric: false,
+        moments: 8,
+        bits: 32,
+        bias: 5e-5,
+        vector: &[
+            0.0,
+            0.75,
+            0.0,
+            0.676_666_666_666_666_6,
+            0.0,
+            0.63,
+            0.0,
+            0.600_303_030_303_030_3,
+        ],
+    },
+    PaperBias {
+        trigonometric: true,
+        moments: 2,
+        bits: 32,
+        bias: 4e-7,
+        vector: &[],
+    },
+    PaperBias {
+        trigonometric: true,
+        moments: 3,
+        bits: 32,
+        bias: 8e-7,
+        vector: &[],
+    },
+    PaperBias {
+        trigonometric: true,
+        moments: 4,
+        bits: 32,
+        bias: 1.5e-6,
+        vector: &[],
+    },
+    PaperBias {
+        trigonometric: false,
+        moments: 4,
+        bits: 16,
+        bias: 6e-5,
+        vector: &[0.0, 0.628, 0.0, 0.628],
+    },
+    PaperBias {
+        trigonometric: false,
+        moments: 6,
+        bits: 16,
+        bias: 6e-4,
+        vector: &[0.0, 0.5566, 0.0, 0.489, 0.0, 0.478_693_82],
+    },
+    PaperBias {
+        trigonometric: false,
+        moments: 8,
+        bits: 16,
+        bias: 2.5e-3,
+        vector: &[
+            0.0,
+            0.424_749_163_879_598_66,
+            0.0,
+            0.224_078_026_755_852_84,
+            0.0,
+            0.153_692_307_692_307_68,
+            0.0,
+            0.129_004_405_290_891_2,
+        ],
+    },
+    PaperBias {
+        trigonometric: true,
+        moments: 2,
+        bits: 16,
+        bias: 4e-4,
+        vector: &[],
+    },
+    PaperBias {
+        trigonometric: true,
+        moments: 3,
+        bits: 16,
+        bias: 6.5e-4,
+        vector: &[],
+    },
+    PaperBias {
+        trigonometric: true,
+        moments: 4,
+        bits: 16,
+        bias: 8.5e-4,
+        vector: &[],
+    },
+];
+
+/// The authors' row for `moments` moments of this family in 32-bit floats (this tool's).
+pub fn paper_bias(trigonometric: bool, moments: u32) -> Option<&'static PaperBias> {
+    PAPER_BIAS
+        .iter()
+        .find(|b| b.trigonometric == trigonometric && b.moments == moments && b.bits == 32)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
