@@ -5,7 +5,7 @@
 //! control does goes in the controller, how it looks in its panel.
 
 use std::ops::{Deref, DerefMut};
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 
 use eframe::egui::{self, Color32};
 
@@ -14,37 +14,9 @@ use super::panels;
 use super::shortcuts;
 use super::textures::Textures;
 use super::viewport::{self, Drags};
+use super::window_shot::WindowShot;
 use crate::gpu::Gpu;
 use crate::scene::Scene;
-
-/// The window screenshot asked of egui, until it arrives.
-#[derive(Default)]
-pub struct WindowShot(Arc<Mutex<Option<Arc<egui::ColorImage>>>>);
-
-impl WindowShot {
-    /// Asks egui for the window's pixels; the controller writes them once they arrive.
-    pub fn save(&self, ctx: &egui::Context, controller: &mut Controller) {
-        let slot = self.0.clone();
-        let repaint = ctx.clone();
-        ctx.request_screenshot(move |image| {
-            *slot.lock().expect("screenshot slot") = Some(image);
-            repaint.request_repaint();
-        });
-        controller.status = "saving the window ...".to_owned();
-    }
-
-    /// Hands an arrived screenshot to the controller to write.
-    fn write(&self, controller: &mut Controller) {
-        let shot = self.0.lock().expect("screenshot slot").take();
-        if let Some(image) = shot {
-            controller.save_window_image(image::RgbaImage::from_raw(
-                image.size[0] as u32,
-                image.size[1] as u32,
-                image.pixels.iter().flat_map(|c| c.to_array()).collect(),
-            ));
-        }
-    }
-}
 
 /// The viewer application: the controller and what egui needs to show it.
 ///

@@ -14,7 +14,8 @@
 //! - [`app`]: the eframe application gluing the controller to the rest;
 //! - [`panels`]: one file per panel; [`viewport`]: the pictures and the mouse;
 //! - [`shortcuts`]: the one table of keys, which also feeds the help;
-//! - [`textures`]: the controller's pictures as egui textures.
+//! - [`textures`]: the controller's pictures as egui textures; [`window_shot`]: the window's
+//!   screenshot, asked of egui.
 //!
 //! eframe creates the wgpu device with what the renderer needs ([`wgpu_setup`]: the adapter
 //! the user asked for, its own limits, timestamp queries and 32-bit float blending/filtering).
@@ -29,6 +30,7 @@ pub mod shortcuts;
 pub mod textures;
 pub mod view;
 pub mod viewport;
+pub mod window_shot;
 
 use std::path::PathBuf;
 use std::sync::Arc;

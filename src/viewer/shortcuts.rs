@@ -6,8 +6,8 @@
 
 use eframe::egui::{self, Key, Modifiers};
 
-use super::app::WindowShot;
 use super::controller::{CompareMode, Controller};
+use super::window_shot::WindowShot;
 
 /// What a key does. When several keys arrive in one frame their actions run in this order
 /// (a mode first, a measurement or a save last, of the camera as just reset).

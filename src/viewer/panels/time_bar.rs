@@ -3,8 +3,8 @@
 
 use eframe::egui;
 
-use crate::viewer::app::WindowShot;
 use crate::viewer::controller::Controller;
+use crate::viewer::window_shot::WindowShot;
 
 /// Bottom bar: time, play, screenshots, status.
 pub fn show(controller: &mut Controller, window_shot: &WindowShot, ui: &mut egui::Ui) {
