@@ -20,11 +20,7 @@ use crate::gpu::{AllocationError, Gpu, GpuTimer, MemoryLedger};
 use crate::scene::Scene;
 use crate::shaders;
 
-/// The most boxes a scene may hold (`scene.boxes`): the exact test
-/// (`shaders/common/occluders_exact.wgsl`) loops over every box at every point it lights, and on
-/// llvmpipe those iterations count against the loop budget the reference's walk shares
-/// ([`OCCLUDER_LOOP_RESERVE`]).
-pub const MAX_BOXES: usize = 1024;
+pub use crate::scene::MAX_BOXES;
 
 /// Loop iterations the exact occluder test takes at most: one per box and the loop's exit.
 pub const OCCLUDER_LOOP_RESERVE: u32 = MAX_BOXES as u32 + 1;

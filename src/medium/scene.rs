@@ -15,7 +15,7 @@
 //! eye_steps = 128             # the eye's ray march
 //! ```
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use glam::{DAffine3, DVec3, UVec3, Vec3};
 use serde::{Deserialize, Serialize};
@@ -256,7 +256,7 @@ impl VolumeSpec {
     /// in its name), the frame at the spec's time ([`VolumeSpec::at_time`]).
     pub fn path(&self) -> PathBuf {
         match self.is_sequence() {
-            true => self.base_dir.join(crate::particles::frame_name(
+            true => self.base_dir.join(crate::scene::sequence::frame_name(
                 &self.file,
                 self.frame_at(self.time_s),
             )),
@@ -266,17 +266,17 @@ impl VolumeSpec {
 
     /// Whether its file is a numbered sequence's pattern.
     pub fn is_sequence(&self) -> bool {
-        !self.file.is_empty() && crate::particles::is_sequence(&self.file)
+        !self.file.is_empty() && crate::scene::sequence::is_sequence(&self.file)
     }
 
-    /// A sequence's frame at scene time `time_s` ([`crate::particles::sequence_frame`]).
+    /// A sequence's frame at scene time `time_s` ([`crate::scene::sequence::sequence_frame`]).
     pub fn frame_at(&self, time_s: f32) -> i64 {
-        crate::particles::sequence_frame(self.frame_at_zero, self.frame_rate_hz, time_s)
+        crate::scene::sequence::sequence_frame(self.frame_at_zero, self.frame_rate_hz, time_s)
     }
 
     /// The file's grid placed by the file's own transform, `density_scale_per_m` of extinction
     /// per unit of density.
-    fn file_grid(&self, density_scale_per_m: f64) -> Result<DensityGrid, VolumeError> {
+    pub(crate) fn file_grid(&self, density_scale_per_m: f64) -> Result<DensityGrid, VolumeError> {
         let path = self.path();
         let bytes = self.file_bytes()?;
         let file =
@@ -564,60 +564,3 @@ pub const EMBEDDED_FILES: &[(&str, &[u8])] = &[(
 
 /// The prefix of an embedded volume file's name.
 pub const EMBEDDED_PREFIX: &str = "embedded:";
-
-/// Whether `path` names a volume file (`.vdb`) rather than a scene or particle file.
-pub fn is_volume_file(path: &Path) -> bool {
-    path.extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("vdb"))
-}
-
-/// The optical depth a bare volume file's smoke is given across half its size, at its mean
-/// non-zero density (its `density_scale_per_m`: a file's densities have no unit).
-pub const BARE_FILE_OPTICAL_DEPTH: f64 = 3.0;
-
-/// A scene for a bare volume file (`smokeshadow render smoke.vdb`, the viewer's Open): its
-/// `density` grid placed by the file's transform, framed like a bare particle file
-/// (`crate::particles::frame_bounds`), its density scaled so that half the smoke's size at its
-/// mean non-zero density is [`BARE_FILE_OPTICAL_DEPTH`] deep.
-pub fn scene_for_volume_file(path: &Path) -> anyhow::Result<crate::scene::Scene> {
-    let mut spec = VolumeSpec {
-        file: path.to_string_lossy().into_owned(),
-        ..VolumeSpec::default()
-    };
-    let grid = spec.file_grid(1.0)?;
-    let Some((lo, hi)) = grid.world_bounds() else {
-        anyhow::bail!(
-            "volume file {}: grid {:?} has no active voxels: there is no smoke to frame",
-            path.display(),
-            spec.grid
-        );
-    };
-    let size = (hi - lo).max_element();
-    let non_zero: Vec<f64> = grid
-        .values
-        .iter()
-        .filter(|v| **v > 0.0)
-        .map(|v| f64::from(*v))
-        .collect();
-    let mean = non_zero.iter().sum::<f64>() / non_zero.len().max(1) as f64;
-    if !(mean > 0.0 && size > 0.0) {
-        anyhow::bail!(
-            "volume file {}: grid {:?} holds no density above 0: there is no smoke to render",
-            path.display(),
-            spec.grid
-        );
-    }
-    spec.density_scale_per_m = (BARE_FILE_OPTICAL_DEPTH / (mean * 0.5 * size)) as f32;
-    let mut scene = crate::scene::Scene::thesis_plume();
-    crate::particles::frame_bounds(&mut scene, lo.as_vec3(), hi.as_vec3())
-        .map_err(|m| anyhow::anyhow!("volume file {}: {m}", path.display()))?;
-    scene.volume = Some(spec);
-    scene.name = path
-        .file_stem()
-        .map_or("volume".into(), |s| s.to_string_lossy().into_owned());
-    scene.description = format!("density volume of {}", path.display());
-    scene
-        .validate()
-        .map_err(|m| anyhow::anyhow!("volume file {}: {m}", path.display()))?;
-    Ok(scene)
-}

@@ -20,6 +20,7 @@
 
 mod csv_file;
 mod ply_file;
+mod volume_file;
 
 use std::path::{Path, PathBuf};
 
@@ -27,6 +28,7 @@ use glam::Vec3;
 
 use crate::scene::{ParticleSource, Scene};
 use crate::sim::Particle;
+pub use volume_file::{BARE_FILE_OPTICAL_DEPTH, is_volume_file, scene_for_volume_file};
 
 /// A particle file's format.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -320,41 +322,7 @@ pub fn write(
     })
 }
 
-/// Whether a file name is a numbered sequence's pattern (`smoke.%04d.ply`).
-pub fn is_sequence(pattern: &str) -> bool {
-    sequence_spec(pattern).is_some()
-}
-
-/// The `%d` / `%0Nd` in a pattern: its byte range and zero-padded width.
-fn sequence_spec(pattern: &str) -> Option<(std::ops::Range<usize>, usize)> {
-    let start = pattern.find('%')?;
-    let rest = &pattern[start + 1..];
-    let digits = rest.bytes().take_while(u8::is_ascii_digit).count();
-    if rest.as_bytes().get(digits) != Some(&b'd') {
-        return None;
-    }
-    let width = rest[..digits].parse().unwrap_or(0);
-    Some((start..start + 1 + digits + 1, width))
-}
-
-/// A sequence pattern's file name for `frame` (`smoke.%04d.ply`, 7 -> `smoke.0007.ply`); a name
-/// without a `%d` is returned as it is.
-pub fn frame_name(pattern: &str, frame: i64) -> String {
-    match sequence_spec(pattern) {
-        Some((range, width)) => format!(
-            "{}{frame:0width$}{}",
-            &pattern[..range.start],
-            &pattern[range.end..]
-        ),
-        None => pattern.to_owned(),
-    }
-}
-
-/// A sequence's frame at scene time `time_s`: `frame_at_zero` + the nearest whole number of
-/// frames at `frame_rate_hz` (particle and volume sequences alike).
-pub fn sequence_frame(frame_at_zero: i64, frame_rate_hz: f32, time_s: f32) -> i64 {
-    frame_at_zero + (f64::from(time_s) * f64::from(frame_rate_hz)).round() as i64
-}
+pub use crate::scene::sequence::{frame_name, is_sequence, sequence_frame};
 
 impl ParticleSource {
     /// The frame of a sequence at simulated time `time_s` ([`sequence_frame`]).
@@ -453,15 +421,13 @@ impl std::fmt::Display for Summary {
 }
 
 /// A scene argument of any command and of the viewer's Open: a particle file (`.ply`, `.csv`:
-/// [`scene_for_file`]), a volume file (`.vdb`: `crate::medium::scene::scene_for_volume_file`),
+/// [`scene_for_file`]), a volume file (`.vdb`: [`scene_for_volume_file`]),
 /// an embedded scene's name or a scene file ([`Scene::open`]); the
 /// embedded thesis scene when `None`.
 pub fn open_scene(arg: Option<&Path>) -> anyhow::Result<Scene> {
     Ok(match arg {
         Some(path) if Format::of_path(path).is_some() => scene_for_file(path)?,
-        Some(path) if crate::medium::scene::is_volume_file(path) => {
-            crate::medium::scene::scene_for_volume_file(path)?
-        }
+        Some(path) if is_volume_file(path) => scene_for_volume_file(path)?,
         arg => Scene::load_or_default(arg)?,
     })
 }

@@ -10,6 +10,7 @@
 //! To add a field: add it to the struct with a `///` doc line giving unit and range, give it a
 //! default in the `Default` impl, check it in `validate`, and document it in `scenes/README.md`.
 
+pub mod sequence;
 pub mod technique;
 mod validate;
 
@@ -508,6 +509,12 @@ pub struct SimClock {
     pub step_s: f32,
 }
 
+/// The most boxes a scene may hold (`scene.boxes`): the exact test
+/// (`shaders/common/occluders_exact.wgsl`) loops over every box at every point it lights, and on
+/// llvmpipe those iterations count against the loop budget the reference's walk shares
+/// (`crate::frame::occluders::OCCLUDER_LOOP_RESERVE`).
+pub const MAX_BOXES: usize = 1024;
+
 /// The opaque occluders' depth map side unless a scene says otherwise: 4 MiB, and at the
 /// thesis scene's framing about 1 cm per texel where the box stands.
 pub const DEFAULT_OCCLUDER_RESOLUTION_PX: u32 = 1024;
@@ -766,7 +773,7 @@ impl Scene {
         let particles = self
             .particles
             .as_ref()
-            .filter(|p| crate::particles::is_sequence(&p.file))
+            .filter(|p| sequence::is_sequence(&p.file))
             .map(|p| p.frame_rate_hz);
         let volume = self
             .volume

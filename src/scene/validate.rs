@@ -139,12 +139,12 @@ pub(super) fn validate(scene: &Scene) -> Result<(), String> {
     c.positive("ground.size_m", scene.ground.size_m);
     c.each_in("ground.albedo", scene.ground.albedo, 0.0, 1.0);
 
-    if scene.boxes.len() > crate::frame::occluders::MAX_BOXES {
+    if scene.boxes.len() > super::MAX_BOXES {
         c.errors.push(format!(
             "boxes: {} boxes, more than the {} a scene may hold (the reference tests every box \
              at every point it lights)",
             scene.boxes.len(),
-            crate::frame::occluders::MAX_BOXES
+            super::MAX_BOXES
         ));
     }
     for (i, b) in scene.boxes.iter().enumerate() {
