@@ -77,7 +77,6 @@ pub struct ShadowHistory {
     ages: Option<Vec<f32>>,
     prepared: Option<Vec<f32>>,
     weight: f32,
-    bytes: u64,
 }
 
 impl ShadowHistory {
@@ -135,9 +134,8 @@ impl ShadowHistory {
                 },
             ],
         });
-        // (The bind group keeps the values' buffer alive.)
+        // (The bind group keeps the values' buffer alive; the ledger counts its bytes.)
         Ok(Self {
-            bytes: values.size() + ids.size() + params.size(),
             ids,
             params,
             bind_group,
@@ -217,10 +215,5 @@ impl ShadowHistory {
 
     pub fn bind_group(&self) -> &wgpu::BindGroup {
         &self.bind_group
-    }
-
-    /// Bytes its buffers hold.
-    pub fn bytes(&self) -> u64 {
-        self.bytes
     }
 }

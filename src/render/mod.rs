@@ -818,27 +818,6 @@ impl Renderer {
         self.history.reset();
     }
 
-    /// The weight of the shadow's temporal history the technique's frames of `scene` use:
-    /// the scene's `[shadow] history`, but 0 for the reference and `none` (never filtered) and
-    /// for a technique that lights the particles in its own pass (`has`, whose frames refuse
-    /// a history: [`shadow::ShadowError::HistoryUnsupported`]).
-    pub fn history_weight(&self, scene: &Scene) -> f32 {
-        let entry = shadow::find(&self.technique_config.name).ok();
-        let unfiltered =
-            entry.is_none_or(|e| e.role != shadow::Role::Contender || e.owns_particle_pass);
-        if unfiltered {
-            0.0
-        } else {
-            scene.shadow.history
-        }
-    }
-
-    /// Bytes the shadow's temporal history holds (0 where it never ran; the placeholders'
-    /// few bytes aside).
-    pub fn history_bytes(&self) -> u64 {
-        self.history.bytes()
-    }
-
     /// Loads `scene`'s density volume, if it has one and it is not the one loaded, as a frame
     /// of it does first (so that its grid is there before any frame: `Renderer::medium`).
     pub fn load_volume(&mut self, gpu: &Gpu, scene: &Scene) -> Result<(), ShadowError> {
@@ -1236,13 +1215,16 @@ impl Renderer {
         let sort_start = Instant::now();
         let order = sort::back_to_front(particles, camera.position, axis);
         let sort_ms = sort_start.elapsed().as_secs_f64() * 1e3;
-        let weight = self.history_weight(scene);
-        if let Some(refusal) = shadow::find(&self.technique_config.name)
-            .ok()
-            .and_then(|e| e.history_refusal(scene.shadow.history))
-        {
+        // The shadow's temporal history: the scene's weight, refused by a technique that lights
+        // the particles in its own pass (`has`), never applied to the reference or `none`.
+        let entry = shadow::find(&self.technique_config.name).ok();
+        if let Some(refusal) = entry.and_then(|e| e.history_refusal(scene.shadow.history)) {
             return Err(refusal);
         }
+        let weight = match entry.is_some_and(|e| e.role == shadow::Role::Contender) {
+            true => scene.shadow.history,
+            false => 0.0,
+        };
         self.history.prepare(
             gpu,
             &mut self.frame_memory,
