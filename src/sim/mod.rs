@@ -253,7 +253,16 @@ struct Pool {
     next_birth: usize,
 }
 
+/// What a scene's simulated particles follow from (its emitters, wind and time step): two
+/// scenes with equal inputs simulate the same particles, so a simulation can be kept.
+pub type SimInputs = (Vec<Emitter>, Wind, f32);
+
 impl Simulation {
+    /// The inputs `scene`'s simulation follows from.
+    pub fn inputs(scene: &Scene) -> SimInputs {
+        (scene.emitters.clone(), scene.wind.clone(), scene.sim.step_s)
+    }
+
     /// The state at t = 0.
     pub fn new(scene: &Scene) -> Self {
         Self::start(&scene.emitters, scene.wind.clone(), scene.sim.step_s)

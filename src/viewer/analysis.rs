@@ -166,11 +166,8 @@ struct Worker {
     renderers: Vec<(TechniqueConfig, (u32, u32), Renderer, OffscreenTarget)>,
     /// The emitters' simulation of the last earlier frame it made, and what it simulates (a
     /// later request steps it on from there).
-    sim: Option<(SimInputs, Simulation)>,
+    sim: Option<(crate::sim::SimInputs, Simulation)>,
 }
-
-/// What a simulation's particles follow from.
-type SimInputs = (Vec<crate::scene::Emitter>, crate::scene::Wind, f32);
 
 impl Worker {
     fn new(gpu: Arc<Gpu>) -> Self {
@@ -189,7 +186,7 @@ impl Worker {
         let particles = match &scene.particles {
             Some(source) => source.particles_at(t)?,
             None => {
-                let inputs = (scene.emitters.clone(), scene.wind.clone(), scene.sim.step_s);
+                let inputs = Simulation::inputs(&scene);
                 let sim = match &mut self.sim {
                     Some((kept, sim)) if *kept == inputs => sim,
                     slot => &mut slot.insert((inputs, Simulation::new(&scene))).1,

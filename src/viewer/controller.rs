@@ -289,7 +289,7 @@ pub struct Controller {
     pub(super) gpu: Option<Arc<Gpu>>,
     sim: Simulation,
     particles: Arc<Vec<Particle>>,
-    sim_inputs: (Vec<crate::scene::Emitter>, crate::scene::Wind, f32),
+    sim_inputs: crate::sim::SimInputs,
     /// For a scene of a particle file: the file (the sequence's frame) the particles were read
     /// from, so that a frame is read once, and again only when time picks another.
     read_from: Option<PathBuf>,
@@ -367,7 +367,7 @@ impl Controller {
             scene: scene.clone(),
         };
         Self {
-            sim_inputs: (scene.emitters.clone(), scene.wind.clone(), scene.sim.step_s),
+            sim_inputs: Simulation::inputs(&scene),
             loaded_scene: scene.clone(),
             valid_scene: scene,
             scene_path: path.unwrap_or_else(|| "scene.toml".to_owned()),
@@ -827,7 +827,7 @@ impl Controller {
             }
             None => {
                 self.read_from = None;
-                let inputs = (s.emitters.clone(), s.wind.clone(), s.sim.step_s);
+                let inputs = Simulation::inputs(s);
                 if inputs != self.sim_inputs {
                     self.sim = Simulation::new(s);
                     self.sim_inputs = inputs;
