@@ -233,6 +233,12 @@ fn plan(scene: &Scene, options: &SweepOptions) -> anyhow::Result<(Vec<Plan>, Vec
         scene.volume.is_some(),
         crate::particles::count(scene) as usize,
     );
+    // Why a technique cannot run on this scene at all: its smoke, or its shadow history.
+    let refused = |entry: &shadow::TechniqueEntry| {
+        entry
+            .refusal(smoke.0, smoke.1)
+            .or_else(|| entry.history_refusal(scene.shadow.history))
+    };
     for name in &options.techniques {
         let entry = shadow::find(name)?;
         if entry.role != shadow::Role::Contender {
@@ -242,10 +248,7 @@ fn plan(scene: &Scene, options: &SweepOptions) -> anyhow::Result<(Vec<Plan>, Vec
                 shadow::reference().name
             );
         }
-        if let Some(refusal) = entry
-            .refusal(smoke.0, smoke.1)
-            .or_else(|| entry.history_refusal(scene.shadow.history))
-        {
+        if let Some(refusal) = refused(entry) {
             skipped.push(SkippedCell {
                 technique: entry.name.to_owned(),
                 channels: first_budget(entry, &options.channels).unwrap_or(options.channels[0]),
@@ -322,8 +325,7 @@ fn plan(scene: &Scene, options: &SweepOptions) -> anyhow::Result<(Vec<Plan>, Vec
                     let entry = shadow::find(name)?;
                     if s > 0 && !entry.uses_splat
                         || particle_res != ParticleRes::Full && entry.owns_particle_pass
-                        || entry.refusal(smoke.0, smoke.1).is_some()
-                        || entry.history_refusal(scene.shadow.history).is_some()
+                        || refused(entry).is_some()
                     {
                         continue;
                     }
