@@ -530,22 +530,31 @@ fn an_order_independent_technique_shadows_alike_in_either_draw_order() {
     assert!(draw > 0.05, "avsm's draw-order insertion moves T by {draw}");
 }
 
-#[test]
-fn a_particle_crossing_an_opacity_slice_steps_the_shadow_where_exact_stays_smooth() {
+/// A still particle (`depth` metres from `light` along its axis, `offset` to the side, of
+/// radius `radius_m` and extinction `density_per_m`): the light-ray tests' smoke.
+fn on_light_axis(
+    light: &smokeshadow::scene::Spotlight,
+) -> impl Fn(f32, f32, f32, f32) -> smokeshadow::sim::Particle {
     use glam::Vec3;
-    use smokeshadow::sim::Particle;
-    let scene = common::reduced_plume();
-    let light = &scene.light;
-    let axis = (light.target - light.position).normalize();
+    let (origin, axis) = (light.position, (light.target - light.position).normalize());
     let side = axis.cross(Vec3::Y).normalize();
-    let at = |depth: f32, offset: f32, radius_m: f32, density_per_m: f32| Particle {
-        position: light.position + axis * depth + side * offset,
+    move |depth, offset, radius_m, density_per_m| smokeshadow::sim::Particle {
+        position: origin + axis * depth + side * offset,
         velocity: Vec3::ZERO,
         age_s: 1.0,
         radius_m,
         density_per_m,
         albedo: Vec3::splat(0.8),
-    };
+    }
+}
+
+#[test]
+fn a_particle_crossing_an_opacity_slice_steps_the_shadow_where_exact_stays_smooth() {
+    use smokeshadow::sim::Particle;
+    let scene = common::reduced_plume();
+    let light = &scene.light;
+    let axis = (light.target - light.position).normalize();
+    let at = on_light_axis(light);
     // Two still particles off the point's ray fix the light's depth range (near the light and
     // far from it); one moves along the ray towards the point, always wholly in front of it,
     // so the exact optical depth at the point is the same in every frame: τ · 2r = 2.
@@ -772,22 +781,11 @@ fn a_gallery_in_motion_ranks_each_scenes_cells_by_temporal_error_too() {
 
 #[test]
 fn the_shadows_history_blends_each_particles_t_with_its_last_as_the_closed_form_says() {
-    use glam::Vec3;
     use smokeshadow::shadow::SplatMode;
     use smokeshadow::sim::Particle;
     const W: f32 = 0.9;
     let mut scene = common::reduced_plume();
-    let light = scene.light.clone();
-    let axis = (light.target - light.position).normalize();
-    let side = axis.cross(Vec3::Y).normalize();
-    let at = |depth: f32, offset: f32, radius_m: f32, density_per_m: f32| Particle {
-        position: light.position + axis * depth + side * offset,
-        velocity: Vec3::ZERO,
-        age_s: 1.0,
-        radius_m,
-        density_per_m,
-        albedo: Vec3::splat(0.8),
-    };
+    let at = on_light_axis(&scene.light);
     // Two still particles fix the light's depth range; the lit one (index 2) sits on the axis;
     // the blocker (index 3) starts off the axis and from frame 1 on stands in front of the lit
     // one: its T steps down at frame 1 and stays.
