@@ -14,7 +14,10 @@ use smokeshadow::sim::simulate;
 fn main() -> anyhow::Result<()> {
     let mut args = std::env::args().skip(1);
     let scene = match args.next() {
-        Some(path) if !path.is_empty() => Scene::load(std::path::Path::new(&path))?,
+        Some(path) if !path.is_empty() => Scene::load(
+            std::path::Path::new(&path),
+            &smokeshadow::files::Files::host(),
+        )?,
         _ => Scene::thesis_plume(),
     };
     let splat = match args.next().as_deref() {

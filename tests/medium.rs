@@ -97,7 +97,7 @@ fn the_gpu_march_matches_the_f64_mirror_at_the_same_steps() {
 #[test]
 fn the_converged_gpu_march_reaches_the_analytic_boxs_closed_form() {
     // The box's faces on the grid's cell boundaries: the trilinear ramps integrate to the
-    // box's width exactly (src/medium/grid.rs), so the converged march is the closed form.
+    // box's width exactly (core/src/medium/grid.rs), so the converged march is the closed form.
     let gpu = gpu();
     let mut ledger = MemoryLedger::for_device(&gpu.limits);
     let march = GridMarch::new(&gpu);

@@ -1,4 +1,4 @@
-//! GPU tests of the opaque occluders' shadows (src/frame/occluders.rs): the box shadows the
+//! GPU tests of the opaque occluders' shadows (core/src/frame/occluders.rs): the box shadows the
 //! ground and the smoke, the same way under every technique and both occluder modes (`exact`
 //! always tests the box exactly; the others do so by default, or read the filtered depth map
 //! with `shadow.occluders = "map"`). They run on lavapipe in CI and fail, never skip, without

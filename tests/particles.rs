@@ -57,7 +57,12 @@ fn every_format_round_trips_the_simulated_particles_bit_for_bit() {
         }
         let stdout = ok(&smokeshadow(&args));
         assert!(stdout.contains("2500 particles"), "{stdout}");
-        let read = particles::read(&path, &Defaults::default()).unwrap();
+        let read = particles::read(
+            &smokeshadow::files::Files::host(),
+            &path,
+            &Defaults::default(),
+        )
+        .unwrap();
         assert_eq!(bits(&read), bits(&simulated), "{name}");
     }
     // The ASCII PLY really is ASCII, the binary one binary.
@@ -137,7 +142,12 @@ fn a_ply_in_houdinis_names_renders_smoke_where_its_particles_are() {
     }
     let path = dir.join("houdini.ply");
     std::fs::write(&path, houdini_ply(&puffs)).unwrap();
-    let read = particles::read(&path, &Defaults::default()).unwrap();
+    let read = particles::read(
+        &smokeshadow::files::Files::host(),
+        &path,
+        &Defaults::default(),
+    )
+    .unwrap();
     assert_eq!(read.len(), 125);
     assert_eq!(read[1].radius_m, 0.45, "pscale is the radius");
     assert_eq!(read[1].density_per_m, 3.0);
@@ -199,7 +209,7 @@ fn missing_optional_properties_take_the_scenes_defaults() {
         density_per_m: 4.0,
         albedo: glam::Vec3::new(0.5, 0.6, 0.7),
     };
-    let read = particles::read(&path, &defaults).unwrap();
+    let read = particles::read(&smokeshadow::files::Files::host(), &path, &defaults).unwrap();
     assert_eq!(read.len(), 2);
     assert_eq!(read[1].position, glam::Vec3::new(0.5, 1.5, -0.25));
     assert_eq!(
@@ -215,7 +225,7 @@ fn missing_optional_properties_take_the_scenes_defaults() {
          property uchar blue\nproperty uchar alpha\nend_header\n1 2 3 0 255 51 0 255\n",
     )
     .unwrap();
-    let read = particles::read(&blender, &defaults).unwrap();
+    let read = particles::read(&smokeshadow::files::Files::host(), &blender, &defaults).unwrap();
     assert_eq!(read[0].albedo, glam::Vec3::new(1.0, 0.2, 0.0));
     assert_eq!(read[0].radius_m, 0.3);
 }
@@ -249,7 +259,7 @@ fn a_sequence_is_written_and_the_scene_time_picks_its_frame() {
     );
     let toml = dir.join("sequence.toml");
     std::fs::write(&toml, text).unwrap();
-    let loaded = Scene::load(&toml).unwrap();
+    let loaded = Scene::load(&toml, &smokeshadow::files::Files::host()).unwrap();
     let source = loaded.particles.as_ref().unwrap();
     assert_eq!(source.frame_at(loaded.sim.duration_s), 47);
     let read = particles::scene_particles(&loaded).unwrap();
@@ -265,9 +275,13 @@ fn a_sequence_is_written_and_the_scene_time_picks_its_frame() {
 fn read_error(dir: &Path, name: &str, contents: &[u8]) -> String {
     let path = dir.join(name);
     std::fs::write(&path, contents).unwrap();
-    let err = particles::read(&path, &Defaults::default())
-        .unwrap_err()
-        .to_string();
+    let err = particles::read(
+        &smokeshadow::files::Files::host(),
+        &path,
+        &Defaults::default(),
+    )
+    .unwrap_err()
+    .to_string();
     assert!(!err.contains('\n'), "one line: {err}");
     assert!(
         err.contains(&*path.to_string_lossy()),
@@ -429,7 +443,12 @@ fn baselines_of_your_own_particles_bless_check_and_notice_a_changed_file() {
         String::from_utf8_lossy(&checked.stdout)
     );
     // The scene's identity includes its particles: moving one makes the baseline stale.
-    let mut moved = particles::read(&ply, &Defaults::default()).unwrap();
+    let mut moved = particles::read(
+        &smokeshadow::files::Files::host(),
+        &ply,
+        &Defaults::default(),
+    )
+    .unwrap();
     moved[0].position.y += 0.5;
     particles::write(&ply, &moved, None).unwrap();
     let stale = run("--check");

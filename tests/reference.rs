@@ -1,6 +1,6 @@
 //! The reference holds on every scene and proves it: `exact`'s light (smoke transmittance times
 //! the opaque occluders' visibility) against the f64 CPU closed form at the frame's shaded
-//! points (src/render/reference_check.rs), on every embedded scene, on each scene's particles
+//! points (core/src/render/reference_check.rs), on every embedded scene, on each scene's particles
 //! read back as a bare file (framed by `particles::scene_for_file`), and on bare files of smoke
 //! from 1 cm to 1 km across and 5 km from the origin, on tile lists of 16,000 and 100,000 spheres
 //! and on 262,144 particles; a broken reference is refused in one line.

@@ -10,7 +10,8 @@ fn committed_scenes_load_and_match_the_thesis_setup() {
     for entry in std::fs::read_dir(&dir).unwrap() {
         let path = entry.unwrap().path();
         if path.extension().is_some_and(|e| e == "toml") {
-            Scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+            Scene::load(&path, &smokeshadow::files::Files::host())
+                .unwrap_or_else(|e| panic!("{e}"));
             count += 1;
         }
     }
@@ -22,7 +23,11 @@ fn committed_scenes_load_and_match_the_thesis_setup() {
     assert_eq!(plume.shadow.resolution_px, 512);
     assert!(!plume.boxes.is_empty());
     // The wind scene is the same experiment with a gust.
-    let wind = Scene::load(&dir.join("thesis_wind.toml")).unwrap();
+    let wind = Scene::load(
+        &dir.join("thesis_wind.toml"),
+        &smokeshadow::files::Files::host(),
+    )
+    .unwrap();
     assert!(wind.wind.strength_m_per_s > 0.0 && wind.wind.start_s < wind.sim.duration_s);
     assert_eq!(wind.emitters, plume.emitters);
     assert_eq!(wind.camera, plume.camera);
@@ -130,7 +135,11 @@ fn bad_scenes_are_rejected_with_a_clear_message() {
 
 #[test]
 fn a_missing_file_names_its_path() {
-    let err = Scene::load(std::path::Path::new("/no/such/scene.toml")).unwrap_err();
+    let err = Scene::load(
+        std::path::Path::new("/no/such/scene.toml"),
+        &smokeshadow::files::Files::host(),
+    )
+    .unwrap_err();
     assert!(matches!(err, SceneError::Read { .. }));
     assert!(err.to_string().contains("/no/such/scene.toml"));
 }

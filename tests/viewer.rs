@@ -10,6 +10,7 @@ use std::time::{Duration, Instant};
 
 use egui_kittest::Harness;
 use egui_kittest::kittest::Queryable;
+use smokeshadow::files::{Files, Folder};
 use smokeshadow::gpu::AdapterPreference;
 use smokeshadow::render::{RenderOptions, render_offscreen};
 use smokeshadow::scene::Scene;
@@ -376,7 +377,7 @@ fn the_viewer_opens_particle_files_and_plays_their_frames() {
     let counts: Vec<usize> = (4..=6)
         .map(|f| {
             let path = dir.join(particles::frame_name("smoke.%04d.ply", f));
-            particles::read(&path, &particles::Defaults::default())
+            particles::read(&Files::host(), &path, &particles::Defaults::default())
                 .unwrap()
                 .len()
         })
@@ -398,7 +399,7 @@ fn the_viewer_opens_particle_files_and_plays_their_frames() {
     scene.particles = Some(smokeshadow::scene::ParticleSource {
         file: "smoke.%04d.ply".into(),
         frame_rate_hz: 4.0,
-        base_dir: dir.clone(),
+        folder: Folder::new(&dir, Files::host()),
         ..Default::default()
     });
     scene.sim.duration_s = 1.0;

@@ -137,7 +137,7 @@ pub struct Measured {
     /// CPU wall time of `render` and reading its timestamps back.
     pub wall_ms: Timing,
     /// For the reference: the worst |ΔT| of its self-check against the f64 closed form
-    /// (src/render/reference_check.rs; a larger one refuses the cell).
+    /// (core/src/render/reference_check.rs; a larger one refuses the cell).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub reference_check_worst: Option<f64>,
     /// The build passes' fragment work, counted in one more frame after the timed ones (absent

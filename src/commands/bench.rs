@@ -412,7 +412,7 @@ fn run_volume_frames(
             args.coverages.iter().map(|&c| Some(c)).collect(),
         ),
         path => (
-            crate::particles::scene_for_volume_file(Path::new(path))?,
+            crate::particles::scene_for_volume_file(Path::new(path), &crate::files::Files::host())?,
             vec![None],
         ),
     };

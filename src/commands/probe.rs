@@ -74,7 +74,7 @@ struct Report<'a> {
     light_near_m: f32,
     light_far_m: f32,
     /// `exact`'s self-check at the frame's shaded points: how many were compared and the worst
-    /// |ΔT| against the f64 closed form (src/render/reference_check.rs).
+    /// |ΔT| against the f64 closed form (core/src/render/reference_check.rs).
     reference_check_points: usize,
     reference_check_worst: f64,
     at: Sample,

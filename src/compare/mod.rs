@@ -95,7 +95,7 @@ pub struct CompareReport {
     pub baseline_pairs: Vec<(String, String, PairFiles)>,
     pub exact_image: String,
     pub exact_bytes: u64,
-    /// `exact`'s self-check against the f64 closed form (src/render/reference_check.rs).
+    /// `exact`'s self-check against the f64 closed form (core/src/render/reference_check.rs).
     pub exact_check: Option<crate::render::reference_check::ReferenceCheck>,
     /// Every file written, relative to the output folder.
     pub files: Vec<String>,

@@ -120,21 +120,7 @@ pub fn escape(text: &str) -> String {
     out
 }
 
-/// Bytes as a short human figure (binary units: 12.0 MiB).
-pub fn bytes(n: u64) -> String {
-    const UNITS: [&str; 4] = ["B", "KiB", "MiB", "GiB"];
-    let mut value = n as f64;
-    let mut unit = 0;
-    while value >= 1024.0 && unit + 1 < UNITS.len() {
-        value /= 1024.0;
-        unit += 1;
-    }
-    if unit == 0 {
-        format!("{n} B")
-    } else {
-        format!("{value:.1} {}", UNITS[unit])
-    }
-}
+pub use smokeshadow_core::gpu::memory::bytes;
 
 /// A whole page: `title`, the shared style, `body` (already HTML) and an optional script.
 pub fn page(title: &str, body: &str, script: &str) -> String {

@@ -271,7 +271,7 @@ pub struct MeasuredAgainst {
     pub exact_bytes: u64,
     pub exact_tiles: u32,
     pub exact_image_sha256: String,
-    /// `exact`'s self-check against the f64 closed form (src/render/reference_check.rs): the
+    /// `exact`'s self-check against the f64 closed form (core/src/render/reference_check.rs): the
     /// shaded points compared and the worst |ΔT| (`None` in cells measured before the check).
     #[serde(default)]
     pub exact_check_points: usize,

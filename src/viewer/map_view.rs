@@ -18,7 +18,7 @@ struct MapViewParams {
 
 /// The WGSL structs mirrored here.
 pub fn layouts() -> Vec<crate::gpu::MirrorLayout> {
-    vec![crate::mirror_layout!(
+    vec![smokeshadow_core::mirror_layout!(
         MapViewParams,
         "render/map_view.wgsl",
         "MapViewParams",

@@ -17,6 +17,8 @@
 
 use std::path::PathBuf;
 
+use crate::files::Folder;
+
 use glam::{DAffine3, DVec3, UVec3, Vec3};
 use serde::{Deserialize, Serialize};
 
@@ -92,9 +94,10 @@ pub struct VolumeSpec {
     pub frame_rate_hz: f32,
     #[serde(skip_serializing_if = "is_zero")]
     pub frame_at_zero: i64,
-    /// The folder `file` is relative to: the scene file's (not written).
+    /// The folder `file` is relative to, and the files it is read from: the scene file's (not
+    /// written).
     #[serde(skip)]
-    pub base_dir: PathBuf,
+    pub folder: Folder,
     /// The scene time the grid is made at, seconds (not written; [`VolumeSpec::at_time`]):
     /// how far the cloud's wind has carried its noise. 0 for a volume that does not move.
     #[serde(skip)]
@@ -124,7 +127,7 @@ impl Default for VolumeSpec {
             cloud: CloudSpec::default(),
             frame_rate_hz: DEFAULT_FRAME_RATE_HZ,
             frame_at_zero: 0,
-            base_dir: PathBuf::new(),
+            folder: Folder::default(),
             time_s: 0.0,
         }
     }
@@ -256,11 +259,11 @@ impl VolumeSpec {
     /// in its name), the frame at the spec's time ([`VolumeSpec::at_time`]).
     pub fn path(&self) -> PathBuf {
         match self.is_sequence() {
-            true => self.base_dir.join(crate::scene::sequence::frame_name(
+            true => self.folder.join(crate::scene::sequence::frame_name(
                 &self.file,
                 self.frame_at(self.time_s),
             )),
-            false => self.base_dir.join(&self.file),
+            false => self.folder.join(&self.file),
         }
     }
 
@@ -313,7 +316,9 @@ impl VolumeSpec {
                 });
         }
         let path = self.path();
-        std::fs::read(&path)
+        self.folder
+            .files
+            .read(&path)
             .map(std::borrow::Cow::Owned)
             .map_err(|cause| VolumeError::Read { path, cause })
     }
@@ -559,7 +564,7 @@ impl VolumeSpec {
 /// OpenUSD's smoke test file (tests/data/volumes/README.md: OpenUSD's license).
 pub const EMBEDDED_FILES: &[(&str, &[u8])] = &[(
     "openusd_smoke_000003.vdb",
-    include_bytes!("../../tests/data/volumes/openusd_smoke_000003.vdb"),
+    include_bytes!("../../../tests/data/volumes/openusd_smoke_000003.vdb"),
 )];
 
 /// The prefix of an embedded volume file's name.

@@ -558,7 +558,7 @@ pub fn memory_per_texel(total: u64, resolution: u32) -> Result<u32, String> {
     if !total.is_multiple_of(area) {
         return Err(format!(
             "{} is not a whole number of bytes a texel at {resolution}² ({:.2})",
-            crate::report::bytes(total),
+            crate::gpu::memory::bytes(total),
             total as f64 / area as f64
         ));
     }

@@ -22,19 +22,8 @@ use rayon::prelude::*;
 use crate::sim::Particle;
 
 /// The order of the frame's one sort (`--sort`).
-#[derive(
-    Clone,
-    Copy,
-    Debug,
-    Default,
-    PartialEq,
-    Eq,
-    Hash,
-    PartialOrd,
-    Ord,
-    clap::ValueEnum,
-    serde::Serialize,
-)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "kebab-case")]
 pub enum SortOrder {
     /// By view depth: exactly back to front for the eye (the default, the thesis' frame).

@@ -3,6 +3,8 @@
 
 use std::path::Path;
 
+use crate::files::{Files, Folder};
+
 /// Whether `path` names a volume file (`.vdb`) rather than a scene or particle file.
 pub fn is_volume_file(path: &Path) -> bool {
     path.extension()
@@ -17,9 +19,10 @@ pub const BARE_FILE_OPTICAL_DEPTH: f64 = 3.0;
 /// `density` grid placed by the file's transform, framed like a bare particle file
 /// ([`super::frame_bounds`]), its density scaled so that half the smoke's size at its
 /// mean non-zero density is [`BARE_FILE_OPTICAL_DEPTH`] deep.
-pub fn scene_for_volume_file(path: &Path) -> anyhow::Result<crate::scene::Scene> {
+pub fn scene_for_volume_file(path: &Path, files: &Files) -> anyhow::Result<crate::scene::Scene> {
     let mut spec = crate::medium::scene::VolumeSpec {
         file: path.to_string_lossy().into_owned(),
+        folder: Folder::new("", files.clone()),
         ..Default::default()
     };
     let grid = spec.file_grid(1.0)?;

@@ -394,6 +394,22 @@ pub fn texture_bytes(desc: &wgpu::TextureDescriptor<'_>) -> u64 {
         .sum()
 }
 
+/// Bytes as a short human figure (binary units: 12.0 MiB).
+pub fn bytes(n: u64) -> String {
+    const UNITS: [&str; 4] = ["B", "KiB", "MiB", "GiB"];
+    let mut value = n as f64;
+    let mut unit = 0;
+    while value >= 1024.0 && unit + 1 < UNITS.len() {
+        value /= 1024.0;
+        unit += 1;
+    }
+    if unit == 0 {
+        format!("{n} B")
+    } else {
+        format!("{value:.1} {}", UNITS[unit])
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -676,7 +676,7 @@ pub(crate) fn lookup_group_head<'a>(
 }
 
 /// A square single-layer shadow-map texture, recorded in `memory`, and its view.
-pub(crate) fn map_texture(
+pub fn map_texture(
     memory: &mut MemoryLedger,
     device: &wgpu::Device,
     label: &str,
@@ -688,14 +688,14 @@ pub(crate) fn map_texture(
 }
 
 /// Additive blending: every fragment adds to what is there.
-pub(crate) const ADDITIVE: wgpu::BlendComponent = wgpu::BlendComponent {
+pub const ADDITIVE: wgpu::BlendComponent = wgpu::BlendComponent {
     src_factor: wgpu::BlendFactor::One,
     dst_factor: wgpu::BlendFactor::One,
     operation: wgpu::BlendOperation::Add,
 };
 
 /// A pipeline drawing light-facing particle billboards (`vs_build`) into `formats` with `blend`.
-pub(crate) fn billboard_pipeline(
+pub fn billboard_pipeline(
     device: &wgpu::Device,
     label: &str,
     module: &wgpu::ShaderModule,
@@ -872,7 +872,7 @@ fn build_pipeline_entries(
 }
 
 /// A colour attachment cleared to `clear` and stored.
-pub(crate) fn cleared_attachment(
+pub fn cleared_attachment(
     view: &wgpu::TextureView,
     clear: wgpu::Color,
 ) -> Option<wgpu::RenderPassColorAttachment<'_>> {

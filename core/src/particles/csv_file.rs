@@ -9,9 +9,12 @@ use crate::sim::Particle;
 /// What errors call a particle of a CSV file.
 const ELEMENT: &str = "row";
 
-/// Reads the particles of a CSV file with a header row.
-pub(super) fn read(path: &Path, defaults: &Defaults) -> Result<Vec<Particle>, ParticleFileError> {
-    let bytes = super::read_bytes(path)?;
+/// The particles of a CSV file with a header row: `bytes`, the file `path`.
+pub(super) fn parse(
+    path: &Path,
+    bytes: &[u8],
+    defaults: &Defaults,
+) -> Result<Vec<Particle>, ParticleFileError> {
     let bad = |message: String| ParticleFileError::invalid(path, message);
     if bytes.iter().all(u8::is_ascii_whitespace) {
         return Err(bad("the file is empty (no header row)".to_owned()));

@@ -1,83 +1,31 @@
-//! Reading the images a diff compares: PNG only, any bit depth and colour type, flattened to
-//! 8-bit sRGB RGB. The renderer writes opaque 8-bit RGB PNGs; anything else (a baseline edited in
-//! a paint program, a 16-bit export, an image with alpha) is converted here, once, so that every
-//! metric sees the same pixels.
+//! Image differences ([`smokeshadow_core::diff`]), and the PNG files the CLI compares read from
+//! the disk.
 
 use std::path::Path;
 
-use image::{DynamicImage, ImageFormat, RgbImage};
+use image::RgbImage;
+pub use smokeshadow_core::diff::*;
 
-use super::DiffError;
-
-/// The eight bytes every PNG file starts with (PNG specification, section 5.2).
-const PNG_SIGNATURE: [u8; 8] = [0x89, b'P', b'N', b'G', b'\r', b'\n', 0x1a, b'\n'];
-
-/// Loads a PNG as 8-bit RGB.
-///
-/// - 8-bit RGB is taken as is; grey images are expanded to RGB.
-/// - 16-bit images are rounded to 8 bits per channel.
-/// - An alpha channel is **composited over black** (colour x alpha), then dropped: smokeshadow's
-///   renders are opaque, so a transparent pixel in a baseline can only mean "nothing there".
-///
-/// The values are taken to be sRGB-encoded whatever the file's colour chunks say.
-///
-/// Errors: the file cannot be read ([`DiffError::Read`]), does not start with the PNG signature
-/// ([`DiffError::NotPng`]), or does not decode ([`DiffError::CorruptPng`]).
+/// Loads a PNG file as 8-bit RGB ([`decode_png`]). Errors: the file cannot be read
+/// ([`DiffError::Read`]), or is not a PNG it can decode.
 pub fn load_png(path: &Path) -> Result<RgbImage, DiffError> {
     let bytes = std::fs::read(path).map_err(|cause| DiffError::Read {
         path: path.to_owned(),
         cause,
     })?;
-    if !bytes.starts_with(&PNG_SIGNATURE) {
-        return Err(DiffError::NotPng {
-            path: path.to_owned(),
-        });
-    }
-    let decoded = image::load_from_memory_with_format(&bytes, ImageFormat::Png).map_err(|err| {
-        DiffError::CorruptPng {
-            path: path.to_owned(),
-            reason: err.to_string().replace('\n', " "),
-        }
-    })?;
-    Ok(flatten_to_rgb8(decoded))
+    decode_png(path, &bytes)
 }
 
 /// Loads a reference and a test image and checks that they have the same size; the size error
 /// names both files and both sizes.
 pub fn load_pair(reference: &Path, test: &Path) -> Result<(RgbImage, RgbImage), DiffError> {
-    let reference_image = load_png(reference)?;
-    let test_image = load_png(test)?;
-    if reference_image.dimensions() != test_image.dimensions() {
-        return Err(DiffError::SizeMismatch {
-            reference: format!("reference {}", reference.display()),
-            reference_size_px: reference_image.dimensions(),
-            test: format!("test {}", test.display()),
-            test_size_px: test_image.dimensions(),
-        });
-    }
-    Ok((reference_image, test_image))
-}
-
-/// Converts any decoded image to 8-bit RGB, compositing alpha over black.
-fn flatten_to_rgb8(image: DynamicImage) -> RgbImage {
-    if !image.color().has_alpha() {
-        return image.into_rgb8();
-    }
-    // Composite in floating point so that 16-bit alpha keeps its precision; an opaque pixel
-    // (alpha exactly 1) round-trips to its original 8-bit value.
-    let rgba = image.into_rgba32f();
-    let mut out = RgbImage::new(rgba.width(), rgba.height());
-    for (src, dst) in rgba.pixels().zip(out.pixels_mut()) {
-        let [r, g, b, a] = src.0;
-        let quantize = |c: f32| ((c * a).clamp(0.0, 1.0) * 255.0).round() as u8;
-        dst.0 = [quantize(r), quantize(g), quantize(b)];
-    }
-    out
+    same_size((reference, load_png(reference)?), (test, load_png(test)?))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use image::DynamicImage;
     use image::{ImageBuffer, Rgba, RgbaImage};
 
     fn scratch_dir(name: &str) -> std::path::PathBuf {
@@ -124,7 +72,7 @@ mod tests {
         );
 
         let truncated = dir.join("truncated.png");
-        let mut bytes = PNG_SIGNATURE.to_vec();
+        let mut bytes = b"\x89PNG\r\n\x1a\n".to_vec();
         bytes.extend_from_slice(b"\0\0\0\x0dIHDR garbage");
         std::fs::write(&truncated, bytes).unwrap();
         let err = load_png(&truncated).unwrap_err().to_string();

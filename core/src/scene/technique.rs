@@ -84,9 +84,8 @@ impl<'de> Deserialize<'de> for ParamValue {
 }
 
 /// How a particle's optical depth is placed along the light ray when building layered maps.
-#[derive(
-    Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize, clap::ValueEnum,
-)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "snake_case")]
 pub enum SplatMode {
     /// All of it at the particle centre's depth: the thesis' model (2013, 3.2.2), which is not
@@ -117,9 +116,8 @@ impl SplatMode {
 }
 
 /// How the lighting tests the light against the opaque occluders (ground and boxes).
-#[derive(
-    Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize, clap::ValueEnum,
-)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "snake_case")]
 pub enum OccluderMode {
     /// Every technique tests the segment to the light against the boxes and the ground
@@ -144,9 +142,8 @@ impl OccluderMode {
 
 /// How a spotlight's light space frames the smoke: the square frustum every map (and `exact`'s
 /// tiles, and the occluders' map) is drawn in.
-#[derive(
-    Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize, clap::ValueEnum,
-)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "snake_case")]
 pub enum Framing {
     /// Fitted to the smoke's light-space bounds each frame (the particles' spheres and the

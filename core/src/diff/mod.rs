@@ -13,6 +13,7 @@
 
 pub mod flip;
 mod load;
+pub mod magma;
 mod metric;
 
 use std::path::PathBuf;
@@ -20,7 +21,7 @@ use std::path::PathBuf;
 use image::RgbImage;
 use serde::Serialize;
 
-pub use load::{load_pair, load_png};
+pub use load::{decode_png, same_size};
 pub use metric::{Metric, parse_threshold};
 
 /// The enhancement factor of the thesis' difference images ("difference enhanced 4x").
@@ -157,13 +158,8 @@ pub fn compare_with(
     }
     let (width, height) = reference.dimensions();
 
-    let flip_map = nv_flip::flip(
-        nv_flip::FlipImageRgb8::with_data(width, height, reference.as_raw()),
-        nv_flip::FlipImageRgb8::with_data(width, height, test.as_raw()),
-        nv_flip::DEFAULT_PIXELS_PER_DEGREE,
-    );
-    let mut pool = nv_flip::FlipPool::from_image(&flip_map);
-    let flip_map = flip_map.to_vec();
+    let flip_map = flip::flip_map(reference, test, flip::DEFAULT_PPD);
+    let pool = flip::Pool::of(&flip_map);
 
     let pixels = pixel_statistics(reference, test);
     let ssim = match ssim {
@@ -180,12 +176,10 @@ pub fn compare_with(
     };
 
     let metrics = Metrics {
-        flip_mean: f64::from(pool.mean()),
-        flip_weighted_median: f64::from(pool.get_percentile(0.5, true)),
-        flip_q1: f64::from(pool.get_percentile(0.25, true)),
-        flip_q3: f64::from(pool.get_percentile(0.75, true)),
-        // Not `pool.max_value()`: the pool starts its maximum at FLT_MIN (1.2e-38) and keeps it
-        // when every error is 0, and identical images must report exactly 0.
+        flip_mean: pool.mean(),
+        flip_weighted_median: pool.weighted_percentile(0.5),
+        flip_q1: pool.weighted_percentile(0.25),
+        flip_q3: pool.weighted_percentile(0.75),
         flip_max: f64::from(flip_map.iter().copied().fold(0.0f32, f32::max)),
         rmse_linear: pixels.mse_linear.sqrt(),
         psnr_linear_db: psnr_db(pixels.mse_linear),
@@ -226,15 +220,13 @@ pub fn enhanced_difference(reference: &RgbImage, test: &RgbImage, enhance: f32) 
 /// error 1), as FLIP's own tool draws it. Pixels missing from a malformed `flip_map` are drawn as
 /// error 0.
 pub fn flip_heatmap(comparison: &Comparison) -> RgbImage {
-    let lut = nv_flip::magma_lut().to_vec();
     let width = comparison.width;
     RgbImage::from_fn(width, comparison.height, |x, y| {
         let index = y as usize * width as usize + x as usize;
         let error = comparison.flip_map.get(index).copied().unwrap_or(0.0);
         // FLIP's colorMap: entry round(error * 255) of the 256-entry LUT.
         let entry = (error * 255.0 + 0.5).clamp(0.0, 255.0) as usize;
-        let rgb = lut.get(entry * 3..entry * 3 + 3).unwrap_or(&[0, 0, 0]);
-        image::Rgb([rgb[0], rgb[1], rgb[2]])
+        image::Rgb(magma::MAGMA[entry.min(255)])
     })
 }
 

@@ -343,9 +343,60 @@ pub fn flip_mean(reference: &RgbImage, test: &RgbImage, ppd: f32) -> f64 {
     }
 }
 
+/// The pooled figures of an error map, as FLIP's pool computes them: the mean, and weighted
+/// percentiles (the error below which a share of the summed error lies).
+pub struct Pool {
+    sorted: Vec<f32>,
+    sum: f64,
+}
+
+impl Pool {
+    /// The pool of `map`'s errors.
+    pub fn of(map: &[f32]) -> Self {
+        let mut sorted = map.to_vec();
+        sorted.sort_by(f32::total_cmp);
+        let sum = sorted.iter().map(|&v| f64::from(v)).sum();
+        Self { sorted, sum }
+    }
+
+    /// The mean error (0 for an empty map).
+    pub fn mean(&self) -> f64 {
+        match self.sorted.is_empty() {
+            true => 0.0,
+            false => self.sum / self.sorted.len() as f64,
+        }
+    }
+
+    /// The smallest error at which the running sum of the sorted errors first exceeds `share`
+    /// of their sum (FLIP's `getPercentile(share, weighted = true)`); 0 when there is none.
+    pub fn weighted_percentile(&self, share: f64) -> f64 {
+        let target = share * self.sum;
+        let mut running = 0.0;
+        for &v in &self.sorted {
+            running += f64::from(v);
+            if running > target {
+                return f64::from(v);
+            }
+        }
+        0.0
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn weighted_percentiles_split_the_summed_error() {
+        // Errors 1, 2, 3, 4 sum to 10: the running sums 1, 3, 6, 10 first pass 2.5 at 2, 5 at
+        // 3, 7.5 at 4.
+        let pool = Pool::of(&[4.0, 1.0, 3.0, 2.0]);
+        assert_eq!(pool.mean(), 2.5);
+        assert_eq!(pool.weighted_percentile(0.25), 2.0);
+        assert_eq!(pool.weighted_percentile(0.5), 3.0);
+        assert_eq!(pool.weighted_percentile(0.75), 4.0);
+        assert_eq!(Pool::of(&[0.0; 5]).weighted_percentile(0.5), 0.0);
+    }
 
     #[test]
     fn identical_images_have_no_error_and_green_against_blue_the_most() {

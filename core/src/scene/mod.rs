@@ -17,6 +17,8 @@ mod validate;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
+use crate::files::{Files, Folder};
+
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
@@ -26,42 +28,42 @@ pub use technique::{Framing, OccluderMode, ParamValue, SplatMode, TechniqueParam
 pub use validate::LIMITS;
 
 /// The thesis experiment (chapter 4), embedded so the binary runs without any file.
-pub const THESIS_PLUME_TOML: &str = include_str!("../../scenes/thesis_plume.toml");
+pub const THESIS_PLUME_TOML: &str = include_str!("../../../scenes/thesis_plume.toml");
 /// The same plume after a wind gust.
-pub const THESIS_WIND_TOML: &str = include_str!("../../scenes/thesis_wind.toml");
+pub const THESIS_WIND_TOML: &str = include_str!("../../../scenes/thesis_wind.toml");
 /// The scaling family's base: the thesis plume, meant to be run at other particle counts with
 /// `--particles N` ([`Scene::with_particles`]).
-pub const PLUME_SCALED_TOML: &str = include_str!("../../scenes/plume_scaled.toml");
+pub const PLUME_SCALED_TOML: &str = include_str!("../../../scenes/plume_scaled.toml");
 /// `plume_scaled` at 65,536 particles, the scaling rule applied.
-pub const PLUME_65K_TOML: &str = include_str!("../../scenes/plume_65k.toml");
+pub const PLUME_65K_TOML: &str = include_str!("../../../scenes/plume_65k.toml");
 
 /// Gallery: two plumes with clear air between them along the light's rays (gaps along a ray).
-pub const TWO_PLUMES_TOML: &str = include_str!("../../scenes/two_plumes.toml");
+pub const TWO_PLUMES_TOML: &str = include_str!("../../../scenes/two_plumes.toml");
 /// Gallery: the thesis plume with a stray puff between it and the light (stretched depth bounds).
-pub const OUTLIER_TOML: &str = include_str!("../../scenes/outlier.toml");
+pub const OUTLIER_TOML: &str = include_str!("../../../scenes/outlier.toml");
 /// Gallery: a thin, wide layer lit almost edge-on (long paths through a thin slab).
-pub const THIN_SHEET_TOML: &str = include_str!("../../scenes/thin_sheet.toml");
+pub const THIN_SHEET_TOML: &str = include_str!("../../../scenes/thin_sheet.toml");
 /// Gallery: a tall, dense column lit from above (long, dense paths along its axis).
-pub const COLUMN_TOML: &str = include_str!("../../scenes/column.toml");
+pub const COLUMN_TOML: &str = include_str!("../../../scenes/column.toml");
 /// Gallery: a low, wide layer with the camera inside it (particles containing the eye).
-pub const GROUND_FOG_TOML: &str = include_str!("../../scenes/ground_fog.toml");
+pub const GROUND_FOG_TOML: &str = include_str!("../../../scenes/ground_fog.toml");
 
 /// Training scenes of `smokeshadow tune` ([`TRAINING`]), kept apart from the thesis and the
 /// gallery, on which the answers are given: puffs with gaps along the rays.
-pub const TRAIN_PUFFS_TOML: &str = include_str!("../../scenes/train_puffs.toml");
+pub const TRAIN_PUFFS_TOML: &str = include_str!("../../../scenes/train_puffs.toml");
 /// Training: a wide, faint haze (long, thin paths).
-pub const TRAIN_HAZE_TOML: &str = include_str!("../../scenes/train_haze.toml");
+pub const TRAIN_HAZE_TOML: &str = include_str!("../../../scenes/train_haze.toml");
 /// Training: a plume bent by wind, lit from behind.
-pub const TRAIN_BACKLIT_TOML: &str = include_str!("../../scenes/train_backlit.toml");
+pub const TRAIN_BACKLIT_TOML: &str = include_str!("../../../scenes/train_backlit.toml");
 /// Held-out scenes ([`HOLDOUT`]), apart from training, the thesis and the gallery: a jet
 /// spreading sideways along the light's rays.
-pub const HOLDOUT_JET_TOML: &str = include_str!("../../scenes/holdout_jet.toml");
+pub const HOLDOUT_JET_TOML: &str = include_str!("../../../scenes/holdout_jet.toml");
 /// Held out: a dense smoulder under a faint veil (two layers of very different density).
-pub const HOLDOUT_STACK_TOML: &str = include_str!("../../scenes/holdout_stack.toml");
+pub const HOLDOUT_STACK_TOML: &str = include_str!("../../../scenes/holdout_stack.toml");
 /// The procedural cloudscape (`[volume] procedural = "cloud"`), ray marched.
-pub const CLOUD_TOML: &str = include_str!("../../scenes/cloud.toml");
+pub const CLOUD_TOML: &str = include_str!("../../../scenes/cloud.toml");
 /// A real smoke simulation's density grid (OpenUSD's test file, built in), ray marched.
-pub const VDB_SMOKE_TOML: &str = include_str!("../../scenes/vdb_smoke.toml");
+pub const VDB_SMOKE_TOML: &str = include_str!("../../../scenes/vdb_smoke.toml");
 
 /// The scenes embedded in the binary, by name.
 pub const EMBEDDED: &[(&str, &str)] = &[
@@ -357,7 +359,8 @@ pub struct Spotlight {
 }
 
 /// What shape of light `[light]` is.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "snake_case")]
 pub enum LightKind {
     /// A spotlight: one light space covering its cone.
@@ -465,10 +468,10 @@ pub struct ParticleSource {
     pub density_per_m: f32,
     /// The albedo of particles whose file has none, linear RGB, each in [0, 1].
     pub albedo: Vec3,
-    /// The folder `file` is relative to: the scene file's (set when a scene file is loaded;
-    /// not written).
+    /// The folder `file` is relative to, and the files it is read from: the scene file's (set
+    /// when a scene file is loaded; not written).
     #[serde(skip)]
-    pub base_dir: PathBuf,
+    pub folder: Folder,
 }
 
 impl Default for ParticleSource {
@@ -480,7 +483,7 @@ impl Default for ParticleSource {
             radius_m: 0.1,
             density_per_m: 2.0,
             albedo: Vec3::splat(0.8),
-            base_dir: PathBuf::new(),
+            folder: Folder::default(),
         }
     }
 }
@@ -822,7 +825,7 @@ impl Scene {
         // absent; reading it will report the problem).
         if let Some(source) = &self.particles {
             let path = source.path_at(self.sim.duration_s);
-            hasher.update(std::fs::read(path).unwrap_or_default());
+            hasher.update(source.folder.files.read(&path).unwrap_or_default());
         }
         if let Some(volume) = self.volume.as_ref().filter(|v| !v.file.is_empty()) {
             // A sequence's frame at the scene's time.
@@ -862,33 +865,40 @@ impl Scene {
         Ok(scene)
     }
 
-    /// Reads, parses and validates a scene file.
-    pub fn load(path: &Path) -> Result<Self, SceneError> {
-        let text = std::fs::read_to_string(path).map_err(|cause| SceneError::Read {
-            path: path.to_owned(),
-            hint: if cause.kind() == std::io::ErrorKind::NotFound {
-                format!("; embedded scenes: {}", embedded_names())
-            } else {
-                String::new()
-            },
-            cause,
-        })?;
+    /// Reads, parses and validates a scene file of `files`; the files it names are read from
+    /// its folder of `files`.
+    pub fn load(path: &Path, files: &Files) -> Result<Self, SceneError> {
+        let text = files
+            .read_to_string(path)
+            .map_err(|cause| SceneError::Read {
+                path: path.to_owned(),
+                hint: if cause.kind() == std::io::ErrorKind::NotFound {
+                    format!("; embedded scenes: {}", embedded_names())
+                } else {
+                    String::new()
+                },
+                cause,
+            })?;
         let mut scene = Self::from_toml_str(&text, &path.display().to_string())?;
-        let base_dir = path.parent().map(Path::to_owned).unwrap_or_default();
+        let folder = Folder::new(
+            path.parent().map(Path::to_owned).unwrap_or_default(),
+            files.clone(),
+        );
         if let Some(source) = &mut scene.particles {
-            source.base_dir = base_dir.clone();
+            source.folder = folder.clone();
         }
         if let Some(volume) = &mut scene.volume {
-            volume.base_dir = base_dir;
+            volume.folder = folder;
         }
         Ok(scene)
     }
 
-    /// A scene argument: the name of an embedded scene (`thesis_wind`), else a file path.
-    pub fn open(name_or_path: &Path) -> Result<Self, SceneError> {
+    /// A scene argument: the name of an embedded scene (`thesis_wind`), else a file path of
+    /// `files`.
+    pub fn open(name_or_path: &Path, files: &Files) -> Result<Self, SceneError> {
         match name_or_path.to_str().and_then(Self::embedded) {
             Some(scene) => Ok(scene),
-            None => Self::load(name_or_path),
+            None => Self::load(name_or_path, files),
         }
     }
 
@@ -929,9 +939,9 @@ impl Scene {
     }
 
     /// [`Scene::open`] of `arg`, or the embedded thesis scene when `arg` is `None`.
-    pub fn load_or_default(arg: Option<&Path>) -> Result<Self, SceneError> {
+    pub fn load_or_default(arg: Option<&Path>, files: &Files) -> Result<Self, SceneError> {
         match arg {
-            Some(arg) => Self::open(arg),
+            Some(arg) => Self::open(arg, files),
             None => Ok(Self::thesis_plume()),
         }
     }

@@ -142,9 +142,12 @@ fn check_binary_length(
     Ok(())
 }
 
-/// Reads the particles of a PLY file (ASCII or binary).
-pub(super) fn read(path: &Path, defaults: &Defaults) -> Result<Vec<Particle>, ParticleFileError> {
-    let bytes = super::read_bytes(path)?;
+/// The particles of a PLY file (ASCII or binary): `bytes`, the file `path`.
+pub(super) fn parse(
+    path: &Path,
+    bytes: &[u8],
+    defaults: &Defaults,
+) -> Result<Vec<Particle>, ParticleFileError> {
     let bad = |message: String| ParticleFileError::invalid(path, message);
     if bytes.is_empty() {
         return Err(bad("the file is empty (not a PLY file)".to_owned()));

@@ -26,12 +26,14 @@ use std::path::{Path, PathBuf};
 
 use glam::Vec3;
 
+use crate::files::{Files, Folder};
 use crate::scene::{ParticleSource, Scene};
 use crate::sim::Particle;
 pub use volume_file::{BARE_FILE_OPTICAL_DEPTH, is_volume_file, scene_for_volume_file};
 
 /// A particle file's format.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum Format {
     /// PLY, binary little-endian.
     Ply,
@@ -276,50 +278,46 @@ pub(crate) fn finish(
     Ok(particles)
 }
 
-/// A particle file's bytes, or the error that names it.
-fn read_bytes(path: &Path) -> Result<Vec<u8>, ParticleFileError> {
-    std::fs::read(path).map_err(|cause| ParticleFileError::Read {
+/// Reads the particle file `path` of `files` ([`parse`]).
+pub fn read(
+    files: &Files,
+    path: &Path,
+    defaults: &Defaults,
+) -> Result<Vec<Particle>, ParticleFileError> {
+    // The format first: a file of no known kind is named as such whether or not it exists.
+    Format::of_path(path).ok_or_else(|| ParticleFileError::UnknownFormat {
+        path: path.to_owned(),
+    })?;
+    let bytes = files.read(path).map_err(|cause| ParticleFileError::Read {
         path: path.to_owned(),
         cause,
-    })
+    })?;
+    parse(path, &bytes, defaults)
 }
 
-/// Reads a particle file (its format from its extension; a `.ply` may be binary or ASCII).
-pub fn read(path: &Path, defaults: &Defaults) -> Result<Vec<Particle>, ParticleFileError> {
+/// The particles of a file's `bytes`, its format from `path`'s extension (a `.ply` may be
+/// binary or ASCII); `path` names the file in errors.
+pub fn parse(
+    path: &Path,
+    bytes: &[u8],
+    defaults: &Defaults,
+) -> Result<Vec<Particle>, ParticleFileError> {
     match Format::of_path(path) {
-        Some(Format::Ply | Format::PlyAscii) => ply_file::read(path, defaults),
-        Some(Format::Csv) => csv_file::read(path, defaults),
+        Some(Format::Ply | Format::PlyAscii) => ply_file::parse(path, bytes, defaults),
+        Some(Format::Csv) => csv_file::parse(path, bytes, defaults),
         None => Err(ParticleFileError::UnknownFormat {
             path: path.to_owned(),
         }),
     }
 }
 
-/// Writes particles to `path` in `format` (default: the extension's), atomically: a temporary
-/// file renamed into place, so a failed write leaves nothing half-written.
-pub fn write(
-    path: &Path,
-    particles: &[Particle],
-    format: Option<Format>,
-) -> Result<(), ParticleFileError> {
-    let format = format.or_else(|| Format::of_path(path)).ok_or_else(|| {
-        ParticleFileError::UnknownFormat {
-            path: path.to_owned(),
-        }
-    })?;
-    let bytes = match format {
+/// The bytes of a particle file of `format` holding `particles`, or why they cannot be written.
+pub fn encode(particles: &[Particle], format: Format) -> Result<Vec<u8>, String> {
+    match format {
         Format::Ply => ply_file::encode(particles, false),
         Format::PlyAscii => ply_file::encode(particles, true),
         Format::Csv => csv_file::encode(particles),
     }
-    .map_err(|cause| ParticleFileError::Write {
-        path: path.to_owned(),
-        cause,
-    })?;
-    crate::output::write_atomic(path, &bytes).map_err(|e| ParticleFileError::Write {
-        path: path.to_owned(),
-        cause: format!("{e:#}"),
-    })
 }
 
 pub use crate::scene::sequence::{frame_name, is_sequence, sequence_frame};
@@ -333,7 +331,7 @@ impl ParticleSource {
     /// The file to read at `time_s`: the file itself, or the sequence's frame, relative to the
     /// scene file's folder.
     pub fn path_at(&self, time_s: f32) -> PathBuf {
-        self.base_dir
+        self.folder
             .join(frame_name(&self.file, self.frame_at(time_s)))
     }
 
@@ -348,17 +346,28 @@ impl ParticleSource {
 
     /// The particles at `time_s` (the frame of a sequence at that time).
     pub fn particles_at(&self, time_s: f32) -> Result<Vec<Particle>, ParticleFileError> {
-        read(&self.path_at(time_s), &self.defaults())
+        read(&self.folder.files, &self.path_at(time_s), &self.defaults())
     }
 }
 
 /// The particles of `scene`'s frame: read from its particle file when it has one
-/// (`[particles]`), else simulated from its emitters to `sim.duration_s`.
-pub fn scene_particles(scene: &Scene) -> Result<Vec<Particle>, ParticleFileError> {
+/// (`[particles]`), else `simulate`d from its emitters to `sim.duration_s` ([`simulate`], or
+/// an app's with a progress bar).
+pub fn frame_particles(
+    scene: &Scene,
+    simulate: impl FnOnce(&Scene) -> Vec<Particle>,
+) -> Result<Vec<Particle>, ParticleFileError> {
     match &scene.particles {
         Some(source) => source.particles_at(scene.sim.duration_s),
-        None => Ok(crate::progress::simulate(scene)),
+        None => Ok(simulate(scene)),
     }
+}
+
+/// `scene`'s emitters simulated to `sim.duration_s`.
+pub fn simulate(scene: &Scene) -> Vec<Particle> {
+    let mut sim = crate::sim::Simulation::new(scene);
+    sim.advance_to(scene.sim.duration_s);
+    sim.particles()
 }
 
 /// How many particles `scene`'s frame has: its emitters' pools, or its particle file's count
@@ -424,11 +433,11 @@ impl std::fmt::Display for Summary {
 /// [`scene_for_file`]), a volume file (`.vdb`: [`scene_for_volume_file`]),
 /// an embedded scene's name or a scene file ([`Scene::open`]); the
 /// embedded thesis scene when `None`.
-pub fn open_scene(arg: Option<&Path>) -> anyhow::Result<Scene> {
+pub fn open_scene(arg: Option<&Path>, files: &Files) -> anyhow::Result<Scene> {
     Ok(match arg {
-        Some(path) if Format::of_path(path).is_some() => scene_for_file(path)?,
-        Some(path) if is_volume_file(path) => scene_for_volume_file(path)?,
-        arg => Scene::load_or_default(arg)?,
+        Some(path) if Format::of_path(path).is_some() => scene_for_file(path, files)?,
+        Some(path) if is_volume_file(path) => scene_for_volume_file(path, files)?,
+        arg => Scene::load_or_default(arg, files)?,
     })
 }
 
@@ -514,9 +523,10 @@ pub fn frame_bounds(scene: &mut Scene, min: Vec3, max: Vec3) -> Result<(), Strin
 /// bounds as the thesis scene frames its plume; the light's intensity is scaled with its
 /// distance squared, so the smoke receives the thesis' irradiance. The ground is put under the
 /// particles, and the thesis box is left out.
-pub fn scene_for_file(path: &Path) -> Result<Scene, ParticleFileError> {
+pub fn scene_for_file(path: &Path, files: &Files) -> Result<Scene, ParticleFileError> {
     let source = ParticleSource {
         file: path.to_string_lossy().into_owned(),
+        folder: Folder::new("", files.clone()),
         ..ParticleSource::default()
     };
     let mut scene = Scene::thesis_plume();

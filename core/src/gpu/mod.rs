@@ -7,7 +7,7 @@
 
 mod fragments;
 mod layout;
-mod memory;
+pub mod memory;
 mod readback;
 mod timing;
 pub mod trace;

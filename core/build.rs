@@ -1,5 +1,6 @@
-//! Embeds every shader under `shaders/`: writes `$OUT_DIR/shader_files.rs`, the table
-//! `src/shaders.rs` includes, so a new `.wgsl` file needs no edit anywhere to be compiled in.
+//! Embeds every shader under the workspace's `shaders/`: writes `$OUT_DIR/shader_files.rs`, the
+//! table `core/src/shaders.rs` includes, so a new `.wgsl` file needs no edit anywhere to be
+//! compiled in.
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -9,8 +10,8 @@ fn main() {
     // checkouts reuses one compiled script, which must read the shaders of the checkout it runs
     // for.
     let root = PathBuf::from(std::env::var_os("CARGO_MANIFEST_DIR").expect("cargo sets it"))
-        .join("shaders");
-    println!("cargo:rerun-if-changed=shaders");
+        .join("../shaders");
+    println!("cargo:rerun-if-changed=../shaders");
     let mut files = Vec::new();
     collect(&root, &mut files);
     // Sorted, so the table (and anything iterating it) never depends on directory order.
