@@ -140,7 +140,7 @@ pub fn run(gpu: &Gpu, study: &FrameStudy) -> anyhow::Result<Vec<FrameRow>> {
             &base,
             &[],
             (w, h),
-            crate::sweep::SHADED_STRIDE_PX,
+            crate::render::shaded::SHADED_STRIDE_PX,
             renderer.medium().grid().map(|g| &**g),
         );
         let exact = renderer.probe(gpu, &base, &[], &points)?;

@@ -96,7 +96,7 @@ pub struct SweepArgs {
     /// Smoke in motion: also render every cell over the consecutive frames from START to END
     /// (scene time in seconds, e.g. `7.1..7.87`), `exact` at each, in this one process, and
     /// give each cell its temporal measures (`temporal_error`, its 99.9th percentile, pops, the
-    /// shadow's T, FLIP over time: the README's "Smoke in motion"). The still measures stay at
+    /// shadow's T, FLIP over time: docs/sweeps.md's "Smoke in motion"). The still measures stay at
     /// the scene's own time.
     #[arg(long, value_name = "START..END")]
     pub animate: Option<String>,
@@ -444,7 +444,7 @@ fn print_table(results: &SweepResults, folder: &Path) {
                         c.technique,
                         c.channels,
                         c.shadow_res,
-                        match sweep::report::shape_tuned(results, total, c) {
+                        match sweep::answer::shape_tuned(results, total, c) {
                             true => "",
                             false => " best here",
                         }
@@ -466,7 +466,7 @@ fn print_table(results: &SweepResults, folder: &Path) {
     // An animated sweep's answer in motion under each still one: the same cells by temporal
     // error.
     let stable = |cells: &[&sweep::CellResult]| {
-        let ranked = sweep::report::most_stable(cells);
+        let ranked = sweep::answer::most_stable(cells);
         if ranked.is_empty() {
             return;
         }
@@ -493,16 +493,16 @@ fn print_table(results: &SweepResults, folder: &Path) {
             m.change.luminance
         );
     }
-    for b in sweep::report::byte_budgets(results) {
-        let at = sweep::report::at_byte_budget(results, b);
+    for b in sweep::answer::byte_budgets(results) {
+        let at = sweep::answer::at_byte_budget(results, b);
         println!(
             "at {b} bytes a texel, by FLIP vs exact: {}",
             line(&at, Detail::Flip, "no technique fits")
         );
         stable(&at);
     }
-    for total in sweep::report::memory_budgets(results) {
-        let at = sweep::report::at_memory_budget(results, total);
+    for total in sweep::answer::memory_budgets(results) {
+        let at = sweep::answer::at_memory_budget(results, total);
         println!(
             "at {} in all, by FLIP vs exact (each at the map resolution tune chose on the \
              training scenes, or, marked \"best here\", its most accurate on this scene where \
@@ -513,8 +513,8 @@ fn print_table(results: &SweepResults, folder: &Path) {
         stable(&at);
     }
     if results.cells.iter().any(|c| c.overhead_ratio.is_some()) {
-        for &ratio in sweep::report::TIME_BUDGETS {
-            let at = sweep::report::at_time_budget(results, ratio);
+        for &ratio in sweep::answer::TIME_BUDGETS {
+            let at = sweep::answer::at_time_budget(results, ratio);
             println!(
                 "within {ratio:.1}x none's frame time on {}, by FLIP vs exact: {}",
                 results.metadata.adapter,

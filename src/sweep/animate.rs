@@ -90,7 +90,13 @@ pub(super) struct ExactFrames {
 fn frames(scene: &Scene, span: &Span, (w, h): (u32, u32)) -> anyhow::Result<Vec<Frame>> {
     let mut sim = scene.particles.is_none().then(|| Simulation::new(scene));
     let camera = crate::render::CameraMatrices::new(scene, w, h);
-    let ground = lit_opaque_points(scene, &camera, w, h, super::SHADED_STRIDE_PX);
+    let ground = lit_opaque_points(
+        scene,
+        &camera,
+        w,
+        h,
+        crate::render::shaded::SHADED_STRIDE_PX,
+    );
     let mut out = Vec::new();
     for t in span.times() {
         let at = span.scene_at(scene, t);

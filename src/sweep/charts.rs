@@ -381,10 +381,10 @@ fn temporal_error_vs_bytes(results: &SweepResults, motion: &super::MotionReferen
 /// The cells the charts over time follow: each technique's at the smallest byte budget (where
 /// flicker shows most), else at the smallest channel budget.
 fn over_time_cells(results: &SweepResults) -> (String, Vec<&CellResult>) {
-    if let Some(&b) = super::report::byte_budgets(results).iter().min() {
+    if let Some(&b) = super::answer::byte_budgets(results).iter().min() {
         return (
             format!("at {b} bytes a texel"),
-            super::report::at_byte_budget(results, b),
+            super::answer::at_byte_budget(results, b),
         );
     }
     let cells = shadowed(results);

@@ -23,6 +23,7 @@ use std::path::Path;
 use anyhow::Context;
 use serde::{Deserialize, Serialize};
 
+use super::answer::FLIP_SPREAD;
 use super::{Budget, CSV_COLUMNS, CellResult, SweepResults, registry_index};
 use crate::report::{self, escape as e};
 use crate::shadow::{self, SplatMode};
@@ -151,7 +152,7 @@ pub fn ranks(scenes: &[SweepResults]) -> Vec<Rank> {
                     .then(x.splat.name().cmp(y.splat.name()))
             });
             let of = at.len() as u32;
-            let steadiest = super::report::most_stable(&at);
+            let steadiest = super::answer::most_stable(&at);
             for (i, c) in at.iter().enumerate() {
                 let motion_rank = steadiest
                     .iter()
@@ -338,12 +339,6 @@ fn tally<'r>(ranks: impl Iterator<Item = &'r Rank>) -> Vec<Tally> {
     }
     out
 }
-
-/// The FLIP mean between two renders of one frame by lavapipe on CPUs of different SIMD widths
-/// (±1/255 on a few percent of pixels): 0.0008-0.0010 between this machine's baselines and
-/// another's (baselines/, re-blessed December 2026). Two techniques whose FLIP against `exact`
-/// differ by less than this may swap places on a user's machine, so the advice calls them tied.
-pub const FLIP_SPREAD: f64 = 0.001;
 
 /// Plain-words advice, every figure taken from `ranks` and `ranking`: per scene, the most
 /// accurate technique at each budget and the runner-up; overall, the best median rank at small
@@ -547,7 +542,7 @@ pub fn write(dir: &Path, scenes: &[SweepResults]) -> anyhow::Result<Gallery> {
     for r in scenes {
         for c in &r.cells {
             let mut row = vec![r.metadata.scene.clone()];
-            let mut cells = super::run::csv_row(c);
+            let mut cells = super::cells::csv_row(c);
             // Paths relative to the gallery folder.
             if let Some(image) = cells.last_mut() {
                 *image = format!("{}/{image}", r.metadata.scene);

@@ -17,8 +17,11 @@
 //!   `--merge` assembles the shards' cells into the tables and reports without a GPU.
 
 mod animate;
+pub mod answer;
+mod cells;
 pub mod charts;
 pub mod gallery;
+mod merge;
 pub mod report;
 mod run;
 pub mod shard;
@@ -28,11 +31,11 @@ use serde::{Deserialize, Serialize};
 use crate::render::ParticleRes;
 use crate::shadow::SplatMode;
 
-pub use run::{
-    CSV_COLUMNS, DEFAULT_BYTES_PER_TEXEL, SHADED_STRIDE_PX, SweepOptions, SweepOutcome, run,
-    write_results,
-};
-pub use shard::{Shard, ShardManifest, merge};
+pub use crate::render::shaded::SHADED_STRIDE_PX;
+pub use cells::{CSV_COLUMNS, write_results};
+pub use merge::merge;
+pub use run::{DEFAULT_BYTES_PER_TEXEL, SweepOptions, SweepOutcome, run};
+pub use shard::{Shard, ShardManifest};
 
 /// Median, minimum and maximum of a measurement over the timed frames, milliseconds.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -45,7 +48,22 @@ pub struct Timing {
 impl Timing {
     /// Median, minimum and maximum of `samples` (all zero when there are none).
     pub fn of(samples: &[f64]) -> Self {
-        run::timing(samples)
+        let mut v = samples.to_vec();
+        v.sort_by(f64::total_cmp);
+        let n = v.len();
+        if n == 0 {
+            return Self::default();
+        }
+        let median = if n % 2 == 1 {
+            v[n / 2]
+        } else {
+            0.5 * (v[n / 2 - 1] + v[n / 2])
+        };
+        Self {
+            median,
+            min: v[0],
+            max: v[n - 1],
+        }
     }
 }
 

@@ -371,7 +371,7 @@ impl Case {
             &scene,
             &particles,
             (w, h),
-            crate::sweep::SHADED_STRIDE_PX,
+            crate::render::shaded::SHADED_STRIDE_PX,
             renderer.medium().grid().map(|g| &**g),
         );
         let owners = point_owners(particles.len(), points.len());

@@ -25,6 +25,10 @@ pub const SHADE_OFFSET: f32 = 0.5;
 /// The most eye samples of a density volume [`shaded_points`] keeps.
 pub const MAX_VOLUME_POINTS: usize = 4096;
 
+/// Pixel stride of the grid of pixels the opaque points and a volume's eye samples are taken
+/// through when a technique's transmittance error is measured (the sweep, `tune`, the bench).
+pub const SHADED_STRIDE_PX: u32 = 4;
+
 /// The shaded points of a `width` x `height` view: particle lighting points, then lit opaque
 /// points sampled every `stride_px` pixels, then the density volume's eye samples (`volume`:
 /// the frame's grid, `Renderer::medium`) through the same pixels.
