@@ -909,21 +909,19 @@ fn merging_shards_of_different_sweeps_is_refused_in_one_line() {
     assert!(!merged.join("results.csv").exists());
 }
 
-/// The fenced block after `<!-- recipe: NAME -->` in README.md.
-fn readme_recipe(name: &str) -> String {
-    let readme =
-        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("README.md")).unwrap();
+/// The fenced block after `<!-- recipe: NAME -->` in docs/sweeps.md (the sharded sweeps' recipes).
+fn doc_recipe(name: &str) -> String {
+    let doc = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/sweeps.md"))
+        .unwrap();
     let marker = format!("<!-- recipe: {name} -->");
-    let after = &readme[readme
-        .find(&marker)
-        .unwrap_or_else(|| panic!("no {marker}"))..];
+    let after = &doc[doc.find(&marker).unwrap_or_else(|| panic!("no {marker}"))..];
     let start = after.find("```").unwrap();
     let body = &after[start..];
     let body = &body[body.find('\n').unwrap() + 1..];
     body[..body.find("```").unwrap()].to_owned()
 }
 
-/// A folder with `smokeshadow` (this build) on it, for the README's recipes.
+/// A folder with `smokeshadow` (this build) on it, for the documented recipes (docs/sweeps.md).
 fn recipe_env(root: &Path) -> String {
     let bin = root.join("bin");
     std::fs::create_dir_all(&bin).unwrap();
@@ -949,11 +947,11 @@ fn run_recipe(cwd: &Path, path: &str, script: &str) {
     );
 }
 
-/// The README's Slurm recipe, literally: the array script, and the submission that runs it and
+/// docs/sweeps.md's Slurm recipe, literally: the array script, and the submission that runs it and
 /// then the merge. There is no Slurm here: a stand-in `sbatch` runs the script once per index
 /// of its `#SBATCH --array` with `SLURM_ARRAY_TASK_ID` set, and `--wrap` commands as they are.
 #[test]
-fn readme_slurm_recipe_runs_and_merges_to_the_one_process_tables() {
+fn documented_slurm_recipe_runs_and_merges_to_the_one_process_tables() {
     let root = scratch("sweep-recipe-slurm");
     std::fs::create_dir_all(&root).unwrap();
     let path = recipe_env(&root);
@@ -983,21 +981,17 @@ echo 1
         std::os::unix::fs::PermissionsExt::from_mode(0o755),
     )
     .unwrap();
-    std::fs::write(
-        root.join("sweep-shard.sbatch"),
-        readme_recipe("slurm-script"),
-    )
-    .unwrap();
-    run_recipe(&root, &path, &readme_recipe("slurm-submit"));
+    std::fs::write(root.join("sweep-shard.sbatch"), doc_recipe("slurm-script")).unwrap();
+    run_recipe(&root, &path, &doc_recipe("slurm-submit"));
     same_tables_as_one_process(&root.join("shared/sweep"));
 }
 
-/// The README's GNU parallel recipe, literally. It needs GNU parallel, which the README's set-up
-/// does not install, so a plain `cargo test` skips it: `.ci/run` installs parallel and runs it
-/// with `--ignored`.
+/// docs/sweeps.md's GNU parallel recipe, literally. It needs GNU parallel, which the README's
+/// set-up does not install, so a plain `cargo test` skips it: `.ci/run` installs parallel and
+/// runs it with `--ignored`.
 #[test]
 #[ignore = "needs GNU parallel (apt-get install parallel); .ci/run runs it"]
-fn readme_gnu_parallel_recipe_runs_and_merges_to_the_one_process_tables() {
+fn documented_gnu_parallel_recipe_runs_and_merges_to_the_one_process_tables() {
     let root = scratch("sweep-recipe-parallel");
     std::fs::create_dir_all(&root).unwrap();
     let path = recipe_env(&root);
@@ -1006,7 +1000,7 @@ fn readme_gnu_parallel_recipe_runs_and_merges_to_the_one_process_tables() {
         version.is_ok_and(|v| String::from_utf8_lossy(&v.stdout).contains("GNU parallel")),
         "GNU parallel is not installed (apt-get install parallel)"
     );
-    run_recipe(&root, &path, &readme_recipe("parallel"));
+    run_recipe(&root, &path, &doc_recipe("parallel"));
     same_tables_as_one_process(&root.join("sweep"));
 }
 

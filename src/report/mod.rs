@@ -26,7 +26,8 @@ pub fn heading_anchor(text: &str) -> String {
 }
 
 /// The studies as one HTML page: headings get the anchors the markdown's links use, and links
-/// out of docs/ (to the README) become plain text, since the page lives in a report's folder.
+/// out of it (to the README, to docs/' other pages) become plain text, since the page lives in
+/// a report's folder.
 pub fn studies_page() -> String {
     let parser = || Parser::new_ext(STUDIES_MD, Options::ENABLE_TABLES);
     // Each heading's text, in order, for its anchor.
@@ -60,7 +61,7 @@ pub fn studies_page() -> String {
             classes,
             attrs,
         })),
-        Event::Start(Tag::Link { ref dest_url, .. }) if dest_url.starts_with("../") => {
+        Event::Start(Tag::Link { ref dest_url, .. }) if leaves_the_report(dest_url) => {
             outside_link = true;
             None
         }
@@ -77,6 +78,13 @@ pub fn studies_page() -> String {
     );
     pulldown_cmark::html::push_html(&mut body, events);
     page("smokeshadow: the studies", &body, "")
+}
+
+/// Whether a link of docs/studies.md points out of a report's folder: up (the README) or to
+/// another markdown page of docs/ (only the studies are copied into a report).
+fn leaves_the_report(dest: &str) -> bool {
+    let path = dest.split('#').next().unwrap_or_default();
+    dest.starts_with("../") || (!path.is_empty() && !dest.contains("://") && path.ends_with(".md"))
 }
 
 /// Writes [`studies_page`] into a report's folder.
@@ -188,8 +196,12 @@ mod tests {
             "tables render"
         );
         assert!(
-            !html.contains("href=\"../"),
+            !html.contains("href=\"../") && !html.contains(".md\"") && !html.contains(".md#"),
             "no link leaves the report's folder"
+        );
+        assert!(
+            STUDIES_MD.contains("](sweeps.md#"),
+            "a link to another page is tested"
         );
         assert_eq!(
             heading_anchor("Between slices, and where DOM's layers start"),

@@ -24,7 +24,7 @@
 //!   over the span.
 //!
 //! A new measure is a field of [`Motion`] computed in [`Recorder`], a `results.csv` column
-//! (`sweep::CSV_COLUMNS`) and a row of the README's table of them.
+//! (`sweep::CSV_COLUMNS`) and a row of docs/sweeps.md's table of them.
 
 use image::RgbImage;
 use serde::{Deserialize, Serialize};
