@@ -64,7 +64,7 @@ pub fn write_png_rgb_smallest(path: &Path, rgb: &image::RgbImage) -> anyhow::Res
 
 /// Writes a linear HDR frame (premultiplied radiance, alpha = the smoke's opacity, as OpenEXR
 /// expects) as an RGBA 32-bit float OpenEXR file, atomically.
-pub fn write_exr(path: &Path, hdr: &crate::gpu::Rgba16fImage) -> anyhow::Result<()> {
+pub fn write_exr(path: &Path, hdr: &smokeshadow_core::gpu::Rgba16fImage) -> anyhow::Result<()> {
     write_exr_rgba(path, hdr.width, hdr.height, &hdr.pixels)
 }
 

@@ -6,8 +6,8 @@ use std::path::Path;
 pub use smokeshadow_core::particles::*;
 use smokeshadow_core::sim::Particle;
 
-use crate::files::Files;
-use crate::scene::Scene;
+use smokeshadow_core::files::Files;
+use smokeshadow_core::scene::Scene;
 
 /// A scene argument ([`smokeshadow_core::particles::open_scene`]) on the host's file system.
 pub fn open_scene(arg: Option<&Path>) -> anyhow::Result<Scene> {

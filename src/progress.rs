@@ -4,8 +4,8 @@
 
 use std::io::IsTerminal;
 
-use crate::scene::Scene;
-use crate::sim::{Particle, Simulation};
+use smokeshadow_core::scene::Scene;
+use smokeshadow_core::sim::{Particle, Simulation};
 
 /// A simulation with at least this many particle-steps (particles x fixed steps) gets a bar:
 /// a step costs ~0.1 µs per particle on one core, so this is ~0.4 s of single-threaded work
@@ -29,11 +29,11 @@ pub fn bar(len: u64, unit: &str) -> Option<indicatif::ProgressBar> {
     Some(bar)
 }
 
-/// [`crate::sim::simulate`] of `scene`, with a bar of its steps on a terminal when the run is
+/// [`smokeshadow_core::sim::simulate`] of `scene`, with a bar of its steps on a terminal when the run is
 /// long ([`LONG_SIMULATION_PARTICLE_STEPS`]). The particles are the same either way.
 pub fn simulate(scene: &Scene) -> Vec<Particle> {
     let mut sim = Simulation::new(scene);
-    let steps = crate::sim::step_index(scene.sim.step_s, scene.sim.duration_s);
+    let steps = smokeshadow_core::sim::step_index(scene.sim.step_s, scene.sim.duration_s);
     let work = steps.saturating_mul(scene.particle_count());
     let shown = if work >= LONG_SIMULATION_PARTICLE_STEPS {
         bar(steps, "steps")

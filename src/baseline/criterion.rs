@@ -38,7 +38,7 @@ use std::path::Path;
 
 use anyhow::Context;
 
-use crate::gpu::Rgba16fImage;
+use smokeshadow_core::gpu::Rgba16fImage;
 
 /// Largest share of pixels whose largest channel difference exceeds one 8-bit step.
 ///

@@ -20,11 +20,11 @@ use anyhow::Context;
 use serde::{Deserialize, Serialize};
 
 use crate::diff::{self, Comparison};
-use crate::gpu::Gpu;
-use crate::render::{RenderOptions, TechniqueConfig, render_offscreen};
-use crate::scene::{self, Scene};
-use crate::shadow::{self, TechniqueParams};
 use criterion::{HdrBlocks, Scores};
+use smokeshadow_core::gpu::Gpu;
+use smokeshadow_core::render::{RenderOptions, TechniqueConfig, render_offscreen};
+use smokeshadow_core::scene::{self, Scene};
+use smokeshadow_core::shadow::{self, TechniqueParams};
 
 /// The budget of every baseline (the thesis' baselines).
 pub const BASELINE_CHANNELS: u32 = 24;

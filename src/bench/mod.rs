@@ -1,11 +1,11 @@
 //! Scaling benchmarks: what each term of a frame costs as the particle count grows, on the
-//! scaling family (`plume_scaled`, rescaled by [`crate::scene::Scene::with_particles`] so that
+//! scaling family (`plume_scaled`, rescaled by [`smokeshadow_core::scene::Scene::with_particles`] so that
 //! every count is the same plume, more finely sampled).
 //!
 //! For each count the smoke is simulated once (CPU wall time, on rayon's global pool), then
 //! every technique renders `warmup` untimed frames and `frames` timed ones on one long-lived
 //! renderer. A timed frame records the renderer's CPU sort (its own timer around the keys and
-//! the sort), every GPU pass from timestamp queries ([`crate::gpu::GpuTimer`]: opaque,
+//! the sort), every GPU pass from timestamp queries ([`smokeshadow_core::gpu::GpuTimer`]: opaque,
 //! particles, tone map, and the technique's shadow passes), the frame time as the sweep defines
 //! it (GPU passes + CPU sort) and the wall time of `render` + reading the timestamps. After the
 //! timed frames the technique's memory ledger (`total_bytes`) and counters are recorded. A
@@ -30,17 +30,17 @@ use std::time::Instant;
 
 use serde::Serialize;
 
-use crate::gpu::Gpu;
 use crate::progress::Progress;
-use crate::render::{
-    OUTPUT_FORMAT, OffscreenTarget, ParticleRes, RenderOptions, Renderer, SortOrder,
-    TechniqueConfig,
-};
-use crate::scene::Scene;
-use crate::shadow;
 use crate::sweep::Timing;
 use crate::sweep::charts::{LogLogSeries, log_log_svg};
 use bound::{Bound, BuildWork, CheapestBuild, CheapestMeasured};
+use smokeshadow_core::gpu::Gpu;
+use smokeshadow_core::render::{
+    OUTPUT_FORMAT, OffscreenTarget, ParticleRes, RenderOptions, Renderer, SortOrder,
+    TechniqueConfig,
+};
+use smokeshadow_core::scene::Scene;
+use smokeshadow_core::shadow;
 
 /// The particle counts a bench runs by default: the thesis' 2,500 up to a million, about a
 /// factor of four apart.
@@ -87,7 +87,7 @@ pub struct BenchResults {
     pub adapter: String,
     /// Whether GPU pass times were measured (the adapter has timestamp queries).
     pub gpu_timestamps: bool,
-    /// The round trip of an empty submission ([`crate::gpu::Gpu::clock_floor_ms`]), which every
+    /// The round trip of an empty submission ([`smokeshadow_core::gpu::Gpu::clock_floor_ms`]), which every
     /// frame's wall time pays beyond its passes.
     pub clock_floor_ms: f64,
     /// Threads of rayon's pool (the simulation and the sort); `RAYON_NUM_THREADS` sets it.
@@ -302,7 +302,7 @@ pub fn run(gpu: &Gpu, scene: &Scene, options: &BenchOptions) -> anyhow::Result<B
         };
         let mut counted = CountResult {
             particles: count,
-            sim_steps: crate::sim::step_index(scaled.sim.step_s, scaled.sim.duration_s),
+            sim_steps: smokeshadow_core::sim::step_index(scaled.sim.step_s, scaled.sim.duration_s),
             sim_ms,
             cheapest,
             cells: Vec::new(),
@@ -357,7 +357,7 @@ struct CellBench<'a> {
     gpu: &'a Gpu,
     renderer: &'a mut Renderer,
     scene: &'a Scene,
-    particles: &'a [crate::sim::Particle],
+    particles: &'a [smokeshadow_core::sim::Particle],
     target: &'a OffscreenTarget,
     options: &'a BenchOptions,
 }
@@ -410,7 +410,7 @@ impl CellBench<'_> {
     fn count_frame(
         &mut self,
         options: &RenderOptions,
-    ) -> anyhow::Result<Vec<crate::gpu::FragmentTally>> {
+    ) -> anyhow::Result<Vec<smokeshadow_core::gpu::FragmentTally>> {
         if !self.renderer.set_count_fragments(self.gpu, true) {
             return Ok(Vec::new());
         }
@@ -424,7 +424,7 @@ impl CellBench<'_> {
     fn render(
         &mut self,
         options: &RenderOptions,
-    ) -> Result<crate::render::FrameStats, shadow::ShadowError> {
+    ) -> Result<smokeshadow_core::render::FrameStats, shadow::ShadowError> {
         self.renderer.render(
             self.gpu,
             self.scene,
@@ -476,7 +476,7 @@ impl CellBench<'_> {
         }
         let tallies = self.count_frame(&options)?;
         // The reference checks itself on the cell's own particles (nothing else measured here).
-        let reference_check = crate::render::reference_check::verify_if_reference(
+        let reference_check = smokeshadow_core::render::reference_check::verify_if_reference(
             self.renderer,
             self.gpu,
             self.scene,
@@ -525,7 +525,7 @@ impl CellBench<'_> {
             wall_ms: Timing::of(&wall),
             build_work,
             bound,
-            particle_fragments: crate::render::particle_fragments(&tallies),
+            particle_fragments: smokeshadow_core::render::particle_fragments(&tallies),
             vs_view_sort,
             reference_check_worst: reference_check.map(|c| c.worst_difference),
         })

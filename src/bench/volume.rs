@@ -12,13 +12,13 @@ use std::time::Instant;
 use anyhow::Context;
 use glam::{DAffine3, UVec3, Vec3};
 
-use crate::gpu::{Gpu, MemoryLedger};
-use crate::medium::cloud::{CloudBaker, CloudNoiseGenerator};
-use crate::medium::cloud_noise::CloudParams;
-use crate::medium::eye::{EyeMarchProbe, EyeMarchSettings, EyeRay};
-use crate::medium::gpu_grid::{GpuGrid, GridMarch};
-use crate::medium::grid::DensityGrid;
-use crate::medium::vdb;
+use smokeshadow_core::gpu::{Gpu, MemoryLedger};
+use smokeshadow_core::medium::cloud::{CloudBaker, CloudNoiseGenerator};
+use smokeshadow_core::medium::cloud_noise::CloudParams;
+use smokeshadow_core::medium::eye::{EyeMarchProbe, EyeMarchSettings, EyeRay};
+use smokeshadow_core::medium::gpu_grid::{GpuGrid, GridMarch};
+use smokeshadow_core::medium::grid::DensityGrid;
+use smokeshadow_core::medium::vdb;
 
 /// The file the rows go to, in the bench's output folder.
 pub const CSV_FILE: &str = "bench_volume.csv";

@@ -15,10 +15,12 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 
-use crate::gpu::Gpu;
-use crate::medium::grid::DensityGrid;
-use crate::render::{OUTPUT_FORMAT, OffscreenTarget, RenderOptions, Renderer, TechniqueConfig};
-use crate::scene::Scene;
+use smokeshadow_core::gpu::Gpu;
+use smokeshadow_core::medium::grid::DensityGrid;
+use smokeshadow_core::render::{
+    OUTPUT_FORMAT, OffscreenTarget, RenderOptions, Renderer, TechniqueConfig,
+};
+use smokeshadow_core::scene::Scene;
 
 /// The file the rows go to, in the bench's output folder.
 pub const CSV_FILE: &str = "bench_volume_frames.csv";
@@ -130,17 +132,17 @@ pub fn run(gpu: &Gpu, study: &FrameStudy) -> anyhow::Result<Vec<FrameRow>> {
         renderer.set_technique(
             gpu,
             &TechniqueConfig {
-                name: crate::shadow::reference().name.to_owned(),
+                name: smokeshadow_core::shadow::reference().name.to_owned(),
                 params: base.shadow.params(1),
             },
         )?;
         renderer.render(gpu, &base, &[], &options, &target.view)?;
-        crate::render::reference_check::verify(&mut renderer, gpu, &base, &[])?;
-        let points = crate::render::shaded::shaded_points(
+        smokeshadow_core::render::reference_check::verify(&mut renderer, gpu, &base, &[])?;
+        let points = smokeshadow_core::render::shaded::shaded_points(
             &base,
             &[],
             (w, h),
-            crate::render::shaded::SHADED_STRIDE_PX,
+            smokeshadow_core::render::shaded::SHADED_STRIDE_PX,
             renderer.medium().grid().map(|g| &**g),
         );
         let exact = renderer.probe(gpu, &base, &[], &points)?;
@@ -151,7 +153,7 @@ pub fn run(gpu: &Gpu, study: &FrameStudy) -> anyhow::Result<Vec<FrameRow>> {
         let mut cells = Vec::new();
         for name in &study.techniques {
             // `srm` has no map: once per count of its light samples instead.
-            if name == crate::shadow::srm::ENTRY.name {
+            if name == smokeshadow_core::shadow::srm::ENTRY.name {
                 for &light in &study.light_steps {
                     cells.push((
                         name.clone(),
@@ -176,9 +178,9 @@ pub fn run(gpu: &Gpu, study: &FrameStudy) -> anyhow::Result<Vec<FrameRow>> {
             }
             let mut params = scene.shadow.params(study.channels);
             if let Some(light) = light_steps {
-                crate::shadow::set_param(
+                smokeshadow_core::shadow::set_param(
                     &mut params,
-                    crate::shadow::srm::LIGHT_STEPS.key,
+                    smokeshadow_core::shadow::srm::LIGHT_STEPS.key,
                     &(light as f32).into(),
                 )?;
             }
@@ -196,7 +198,11 @@ pub fn run(gpu: &Gpu, study: &FrameStudy) -> anyhow::Result<Vec<FrameRow>> {
                 if i >= study.warmup {
                     frame.push(stats.frame_ms(&times));
                     build.push(times.get("shadow").unwrap_or(0.0));
-                    eye.push(times.get(crate::medium::eye_pass::PASS_NAME).unwrap_or(0.0));
+                    eye.push(
+                        times
+                            .get(smokeshadow_core::medium::eye_pass::PASS_NAME)
+                            .unwrap_or(0.0),
+                    );
                 }
             }
             let t = renderer.probe(gpu, &scene, &[], &points)?;
@@ -210,7 +216,7 @@ pub fn run(gpu: &Gpu, study: &FrameStudy) -> anyhow::Result<Vec<FrameRow>> {
                 build_ms: median(build),
                 eye_ms: median(eye),
                 bytes: renderer.shadow_bytes().0,
-                rms_t: crate::render::shaded::rms_difference(&t, &exact),
+                rms_t: smokeshadow_core::render::shaded::rms_difference(&t, &exact),
                 bias_edge: mean_bias(&t, &exact, &classes, true),
                 bias_inside: mean_bias(&t, &exact, &classes, false),
             });
@@ -223,7 +229,9 @@ pub fn run(gpu: &Gpu, study: &FrameStudy) -> anyhow::Result<Vec<FrameRow>> {
 /// when the run has `srm`.
 pub fn ratio_to_srm(rows: &[FrameRow], row: &FrameRow) -> Option<f64> {
     rows.iter()
-        .find(|r| r.technique == crate::shadow::srm::ENTRY.name && r.coverage == row.coverage)
+        .find(|r| {
+            r.technique == smokeshadow_core::shadow::srm::ENTRY.name && r.coverage == row.coverage
+        })
         .map(|srm| row.frame_ms / srm.frame_ms)
 }
 
@@ -284,7 +292,7 @@ pub fn charts(rows: &[FrameRow]) -> anyhow::Result<Vec<(&'static str, String)>> 
         let mut series: Vec<LogLogSeries> = Vec::new();
         for r in rows
             .iter()
-            .filter(|r| r.technique != crate::shadow::srm::ENTRY.name)
+            .filter(|r| r.technique != smokeshadow_core::shadow::srm::ENTRY.name)
         {
             let (Some(c), Some(ratio)) = (r.coverage, ratio_to_srm(rows, r)) else {
                 continue;
@@ -404,7 +412,7 @@ mod tests {
 
     #[test]
     fn thin_edges_are_below_a_quarter_of_the_dense_samples_and_bias_is_signed() {
-        use crate::medium::analytic::{HomogeneousMedium, Shape};
+        use smokeshadow_core::medium::analytic::{HomogeneousMedium, Shape};
         // A ball of 1/m whose voxels the trilinear ramp thins at its rim.
         let ball = HomogeneousMedium {
             shape: Shape::Sphere {

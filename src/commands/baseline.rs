@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use crate::baseline::{self, criterion};
-use crate::gpu::{AdapterPreference, Gpu};
+use smokeshadow_core::gpu::{AdapterPreference, Gpu};
 
 #[derive(Clone, Debug, clap::Args)]
 #[command(group(clap::ArgGroup::new("mode").required(true).args(["check", "bless"])))]
@@ -42,7 +42,7 @@ pub fn run(args: &BaselineArgs, adapter: &AdapterPreference) -> anyhow::Result<E
         // report it stale, --bless would overwrite the thesis' images with another plume.
         anyhow::bail!(
             "--particles {n} does not apply to baseline: the baselines are the committed scenes ({}) at their own particle counts",
-            crate::scene::BASELINE_SCENES.join(", ")
+            smokeshadow_core::scene::BASELINE_SCENES.join(", ")
         );
     }
     let baselines = baseline::select(&args.dir, &args.scenes, &args.techniques)?;

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use super::{ParticlesArg, Size};
 use crate::bench::{self, BenchOptions, BenchResults};
-use crate::gpu::{AdapterPreference, Gpu};
+use smokeshadow_core::gpu::{AdapterPreference, Gpu};
 
 #[derive(Clone, Debug, clap::Args)]
 pub struct BenchArgs {
@@ -43,8 +43,8 @@ pub struct BenchArgs {
     pub output: PathBuf,
     /// Resolution of the particle pass: 1, 1/2 or 1/4 of the frame's per axis (`has`, which
     /// draws its own, is refused below 1).
-    #[arg(long, value_name = "RES", default_value = "1", value_parser = crate::render::parse_particle_res)]
-    pub particle_res: crate::render::ParticleRes,
+    #[arg(long, value_name = "RES", default_value = "1", value_parser = smokeshadow_core::render::parse_particle_res)]
+    pub particle_res: smokeshadow_core::render::ParticleRes,
     /// Orders of the frame's one sort, comma-separated: `view` (by view depth) and/or
     /// `half-angle` (the order `has` draws in, shared with it); each technique is measured
     /// with each, and a half-angle frame is also compared with the view-sorted one (FLIP).
@@ -55,7 +55,7 @@ pub struct BenchArgs {
         value_name = "ORDER,...",
         default_value = "view"
     )]
-    pub sort: Vec<crate::render::SortOrder>,
+    pub sort: Vec<smokeshadow_core::render::SortOrder>,
     /// Bench a density volume instead of particles: `cloud` (the procedural cloud, baked at
     /// each `--grid-sizes`) or an OpenVDB file (its `density` grid): the cloud's noise and
     /// bake, the light march and the eye's march per grid and light step count, as wall times
@@ -116,11 +116,11 @@ pub fn run(args: &BenchArgs, adapter: &AdapterPreference) -> anyhow::Result<()> 
         (None, false) => args.particles_list.clone(),
     };
     let techniques = if args.techniques.is_empty() {
-        crate::shadow::particle_techniques()
+        smokeshadow_core::shadow::particle_techniques()
             .map(|e| e.name.to_owned())
             .collect()
     } else {
-        crate::shadow::expand_all(&args.techniques)
+        smokeshadow_core::shadow::expand_all(&args.techniques)
     };
     let options = BenchOptions {
         counts,
@@ -237,7 +237,7 @@ fn print_table(results: &BenchResults) {
             // Without timestamp queries there is no GPU time to compare.
             if let Some(m) = cell.measured.as_ref().filter(|_| results.gpu_timestamps) {
                 let what = format!("{} at {} particles", cell.label(), count.particles);
-                if let Some(warning) = crate::gpu::clock_warning(
+                if let Some(warning) = smokeshadow_core::gpu::clock_warning(
                     &what,
                     m.frame_ms.median,
                     m.wall_ms.median,
@@ -408,11 +408,14 @@ fn run_volume_frames(
     use crate::bench::volume_frames::{self, FrameStudy};
     let (mut scene, coverages) = match source {
         "cloud" => (
-            crate::scene::Scene::embedded("cloud").expect("the cloud scene is embedded"),
+            smokeshadow_core::scene::Scene::embedded("cloud").expect("the cloud scene is embedded"),
             args.coverages.iter().map(|&c| Some(c)).collect(),
         ),
         path => (
-            crate::particles::scene_for_volume_file(Path::new(path), &crate::files::Files::host())?,
+            crate::particles::scene_for_volume_file(
+                Path::new(path),
+                &smokeshadow_core::files::Files::host(),
+            )?,
             vec![None],
         ),
     };
@@ -420,9 +423,9 @@ fn run_volume_frames(
         scene.output.width_px = size.width;
         scene.output.height_px = size.height;
     }
-    let techniques = crate::shadow::expand_all(&args.techniques);
+    let techniques = smokeshadow_core::shadow::expand_all(&args.techniques);
     for name in &techniques {
-        let entry = crate::shadow::find(name)?;
+        let entry = smokeshadow_core::shadow::find(name)?;
         if let Some(refusal) = entry.refusal(true, 0) {
             anyhow::bail!("{refusal}");
         }
@@ -436,14 +439,14 @@ fn run_volume_frames(
         false => args.shadow_res.clone(),
     };
     let light_steps = match args.light_steps.is_empty() {
-        true => vec![crate::shadow::srm::DEFAULT_LIGHT_STEPS],
+        true => vec![smokeshadow_core::shadow::srm::DEFAULT_LIGHT_STEPS],
         false => args.light_steps.clone(),
     };
     // Refused before any frame is rendered, as the scene's own parameters are.
     for &n in &light_steps {
-        crate::shadow::set_param(
-            &mut crate::shadow::TechniqueParams::new(1, 1),
-            crate::shadow::srm::LIGHT_STEPS.key,
+        smokeshadow_core::shadow::set_param(
+            &mut smokeshadow_core::shadow::TechniqueParams::new(1, 1),
+            smokeshadow_core::shadow::srm::LIGHT_STEPS.key,
             &(n as f32).into(),
         )?;
     }

@@ -4,8 +4,8 @@
 use std::path::PathBuf;
 
 use crate::compare::{self, CompareOptions};
-use crate::gpu::{AdapterPreference, Gpu};
-use crate::shadow::SplatMode;
+use smokeshadow_core::gpu::{AdapterPreference, Gpu};
+use smokeshadow_core::shadow::SplatMode;
 
 #[derive(Clone, Debug, clap::Args)]
 pub struct CompareArgs {
@@ -21,7 +21,7 @@ pub struct CompareArgs {
     #[arg(
         long,
         value_delimiter = ',',
-        default_values_t = crate::shadow::default_compare()
+        default_values_t = smokeshadow_core::shadow::default_compare()
     )]
     pub techniques: Vec<String>,
     /// Budgets, comma-separated; the first is each technique's baseline.
@@ -51,8 +51,8 @@ pub fn run(args: &CompareArgs, adapter: &AdapterPreference) -> anyhow::Result<()
         crate::particles::count(&scene) as usize,
     );
     let mut techniques = Vec::new();
-    for name in crate::shadow::expand_all(&args.techniques) {
-        match crate::shadow::find(&name)?.refusal(smoke.0, smoke.1) {
+    for name in smokeshadow_core::shadow::expand_all(&args.techniques) {
+        match smokeshadow_core::shadow::find(&name)?.refusal(smoke.0, smoke.1) {
             Some(refusal) => println!("skipped {name}: {refusal}"),
             None => techniques.push(name),
         }

@@ -5,9 +5,9 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 
-use crate::gpu::{self, AdapterPreference, Gpu};
-use crate::medium::vdb;
-use crate::shadow;
+use smokeshadow_core::gpu::{self, AdapterPreference, Gpu};
+use smokeshadow_core::medium::vdb;
+use smokeshadow_core::shadow;
 
 #[derive(Clone, Debug, clap::Args)]
 pub struct InfoArgs {
@@ -65,17 +65,17 @@ pub fn run(args: &InfoArgs, preference: &AdapterPreference) -> anyhow::Result<()
          scene::GALLERY; t = training, only `tune` uses it; h = held out, only the convergence \
          tests use it):"
     );
-    for (name, _) in crate::scene::EMBEDDED {
-        let gallery = if crate::scene::GALLERY.contains(name) {
+    for (name, _) in smokeshadow_core::scene::EMBEDDED {
+        let gallery = if smokeshadow_core::scene::GALLERY.contains(name) {
             '*'
-        } else if crate::scene::TRAINING.contains(name) {
+        } else if smokeshadow_core::scene::TRAINING.contains(name) {
             't'
-        } else if crate::scene::HOLDOUT.contains(name) {
+        } else if smokeshadow_core::scene::HOLDOUT.contains(name) {
             'h'
         } else {
             ' '
         };
-        let summary = crate::scene::embedded_summary(name).unwrap_or_default();
+        let summary = smokeshadow_core::scene::embedded_summary(name).unwrap_or_default();
         println!("  {gallery} {name:<13} {summary}");
     }
     println!("techniques:");
@@ -117,7 +117,7 @@ pub fn run(args: &InfoArgs, preference: &AdapterPreference) -> anyhow::Result<()
     );
     for (key, value, source) in crate::tune::PAPER {
         // A choice by its name.
-        let shown = crate::shadow::find_param(key)
+        let shown = smokeshadow_core::shadow::find_param(key)
             .ok()
             .and_then(|spec| spec.choices.get(*value as usize))
             .map_or(value.to_string(), |c| (*c).to_owned());

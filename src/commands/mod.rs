@@ -14,8 +14,8 @@ pub mod view;
 
 use std::path::Path;
 
-use crate::scene::Scene;
-use crate::shadow::{ParamValue, SplatMode, TechniqueParams};
+use smokeshadow_core::scene::Scene;
+use smokeshadow_core::shadow::{ParamValue, SplatMode, TechniqueParams};
 
 /// `--particles N`, flattened into every command that loads a scene.
 #[derive(Clone, Copy, Debug, Default, clap::Args)]
@@ -27,9 +27,9 @@ pub struct ParticlesArg {
     pub particles: Option<u32>,
 }
 
-/// Parses a `--particles` count: an integer in 1..=[`crate::scene::LIMITS`]`.max_particles`.
+/// Parses a `--particles` count: an integer in 1..=[`smokeshadow_core::scene::LIMITS`]`.max_particles`.
 pub fn parse_particles(s: &str) -> Result<u32, String> {
-    let max = crate::scene::LIMITS.max_particles;
+    let max = smokeshadow_core::scene::LIMITS.max_particles;
     let n: u64 = s
         .trim()
         .replace('_', "")
@@ -64,7 +64,7 @@ pub struct ParamArgs {
     /// A technique parameter, KEY=VALUE (repeatable; over the scene's `[shadow.params]`), e.g.
     /// `--param dom_layer_growth=2` or `--param osm_interp=cubic`. `smokeshadow info` lists
     /// every key with its range or choices.
-    #[arg(long = "param", value_name = "KEY=VALUE", value_parser = crate::shadow::parse_param,
+    #[arg(long = "param", value_name = "KEY=VALUE", value_parser = smokeshadow_core::shadow::parse_param,
           allow_negative_numbers = true)]
     pub params: Vec<(String, ParamValue)>,
 }
@@ -105,7 +105,7 @@ pub struct TechniqueArgs {
     /// How the lighting tests the opaque occluders (default: the scene's `shadow.occluders`):
     /// exact, as the reference does, or from a filtered depth map, as an engine would.
     #[arg(long, value_enum)]
-    pub occluders: Option<crate::scene::OccluderMode>,
+    pub occluders: Option<smokeshadow_core::scene::OccluderMode>,
     #[command(flatten)]
     pub params: ParamArgs,
 }
@@ -114,10 +114,10 @@ impl TechniqueArgs {
     /// The validated technique configuration for `scene`.
     pub fn config(
         &self,
-        scene: &crate::scene::Scene,
-    ) -> anyhow::Result<crate::render::TechniqueConfig> {
-        let entry = crate::shadow::find(&self.technique)?;
-        crate::shadow::check_channels(entry, self.channels)?;
+        scene: &smokeshadow_core::scene::Scene,
+    ) -> anyhow::Result<smokeshadow_core::render::TechniqueConfig> {
+        let entry = smokeshadow_core::shadow::find(&self.technique)?;
+        smokeshadow_core::shadow::check_channels(entry, self.channels)?;
         let mut params = TechniqueParams {
             resolution_px: self.shadow_res.unwrap_or(scene.shadow.resolution_px),
             splat: self.splat.unwrap_or(scene.shadow.splat),
@@ -125,9 +125,9 @@ impl TechniqueArgs {
             ..scene.shadow.params(self.channels)
         };
         for (key, value) in self.params.all() {
-            crate::shadow::set_param(&mut params, key, value)?;
+            smokeshadow_core::shadow::set_param(&mut params, key, value)?;
         }
-        Ok(crate::render::TechniqueConfig {
+        Ok(smokeshadow_core::render::TechniqueConfig {
             name: entry.name.to_owned(),
             params,
         })
@@ -144,7 +144,7 @@ pub struct Size {
 impl std::str::FromStr for Size {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, Self::Err> {
-        let max = crate::scene::LIMITS.max_size_px;
+        let max = smokeshadow_core::scene::LIMITS.max_size_px;
         let (w, h) = s
             .split_once(['x', 'X'])
             .ok_or_else(|| format!("\"{s}\" is not WIDTHxHEIGHT (e.g. 1024x768)"))?;

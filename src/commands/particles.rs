@@ -8,7 +8,7 @@ use std::path::PathBuf;
 use anyhow::Context;
 
 use crate::particles::{self, Format};
-use crate::sim::Simulation;
+use smokeshadow_core::sim::Simulation;
 
 #[derive(Clone, Debug, clap::Args)]
 pub struct ParticlesArgs {

@@ -1,6 +1,6 @@
 //! `smokeshadow probe`: transmittance at a world point, or along the light ray through it, for a
 //! technique and for the `exact` reference, both evaluated by the techniques' own lookup shaders
-//! on the GPU ([`crate::render::Renderer::probe`]).
+//! on the GPU ([`smokeshadow_core::render::Renderer::probe`]).
 
 use std::path::PathBuf;
 
@@ -8,9 +8,9 @@ use glam::Vec3;
 use serde::Serialize;
 
 use super::{ParticlesArg, TechniqueArgs};
-use crate::gpu::{AdapterPreference, Gpu};
-use crate::render::{OUTPUT_FORMAT, Renderer, TechniqueConfig};
-use crate::shadow::LightSpace;
+use smokeshadow_core::gpu::{AdapterPreference, Gpu};
+use smokeshadow_core::render::{OUTPUT_FORMAT, Renderer, TechniqueConfig};
+use smokeshadow_core::shadow::LightSpace;
 
 #[derive(Clone, Debug, clap::Args)]
 pub struct ProbeArgs {
@@ -58,7 +58,7 @@ pub struct Sample {
     pub transmittance: f32,
     pub exact: f32,
     /// The exact transmittance of the particle model at the point itself, on the CPU
-    /// ([`crate::shadow::closed_form`]), times a density volume's by its f64 march doubled
+    /// ([`smokeshadow_core::shadow::closed_form`]), times a density volume's by its f64 march doubled
     /// until converged: no texels, so `exact - closed_form` is `exact`'s own error.
     pub closed_form: f32,
 }
@@ -114,7 +114,8 @@ pub fn run(args: &ProbeArgs, adapter: &AdapterPreference) -> anyhow::Result<()> 
     let channels_used = renderer.technique().channels_used();
     renderer.set_technique(&gpu, &exact)?;
     let t_exact = renderer.probe(&gpu, &scene, &particles, &points)?;
-    let check = crate::render::reference_check::verify(&mut renderer, &gpu, &scene, &particles)?;
+    let check =
+        smokeshadow_core::render::reference_check::verify(&mut renderer, &gpu, &scene, &particles)?;
 
     let mut samples = points
         .iter()
@@ -127,7 +128,7 @@ pub fn run(args: &ProbeArgs, adapter: &AdapterPreference) -> anyhow::Result<()> 
                 depth01: (distance_m - light.near_m) / (light.far_m - light.near_m),
                 transmittance: t,
                 exact: e,
-                closed_form: crate::render::reference_check::mirror_transmittance(
+                closed_form: smokeshadow_core::render::reference_check::mirror_transmittance(
                     scene.light.position,
                     *p,
                     &particles,

@@ -7,12 +7,12 @@ use std::time::Instant;
 use anyhow::Context;
 
 use super::{ParticlesArg, Size, TechniqueArgs};
-use crate::gpu::{AdapterPreference, Gpu};
-use crate::render::{
+use smokeshadow_core::gpu::{AdapterPreference, Gpu};
+use smokeshadow_core::render::{
     OUTPUT_FORMAT, OffscreenTarget, ParticleRes, RenderOptions, Renderer, SortOrder,
     reference_check,
 };
-use crate::scene::Scene;
+use smokeshadow_core::scene::Scene;
 
 #[derive(Clone, Debug, clap::Args)]
 pub struct RenderArgs {
@@ -32,10 +32,10 @@ pub struct RenderArgs {
     /// The light's kind (default: the scene's `light.kind`): `point` lights every direction
     /// from the light's position, every technique building its maps on six cube faces.
     #[arg(long, value_enum)]
-    pub light: Option<crate::scene::LightKind>,
+    pub light: Option<smokeshadow_core::scene::LightKind>,
     /// Resolution of the particle pass: 1, 1/2 or 1/4 of the frame's per axis, composited over
     /// it with a depth-aware upsample (`has` draws its own particle pass: 1 only).
-    #[arg(long, value_name = "RES", default_value = "1", value_parser = crate::render::parse_particle_res)]
+    #[arg(long, value_name = "RES", default_value = "1", value_parser = smokeshadow_core::render::parse_particle_res)]
     pub particle_res: ParticleRes,
     /// The order of the frame's one sort: `view` (back to front by view depth) or
     /// `half-angle` (along the half-angle between view and light, the order `has` draws in, so
@@ -139,7 +139,7 @@ pub fn run(args: &RenderArgs, adapter: &AdapterPreference) -> anyhow::Result<()>
                 scene.name,
                 particles.len()
             );
-            let trace = crate::gpu::trace::chrome_trace(&timed, &title);
+            let trace = smokeshadow_core::gpu::trace::chrome_trace(&timed, &title);
             crate::output::write_atomic(path, serde_json::to_string(&trace)?.as_bytes())?;
             println!(
                 "wrote {} ({} frames' GPU passes, Chrome trace events)",
@@ -149,13 +149,13 @@ pub fn run(args: &RenderArgs, adapter: &AdapterPreference) -> anyhow::Result<()>
         }
     }
     renderer.render(&gpu, &scene, &particles, &options, &target.view)?;
-    let image = crate::gpu::read_texture_rgba8(&gpu, &target.texture)?;
+    let image = smokeshadow_core::gpu::read_texture_rgba8(&gpu, &target.texture)?;
     // The reference checks itself before its image is written (nothing is left on a failure).
     let check = reference_check::verify_if_reference(&mut renderer, &gpu, &scene, &particles)?;
     crate::output::write_png(&args.output, &image)?;
     if args.exr {
         let path = crate::output::exr_beside(&args.output);
-        let hdr = crate::gpu::read_texture_rgba16f(&gpu, renderer.hdr_texture())?;
+        let hdr = smokeshadow_core::gpu::read_texture_rgba16f(&gpu, renderer.hdr_texture())?;
         crate::output::write_exr(&path, &hdr)?;
         println!(
             "wrote {} (linear HDR, premultiplied, smoke opacity in alpha)",
@@ -219,7 +219,7 @@ pub fn run(args: &RenderArgs, adapter: &AdapterPreference) -> anyhow::Result<()>
     let faces = renderer.face_counters();
     for (counters, face) in faces
         .iter()
-        .zip(crate::shadow::light_space::CUBE_FACE_NAMES)
+        .zip(smokeshadow_core::shadow::light_space::CUBE_FACE_NAMES)
     {
         if !counters.is_empty() {
             let list: Vec<String> = counters.iter().map(|(k, v)| format!("{k} {v}")).collect();
@@ -235,7 +235,7 @@ pub fn run(args: &RenderArgs, adapter: &AdapterPreference) -> anyhow::Result<()>
 
 /// " over the 6 faces of a cube" for a point light's maps, and " (N of them transient)" when
 /// part of the bytes is build scratch the lookup never reads.
-fn transient_note(renderer: &crate::render::Renderer) -> String {
+fn transient_note(renderer: &smokeshadow_core::render::Renderer) -> String {
     let faces = match renderer.light_faces() {
         1 => String::new(),
         n => format!(" over the {n} faces of a cube"),
@@ -251,12 +251,12 @@ fn bench(
     gpu: &Gpu,
     renderer: &mut Renderer,
     scene: &Scene,
-    particles: &[crate::sim::Particle],
+    particles: &[smokeshadow_core::sim::Particle],
     options: &RenderOptions,
     target: &OffscreenTarget,
     warmup: u32,
     frames: u32,
-) -> anyhow::Result<Vec<crate::gpu::PassTimes>> {
+) -> anyhow::Result<Vec<smokeshadow_core::gpu::PassTimes>> {
     // The last warm-up frame counts the particle pass's fragments (never a timed frame).
     let mut particle_fragments = None;
     for i in 0..warmup {
@@ -333,9 +333,12 @@ fn bench(
     row("wall frame", &mut wall);
     if gpu.has_timestamps() {
         let what = format!("{} frames", t.name());
-        if let Some(warning) =
-            crate::gpu::clock_warning(&what, frame_median, wall_median, gpu.clock_floor_ms())
-        {
+        if let Some(warning) = smokeshadow_core::gpu::clock_warning(
+            &what,
+            frame_median,
+            wall_median,
+            gpu.clock_floor_ms(),
+        ) {
             println!("  {warning}");
         }
     }

@@ -5,10 +5,10 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::gpu::{AdapterPreference, Gpu};
-use crate::scene::Scene;
-use crate::shadow::SplatMode;
 use crate::sweep::{self, Shard, SweepOptions, SweepOutcome, SweepResults};
+use smokeshadow_core::gpu::{AdapterPreference, Gpu};
+use smokeshadow_core::scene::Scene;
+use smokeshadow_core::shadow::SplatMode;
 
 #[derive(Clone, Debug, clap::Args)]
 pub struct SweepArgs {
@@ -37,7 +37,7 @@ pub struct SweepArgs {
     pub particles: super::ParticlesArg,
     /// Techniques, comma-separated, `all` for every contender (`none` and `exact` are always
     /// measured, as the frame-time baseline and the reference).
-    #[arg(long, value_delimiter = ',', default_values_t = crate::shadow::default_sweep())]
+    #[arg(long, value_delimiter = ',', default_values_t = smokeshadow_core::shadow::default_sweep())]
     pub techniques: Vec<String>,
     /// Channel budgets, comma-separated; a budget below a technique's minimum skips that cell
     /// (noted in the report).
@@ -70,8 +70,8 @@ pub struct SweepArgs {
     /// Resolutions of the particle pass, comma-separated: 1, 1/2, 1/4 of the frame's per axis,
     /// each its own cell (`has`, which draws its own particle pass, runs at 1 only).
     #[arg(long, value_delimiter = ',', value_name = "RES,...", default_value = "1",
-          value_parser = crate::render::parse_particle_res)]
-    pub particle_res: Vec<crate::render::ParticleRes>,
+          value_parser = smokeshadow_core::render::parse_particle_res)]
+    pub particle_res: Vec<smokeshadow_core::render::ParticleRes>,
     #[command(flatten)]
     pub params: super::ParamArgs,
     /// Timed frames per cell (medians over these).
@@ -113,7 +113,7 @@ pub struct SweepArgs {
     /// frame), `stable` (fitted, then held in steps as the smoke moves, the shimmer fix engines
     /// use) or `cone` (the thesis' whole cone).
     #[arg(long, value_enum)]
-    pub framing: Option<crate::scene::Framing>,
+    pub framing: Option<smokeshadow_core::scene::Framing>,
     /// The shadow's temporal history weight w, over the scene's `shadow.history`: every
     /// technique's T at the particles' lighting points blended with its last,
     /// T' = (1 − w) T + w T'_prev (0.9: engines' default; 0: off). `exact` is never filtered,
@@ -150,7 +150,7 @@ pub fn run(args: &SweepArgs, adapter: &AdapterPreference) -> anyhow::Result<()> 
             let mut names: Vec<String> = Vec::new();
             for name in list {
                 let expanded: Vec<String> = match name.as_str() {
-                    "all" => crate::scene::GALLERY
+                    "all" => smokeshadow_core::scene::GALLERY
                         .iter()
                         .map(|n| n.to_string())
                         .collect(),
@@ -183,20 +183,20 @@ pub fn run(args: &SweepArgs, adapter: &AdapterPreference) -> anyhow::Result<()> 
         scenes
             .iter()
             .find_map(Scene::sequence_rate_hz)
-            .unwrap_or(crate::motion::DEFAULT_FPS)
+            .unwrap_or(smokeshadow_core::motion::DEFAULT_FPS)
     });
     let animate = args
         .animate
         .as_deref()
         .map(|range| {
-            crate::motion::Span::parse(range, fps)?
+            smokeshadow_core::motion::Span::parse(range, fps)?
                 .with_orbit(args.orbit.unwrap_or(0.0))?
                 .with_light_orbit(args.light_orbit.unwrap_or(0.0))
         })
         .transpose()
         .map_err(anyhow::Error::msg)?;
     let options = SweepOptions {
-        techniques: crate::shadow::expand_all(&args.techniques),
+        techniques: smokeshadow_core::shadow::expand_all(&args.techniques),
         channels: args.channels.clone(),
         bytes_per_texel: match (&args.bytes_per_texel, args.memory.is_empty()) {
             (Some(b), _) => b.0.clone(),
@@ -402,7 +402,7 @@ fn print_table(results: &SweepResults, folder: &Path) {
             .metadata
             .timestamp_queries
             .then(|| {
-                crate::gpu::clock_warning(
+                smokeshadow_core::gpu::clock_warning(
                     &what,
                     c.frame_ms.median,
                     c.wall_ms.median,
@@ -601,9 +601,9 @@ fn positive_seconds(s: &str) -> Result<f64, String> {
     }
 }
 
-/// `--shadow-history`: a weight in [0, [`crate::scene::MAX_HISTORY`]].
+/// `--shadow-history`: a weight in [0, [`smokeshadow_core::scene::MAX_HISTORY`]].
 fn history_weight(s: &str) -> Result<f32, String> {
-    let max = crate::scene::MAX_HISTORY;
+    let max = smokeshadow_core::scene::MAX_HISTORY;
     match s.parse::<f32>() {
         Ok(w) if (0.0..=max).contains(&w) => Ok(w),
         _ => Err(format!(

@@ -5,10 +5,10 @@
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
-use crate::gpu::{AdapterPreference, Gpu};
-use crate::scene::Scene;
-use crate::shadow;
 use crate::tune::{Case, TuneOptions, TuneRecord};
+use smokeshadow_core::gpu::{AdapterPreference, Gpu};
+use smokeshadow_core::scene::Scene;
+use smokeshadow_core::shadow;
 
 #[derive(Clone, Debug, clap::Args)]
 pub struct TuneArgs {
@@ -83,7 +83,7 @@ fn load(names: &[String], args: &TuneArgs) -> anyhow::Result<Vec<Scene>> {
 pub fn run(args: &TuneArgs, adapter: &AdapterPreference) -> anyhow::Result<()> {
     let training_names: Vec<String> = match &args.scenes {
         Some(list) => list.clone(),
-        None => crate::scene::TRAINING
+        None => smokeshadow_core::scene::TRAINING
             .iter()
             .map(|s| s.to_string())
             .collect(),
@@ -92,13 +92,13 @@ pub fn run(args: &TuneArgs, adapter: &AdapterPreference) -> anyhow::Result<()> {
         anyhow::bail!("--scenes is empty: give training scenes");
     }
     for name in &training_names {
-        if crate::scene::GALLERY.contains(&name.as_str())
-            || crate::scene::BASELINE_SCENES.contains(&name.as_str())
+        if smokeshadow_core::scene::GALLERY.contains(&name.as_str())
+            || smokeshadow_core::scene::BASELINE_SCENES.contains(&name.as_str())
         {
             anyhow::bail!(
                 "--scenes {name}: the thesis and gallery scenes are where the answers are given; \
                  tune on other scenes (default: {})",
-                crate::scene::TRAINING.join(", ")
+                smokeshadow_core::scene::TRAINING.join(", ")
             );
         }
     }
@@ -107,11 +107,11 @@ pub fn run(args: &TuneArgs, adapter: &AdapterPreference) -> anyhow::Result<()> {
         list => list.to_vec(),
     };
     for name in training_names.iter().chain(&held_names) {
-        if crate::scene::HOLDOUT.contains(&name.as_str()) {
+        if smokeshadow_core::scene::HOLDOUT.contains(&name.as_str()) {
             anyhow::bail!(
                 "{name} is held out from tuning ({}): the convergence tests check the chosen \
                  values on smoke no parameter was chosen for",
-                crate::scene::HOLDOUT.join(", ")
+                smokeshadow_core::scene::HOLDOUT.join(", ")
             );
         }
     }

@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use crate::gpu::AdapterPreference;
+use smokeshadow_core::gpu::AdapterPreference;
 
 #[derive(Clone, Debug, clap::Args)]
 pub struct ViewArgs {

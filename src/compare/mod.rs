@@ -14,11 +14,13 @@ use anyhow::Context;
 use serde::Serialize;
 
 use crate::diff::{self, Metrics};
-use crate::gpu::Gpu;
-use crate::render::{OUTPUT_FORMAT, OffscreenTarget, RenderOptions, Renderer, TechniqueConfig};
 use crate::report;
-use crate::scene::Scene;
-use crate::shadow::{self, SplatMode};
+use smokeshadow_core::gpu::Gpu;
+use smokeshadow_core::render::{
+    OUTPUT_FORMAT, OffscreenTarget, RenderOptions, Renderer, TechniqueConfig,
+};
+use smokeshadow_core::scene::Scene;
+use smokeshadow_core::shadow::{self, SplatMode};
 
 /// What to compare.
 #[derive(Clone, Debug)]
@@ -33,7 +35,7 @@ pub struct CompareOptions {
 impl Default for CompareOptions {
     fn default() -> Self {
         Self {
-            techniques: crate::shadow::default_compare(),
+            techniques: smokeshadow_core::shadow::default_compare(),
             budgets: vec![24, 16, 8, 6],
             splat: SplatMode::Point,
         }
@@ -96,7 +98,7 @@ pub struct CompareReport {
     pub exact_image: String,
     pub exact_bytes: u64,
     /// `exact`'s self-check against the f64 closed form (core/src/render/reference_check.rs).
-    pub exact_check: Option<crate::render::reference_check::ReferenceCheck>,
+    pub exact_check: Option<smokeshadow_core::render::reference_check::ReferenceCheck>,
     /// Every file written, relative to the output folder.
     pub files: Vec<String>,
 }
@@ -139,7 +141,7 @@ pub fn run(
         w,
         h,
         OUTPUT_FORMAT,
-        &config(crate::shadow::frame_baseline().name, 1),
+        &config(smokeshadow_core::shadow::frame_baseline().name, 1),
     )?;
     let target = OffscreenTarget::new(gpu, w, h);
     let mut check = None;
@@ -155,7 +157,7 @@ pub fn run(
             )?;
             let rgb = target.read_rgb(gpu)?;
             // The reference checks itself before anything is compared with it.
-            if let Some(c) = crate::render::reference_check::verify_if_reference(
+            if let Some(c) = smokeshadow_core::render::reference_check::verify_if_reference(
                 &mut renderer,
                 gpu,
                 scene,
@@ -168,7 +170,7 @@ pub fn run(
             Ok((rgb, t.channels_used(), t.memory().peak_bytes()))
         };
 
-    let exact_config = config(crate::shadow::reference().name, 1);
+    let exact_config = config(smokeshadow_core::shadow::reference().name, 1);
     let exact_image = "images/exact.png".to_owned();
     let (exact, _, exact_bytes) = render(&exact_config, &exact_image)?;
 
@@ -304,7 +306,7 @@ fn write_csv(report: &CompareReport, baseline_budget: u32, path: &Path) -> anyho
         let label = format!("{}_{}", c.technique, c.channels);
         row(
             &label,
-            crate::shadow::reference().name,
+            smokeshadow_core::shadow::reference().name,
             "vs_exact",
             Some(c),
             &c.vs_exact.metrics,

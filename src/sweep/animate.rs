@@ -1,4 +1,4 @@
-//! The animated sweep (`--animate START..END`, [`crate::motion`]): `exact` rendered once per
+//! The animated sweep (`--animate START..END`, [`smokeshadow_core::motion`]): `exact` rendered once per
 //! scene over the span, each frame's particles, points and reference kept; then every cell
 //! rendered over the same frames on the sweep's one renderer (its pipelines built once, its
 //! maps built every frame), each frame's image and T compared with the reference's.
@@ -13,13 +13,13 @@ use anyhow::Context;
 use glam::Vec3;
 use image::RgbImage;
 
-use crate::gpu::Gpu;
-use crate::motion::{FrameSample, Recorder, ReferenceChange, Span, linear_luminance};
 use crate::progress::Progress;
-use crate::render::shaded::{lit_opaque_points, particle_lighting_points};
-use crate::render::{OffscreenTarget, RenderOptions, Renderer};
-use crate::scene::Scene;
-use crate::sim::{Particle, Simulation};
+use smokeshadow_core::gpu::Gpu;
+use smokeshadow_core::motion::{FrameSample, Recorder, ReferenceChange, Span, linear_luminance};
+use smokeshadow_core::render::shaded::{lit_opaque_points, particle_lighting_points};
+use smokeshadow_core::render::{OffscreenTarget, RenderOptions, Renderer};
+use smokeshadow_core::scene::Scene;
+use smokeshadow_core::sim::{Particle, Simulation};
 
 /// The most particles whose lighting points a frame's transmittance is compared at (every
 /// k-th particle beyond it): the reference's T of every frame is held in memory.
@@ -89,13 +89,13 @@ pub(super) struct ExactFrames {
 /// particle file read at each time.
 fn frames(scene: &Scene, span: &Span, (w, h): (u32, u32)) -> anyhow::Result<Vec<Frame>> {
     let mut sim = scene.particles.is_none().then(|| Simulation::new(scene));
-    let camera = crate::render::CameraMatrices::new(scene, w, h);
+    let camera = smokeshadow_core::render::CameraMatrices::new(scene, w, h);
     let ground = lit_opaque_points(
         scene,
         &camera,
         w,
         h,
-        crate::render::shaded::SHADED_STRIDE_PX,
+        smokeshadow_core::render::shaded::SHADED_STRIDE_PX,
     );
     let mut out = Vec::new();
     for t in span.times() {
@@ -113,7 +113,7 @@ fn frames(scene: &Scene, span: &Span, (w, h): (u32, u32)) -> anyhow::Result<Vec<
         };
         let stride = particles.len().div_ceil(MAX_POINT_PARTICLES).max(1);
         let mut points = ground.clone();
-        let mut owners = vec![crate::shadow::NO_OWNER; ground.len()];
+        let mut owners = vec![smokeshadow_core::shadow::NO_OWNER; ground.len()];
         for (i, p) in particles.iter().enumerate().step_by(stride) {
             points.extend(particle_lighting_points(eye, std::slice::from_ref(p)));
             owners.extend([i as u32; 4]);
@@ -168,7 +168,12 @@ impl ExactFrames {
         for f in &frames {
             let (image, sample) = f.render(gpu, renderer, target, &RenderOptions::default())?;
             let check = progress.suspend(|| {
-                crate::render::reference_check::verify(renderer, gpu, &f.scene, &f.particles)
+                smokeshadow_core::render::reference_check::verify(
+                    renderer,
+                    gpu,
+                    &f.scene,
+                    &f.particles,
+                )
             })?;
             check_worst = check_worst.max(check.worst_difference);
             check_points = check_points.min(check.points);
@@ -216,7 +221,7 @@ pub(super) fn finish(
     recorder: Recorder,
     images: &[RgbImage],
     exact: &[RgbImage],
-) -> anyhow::Result<crate::motion::Motion> {
+) -> anyhow::Result<smokeshadow_core::motion::Motion> {
     use rayon::prelude::*;
     let flips: Vec<f64> = images
         .par_iter()
@@ -241,7 +246,7 @@ impl ExactFrames {
         gpu: &Gpu,
         renderer: &mut Renderer,
         target: &OffscreenTarget,
-        cells: &[(&crate::render::TechniqueConfig, RenderOptions)],
+        cells: &[(&smokeshadow_core::render::TechniqueConfig, RenderOptions)],
         path: &std::path::Path,
     ) -> anyhow::Result<()> {
         let half = |image: &RgbImage| {

@@ -3,7 +3,7 @@
 //! shows. The report, the charts and the gallery all read the answer from here.
 
 use super::{CellResult, SweepResults};
-use crate::render::ParticleRes;
+use smokeshadow_core::render::ParticleRes;
 
 /// The cells answering byte budget `bytes` (full particle resolution: the budgets compare
 /// shadow techniques), most accurate first (FLIP vs `exact`, then fewer resident bytes, registry
@@ -117,8 +117,8 @@ pub fn at_time_budget(results: &SweepResults, ratio: f64) -> Vec<&CellResult> {
         c.particle_res == ParticleRes::Full
             && flip_exact(c).is_finite()
             && c.overhead_ratio.is_some_and(|r| r <= ratio)
-            && crate::shadow::find(&c.technique)
-                .is_ok_and(|t| t.role == crate::shadow::Role::Contender)
+            && smokeshadow_core::shadow::find(&c.technique)
+                .is_ok_and(|t| t.role == smokeshadow_core::shadow::Role::Contender)
     }));
     best.sort_by(|a, b| {
         flip_exact(a)

@@ -8,7 +8,7 @@ use anyhow::Context;
 
 use super::shard::PlannedScene;
 use super::{CellResult, Machine, MeasuredAgainst, SweepMetadata, SweepResults};
-use crate::shadow;
+use smokeshadow_core::shadow;
 
 /// Path of the `exact` reference image inside a scene's folder.
 pub(super) const EXACT_IMAGE: &str = "images/exact.png";
@@ -212,7 +212,7 @@ pub fn write_results(results: &SweepResults, dir: &Path) -> anyhow::Result<()> {
 pub fn csv_row(c: &CellResult) -> Vec<String> {
     let opt = |v: Option<f64>, digits: usize| v.map_or(String::new(), |v| format!("{v:.digits$}"));
     // The temporal measures are a few 1e-4 of luminance: three significant digits.
-    let motion = |f: fn(&crate::motion::Motion) -> f64| {
+    let motion = |f: fn(&smokeshadow_core::motion::Motion) -> f64| {
         c.motion
             .as_ref()
             .map_or(String::new(), |m| format!("{:.3e}", f(m)))

@@ -23,7 +23,7 @@ use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 
 use super::{CellResult, SweepResults};
-use crate::shadow::SplatMode;
+use smokeshadow_core::shadow::SplatMode;
 
 /// Folder of the charts inside the sweep folder.
 pub const CHARTS_DIR: &str = "charts";
@@ -81,13 +81,13 @@ pub fn write_charts(results: &SweepResults, dir: &Path) -> anyhow::Result<Vec<Ch
     let results = match results
         .cells
         .iter()
-        .any(|c| c.particle_res != crate::render::ParticleRes::Full)
+        .any(|c| c.particle_res != smokeshadow_core::render::ParticleRes::Full)
     {
         false => results,
         true => {
             let mut r = results.clone();
             r.cells
-                .retain(|c| c.particle_res == crate::render::ParticleRes::Full);
+                .retain(|c| c.particle_res == smokeshadow_core::render::ParticleRes::Full);
             full_res = r;
             &full_res
         }
@@ -240,7 +240,7 @@ fn time_vs_bytes(results: &SweepResults) -> Plot {
     let reference = results
         .cells
         .iter()
-        .find(|c| c.technique == crate::shadow::frame_baseline().name)
+        .find(|c| c.technique == smokeshadow_core::shadow::frame_baseline().name)
         .map(|c| c.frame_ms.median)
         .filter(|ms| ms.is_finite())
         .map(|ms| Reference {
@@ -407,7 +407,7 @@ fn over_time_cells(results: &SweepResults) -> (String, Vec<&CellResult>) {
 fn series_over_time(
     cells: &[&CellResult],
     times: &[f32],
-    values: impl Fn(&crate::motion::Motion) -> &[f64],
+    values: impl Fn(&smokeshadow_core::motion::Motion) -> &[f64],
 ) -> Vec<Series> {
     cells
         .iter()
@@ -484,7 +484,7 @@ fn shadowed(results: &SweepResults) -> Vec<&CellResult> {
     results
         .cells
         .iter()
-        .filter(|c| c.technique != crate::shadow::frame_baseline().name)
+        .filter(|c| c.technique != smokeshadow_core::shadow::frame_baseline().name)
         .collect()
 }
 
@@ -1114,7 +1114,7 @@ mod tests {
 
     fn metadata() -> SweepMetadata {
         SweepMetadata {
-            framing: crate::scene::Framing::Fit,
+            framing: smokeshadow_core::scene::Framing::Fit,
             shapes: Default::default(),
             tool_version: "0.1.0".into(),
             scene: "thesis_plume".into(),

@@ -26,7 +26,7 @@ use serde::{Deserialize, Serialize};
 use super::answer::FLIP_SPREAD;
 use super::{Budget, CSV_COLUMNS, CellResult, SweepResults, registry_index};
 use crate::report::{self, escape as e};
-use crate::shadow::{self, SplatMode};
+use smokeshadow_core::shadow::{self, SplatMode};
 
 /// The columns of `ranking.csv`.
 pub const RANKING_COLUMNS: &[&str] = &[
@@ -114,7 +114,7 @@ pub fn ranks(scenes: &[SweepResults]) -> Vec<Rank> {
             .filter(|c| flip(c).is_finite())
             // Ranks compare shadow techniques: a lower particle resolution is a cost option of
             // the frame, in each scene's table only.
-            .filter(|c| c.particle_res == crate::render::ParticleRes::Full)
+            .filter(|c| c.particle_res == smokeshadow_core::render::ParticleRes::Full)
             .filter_map(|c| shadow::find(&c.technique).ok().map(|e| (c, e)))
             .filter(|(_, e)| e.role == shadow::Role::Contender)
             .collect();

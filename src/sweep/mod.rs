@@ -28,14 +28,14 @@ pub mod shard;
 
 use serde::{Deserialize, Serialize};
 
-use crate::render::ParticleRes;
-use crate::shadow::SplatMode;
+use smokeshadow_core::render::ParticleRes;
+use smokeshadow_core::shadow::SplatMode;
 
-pub use crate::render::shaded::SHADED_STRIDE_PX;
 pub use cells::{CSV_COLUMNS, write_results};
 pub use merge::merge;
 pub use run::{DEFAULT_BYTES_PER_TEXEL, SweepOptions, SweepOutcome, run};
 pub use shard::{Shard, ShardManifest};
+pub use smokeshadow_core::render::shaded::SHADED_STRIDE_PX;
 
 /// Median, minimum and maximum of a measurement over the timed frames, milliseconds.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -84,7 +84,7 @@ pub struct CellResult {
     /// The channel budget asked for (for a cell of a byte budget: the one that fits it).
     pub channels: u32,
     /// The byte budgets per shadow-map texel (`--bytes-per-texel`) this cell is the
-    /// technique's configuration for ([`crate::shadow::fit_bytes_per_texel`]); empty when it
+    /// technique's configuration for ([`smokeshadow_core::shadow::fit_bytes_per_texel`]); empty when it
     /// answers none (and in cells written before the axis existed).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub byte_budgets: Vec<u32>,
@@ -105,7 +105,7 @@ pub struct CellResult {
     #[serde(default)]
     pub particle_res: ParticleRes,
     /// Bytes the technique held at its peak, scratch included (its memory ledger's
-    /// [`crate::gpu::MemoryLedger::peak_bytes`], summed over the light's faces): what byte
+    /// [`smokeshadow_core::gpu::MemoryLedger::peak_bytes`], summed over the light's faces): what byte
     /// budgets, the answer and the Pareto fronts count. Cells written before the name changed
     /// called it `bytes` (and counted the allocations then live).
     #[serde(alias = "bytes")]
@@ -116,7 +116,7 @@ pub struct CellResult {
     #[serde(default)]
     pub transient_bytes: u64,
     /// Texels of the light's `shadow_res`² map (summed over a point light's faces) whose ray
-    /// crosses smoke in this cell's frame ([`crate::shadow::LightSpace::texels_covering_smoke`]),
+    /// crosses smoke in this cell's frame ([`smokeshadow_core::shadow::LightSpace::texels_covering_smoke`]),
     /// in the scene's framing (`shadow.framing`): what a map's resolution buys on this smoke.
     /// The same for every technique at one resolution; 0 in cells written before it existed.
     #[serde(default)]
@@ -181,10 +181,10 @@ pub struct CellResult {
     /// existed, whose ratios are against the `none` cell of the results.
     #[serde(default)]
     pub measured_against: Option<MeasuredAgainst>,
-    /// With `--animate`: the cell over the span against `exact` over it ([`crate::motion`]);
+    /// With `--animate`: the cell over the span against `exact` over it ([`smokeshadow_core::motion`]);
     /// `None` for `none` and in a still sweep.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub motion: Option<crate::motion::Motion>,
+    pub motion: Option<smokeshadow_core::motion::Motion>,
 }
 
 impl CellResult {
@@ -198,7 +198,7 @@ impl CellResult {
 /// Position of a technique in the registry (reports list and break ties in its order); past
 /// the end for a name it does not hold.
 pub(crate) fn registry_index(name: &str) -> usize {
-    crate::shadow::REGISTRY
+    smokeshadow_core::shadow::REGISTRY
         .iter()
         .position(|e| e.name == name)
         .unwrap_or(usize::MAX)
@@ -253,13 +253,13 @@ pub struct Machine {
     pub driver: String,
     /// Whether the GPU times come from timestamp queries (if not, they are absent: 0).
     pub timestamp_queries: bool,
-    /// The round trip of an empty submission on it ([`crate::gpu::Gpu::clock_floor_ms`]).
+    /// The round trip of an empty submission on it ([`smokeshadow_core::gpu::Gpu::clock_floor_ms`]).
     #[serde(default)]
     pub clock_floor_ms: f64,
 }
 
 impl Machine {
-    pub fn of(gpu: &crate::gpu::Gpu) -> Self {
+    pub fn of(gpu: &smokeshadow_core::gpu::Gpu) -> Self {
         Self {
             adapter: gpu.info.name.clone(),
             backend: format!("{:?}", gpu.info.backend),
@@ -271,8 +271,8 @@ impl Machine {
 }
 
 /// The framing of results and plans written before `shadow.framing` existed.
-pub(crate) fn cone_framing() -> crate::scene::Framing {
-    crate::scene::Framing::Cone
+pub(crate) fn cone_framing() -> smokeshadow_core::scene::Framing {
+    smokeshadow_core::scene::Framing::Cone
 }
 
 /// What a cell's ratios and errors depend on, recorded in the cell by the process that measured
@@ -307,7 +307,7 @@ pub struct MeasuredAgainst {
 /// `exact` over an animated sweep's span ([`MeasuredAgainst::motion`]).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct MotionReference {
-    pub change: crate::motion::ReferenceChange,
+    pub change: smokeshadow_core::motion::ReferenceChange,
     /// The fewest points a frame's self-check compared, and the worst |ΔT| over the frames.
     pub check_points: usize,
     pub check_worst: f64,
@@ -335,7 +335,7 @@ pub struct SweepMetadata {
     /// The scene's `shadow.framing`, every technique's (`cone` in results written before it
     /// existed, which all framed the cone).
     #[serde(default = "cone_framing")]
-    pub framing: crate::scene::Framing,
+    pub framing: smokeshadow_core::scene::Framing,
     /// The map resolution `tune` chose per technique and memory budget (total bytes) on the
     /// training scenes: the answer at equal total memory takes each technique at it.
     #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
@@ -357,7 +357,7 @@ pub struct SweepMetadata {
     /// Whether the GPU times come from timestamp queries (if not, they are absent: 0).
     pub timestamp_queries: bool,
     /// The largest round trip of an empty submission among the machines
-    /// ([`crate::gpu::Gpu::clock_floor_ms`]): what a frame's wall time pays beyond its passes.
+    /// ([`smokeshadow_core::gpu::Gpu::clock_floor_ms`]): what a frame's wall time pays beyond its passes.
     #[serde(default)]
     pub clock_floor_ms: f64,
     pub frames: u32,

@@ -17,8 +17,8 @@ use super::answer::{
 };
 use super::charts::Chart;
 use super::{CellResult, SweepResults, Timing};
-use crate::render::ParticleRes;
 use crate::report::{self, escape as e};
+use smokeshadow_core::render::ParticleRes;
 
 /// Every path the page references (`src` and `href` attributes, and the `compare` page's
 /// `data-*` image attributes), for checking that a report's links resolve.
@@ -108,7 +108,7 @@ fn metadata_line(body: &mut String, results: &SweepResults) {
             Some(worst) => format!(
                 "checked against the f64 closed form at {} shaded points (worst |ΔT| {worst:.1e}, allowed {:.0e})",
                 m.exact_check_points,
-                crate::render::reference_check::TOLERANCE
+                smokeshadow_core::render::reference_check::TOLERANCE
             ),
             None => "not checked against the closed form (cells measured before the check)".into(),
         },
@@ -272,9 +272,13 @@ pub fn same_footing(results: &SweepResults, html: bool) -> String {
     };
     let m = &results.metadata;
     let framing = match m.framing {
-        crate::scene::Framing::Fit => "fitted to the smoke's light-space bounds within the cone",
-        crate::scene::Framing::Cone => "over the whole spotlight cone (the thesis' framing)",
-        crate::scene::Framing::Stable => {
+        smokeshadow_core::scene::Framing::Fit => {
+            "fitted to the smoke's light-space bounds within the cone"
+        }
+        smokeshadow_core::scene::Framing::Cone => {
+            "over the whole spotlight cone (the thesis' framing)"
+        }
+        smokeshadow_core::scene::Framing::Stable => {
             "fitted to the smoke's light-space bounds within the cone and held steady in steps \
              (`framing = \"stable\"`: size and depth range in quarter octaves, aim in 1/256 of the \
              width, depth start in eighths of the range)"
@@ -551,7 +555,7 @@ fn budget_limits(results: &SweepResults, largest: u32) -> Vec<String> {
     let m = &results.metadata;
     let pixels = u64::from(m.width_px) * u64::from(m.height_px);
     let mut notes = Vec::new();
-    for entry in crate::shadow::contenders() {
+    for entry in smokeshadow_core::shadow::contenders() {
         let Some(cell) = results
             .cells
             .iter()
@@ -560,8 +564,13 @@ fn budget_limits(results: &SweepResults, largest: u32) -> Vec<String> {
             continue;
         };
         let kept = |channels: u32| {
-            let params = crate::shadow::TechniqueParams::new(channels, cell.shadow_res);
-            crate::shadow::planned_bytes_per_texel(entry, &params, u64::from(m.particles), pixels)
+            let params = smokeshadow_core::shadow::TechniqueParams::new(channels, cell.shadow_res);
+            smokeshadow_core::shadow::planned_bytes_per_texel(
+                entry,
+                &params,
+                u64::from(m.particles),
+                pixels,
+            )
         };
         let (least, most) = (kept(entry.min_channels), kept(entry.max_channels));
         let name = format!("<code>{}</code>", entry.name);
@@ -632,7 +641,7 @@ fn table(body: &mut String, results: &SweepResults, variants: &Variants, pareto:
     for (c, &on_front) in results.cells.iter().zip(pareto) {
         let class = if on_front {
             " class=\"pareto\""
-        } else if c.technique == crate::shadow::frame_baseline().name {
+        } else if c.technique == smokeshadow_core::shadow::frame_baseline().name {
             " class=\"baseline\""
         } else {
             ""
@@ -696,7 +705,7 @@ fn table(body: &mut String, results: &SweepResults, variants: &Variants, pareto:
     }
     body.push_str("</table></div>\n");
     // The deep captures' times are an emulation's: say so once, beside their rows.
-    let emulated: Vec<&str> = crate::shadow::REGISTRY
+    let emulated: Vec<&str> = smokeshadow_core::shadow::REGISTRY
         .iter()
         .filter(|t| t.compresses_captured_lists)
         .filter(|t| results.cells.iter().any(|c| c.technique == t.name))
@@ -719,7 +728,7 @@ fn table(body: &mut String, results: &SweepResults, variants: &Variants, pareto:
     }
     // The techniques whose T depends on the order the particles are drawn (`has` draws them
     // in its own slices, which follow the view by design).
-    let order_dependent: Vec<String> = crate::shadow::REGISTRY
+    let order_dependent: Vec<String> = smokeshadow_core::shadow::REGISTRY
         .iter()
         .filter(|t| !t.order_independent && !t.owns_particle_pass)
         .filter(|t| results.cells.iter().any(|c| c.technique == t.name))
@@ -785,7 +794,7 @@ fn image_grid(body: &mut String, results: &SweepResults, variants: &Variants) {
     for c in results
         .cells
         .iter()
-        .filter(|c| c.technique == crate::shadow::frame_baseline().name)
+        .filter(|c| c.technique == smokeshadow_core::shadow::frame_baseline().name)
     {
         let _ = writeln!(
             body,
@@ -801,7 +810,7 @@ fn image_grid(body: &mut String, results: &SweepResults, variants: &Variants) {
     let shadowed: Vec<&CellResult> = results
         .cells
         .iter()
-        .filter(|c| c.technique != crate::shadow::frame_baseline().name)
+        .filter(|c| c.technique != smokeshadow_core::shadow::frame_baseline().name)
         .collect();
     if shadowed.is_empty() {
         return;
@@ -891,7 +900,7 @@ impl Variants {
         let shadowed = || {
             cells
                 .iter()
-                .filter(|c| c.technique != crate::shadow::frame_baseline().name)
+                .filter(|c| c.technique != smokeshadow_core::shadow::frame_baseline().name)
         };
         let several = |differ: &dyn Fn(&CellResult, &CellResult) -> bool| {
             shadowed()
@@ -946,8 +955,8 @@ impl Variants {
 fn bytes_per_texel(c: &CellResult) -> String {
     let kept = c.resident_bytes;
     let texels = u64::from(c.shadow_res).pow(2);
-    let has_map =
-        crate::shadow::find(&c.technique).is_ok_and(|t| t.role == crate::shadow::Role::Contender);
+    let has_map = smokeshadow_core::shadow::find(&c.technique)
+        .is_ok_and(|t| t.role == smokeshadow_core::shadow::Role::Contender);
     if kept == 0 || texels == 0 || !has_map {
         return "—".into();
     }
@@ -981,8 +990,8 @@ fn metric(value: Option<f64>) -> String {
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
-    use crate::shadow::SplatMode;
     use crate::sweep::{ImageError, SkippedCell, SweepMetadata};
+    use smokeshadow_core::shadow::SplatMode;
 
     fn timing(ms: f64) -> Timing {
         Timing {
@@ -1043,7 +1052,7 @@ pub(crate) mod tests {
     pub(crate) fn results() -> SweepResults {
         SweepResults {
             metadata: SweepMetadata {
-                framing: crate::scene::Framing::Fit,
+                framing: smokeshadow_core::scene::Framing::Fit,
                 shapes: Default::default(),
                 tool_version: "0.1.0".into(),
                 scene: "thesis_plume".into(),

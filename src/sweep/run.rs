@@ -12,15 +12,15 @@ use super::cells::{EXACT_HDR_IMAGE, EXACT_IMAGE, assemble, read_cell, with_ratio
 use super::shard::{self, PlannedCell, PlannedScene, Shard, ShardManifest};
 use super::{CellResult, ImageError, Machine, MeasuredAgainst, SkippedCell, SweepResults, Timing};
 use crate::diff;
-use crate::gpu::Gpu;
 use crate::progress::Progress;
-use crate::render::shaded::{SHADED_STRIDE_PX, rms_difference, shaded_points};
-use crate::render::{
+use smokeshadow_core::gpu::Gpu;
+use smokeshadow_core::render::shaded::{SHADED_STRIDE_PX, rms_difference, shaded_points};
+use smokeshadow_core::render::{
     OUTPUT_FORMAT, OffscreenTarget, ParticleRes, RenderOptions, Renderer, TechniqueConfig,
 };
-use crate::scene::Scene;
-use crate::shadow::{self, SplatMode};
-use crate::sim::Particle;
+use smokeshadow_core::scene::Scene;
+use smokeshadow_core::shadow::{self, SplatMode};
+use smokeshadow_core::sim::Particle;
 
 /// What to sweep. [`SweepOptions::default`] is the thesis experiment (chapter 4.2.1).
 #[derive(Clone, Debug)]
@@ -63,8 +63,8 @@ pub struct SweepOptions {
     /// total memory takes each technique at it where it was swept.
     pub shapes: crate::tune::Shapes,
     /// `--animate`: every cell also rendered over these consecutive frames beside `exact` at
-    /// each, its temporal measures in the cell ([`crate::motion`]).
-    pub animate: Option<crate::motion::Span>,
+    /// each, its temporal measures in the cell ([`smokeshadow_core::motion`]).
+    pub animate: Option<smokeshadow_core::motion::Span>,
 }
 
 impl Default for SweepOptions {
@@ -384,7 +384,10 @@ fn plan(scene: &Scene, options: &SweepOptions) -> anyhow::Result<(Vec<Plan>, Vec
 
 /// Every frame of `span` of the scene's file sequences (its particles', its volume's) is there
 /// before anything is rendered; else one line naming the first missing file.
-fn check_sequence_frames(scene: &Scene, span: &crate::motion::Span) -> anyhow::Result<()> {
+fn check_sequence_frames(
+    scene: &Scene,
+    span: &smokeshadow_core::motion::Span,
+) -> anyhow::Result<()> {
     // (what, its pattern, each time's frame and path) of each sequence the scene reads.
     let particles = scene
         .particles
@@ -597,7 +600,7 @@ impl<'a> Sweeper<'a> {
         let exact_image = target.read_rgb(gpu)?;
         crate::output::write_png_rgb(&dir.join(EXACT_IMAGE), &exact_image)?;
         if options.exr {
-            let hdr = crate::gpu::read_texture_rgba16f(gpu, renderer.hdr_texture())?;
+            let hdr = smokeshadow_core::gpu::read_texture_rgba16f(gpu, renderer.hdr_texture())?;
             crate::output::write_exr(&dir.join(EXACT_HDR_IMAGE), &hdr)?;
         }
         let points = shaded_points(
@@ -607,11 +610,11 @@ impl<'a> Sweeper<'a> {
             SHADED_STRIDE_PX,
             renderer.medium().grid().map(|g| &**g),
         );
-        let owners = crate::render::shaded::point_owners(particles.len(), points.len());
+        let owners = smokeshadow_core::render::shaded::point_owners(particles.len(), points.len());
         let exact_t = renderer.probe_shaded(gpu, scene, &particles, &points, &owners)?;
         // No error is measured against a reference that disagrees with the closed form.
         let check = progress.suspend(|| {
-            crate::render::reference_check::verify(&mut renderer, gpu, scene, &particles)
+            smokeshadow_core::render::reference_check::verify(&mut renderer, gpu, scene, &particles)
         })?;
         progress.finish(format!(
             "{}: exact reference ({}² light tiles): {} bytes, T at {} shaded points; {check}",
@@ -893,7 +896,7 @@ impl<'a> Sweeper<'a> {
         let hdr = match self.options.exr && record {
             true => Some((
                 format!("images/{}.exr", plan.name),
-                crate::gpu::read_texture_rgba16f(self.gpu, self.renderer.hdr_texture())?,
+                smokeshadow_core::gpu::read_texture_rgba16f(self.gpu, self.renderer.hdr_texture())?,
             )),
             false => None,
         };

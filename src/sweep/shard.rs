@@ -97,7 +97,7 @@ pub struct PlannedScene {
     pub height_px: u32,
     /// The scene's `shadow.framing` (plans written before it existed framed the cone).
     #[serde(default = "super::cone_framing")]
-    pub framing: crate::scene::Framing,
+    pub framing: smokeshadow_core::scene::Framing,
     /// The map resolutions `tune` chose, per technique and memory budget.
     #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
     pub shapes: crate::tune::Shapes,

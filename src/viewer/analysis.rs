@@ -11,11 +11,13 @@ use std::sync::mpsc::{Receiver, Sender, TryRecvError};
 use glam::Vec3;
 
 use crate::diff::{self, Metrics};
-use crate::gpu::Gpu;
-use crate::render::{OUTPUT_FORMAT, OffscreenTarget, RenderOptions, Renderer, TechniqueConfig};
-use crate::scene::Scene;
-use crate::shadow::LightSpace;
-use crate::sim::{Particle, Simulation};
+use smokeshadow_core::gpu::Gpu;
+use smokeshadow_core::render::{
+    OUTPUT_FORMAT, OffscreenTarget, RenderOptions, Renderer, TechniqueConfig,
+};
+use smokeshadow_core::scene::Scene;
+use smokeshadow_core::shadow::LightSpace;
+use smokeshadow_core::sim::{Particle, Simulation};
 
 /// One frame to render: the scene (camera and light as the viewer has them), its particles.
 #[derive(Clone)]
@@ -93,7 +95,7 @@ pub enum Reply {
         /// B against A: metrics, the x4 difference and the FLIP map.
         b_vs_a: Option<Box<(Metrics, image::RgbImage, image::RgbImage)>>,
         /// A's change from the earlier frame beside `exact`'s (`motion`), and when that frame is.
-        motion: Option<Box<(crate::motion::ChangePictures, f32)>>,
+        motion: Option<Box<(smokeshadow_core::motion::ChangePictures, f32)>>,
         /// Seconds the worker took.
         seconds: f64,
     },
@@ -166,7 +168,7 @@ struct Worker {
     renderers: Vec<(TechniqueConfig, (u32, u32), Renderer, OffscreenTarget)>,
     /// The emitters' simulation of the last earlier frame it made, and what it simulates (a
     /// later request steps it on from there).
-    sim: Option<(crate::sim::SimInputs, Simulation)>,
+    sim: Option<(smokeshadow_core::sim::SimInputs, Simulation)>,
 }
 
 impl Worker {
@@ -305,8 +307,12 @@ impl Worker {
                         let before = self.earlier(&frame, dt_s)?;
                         let a0 = self.render(&before, &a)?;
                         let r0 = self.render(&before, &exact)?;
-                        let pictures =
-                            crate::motion::ChangePictures::of(&a0, &image_a, &r0, &image_exact);
+                        let pictures = smokeshadow_core::motion::ChangePictures::of(
+                            &a0,
+                            &image_a,
+                            &r0,
+                            &image_exact,
+                        );
                         Some(Box::new((pictures, before.scene.sim.duration_s)))
                     }
                 };
@@ -355,7 +361,7 @@ impl Worker {
                     let (_, _, renderer, _) = self.renderer(config, size)?;
                     let t = renderer.probe(&gpu, &frame.scene, &frame.particles, &points)?;
                     series.push(ProbeSeries {
-                        label: if config.name == crate::shadow::reference().name {
+                        label: if config.name == smokeshadow_core::shadow::reference().name {
                             config.name.clone()
                         } else {
                             format!("{} {}", config.name, config.params.channels)

@@ -15,8 +15,8 @@ use super::shortcuts;
 use super::textures::Textures;
 use super::viewport::{self, Drags};
 use super::window_shot::WindowShot;
-use crate::gpu::Gpu;
-use crate::scene::Scene;
+use smokeshadow_core::gpu::Gpu;
+use smokeshadow_core::scene::Scene;
 
 /// The viewer application: the controller and what egui needs to show it.
 ///
@@ -53,7 +53,7 @@ impl ViewerApp {
         cc: &eframe::CreationContext<'_>,
         scene: Scene,
         path: Option<String>,
-        span: Option<crate::motion::Span>,
+        span: Option<smokeshadow_core::motion::Span>,
     ) -> Self {
         let render_state = cc.wgpu_render_state.clone();
         let gpu = render_state.as_ref().map(|rs| {

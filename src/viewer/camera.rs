@@ -3,7 +3,7 @@
 
 use glam::Vec3;
 
-use crate::scene::Camera;
+use smokeshadow_core::scene::Camera;
 
 /// Spherical coordinates of the eye around the target.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -79,7 +79,7 @@ mod tests {
 
     #[test]
     fn an_orbit_round_trips_the_scene_camera() {
-        let mut camera = crate::scene::Scene::thesis_plume().camera;
+        let mut camera = smokeshadow_core::scene::Scene::thesis_plume().camera;
         let orbit = Orbit::from_camera(&camera);
         let before = camera.position;
         orbit.apply(&mut camera);
@@ -92,7 +92,7 @@ mod tests {
 
     #[test]
     fn orbiting_keeps_the_distance_and_zooming_changes_it() {
-        let camera = crate::scene::Scene::thesis_plume().camera;
+        let camera = smokeshadow_core::scene::Scene::thesis_plume().camera;
         let mut orbit = Orbit::from_camera(&camera);
         let d = orbit.distance_m;
         orbit.orbit(120.0, -40.0);

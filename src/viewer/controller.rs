@@ -21,11 +21,13 @@ use super::camera::Orbit;
 use super::map_view::{MAP_VIEW_FORMAT, MapView};
 use super::view::View;
 use crate::diff::Metrics;
-use crate::gpu::Gpu;
-use crate::render::{CameraMatrices, ParticleRes, RenderOptions, SortOrder, TechniqueConfig};
-use crate::scene::Scene;
-use crate::shadow::{self, MapKind};
-use crate::sim::{Particle, Simulation};
+use smokeshadow_core::gpu::Gpu;
+use smokeshadow_core::render::{
+    CameraMatrices, ParticleRes, RenderOptions, SortOrder, TechniqueConfig,
+};
+use smokeshadow_core::scene::Scene;
+use smokeshadow_core::shadow::{self, MapKind};
+use smokeshadow_core::sim::{Particle, Simulation};
 
 /// How A and B are shown.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
@@ -122,7 +124,7 @@ pub struct ViewState {
     pub sort: SortOrder,
     /// `view --animate`: play the animated sweep's frames, one a UI frame, looping over the
     /// span (else play in real time from 0 to the scene's time, or 20 s).
-    pub span: Option<crate::motion::Span>,
+    pub span: Option<smokeshadow_core::motion::Span>,
     /// Render at the viewport's size instead of the scene's output size.
     pub fit_window: bool,
     /// Inspector: the selected map channel (index into the flattened list) and its scale.
@@ -161,7 +163,7 @@ pub(super) struct Analysed {
     pub(super) seconds: f64,
     pub(super) b: Option<Comparison>,
     /// A's change beside `exact`'s (the temporal compare) and the earlier frame's time.
-    pub(super) motion: Option<(crate::motion::ChangePictures, f32)>,
+    pub(super) motion: Option<(smokeshadow_core::motion::ChangePictures, f32)>,
 }
 
 /// The last probe's curves.
@@ -206,7 +208,7 @@ pub(super) struct Smoothed {
 }
 
 impl Smoothed {
-    fn add(&mut self, times: &crate::gpu::PassTimes) {
+    fn add(&mut self, times: &smokeshadow_core::gpu::PassTimes) {
         const KEEP: f64 = 0.7;
         let blend = |old: &mut f64, new: f64| *old = KEEP * *old + (1.0 - KEEP) * new;
         for (name, ms) in &times.passes {
@@ -289,7 +291,7 @@ pub struct Controller {
     pub(super) gpu: Option<Arc<Gpu>>,
     sim: Simulation,
     particles: Arc<Vec<Particle>>,
-    sim_inputs: crate::sim::SimInputs,
+    sim_inputs: smokeshadow_core::sim::SimInputs,
     /// For a scene of a particle file: the file (the sequence's frame) the particles were read
     /// from, so that a frame is read once, and again only when time picks another.
     read_from: Option<PathBuf>,
@@ -465,11 +467,11 @@ impl Controller {
     }
 
     /// The time between two frames of the temporal compare: the span's, or a particle or
-    /// volume sequence's own, else [`crate::motion::DEFAULT_FPS`]'s.
+    /// volume sequence's own, else [`smokeshadow_core::motion::DEFAULT_FPS`]'s.
     pub fn frame_interval_s(&self) -> f32 {
         let fps = match &self.state.span {
             Some(span) => span.fps,
-            None => crate::motion::default_fps(&self.state.scene),
+            None => smokeshadow_core::motion::default_fps(&self.state.scene),
         };
         1.0 / fps
     }
@@ -723,7 +725,7 @@ impl Controller {
     /// `dx`, `dy` points).
     pub fn orbit_light(&mut self, dx: f32, dy: f32) {
         let light = &mut self.state.scene.light;
-        let mut orbit = Orbit::from_camera(&crate::scene::Camera {
+        let mut orbit = Orbit::from_camera(&smokeshadow_core::scene::Camera {
             position: light.position,
             target: light.target,
             ..self.state.scene.camera.clone()
@@ -736,7 +738,7 @@ impl Controller {
 
     /// Plays `span` (the frames an animated sweep renders): from its first frame, one frame
     /// a UI frame, looping.
-    pub fn play_span(&mut self, span: crate::motion::Span) {
+    pub fn play_span(&mut self, span: smokeshadow_core::motion::Span) {
         self.state.span = Some(span);
         self.state.time_s = span.start_s;
         self.state.playing = true;
@@ -1095,14 +1097,15 @@ impl Controller {
             .inverse()
             .project_point3(ndc.extend(1.0));
         let dir = (far - camera.position).normalize();
-        let point = crate::render::shaded::first_opaque_hit(&scene, camera.position, dir)
-            .map(|(p, _)| p)
-            .unwrap_or_else(|| {
-                // No surface: the point of the ray nearest the smoke's centre.
-                let n = self.particles.len().max(1) as f32;
-                let centre = self.particles.iter().map(|p| p.position).sum::<Vec3>() / n;
-                camera.position + dir * (centre - camera.position).dot(dir).max(0.0)
-            });
+        let point =
+            smokeshadow_core::render::shaded::first_opaque_hit(&scene, camera.position, dir)
+                .map(|(p, _)| p)
+                .unwrap_or_else(|| {
+                    // No surface: the point of the ray nearest the smoke's centre.
+                    let n = self.particles.len().max(1) as f32;
+                    let centre = self.particles.iter().map(|p| p.position).sum::<Vec3>() / n;
+                    camera.position + dir * (centre - camera.position).dot(dir).max(0.0)
+                });
         let a = self.config(&self.state.a);
         let mut configs = vec![a.clone()];
         for entry in shadow::contenders() {

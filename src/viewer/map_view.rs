@@ -3,8 +3,8 @@
 
 use bytemuck::{Pod, Zeroable};
 
-use crate::shaders;
-use crate::shadow::MapKind;
+use smokeshadow_core::shaders;
+use smokeshadow_core::shadow::MapKind;
 
 /// Keep in sync with `MapViewParams` in shaders/render/map_view.wgsl.
 #[repr(C)]
@@ -17,7 +17,7 @@ struct MapViewParams {
 }
 
 /// The WGSL structs mirrored here.
-pub fn layouts() -> Vec<crate::gpu::MirrorLayout> {
+pub fn layouts() -> Vec<smokeshadow_core::gpu::MirrorLayout> {
     vec![smokeshadow_core::mirror_layout!(
         MapViewParams,
         "render/map_view.wgsl",
@@ -40,7 +40,7 @@ impl MapView {
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("map_view.layout"),
             entries: &[
-                crate::frame::fullscreen::texture_entry(0),
+                smokeshadow_core::frame::fullscreen::texture_entry(0),
                 wgpu::BindGroupLayoutEntry {
                     binding: 1,
                     visibility: wgpu::ShaderStages::FRAGMENT,
@@ -58,7 +58,7 @@ impl MapView {
             "map_view",
             &shaders::compose("render/map_view.wgsl", &[]),
         );
-        let pipeline = crate::frame::fullscreen::pipeline(
+        let pipeline = smokeshadow_core::frame::fullscreen::pipeline(
             device,
             "map_view.pipeline",
             &module,

@@ -1,5 +1,5 @@
 //! `smokeshadow view`: the interactive viewer (egui + winit through eframe), drawing with the
-//! same [`crate::render::Renderer`] the CLI, the tests and the sweep use. A graphics engineer
+//! same [`smokeshadow_core::render::Renderer`] the CLI, the tests and the sweep use. A graphics engineer
 //! flips between techniques and budgets and sees, side by side, what each gets wrong and what it
 //! costs.
 //!
@@ -37,7 +37,7 @@ use std::sync::Arc;
 
 use eframe::egui_wgpu;
 
-use crate::gpu::{self, AdapterPreference};
+use smokeshadow_core::gpu::{self, AdapterPreference};
 
 pub use app::ViewerApp;
 pub use controller::{CompareMode, Controller, Side, Source, ViewState};
@@ -79,7 +79,7 @@ pub fn native_options(preference: AdapterPreference) -> eframe::NativeOptions {
 }
 
 /// Opens the viewer on `scene` (the embedded thesis scene when `None`), rescaled to `particles`
-/// when given ([`crate::scene::Scene::with_particles`]), and returns when the window closes. Problems found
+/// when given ([`smokeshadow_core::scene::Scene::with_particles`]), and returns when the window closes. Problems found
 /// before the window exists (a bad scene file, no adapter) are returned as one-line errors.
 pub fn run(
     scene_path: Option<PathBuf>,
@@ -95,8 +95,8 @@ pub fn run(
     // The span at the sweep's default rate: a file sequence's own, else 30 fps.
     let span = span
         .map(|(range, fps)| {
-            let fps = fps.unwrap_or_else(|| crate::motion::default_fps(&scene));
-            crate::motion::Span::parse(&range, fps)
+            let fps = fps.unwrap_or_else(|| smokeshadow_core::motion::default_fps(&scene));
+            smokeshadow_core::motion::Span::parse(&range, fps)
         })
         .transpose()
         .map_err(anyhow::Error::msg)?;

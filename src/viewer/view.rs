@@ -4,11 +4,13 @@
 //! through. The view knows nothing of egui: [`super::textures`] registers `display_view` with
 //! egui's renderer, and again whenever `output_generation` says the texture was replaced.
 
-use crate::gpu::{Gpu, PassTimes};
-use crate::render::{FrameStats, OUTPUT_FORMAT, RenderOptions, Renderer, TechniqueConfig};
-use crate::scene::Scene;
-use crate::shadow::ShadowError;
-use crate::sim::Particle;
+use smokeshadow_core::gpu::{Gpu, PassTimes};
+use smokeshadow_core::render::{
+    FrameStats, OUTPUT_FORMAT, RenderOptions, Renderer, TechniqueConfig,
+};
+use smokeshadow_core::scene::Scene;
+use smokeshadow_core::shadow::ShadowError;
+use smokeshadow_core::sim::Particle;
 
 /// What a view last rendered, to skip frames when nothing changed.
 #[derive(Clone, Debug, PartialEq)]
@@ -164,6 +166,9 @@ impl View {
 
     /// Reads the shown image back, waiting for the GPU (tests and explicit saves only).
     pub fn read_image(&self, gpu: &Gpu) -> anyhow::Result<image::RgbaImage> {
-        Ok(crate::gpu::read_texture_rgba8(gpu, &self.output.texture)?)
+        Ok(smokeshadow_core::gpu::read_texture_rgba8(
+            gpu,
+            &self.output.texture,
+        )?)
     }
 }

@@ -165,7 +165,7 @@ pub fn show(
         (image_rect.width().round() as u32).max(1),
         (image_rect.height().round() as u32).max(1),
     );
-    let camera = crate::render::CameraMatrices::new(&scene, w, h);
+    let camera = smokeshadow_core::render::CameraMatrices::new(&scene, w, h);
     let to_screen = |p: Vec3| {
         camera.project_to_pixel(p, w, h).map(|px| {
             image_rect.min
@@ -300,7 +300,7 @@ fn caption(controller: &Controller) -> String {
                     "A {}: change from t = {before:.3} s to {:.3} s, x{} (orange brighter, blue darker)\ntemporal error {:.2e} (p99.9 {:.2e}), {} pops; exact changes {:.2e}{}",
                     state.a.label(),
                     state.time_s,
-                    crate::motion::CHANGE_GAIN,
+                    smokeshadow_core::motion::CHANGE_GAIN,
                     p.temporal_error,
                     p.temporal_p999,
                     p.pops,

@@ -5,10 +5,10 @@
 
 use eframe::egui::{self, Color32};
 
-use crate::shadow::{self, OccluderMode, ParamValue, SplatMode};
 use crate::viewer::controller::{
     CompareMode, Controller, Side, Source, budget_meaning, clamp_channels, comparable_techniques,
 };
+use smokeshadow_core::shadow::{self, OccluderMode, ParamValue, SplatMode};
 
 /// Left panel, top: the comparison (mode, A, B) and the shared technique settings.
 pub fn show(controller: &mut Controller, ui: &mut egui::Ui) {
@@ -147,7 +147,7 @@ pub fn show(controller: &mut Controller, ui: &mut egui::Ui) {
     egui::ComboBox::from_label("Particle resolution")
         .selected_text(res.name())
         .show_ui(ui, |ui| {
-            for r in crate::render::ParticleRes::ALL {
+            for r in smokeshadow_core::render::ParticleRes::ALL {
                 ui.selectable_value(res, r, r.name());
             }
         });
@@ -155,7 +155,7 @@ pub fn show(controller: &mut Controller, ui: &mut egui::Ui) {
     egui::ComboBox::from_label("Particle sort")
         .selected_text(sort.name())
         .show_ui(ui, |ui| {
-            for order in crate::render::SortOrder::ALL {
+            for order in smokeshadow_core::render::SortOrder::ALL {
                 ui.selectable_value(sort, order, order.name());
             }
         })

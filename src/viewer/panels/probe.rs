@@ -3,8 +3,8 @@
 
 use eframe::egui;
 
-use crate::shadow;
 use crate::viewer::controller::Controller;
+use smokeshadow_core::shadow;
 
 /// Right panel, bottom: the probe's plot.
 pub fn show(controller: &mut Controller, ui: &mut egui::Ui) {

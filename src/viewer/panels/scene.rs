@@ -4,8 +4,8 @@
 
 use eframe::egui::{self, Color32};
 
-use crate::scene::{LightKind, Scene};
 use crate::viewer::controller::Controller;
+use smokeshadow_core::scene::{LightKind, Scene};
 
 /// Right panel, top: the scene file and the scene's settings.
 pub fn show(controller: &mut Controller, ui: &mut egui::Ui) {
