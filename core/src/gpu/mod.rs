@@ -220,7 +220,7 @@ impl Gpu {
             });
             let mut trips: Vec<f64> = (0..10)
                 .filter_map(|_| {
-                    let start = std::time::Instant::now();
+                    let start = web_time::Instant::now();
                     let mut encoder =
                         self.device
                             .create_command_encoder(&wgpu::CommandEncoderDescriptor {

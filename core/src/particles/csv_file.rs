@@ -21,7 +21,7 @@ pub(super) fn parse(
     }
     let mut reader = csv::ReaderBuilder::new()
         .trim(csv::Trim::All)
-        .from_reader(&bytes[..]);
+        .from_reader(bytes);
     let headers = reader
         .headers()
         .map_err(|e| bad(format!("bad header row: {e}")))?

@@ -158,7 +158,7 @@ pub(super) fn parse(
         ));
     }
     let parser = Parser::<RawVertex>::new();
-    let mut reader = Reader::new(std::io::BufReader::new(&bytes[..]));
+    let mut reader = Reader::new(std::io::BufReader::new(bytes));
     let header = parser
         .read_header(&mut reader)
         .map_err(|e| bad(format!("bad header: {}", one_line(&e.to_string()))))?;
@@ -200,7 +200,7 @@ pub(super) fn parse(
         columns.push((field, i, scale));
     }
     if header.encoding != Encoding::Ascii {
-        let start = header_len(&bytes).ok_or_else(|| bad("no end_header line".to_owned()))?;
+        let start = header_len(bytes).ok_or_else(|| bad("no end_header line".to_owned()))?;
         check_binary_length(path, &header, bytes.len() - start)?;
     }
     let payload = parser

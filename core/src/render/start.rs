@@ -3,7 +3,7 @@
 //! sort and upload, the opaque geometry, the medium, the frame's uniforms and group 0, the
 //! light faces' fit and the technique's build (skipped when its inputs are the last build's).
 
-use std::time::Instant;
+use web_time::Instant;
 
 use glam::Vec3;
 use rayon::prelude::*;

@@ -26,7 +26,7 @@
 //! at the frame size) and the particles re-sorted along the half-angle, all in the ledger.
 
 use std::ops::Range;
-use std::time::Instant;
+use web_time::Instant;
 
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
