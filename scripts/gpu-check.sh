@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # smokeshadow on a hardware GPU: build in release, run the test suite's GPU-independent checks on
 # the hardware adapter, and bench every technique at 2.5k, 65k and 1M particles on it, writing
-# every table under one folder (README, "On a real GPU").
+# every table under one folder (docs/real-gpu.md).
 #
 #   scripts/gpu-check.sh [-o DIR] [--counts N,N,...] [--tests NAME,...|none] [--cpu]
 #                        [--prebuilt DIR] [--studies]
@@ -19,8 +19,8 @@
 # (at the same path: a few tests read their data files by the path they were built at) and run
 # `--prebuilt DIR`, which runs those binaries instead of cargo. The bench runs first, then the
 # tests, so a run cut short still leaves the tables. `--studies` then measures the rest of the
-# README's GPU tables: every technique at 1920x1080 (65k and 1M particles), the cloud's coverage
-# study and the thesis sweep (about 3 minutes more on an H200).
+# GPU tables of docs/real-gpu.md: every technique at 1920x1080 (65k and 1M particles), the
+# cloud's coverage study and the thesis sweep (about 3 minutes more on an H200).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -162,7 +162,7 @@ if [ ${#names[@]} -gt 0 ]; then
 fi
 
 if [ $studies = 1 ]; then
-    # name|what|command arguments (the README's "On a real GPU" tables, one file each). On the
+    # name|what|command arguments (docs/real-gpu.md's tables, one file each). On the
     # CPU adapter (--cpu, to test this script) smaller: lavapipe takes minutes for the real ones.
     hd="--size 1920x1080 --particles-list 65536,1000000"
     coverages="0.1,0.3,0.5,0.7,0.9,1.0"
