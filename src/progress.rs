@@ -29,7 +29,7 @@ pub fn bar(len: u64, unit: &str) -> Option<indicatif::ProgressBar> {
     Some(bar)
 }
 
-/// [`smokeshadow_core::sim::simulate`] of `scene`, with a bar of its steps on a terminal when the run is
+/// [`crate::sim::simulate`] of `scene`, with a bar of its steps on a terminal when the run is
 /// long ([`LONG_SIMULATION_PARTICLE_STEPS`]). The particles are the same either way.
 pub fn simulate(scene: &Scene) -> Vec<Particle> {
     let mut sim = Simulation::new(scene);

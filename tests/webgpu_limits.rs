@@ -4,19 +4,22 @@
 //! tests' adapter), every technique renders the thesis scene with smoke where the smoke is, or
 //! refuses in one line that names the limit it lacks.
 
+mod common;
+
 use smokeshadow::gpu::{Gpu, OPTIONAL_FEATURES};
 use smokeshadow::render::{RenderOptions, TechniqueConfig, render_offscreen};
 use smokeshadow::scene::Scene;
 use smokeshadow::shadow::{REGISTRY, TechniqueParams};
 
-/// A device on the tests' adapter (the CPU's) with WebGPU's default limits and the optional
-/// features it has, as a browser would give it.
+/// A device on the tests' adapter (the CPU's, or `SMOKESHADOW_TEST_ADAPTER`'s) with WebGPU's
+/// default limits and the optional features it has, as a browser would give it.
 fn webgpu_default_device() -> Gpu {
+    let preference = common::adapter_preference();
     let instance = smokeshadow::gpu::instance();
     let adapter = pollster::block_on(smokeshadow::gpu::ranked_adapters(&instance))
         .into_iter()
-        .find(|a| a.get_info().device_type == wgpu::DeviceType::Cpu)
-        .expect("GPU tests need the CPU adapter (lavapipe: mesa-vulkan-drivers)");
+        .find(|a| smokeshadow::gpu::matches(&preference, &a.get_info()))
+        .unwrap_or_else(|| panic!("GPU tests need an adapter ({preference}); install lavapipe"));
     let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
         label: Some("webgpu-default-limits"),
         required_features: adapter.features() & OPTIONAL_FEATURES,

@@ -9,7 +9,7 @@
 //!
 //! and the bench measures each term's share (see [`Bound`]):
 //! - **fragments**: the fragment-shader invocations of the technique's build passes, from
-//!   pipeline-statistics queries ([`smokeshadow_core::gpu::FragmentTally`]); a technique with two passes
+//!   pipeline-statistics queries ([`crate::gpu::FragmentTally`]); a technique with two passes
 //!   over the billboards (`dom`'s start depth, `has`'s batches) counts both;
 //! - **ns per fragment** and **ns per channel-write**: the build time divided by those counts
 //!   and by fragments x channels of the targets (what its blending writes);
@@ -20,7 +20,7 @@
 //!   channels, passes and per-fragment arithmetic cost.
 //!
 //! The cheapest build is a bench-only pass, not a technique: it has no lookup, and the renderer
-//! records it in place of a build ([`smokeshadow_core::render::Renderer::light_pass_frame`]).
+//! records it in place of a build ([`crate::render::Renderer::light_pass_frame`]).
 
 use serde::Serialize;
 

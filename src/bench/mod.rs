@@ -1,11 +1,11 @@
 //! Scaling benchmarks: what each term of a frame costs as the particle count grows, on the
-//! scaling family (`plume_scaled`, rescaled by [`smokeshadow_core::scene::Scene::with_particles`] so that
+//! scaling family (`plume_scaled`, rescaled by [`crate::scene::Scene::with_particles`] so that
 //! every count is the same plume, more finely sampled).
 //!
 //! For each count the smoke is simulated once (CPU wall time, on rayon's global pool), then
 //! every technique renders `warmup` untimed frames and `frames` timed ones on one long-lived
 //! renderer. A timed frame records the renderer's CPU sort (its own timer around the keys and
-//! the sort), every GPU pass from timestamp queries ([`smokeshadow_core::gpu::GpuTimer`]: opaque,
+//! the sort), every GPU pass from timestamp queries ([`crate::gpu::GpuTimer`]: opaque,
 //! particles, tone map, and the technique's shadow passes), the frame time as the sweep defines
 //! it (GPU passes + CPU sort) and the wall time of `render` + reading the timestamps. After the
 //! timed frames the technique's memory ledger (`total_bytes`) and counters are recorded. A
@@ -87,7 +87,7 @@ pub struct BenchResults {
     pub adapter: String,
     /// Whether GPU pass times were measured (the adapter has timestamp queries).
     pub gpu_timestamps: bool,
-    /// The round trip of an empty submission ([`smokeshadow_core::gpu::Gpu::clock_floor_ms`]), which every
+    /// The round trip of an empty submission ([`crate::gpu::Gpu::clock_floor_ms`]), which every
     /// frame's wall time pays beyond its passes.
     pub clock_floor_ms: f64,
     /// Threads of rayon's pool (the simulation and the sort); `RAYON_NUM_THREADS` sets it.

@@ -27,7 +27,7 @@ pub struct ParticlesArg {
     pub particles: Option<u32>,
 }
 
-/// Parses a `--particles` count: an integer in 1..=[`smokeshadow_core::scene::LIMITS`]`.max_particles`.
+/// Parses a `--particles` count: an integer in 1..=[`crate::scene::LIMITS`]`.max_particles`.
 pub fn parse_particles(s: &str) -> Result<u32, String> {
     let max = smokeshadow_core::scene::LIMITS.max_particles;
     let n: u64 = s

@@ -1,6 +1,6 @@
 //! `smokeshadow probe`: transmittance at a world point, or along the light ray through it, for a
 //! technique and for the `exact` reference, both evaluated by the techniques' own lookup shaders
-//! on the GPU ([`smokeshadow_core::render::Renderer::probe`]).
+//! on the GPU ([`crate::render::Renderer::probe`]).
 
 use std::path::PathBuf;
 
@@ -58,7 +58,7 @@ pub struct Sample {
     pub transmittance: f32,
     pub exact: f32,
     /// The exact transmittance of the particle model at the point itself, on the CPU
-    /// ([`smokeshadow_core::shadow::closed_form`]), times a density volume's by its f64 march doubled
+    /// ([`crate::shadow::closed_form`]), times a density volume's by its f64 march doubled
     /// until converged: no texels, so `exact - closed_form` is `exact`'s own error.
     pub closed_form: f32,
 }

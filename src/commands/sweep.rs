@@ -601,7 +601,7 @@ fn positive_seconds(s: &str) -> Result<f64, String> {
     }
 }
 
-/// `--shadow-history`: a weight in [0, [`smokeshadow_core::scene::MAX_HISTORY`]].
+/// `--shadow-history`: a weight in [0, [`crate::scene::MAX_HISTORY`]].
 fn history_weight(s: &str) -> Result<f32, String> {
     let max = smokeshadow_core::scene::MAX_HISTORY;
     match s.parse::<f32>() {

@@ -1,4 +1,4 @@
-//! The animated sweep (`--animate START..END`, [`smokeshadow_core::motion`]): `exact` rendered once per
+//! The animated sweep (`--animate START..END`, [`crate::motion`]): `exact` rendered once per
 //! scene over the span, each frame's particles, points and reference kept; then every cell
 //! rendered over the same frames on the sweep's one renderer (its pipelines built once, its
 //! maps built every frame), each frame's image and T compared with the reference's.

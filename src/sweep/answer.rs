@@ -226,14 +226,14 @@ pub fn time_pareto(results: &SweepResults) -> Vec<&CellResult> {
 }
 
 /// FLIP mean against `exact`, NaN when absent (never on the front, never the best).
-pub fn flip_exact(c: &CellResult) -> f64 {
+pub(super) fn flip_exact(c: &CellResult) -> f64 {
     c.vs_exact.map_or(f64::NAN, |x| x.flip_mean)
 }
 
 /// For each cell, whether it is on the Pareto front of bytes against FLIP vs `exact`: it has a
 /// finite error and no other cell has both fewer-or-equal bytes and a lower error. Cells
 /// without an error against `exact` (`none`) are never on it.
-pub fn pareto_front(cells: &[CellResult]) -> Vec<bool> {
+pub(super) fn pareto_front(cells: &[CellResult]) -> Vec<bool> {
     cells
         .iter()
         .map(|c| {

@@ -209,7 +209,7 @@ pub fn write_results(results: &SweepResults, dir: &Path) -> anyhow::Result<()> {
 }
 
 /// A cell's `results.csv` row, in [`CSV_COLUMNS`] order.
-pub fn csv_row(c: &CellResult) -> Vec<String> {
+pub(super) fn csv_row(c: &CellResult) -> Vec<String> {
     let opt = |v: Option<f64>, digits: usize| v.map_or(String::new(), |v| format!("{v:.digits$}"));
     // The temporal measures are a few 1e-4 of luminance: three significant digits.
     let motion = |f: fn(&smokeshadow_core::motion::Motion) -> f64| {

@@ -84,7 +84,7 @@ pub struct CellResult {
     /// The channel budget asked for (for a cell of a byte budget: the one that fits it).
     pub channels: u32,
     /// The byte budgets per shadow-map texel (`--bytes-per-texel`) this cell is the
-    /// technique's configuration for ([`smokeshadow_core::shadow::fit_bytes_per_texel`]); empty when it
+    /// technique's configuration for ([`crate::shadow::fit_bytes_per_texel`]); empty when it
     /// answers none (and in cells written before the axis existed).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub byte_budgets: Vec<u32>,
@@ -105,7 +105,7 @@ pub struct CellResult {
     #[serde(default)]
     pub particle_res: ParticleRes,
     /// Bytes the technique held at its peak, scratch included (its memory ledger's
-    /// [`smokeshadow_core::gpu::MemoryLedger::peak_bytes`], summed over the light's faces): what byte
+    /// [`crate::gpu::MemoryLedger::peak_bytes`], summed over the light's faces): what byte
     /// budgets, the answer and the Pareto fronts count. Cells written before the name changed
     /// called it `bytes` (and counted the allocations then live).
     #[serde(alias = "bytes")]
@@ -116,7 +116,7 @@ pub struct CellResult {
     #[serde(default)]
     pub transient_bytes: u64,
     /// Texels of the light's `shadow_res`² map (summed over a point light's faces) whose ray
-    /// crosses smoke in this cell's frame ([`smokeshadow_core::shadow::LightSpace::texels_covering_smoke`]),
+    /// crosses smoke in this cell's frame ([`crate::shadow::LightSpace::texels_covering_smoke`]),
     /// in the scene's framing (`shadow.framing`): what a map's resolution buys on this smoke.
     /// The same for every technique at one resolution; 0 in cells written before it existed.
     #[serde(default)]
@@ -181,7 +181,7 @@ pub struct CellResult {
     /// existed, whose ratios are against the `none` cell of the results.
     #[serde(default)]
     pub measured_against: Option<MeasuredAgainst>,
-    /// With `--animate`: the cell over the span against `exact` over it ([`smokeshadow_core::motion`]);
+    /// With `--animate`: the cell over the span against `exact` over it ([`crate::motion`]);
     /// `None` for `none` and in a still sweep.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub motion: Option<smokeshadow_core::motion::Motion>,
@@ -253,7 +253,7 @@ pub struct Machine {
     pub driver: String,
     /// Whether the GPU times come from timestamp queries (if not, they are absent: 0).
     pub timestamp_queries: bool,
-    /// The round trip of an empty submission on it ([`smokeshadow_core::gpu::Gpu::clock_floor_ms`]).
+    /// The round trip of an empty submission on it ([`crate::gpu::Gpu::clock_floor_ms`]).
     #[serde(default)]
     pub clock_floor_ms: f64,
 }
@@ -357,7 +357,7 @@ pub struct SweepMetadata {
     /// Whether the GPU times come from timestamp queries (if not, they are absent: 0).
     pub timestamp_queries: bool,
     /// The largest round trip of an empty submission among the machines
-    /// ([`smokeshadow_core::gpu::Gpu::clock_floor_ms`]): what a frame's wall time pays beyond its passes.
+    /// ([`crate::gpu::Gpu::clock_floor_ms`]): what a frame's wall time pays beyond its passes.
     #[serde(default)]
     pub clock_floor_ms: f64,
     pub frames: u32,
@@ -403,7 +403,7 @@ pub struct SweepResults {
     pub animation: Option<Animation>,
 }
 
-/// An animated sweep's side-by-side: `exact` and the cells [`report::animated_cells`] chose,
+/// An animated sweep's side-by-side: `exact` and the cells [`answer::animated_cells`] chose,
 /// left to right, each frame of the span at half size, as an animated PNG (APNG: every
 /// browser plays it, and a viewer that does not shows its first frame).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

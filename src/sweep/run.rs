@@ -63,7 +63,7 @@ pub struct SweepOptions {
     /// total memory takes each technique at it where it was swept.
     pub shapes: crate::tune::Shapes,
     /// `--animate`: every cell also rendered over these consecutive frames beside `exact` at
-    /// each, its temporal measures in the cell ([`smokeshadow_core::motion`]).
+    /// each, its temporal measures in the cell ([`crate::motion`]).
     pub animate: Option<smokeshadow_core::motion::Span>,
 }
 

@@ -4,11 +4,11 @@
 //! The procedure, the same for every technique that has parameters (the derived ones, whose
 //! default is "derived per frame", stay derived):
 //! - **budgets**: each candidate runs at the largest configuration whose resident bytes fit
-//!   each byte budget per texel ([`smokeshadow_core::shadow::fit_bytes_per_texel`]), at the technique's own
+//!   each byte budget per texel ([`crate::shadow::fit_bytes_per_texel`]), at the technique's own
 //!   precision ([`free_params`] says why the search leaves it);
 //! - **score**: the mean, over the training scenes and the budgets the starting values fit, of
 //!   the RMS difference of T from `exact` at the points the frame shades (the sweep's RMS T
-//!   column, [`smokeshadow_core::render::Renderer::probe_shaded`]); a candidate that does not fit one of
+//!   column, [`crate::render::Renderer::probe_shaded`]); a candidate that does not fit one of
 //!   those budgets is out;
 //! - **search**: exactly `evaluations` candidates per technique: the starting values (the
 //!   registry defaults, or `--params`), then half the rest drawn uniformly over every
@@ -53,7 +53,7 @@ use smokeshadow_core::sim::Particle;
 pub const PAPER: &[(&str, f32, &str)] = &[
     // Münstermann, Krumpen, Klein & Peters 2018 (moment-based OIT, doi:10.1145/3203206) and
     // their released code: β per moment count and precision, with their bias vectors for power
-    // moments ([`smokeshadow_core::shadow::msm::PAPER_BIAS`]: 5e-7, 5e-6, 5e-5 for 4, 6, 8 single-float
+    // moments ([`crate::shadow::msm::PAPER_BIAS`]: 5e-7, 5e-6, 5e-5 for 4, 6, 8 single-float
     // power moments; 4e-7, 8e-7, 1.5e-6 for 2, 3, 4 trigonometric ones).
     (
         "msm_bias_table",

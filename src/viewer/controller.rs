@@ -467,7 +467,7 @@ impl Controller {
     }
 
     /// The time between two frames of the temporal compare: the span's, or a particle or
-    /// volume sequence's own, else [`smokeshadow_core::motion::DEFAULT_FPS`]'s.
+    /// volume sequence's own, else [`crate::motion::DEFAULT_FPS`]'s.
     pub fn frame_interval_s(&self) -> f32 {
         let fps = match &self.state.span {
             Some(span) => span.fps,

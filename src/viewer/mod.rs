@@ -1,5 +1,5 @@
 //! `smokeshadow view`: the interactive viewer (egui + winit through eframe), drawing with the
-//! same [`smokeshadow_core::render::Renderer`] the CLI, the tests and the sweep use. A graphics engineer
+//! same [`crate::render::Renderer`] the CLI, the tests and the sweep use. A graphics engineer
 //! flips between techniques and budgets and sees, side by side, what each gets wrong and what it
 //! costs.
 //!
@@ -79,7 +79,7 @@ pub fn native_options(preference: AdapterPreference) -> eframe::NativeOptions {
 }
 
 /// Opens the viewer on `scene` (the embedded thesis scene when `None`), rescaled to `particles`
-/// when given ([`smokeshadow_core::scene::Scene::with_particles`]), and returns when the window closes. Problems found
+/// when given ([`crate::scene::Scene::with_particles`]), and returns when the window closes. Problems found
 /// before the window exists (a bad scene file, no adapter) are returned as one-line errors.
 pub fn run(
     scene_path: Option<PathBuf>,

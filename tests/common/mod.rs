@@ -13,12 +13,18 @@ use smokeshadow::scene::{BoxShape, Scene};
 use smokeshadow::shadow::{SplatMode, TechniqueParams};
 use smokeshadow::sim::Particle;
 
+/// The adapter GPU tests run on: the CPU's (lavapipe), unless `SMOKESHADOW_TEST_ADAPTER` names
+/// another (`scripts/gpu-check.sh`).
+pub fn adapter_preference() -> AdapterPreference {
+    std::env::var("SMOKESHADOW_TEST_ADAPTER")
+        .map(|s| s.parse().unwrap())
+        .unwrap_or(AdapterPreference::Cpu)
+}
+
 /// The CPU adapter (lavapipe), so results do not depend on which GPU is present. Fails loudly
 /// when there is none: GPU tests never skip.
 pub fn gpu() -> Gpu {
-    let preference = std::env::var("SMOKESHADOW_TEST_ADAPTER")
-        .map(|s| s.parse().unwrap())
-        .unwrap_or(AdapterPreference::Cpu);
+    let preference = adapter_preference();
     Gpu::new(&preference).unwrap_or_else(|e| {
         panic!(
             "GPU tests need an adapter ({preference}); install lavapipe (mesa-vulkan-drivers): {e}"

@@ -216,15 +216,9 @@ fn convolve<T: Copy + Default + Send, F: Copy + Sync, S: Copy + Sync>(
             })
             .collect()
     };
-    #[cfg(not(target_arch = "wasm32"))]
-    {
-        use rayon::prelude::*;
-        (0..h).into_par_iter().flat_map_iter(row).collect()
-    }
-    #[cfg(target_arch = "wasm32")]
-    {
-        (0..h).flat_map(row).collect()
-    }
+    // Where no thread can start (the web), rayon runs the rows on the calling thread.
+    use rayon::prelude::*;
+    (0..h).into_par_iter().flat_map_iter(row).collect()
 }
 
 /// The FLIP error of each pixel of `test` against `reference` (the same size), row-major.
@@ -334,15 +328,6 @@ pub fn flip_map(reference: &RgbImage, test: &RgbImage, ppd: f32) -> Vec<f32> {
             colour.powf(1.0 - feature)
         })
         .collect()
-}
-
-/// The mean of [`flip_map`] (the figure the tool reports as FLIP).
-pub fn flip_mean(reference: &RgbImage, test: &RgbImage, ppd: f32) -> f64 {
-    let map = flip_map(reference, test, ppd);
-    match map.is_empty() {
-        true => 0.0,
-        false => map.iter().map(|&v| f64::from(v)).sum::<f64>() / map.len() as f64,
-    }
 }
 
 /// The pooled figures of an error map, as FLIP's pool computes them: the mean, and weighted

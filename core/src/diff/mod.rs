@@ -7,7 +7,7 @@
 //! pictures are the thesis' "difference enhanced 4x" ([`enhanced_difference`], Giuliatti 2013,
 //! 4.2.2.2) and the FLIP error map through the magma colour map ([`flip_heatmap`]).
 //!
-//! Images are 8-bit sRGB RGB ([`load_png`] converts anything else). Thresholds name a metric
+//! Images are 8-bit sRGB RGB ([`decode_png`] converts anything else). Thresholds name a metric
 //! ([`Metric`], `METRIC=VALUE` via [`parse_threshold`]). To add a metric: compute it in
 //! [`compare`], add the field to [`Metrics`] and, if thresholds may name it, a [`Metric`].
 
@@ -200,7 +200,7 @@ pub fn compare_with(
 }
 
 /// The thesis' difference image: per channel `min(255, round(|reference - test| * enhance))`
-/// ([`DEFAULT_ENHANCE`] = 4). Callers compare sizes first ([`compare`], [`load_pair`]); should
+/// ([`DEFAULT_ENHANCE`] = 4). Callers compare sizes first ([`compare`], [`same_size`]); should
 /// they differ, the result covers the region the two images share.
 pub fn enhanced_difference(reference: &RgbImage, test: &RgbImage, enhance: f32) -> RgbImage {
     let width = reference.width().min(test.width());

@@ -2,14 +2,13 @@
 //! properties) or CSV (a header row), so that smoke simulated elsewhere (Houdini, Blender,
 //! EmberGen, an engine) can be brought in and ours taken out.
 //!
-//! - [`write()`] writes particles in the format the file name's extension says (`.ply`, binary
-//!   little-endian unless [`Format::PlyAscii`] is asked for; `.csv`).
-//! - [`read`] reads either, mapping the property names of common exporters (see
+//! - [`encode`] gives the bytes of a particle file in a [`Format`] (`.ply`, binary
+//!   little-endian unless [`Format::PlyAscii`] is asked for; `.csv`); the apps write them.
+//! - [`parse`] reads either from bytes ([`read`] from a scene's [`Files`]), mapping the property names of common exporters (see
 //!   [`PROPERTIES`]) onto [`Particle`]; properties it does not know are ignored, missing
 //!   optional ones take the scene's `[particles]` defaults ([`Defaults`]).
-//! - [`scene_particles`] is what every command calls for a frame's particles: the scene's
-//!   particle file (a single file or a `%04d` sequence, the frame picked by the scene's time) or
-//!   its emitters' simulation.
+//! - [`frame_particles`] is a frame's particles: the scene's particle file (a single file or a
+//!   `%04d` sequence, the frame picked by the scene's time) or its emitters' simulation.
 //!
 //! Every bad file is one [`ParticleFileError`] line naming the file, the element (and particle
 //! index) and the property. Values round-trip exactly: binary files hold the f32s, and ASCII
@@ -351,8 +350,8 @@ impl ParticleSource {
 }
 
 /// The particles of `scene`'s frame: read from its particle file when it has one
-/// (`[particles]`), else `simulate`d from its emitters to `sim.duration_s` ([`simulate`], or
-/// an app's with a progress bar).
+/// (`[particles]`), else `simulate`d from its emitters to `sim.duration_s`
+/// ([`crate::sim::simulate`], or an app's with a progress bar).
 pub fn frame_particles(
     scene: &Scene,
     simulate: impl FnOnce(&Scene) -> Vec<Particle>,
@@ -361,13 +360,6 @@ pub fn frame_particles(
         Some(source) => source.particles_at(scene.sim.duration_s),
         None => Ok(simulate(scene)),
     }
-}
-
-/// `scene`'s emitters simulated to `sim.duration_s`.
-pub fn simulate(scene: &Scene) -> Vec<Particle> {
-    let mut sim = crate::sim::Simulation::new(scene);
-    sim.advance_to(scene.sim.duration_s);
-    sim.particles()
 }
 
 /// How many particles `scene`'s frame has: its emitters' pools, or its particle file's count

@@ -17,7 +17,7 @@ impl Renderer {
     /// Transmittance T(p) from the light to each of `points` (world metres) as the active
     /// technique sees it for this frame of `scene`: the technique builds its maps as for
     /// [`Renderer::render`] (unless they are already this frame's: see
-    /// [`RenderOptions::reuse_shadow_maps`]), then a compute shader evaluates the same
+    /// [`super::RenderOptions::reuse_shadow_maps`]), then a compute shader evaluates the same
     /// `shadow_transmittance` the lighting shaders call.
     pub fn probe(
         &mut self,

@@ -127,7 +127,8 @@ pub enum OccluderMode {
     Exact,
     /// The techniques read a filtered depth map of the occluders from the light (3x3 PCF,
     /// `shaders/common/occluders_map.wgsl`), as an engine would; the reference stays exact, so
-    /// the comparison then carries the map's own error (docs/rendering.md, "Lights and opaque occluders", states that floor).
+    /// the comparison then carries the map's own error (docs/rendering.md, "Lights and opaque
+    /// occluders", states that floor).
     Map,
 }
 

@@ -31,8 +31,8 @@ pub const LIGHT_STEPS: ParamSpec = ParamSpec {
     tuned: false,
 };
 
-/// Where the 2018 thesis' returns stop (docs/volumes.md, "the sun-step experiment": RMSE 0.0037 at 5
-/// steps on the cloud, 0.0012 at 8) with a margin: 16.
+/// Where the 2018 thesis' returns stop (docs/volumes.md, "the sun-step experiment": RMSE
+/// 0.0037 at 5 steps on the cloud, 0.0012 at 8) with a margin: 16.
 pub const DEFAULT_LIGHT_STEPS: u32 = 16;
 
 pub const ENTRY: TechniqueEntry = TechniqueEntry {
