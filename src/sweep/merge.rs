@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 
-use super::cells::{EXACT_HDR_IMAGE, EXACT_IMAGE, assemble, read_cell, write_results};
+use super::cells::{EXACT_HDR_IMAGE, EXACT_IMAGE, assemble, read_cell};
 use super::shard::{PlannedScene, SHARDS_DIR, Shard, ShardManifest, write_manifest};
 use super::{CellResult, SweepOutcome, SweepResults};
 
@@ -323,9 +323,7 @@ pub fn merge(dirs: &[PathBuf], out: &Path) -> anyhow::Result<SweepOutcome> {
             shard_labels.clone(),
             &scene_out,
         );
-        write_results(&r, &scene_out)?;
-        let charts = super::charts::write_charts(&r, &scene_out)?;
-        super::report::write_html(&r, &charts, &scene_out)?;
+        super::report::write_scene(&r, &scene_out)?;
         results.push(r);
     }
     for (dir, m) in &manifests {

@@ -27,6 +27,14 @@ pub use crate::compare::referenced_paths;
 /// Name of the page inside the sweep folder.
 pub const INDEX_HTML: &str = "index.html";
 
+/// A scene's whole output from its results: the tables (`results.csv`, `results.json`), the
+/// charts and the page, as a run and a merge both write them.
+pub fn write_scene(results: &SweepResults, dir: &Path) -> anyhow::Result<()> {
+    super::cells::write_results(results, dir)?;
+    let charts = super::charts::write_charts(results, dir)?;
+    write_html(results, &charts, dir)
+}
+
 /// Writes `dir/index.html` atomically from `results` and the `charts` already written into
 /// `dir` (see [`super::charts::write_charts`]). Every link is relative to `dir`.
 pub fn write_html(results: &SweepResults, charts: &[Chart], dir: &Path) -> anyhow::Result<()> {

@@ -1518,9 +1518,7 @@ pub fn run(
         if options.shard.is_none() {
             let mut r = metadata_now(&cells);
             r.animation = animation;
-            write_results(&r, scene_dir)?;
-            let charts = super::charts::write_charts(&r, scene_dir)?;
-            super::report::write_html(&r, &charts, scene_dir)?;
+            super::report::write_scene(&r, scene_dir)?;
             results.push(r);
         }
     }
