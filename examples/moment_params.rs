@@ -4,6 +4,7 @@
 //!
 //! `cargo run --release --example moment_params [SCENE.toml|""] [point|segment]`
 
+use smokeshadow::Wait;
 use smokeshadow::gpu::{AdapterPreference, Gpu};
 use smokeshadow::render::shaded::{rms_difference, shaded_points};
 use smokeshadow::render::{OUTPUT_FORMAT, Renderer, TechniqueConfig};
@@ -24,7 +25,7 @@ fn main() -> anyhow::Result<()> {
         Some("segment") => SplatMode::Segment,
         _ => SplatMode::Point,
     };
-    let gpu = Gpu::new(&AdapterPreference::Cpu)?;
+    let gpu = Gpu::new(&AdapterPreference::Cpu).wait()?;
     let particles = simulate(&scene);
     let (w, h) = (scene.output.width_px / 2, scene.output.height_px / 2);
     let points = shaded_points(&scene, &particles, (w, h), 4, None);
@@ -42,8 +43,9 @@ fn main() -> anyhow::Result<()> {
             params,
         })
     };
-    let mut renderer = Renderer::new(&gpu, w, h, OUTPUT_FORMAT, &config("exact", 1, &[])?)?;
-    let exact = renderer.probe(&gpu, &scene, &particles, &points)?;
+    let mut renderer =
+        Renderer::new(&gpu, w, h, OUTPUT_FORMAT, &config("exact", 1, &[])?).wait()?;
+    let exact = renderer.probe(&gpu, &scene, &particles, &points).wait()?;
     println!(
         "RMS T error against exact over {} shaded points, {} splats, {res}² maps",
         points.len(),
@@ -58,8 +60,10 @@ fn main() -> anyhow::Result<()> {
                         (format!("{name}_bias"), bias),
                         (format!("{name}_overestimation"), eta),
                     ];
-                    renderer.set_technique(&gpu, &config(name, channels, &values)?)?;
-                    let t = renderer.probe(&gpu, &scene, &particles, &points)?;
+                    renderer
+                        .set_technique(&gpu, &config(name, channels, &values)?)
+                        .wait()?;
+                    let t = renderer.probe(&gpu, &scene, &particles, &points).wait()?;
                     let broken = t.iter().filter(|v| !v.is_finite()).count();
                     println!(
                         "{name} {channels} {bias:e} {eta} {:.5}{}",

@@ -22,3 +22,15 @@ pub mod viewer;
 pub use smokeshadow_core::{
     files, frame, gpu, medium, motion, render, scene, shaders, shadow, sim,
 };
+
+/// The native apps' edge: the core awaits every read-back from the GPU (on the web the browser
+/// answers between tasks); a native app blocks on the core's futures here, `.wait()`, and
+/// nowhere else.
+pub trait Wait: std::future::Future + Sized {
+    /// Runs the future to completion on this thread.
+    fn wait(self) -> Self::Output {
+        pollster::block_on(self)
+    }
+}
+
+impl<F: std::future::Future> Wait for F {}

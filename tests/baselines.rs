@@ -3,6 +3,7 @@
 //! ±1/255 rounding passes, the regressions it guards against fail. The thresholds, and what
 //! each regression scores, are in `smokeshadow::baseline::criterion`.
 
+use smokeshadow::Wait;
 mod common;
 
 use std::path::Path;
@@ -201,8 +202,9 @@ fn the_regressions_the_criterion_guards_against_fail() {
     let score = |scene: &Scene, channels: u32, resolution_px: u32| {
         let particles = smokeshadow::sim::simulate(scene);
         let config = common::technique("osm", channels, resolution_px, scene.shadow.splat);
-        let frame =
-            render_offscreen(&gpu, scene, &particles, &config, &RenderOptions::default()).unwrap();
+        let frame = render_offscreen(&gpu, scene, &particles, &config, &RenderOptions::default())
+            .wait()
+            .unwrap();
         let image = image::DynamicImage::ImageRgba8(frame.image).into_rgb8();
         let blocks = criterion::HdrBlocks::from_hdr(&frame.hdr);
         criterion::Scores::of(&expected, &image, &expected_blocks, &blocks).unwrap()

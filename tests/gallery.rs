@@ -4,6 +4,7 @@
 //! stretches OSM's depth bounds and its error, and FOM rings in the empty gap of `two_plumes`
 //! (GPU, small). GPU tests run on lavapipe and fail, never skip, without an adapter.
 
+use smokeshadow::Wait;
 mod common;
 
 use std::sync::OnceLock;
@@ -307,6 +308,7 @@ fn gallery_scenes_render_smoke_where_their_particles_are() {
             &config,
             &RenderOptions::default(),
         )
+        .wait()
         .unwrap();
         let alpha = |x: u32, y: u32| frame.hdr.get(x, y)[3];
         for y in 0..H {

@@ -1,6 +1,7 @@
 //! GPU tests of the frame on the thesis scene (reduced size) and of spherical billboards.
 //! They run on lavapipe in CI and fail, never skip, without an adapter.
 
+use smokeshadow::Wait;
 mod common;
 
 use common::{
@@ -29,6 +30,7 @@ fn render(
             ..RenderOptions::default()
         },
     )
+    .wait()
     .unwrap()
 }
 
@@ -289,15 +291,18 @@ fn reused_shadow_maps_give_the_frame_a_fresh_build_gives() {
             smokeshadow::render::OUTPUT_FORMAT,
             &config,
         )
+        .wait()
         .unwrap();
         let target = smokeshadow::render::OffscreenTarget::new(&gpu, W, H);
         renderer
             .render(&gpu, &scene, &particles, &reuse, &target.view)
+            .wait()
             .unwrap();
         renderer
             .render(&gpu, &moved, &particles, &reuse, &target.view)
+            .wait()
             .unwrap();
-        let times = renderer.gpu_times(&gpu).unwrap();
+        let times = renderer.gpu_times(&gpu).wait().unwrap();
         if name != "has" {
             // (Half-angle slicing's light passes are part of its particle pass: always there.)
             assert_eq!(
@@ -306,8 +311,11 @@ fn reused_shadow_maps_give_the_frame_a_fresh_build_gives() {
                 "{name}: the second frame rebuilt its maps"
             );
         }
-        let reused = smokeshadow::gpu::read_texture_rgba8(&gpu, &target.texture).unwrap();
+        let reused = smokeshadow::gpu::read_texture_rgba8(&gpu, &target.texture)
+            .wait()
+            .unwrap();
         let fresh = render_offscreen(&gpu, &moved, &particles, &config, &RenderOptions::default())
+            .wait()
             .unwrap()
             .image;
         // A fresh build sees the particles in the new camera's order; half-float maps add in
@@ -471,6 +479,7 @@ fn every_techniques_gpu_timestamps_agree_with_the_clock() {
     let first = technique("none", 1, res, SplatMode::Segment);
     let mut renderer =
         smokeshadow::render::Renderer::new(&gpu, W, H, smokeshadow::render::OUTPUT_FORMAT, &first)
+            .wait()
             .unwrap();
     let options = RenderOptions::default();
     for entry in smokeshadow::shadow::particle_techniques() {
@@ -480,10 +489,11 @@ fn every_techniques_gpu_timestamps_agree_with_the_clock() {
             res,
             SplatMode::Segment,
         );
-        renderer.set_technique(&gpu, &config).unwrap();
+        renderer.set_technique(&gpu, &config).wait().unwrap();
         // A warm-up frame: Mesa compiles its shaders.
         renderer
             .render(&gpu, &scene, &particles, &options, &target.view)
+            .wait()
             .unwrap();
         gpu.wait_idle().unwrap();
         let mut frames = Vec::new();
@@ -491,8 +501,9 @@ fn every_techniques_gpu_timestamps_agree_with_the_clock() {
             let start = std::time::Instant::now();
             let stats = renderer
                 .render(&gpu, &scene, &particles, &options, &target.view)
+                .wait()
                 .unwrap();
-            let times = renderer.gpu_times(&gpu).unwrap();
+            let times = renderer.gpu_times(&gpu).wait().unwrap();
             let wall_ms = start.elapsed().as_secs_f64() * 1e3;
             assert!(times.total_ms() > 0.0, "{}: no timestamps", entry.name);
             frames.push((stats.frame_ms(&times), wall_ms));
@@ -511,7 +522,12 @@ fn every_techniques_gpu_timestamps_agree_with_the_clock() {
             entry.name
         );
         assert_eq!(
-            smokeshadow::gpu::clock_warning(entry.name, frame_ms, wall_ms, gpu.clock_floor_ms()),
+            smokeshadow::gpu::clock_warning(
+                entry.name,
+                frame_ms,
+                wall_ms,
+                gpu.clock_floor_ms().wait()
+            ),
             None,
             "{}: {frames:?}",
             entry.name

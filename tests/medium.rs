@@ -3,6 +3,7 @@
 //! the loop-budget refusal, the empty grid, and the bytes it counts. They run on lavapipe and
 //! fail, never skip, without one.
 
+use smokeshadow::Wait;
 #[path = "medium/cloud_noise.rs"]
 mod cloud_noise;
 mod common;
@@ -75,6 +76,7 @@ fn the_gpu_march_matches_the_f64_mirror_at_the_same_steps() {
     for steps in [7, 64, 512] {
         let t_gpu = march
             .transmittance(&gpu, &uploaded, light, &points, steps)
+            .wait()
             .unwrap();
         let mut dimmed = 0;
         for (p, t) in points.iter().zip(&t_gpu) {
@@ -130,9 +132,11 @@ fn the_converged_gpu_march_reaches_the_analytic_boxs_closed_form() {
     let (n, n2) = (2048, 4096);
     let t_n = march
         .transmittance(&gpu, &uploaded, light, &points, n)
+        .wait()
         .unwrap();
     let t_2n = march
         .transmittance(&gpu, &uploaded, light, &points, n2)
+        .wait()
         .unwrap();
     for ((p, a), b) in points.iter().zip(&t_n).zip(&t_2n) {
         assert!((a - b).abs() < 1e-4, "{p}: {n} steps {a}, {n2} steps {b}");
@@ -171,6 +175,7 @@ fn an_empty_grid_casts_no_shadow_and_its_bytes_are_counted() {
             &[Vec3::ZERO, Vec3::ONE],
             64,
         )
+        .wait()
         .unwrap();
     assert_eq!(t, vec![1.0, 1.0]);
     // One placeholder voxel (4 bytes) and the 160-byte uniform (the placement, 96 bytes, the
@@ -212,11 +217,11 @@ fn a_march_longer_than_the_loop_budget_is_refused_where_there_is_one() {
     let result = march.transmittance(&gpu, &uploaded, Vec3::splat(5.0), &[Vec3::ZERO], 100_000);
     match gpu.loop_budget() {
         Some(budget) => {
-            let err = result.unwrap_err();
+            let err = result.wait().unwrap_err();
             assert!(matches!(err, GridGpuError::TooManySteps { .. }), "{err}");
             assert!(err.to_string().contains(&budget.to_string()), "{err}");
         }
-        None => assert_eq!(result.unwrap().len(), 1),
+        None => assert_eq!(result.wait().unwrap().len(), 1),
     }
 }
 
@@ -227,7 +232,7 @@ fn the_gpu_cloud_noise_is_the_cpu_mirrors_texel_for_texel() {
     let gpu = gpu();
     let generator = CloudNoiseGenerator::new(&gpu);
     for seed in [1, 0xdecafbad] {
-        let (shape, detail) = generator.read_texels(&gpu, seed).unwrap();
+        let (shape, detail) = generator.read_texels(&gpu, seed).wait().unwrap();
         assert_eq!(shape.len(), (SHAPE_SIZE.pow(3) * 4) as usize);
         assert_eq!(detail.len(), (DETAIL_SIZE.pow(3) * 4) as usize);
         // The mirror's texels at a lattice of voxels (every texel would take the debug-built
@@ -321,7 +326,10 @@ mod eye {
                 light_steps: 0,
                 jitter,
             };
-            let results = probe.march(&gpu, &uploaded, &settings, &rays).unwrap();
+            let results = probe
+                .march(&gpu, &uploaded, &settings, &rays)
+                .wait()
+                .unwrap();
             for (ray, r) in rays.iter().zip(&results) {
                 let expected = albedo * (1.0 - r.transmittance);
                 assert!(
@@ -372,7 +380,10 @@ mod eye {
             light_steps: 32,
             jitter: 0.37,
         };
-        let results = probe.march(&gpu, &uploaded, &settings, &rays).unwrap();
+        let results = probe
+            .march(&gpu, &uploaded, &settings, &rays)
+            .wait()
+            .unwrap();
         let mut lit_and_dense = 0;
         for (ray, r) in rays.iter().zip(&results) {
             let (radiance, t) = grid.march_eye(
@@ -446,7 +457,7 @@ mod eye {
                 light_steps,
                 jitter: 0.5,
             };
-            let results = match probe.march(&gpu, &uploaded, &settings, &rays) {
+            let results = match probe.march(&gpu, &uploaded, &settings, &rays).wait() {
                 Ok(results) => results,
                 Err(e) => panic!("{eye_steps} x {light_steps} steps refused: {e}"),
             };
@@ -496,7 +507,7 @@ mod eye {
             t_near: 0.0,
             t_far: 30.0,
         };
-        let result = probe.march(&gpu, &uploaded, &settings, &[ray]);
+        let result = probe.march(&gpu, &uploaded, &settings, &[ray]).wait();
         match gpu.loop_budget() {
             Some(_) => assert!(result.is_err(), "512 x 512 steps must be refused"),
             None => assert_eq!(result.unwrap().len(), 1),
@@ -540,6 +551,7 @@ mod cloud {
             let params = layer(coverage);
             let grid = baker
                 .bake(&gpu, &mut ledger, &noise, &params, DIMS, glam::Vec3::ZERO)
+                .wait()
                 .unwrap();
             assert_eq!(grid.values.len(), (DIMS.x * DIMS.y * DIMS.z) as usize);
             // The mirror at a lattice of voxels: the same integer lattice and hash, the same
@@ -610,6 +622,7 @@ fn the_gpu_reference_doubles_its_steps_until_they_converge_or_says_it_could_not(
                 tolerance: 1e-4,
             },
         )
+        .wait()
         .unwrap();
     assert!(converged.worst_difference <= 1e-4);
     // At least two steps a voxel along the grid's diagonal, whatever the start asked for: 8
@@ -643,6 +656,7 @@ fn the_gpu_reference_doubles_its_steps_until_they_converge_or_says_it_could_not(
                 tolerance: 1e-9,
             },
         )
+        .wait()
         .unwrap_err();
     let line = err.to_string();
     assert!(
@@ -679,6 +693,7 @@ mod coverage_map {
         };
         let grid = CloudBaker::new(&gpu)
             .bake(&gpu, &mut ledger, &noise, &params, dims, glam::Vec3::ZERO)
+            .wait()
             .unwrap();
         // The mirror, map included, at a lattice of voxels (tolerance as for the bake without
         // the map).
@@ -719,6 +734,7 @@ mod coverage_map {
         };
         let without = CloudBaker::new(&gpu)
             .bake(&gpu, &mut ledger, &noise, &unmapped, dims, glam::Vec3::ZERO)
+            .wait()
             .unwrap();
         let clear_without = columns(&without.values);
         assert!(
@@ -754,9 +770,11 @@ mod coverage_map {
         let step = Vec3::new(200.0, 0.0, 0.0);
         let still = baker
             .bake(&gpu, &mut ledger, &noise, &params, dims, Vec3::ZERO)
+            .wait()
             .unwrap();
         let moved = baker
             .bake(&gpu, &mut ledger, &noise, &params, dims, step)
+            .wait()
             .unwrap();
         let at = |g: &[f32], i: u32, j: u32, k: u32| g[((k * dims.y + j) * dims.x + i) as usize];
         // Carried by one voxel: voxel i + 1 now holds what voxel i held (inside the box, whose
@@ -778,6 +796,7 @@ mod coverage_map {
         let drift = Vec3::new(1234.5, 0.0, -567.25);
         let grid = baker
             .bake(&gpu, &mut ledger, &noise, &params, dims, drift)
+            .wait()
             .unwrap();
         for k in (0..dims.z).step_by(5) {
             for j in (0..dims.y).step_by(3) {

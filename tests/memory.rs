@@ -2,6 +2,7 @@
 //! own allocator reports under the technique's labels, and the scratch a memory limit makes it
 //! shed (the volume's slabs, a deep capture's bands) costing time, never the image.
 
+use smokeshadow::Wait;
 mod common;
 
 use std::collections::BTreeMap;
@@ -50,7 +51,9 @@ fn every_allocation_of_every_technique_is_in_its_ledger_at_its_size() {
             64,
             SplatMode::Segment,
         );
-        let mut renderer = Renderer::new(&gpu, w, h, OUTPUT_FORMAT, &config).unwrap();
+        let mut renderer = Renderer::new(&gpu, w, h, OUTPUT_FORMAT, &config)
+            .wait()
+            .unwrap();
         // Two frames: lists that grew in the first are replaced, and the replaced ones freed
         // once the frame that used them is done.
         for _ in 0..2 {
@@ -62,6 +65,7 @@ fn every_allocation_of_every_technique_is_in_its_ledger_at_its_size() {
                     &RenderOptions::default(),
                     &target.view,
                 )
+                .wait()
                 .unwrap();
         }
         let live = allocations(&gpu);
@@ -112,7 +116,9 @@ fn render_limited(
     let (w, h) = (scene.output.width_px, scene.output.height_px);
     let mut config = technique(name, channels, resolution_px, SplatMode::Segment);
     config.params.memory_limit_bytes = limit;
-    let mut renderer = Renderer::new(gpu, w, h, OUTPUT_FORMAT, &config).unwrap();
+    let mut renderer = Renderer::new(gpu, w, h, OUTPUT_FORMAT, &config)
+        .wait()
+        .unwrap();
     let target = OffscreenTarget::new(gpu, w, h);
     renderer
         .render(
@@ -122,8 +128,10 @@ fn render_limited(
             &RenderOptions::default(),
             &target.view,
         )
+        .wait()
         .unwrap();
     let image = smokeshadow::gpu::read_texture_rgba8(gpu, &target.texture)
+        .wait()
         .unwrap()
         .into_raw();
     let counters = renderer.technique().counters();
@@ -163,6 +171,7 @@ fn the_volume_sheds_its_scratch_into_slabs_within_a_limit_and_builds_the_same_gr
     let mut config = technique("volume", 8, 64, SplatMode::Segment);
     config.params.memory_limit_bytes = Some(grid / 2);
     let err = Renderer::new(&gpu, 96, 64, OUTPUT_FORMAT, &config)
+        .wait()
         .err()
         .expect("half the grid does not hold it")
         .to_string();

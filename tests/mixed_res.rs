@@ -4,6 +4,7 @@
 //! the opaque pass drew them, and draws a quarter (a sixteenth) of the fragments. On lavapipe,
 //! at the reduced frame size; no timing is asserted.
 
+use smokeshadow::Wait;
 mod common;
 
 use common::{
@@ -34,7 +35,9 @@ fn frames(
     spherical: bool,
 ) -> Vec<(ParticleRes, Frame)> {
     let config = technique("osm", 8, 256, SplatMode::Point);
-    let mut renderer = Renderer::new(gpu, W, H, OUTPUT_FORMAT, &config).unwrap();
+    let mut renderer = Renderer::new(gpu, W, H, OUTPUT_FORMAT, &config)
+        .wait()
+        .unwrap();
     let target = OffscreenTarget::new(gpu, W, H);
     renderer.set_count_fragments(gpu, true);
     ParticleRes::ALL
@@ -47,12 +50,17 @@ fn frames(
             };
             renderer
                 .render(gpu, scene, particles, &options, &target.view)
+                .wait()
                 .unwrap();
-            let rgba = smokeshadow::gpu::read_texture_rgba8(gpu, &target.texture).unwrap();
+            let rgba = smokeshadow::gpu::read_texture_rgba8(gpu, &target.texture)
+                .wait()
+                .unwrap();
             let frame = Frame {
                 image: image::DynamicImage::ImageRgba8(rgba).into_rgb8(),
-                hdr: smokeshadow::gpu::read_texture_rgba16f(gpu, renderer.hdr_texture()).unwrap(),
-                fragments: renderer.particle_fragments(gpu).unwrap(),
+                hdr: smokeshadow::gpu::read_texture_rgba16f(gpu, renderer.hdr_texture())
+                    .wait()
+                    .unwrap(),
+                fragments: renderer.particle_fragments(gpu).wait().unwrap(),
             };
             (res, frame)
         })
@@ -262,16 +270,20 @@ fn the_registrys_particle_pass_owners_are_the_techniques_that_draw_it() {
     let particles = smokeshadow::sim::simulate(&scene);
     let target = OffscreenTarget::new(&gpu, 64, 48);
     let first = technique("none", 1, 64, SplatMode::Point);
-    let mut renderer = Renderer::new(&gpu, 64, 48, OUTPUT_FORMAT, &first).unwrap();
+    let mut renderer = Renderer::new(&gpu, 64, 48, OUTPUT_FORMAT, &first)
+        .wait()
+        .unwrap();
     let options = RenderOptions {
         particle_res: ParticleRes::Half,
         ..RenderOptions::default()
     };
     for entry in smokeshadow::shadow::particle_techniques() {
         let config = technique(entry.name, entry.min_channels.max(8), 64, SplatMode::Point);
-        renderer.set_technique(&gpu, &config).unwrap();
+        renderer.set_technique(&gpu, &config).wait().unwrap();
         let refused = matches!(
-            renderer.render(&gpu, &scene, &particles, &options, &target.view),
+            renderer
+                .render(&gpu, &scene, &particles, &options, &target.view)
+                .wait(),
             Err(smokeshadow::shadow::ShadowError::ParticleResUnsupported { .. })
         );
         assert_eq!(refused, entry.owns_particle_pass, "{}", entry.name);

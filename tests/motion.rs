@@ -3,6 +3,7 @@
 //! measures agree with the frames rendered here one by one and measured by this file's own
 //! arithmetic; a particle sequence moves frame by frame; bad spans get one line.
 
+use smokeshadow::Wait;
 mod common;
 #[path = "common/vdb_writer.rs"]
 mod vdb_writer;
@@ -152,7 +153,9 @@ fn frames(technique: &str, channels: u32, times: &[f32]) -> Vec<Vec<f64>> {
         128,
         smokeshadow::shadow::SplatMode::Segment,
     );
-    let mut renderer = Renderer::new(&gpu, 128, 96, OUTPUT_FORMAT, &config).unwrap();
+    let mut renderer = Renderer::new(&gpu, 128, 96, OUTPUT_FORMAT, &config)
+        .wait()
+        .unwrap();
     let target = OffscreenTarget::new(&gpu, 128, 96);
     times
         .iter()
@@ -167,8 +170,9 @@ fn frames(technique: &str, channels: u32, times: &[f32]) -> Vec<Vec<f64>> {
                     &RenderOptions::default(),
                     &target.view,
                 )
+                .wait()
                 .unwrap();
-            luminance(&target.read_rgb(&gpu).unwrap())
+            luminance(&target.read_rgb(&gpu).wait().unwrap())
         })
         .collect()
 }
@@ -810,8 +814,9 @@ fn the_shadows_history_blends_each_particles_t_with_its_last_as_the_closed_form_
                 &RenderOptions::default(),
                 &target.view,
             )
+            .wait()
             .unwrap();
-        let lit = renderer.lit_particles(&gpu).unwrap();
+        let lit = renderer.lit_particles(&gpu).wait().unwrap();
         let p = particles[2].position;
         lit.iter()
             .find(|l| l.center.distance(p) < 1e-5)
@@ -819,7 +824,9 @@ fn the_shadows_history_blends_each_particles_t_with_its_last_as_the_closed_form_
             .transmittance
     };
     let dom = common::technique("dom", 8, 128, SplatMode::Segment);
-    let mut renderer = Renderer::new(&gpu, w, h, OUTPUT_FORMAT, &dom).unwrap();
+    let mut renderer = Renderer::new(&gpu, w, h, OUTPUT_FORMAT, &dom)
+        .wait()
+        .unwrap();
     // The same technique unfiltered, frame by frame: the T the history is fed.
     let frames = 8;
     let raw: Vec<[f32; 4]> = (0..frames)
@@ -835,6 +842,7 @@ fn the_shadows_history_blends_each_particles_t_with_its_last_as_the_closed_form_
     // A probe before the first filtered frame lights nothing: that frame still has no history.
     renderer
         .probe(&gpu, &scene, &frame(0), &[scene.light.target])
+        .wait()
         .unwrap();
     let mut expected = raw[0];
     for (k, raw) in raw.iter().enumerate() {
@@ -857,6 +865,7 @@ fn the_shadows_history_blends_each_particles_t_with_its_last_as_the_closed_form_
         let points = smokeshadow::render::shaded::particle_lighting_points(eye, &particles[2..3]);
         let probed = renderer
             .probe_shaded(&gpu, &scene, &particles, &points, &[2; 4])
+            .wait()
             .unwrap();
         assert_eq!(probed, filtered.to_vec(), "frame {k}");
     }
@@ -872,15 +881,17 @@ fn the_shadows_history_blends_each_particles_t_with_its_last_as_the_closed_form_
     let mut reborn = frame(frames);
     reborn[2].age_s = 0.1;
     let t = lit_t(&mut renderer, &scene, &reborn);
-    let mut renderer_raw = Renderer::new(&gpu, w, h, OUTPUT_FORMAT, &dom).unwrap();
+    let mut renderer_raw = Renderer::new(&gpu, w, h, OUTPUT_FORMAT, &dom)
+        .wait()
+        .unwrap();
     let mut unfiltered = scene.clone();
     unfiltered.shadow.history = 0.0;
     assert_eq!(t, lit_t(&mut renderer_raw, &unfiltered, &reborn));
 
     // The reference is never filtered: exact's frames are the same with and without.
     let exact = common::technique("exact", 1, 128, SplatMode::Segment);
-    renderer.set_technique(&gpu, &exact).unwrap();
-    renderer_raw.set_technique(&gpu, &exact).unwrap();
+    renderer.set_technique(&gpu, &exact).wait().unwrap();
+    renderer_raw.set_technique(&gpu, &exact).wait().unwrap();
     for k in 0..3 {
         assert_eq!(
             lit_t(&mut renderer, &scene, &frame(k)),

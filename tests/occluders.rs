@@ -4,6 +4,7 @@
 //! with `shadow.occluders = "map"`). They run on lavapipe in CI and fail, never skip, without
 //! an adapter.
 
+use smokeshadow::Wait;
 mod common;
 
 use common::{REDUCED_H as H, REDUCED_W as W, gpu, luminance, reduced_plume, segment_hits_box};
@@ -64,7 +65,9 @@ fn hdr_at(
     let gpu = gpu();
     let entry = shadow::find(name).unwrap();
     let config = config(name, entry.min_channels.max(8), mode);
-    let mut renderer = Renderer::new(&gpu, W, H, OUTPUT_FORMAT, &config).unwrap();
+    let mut renderer = Renderer::new(&gpu, W, H, OUTPUT_FORMAT, &config)
+        .wait()
+        .unwrap();
     let target = OffscreenTarget::new(&gpu, W, H);
     scenes
         .iter()
@@ -77,8 +80,11 @@ fn hdr_at(
                     &RenderOptions::default(),
                     &target.view,
                 )
+                .wait()
                 .unwrap();
-            let hdr = smokeshadow::gpu::read_texture_rgba16f(&gpu, renderer.hdr_texture()).unwrap();
+            let hdr = smokeshadow::gpu::read_texture_rgba16f(&gpu, renderer.hdr_texture())
+                .wait()
+                .unwrap();
             at.iter().map(|&(x, y)| hdr.get(x, y)).collect()
         })
         .collect()
@@ -247,7 +253,9 @@ fn the_occluder_map_is_its_own_memory_at_the_scene_resolution() {
     let mut scene = reduced_plume();
     let particles = simulate(&scene);
     let osm_map = config("osm", 8, OccluderMode::Map);
-    let mut renderer = Renderer::new(&gpu, W, H, OUTPUT_FORMAT, &osm_map).unwrap();
+    let mut renderer = Renderer::new(&gpu, W, H, OUTPUT_FORMAT, &osm_map)
+        .wait()
+        .unwrap();
     let target = OffscreenTarget::new(&gpu, W, H);
     let technique_bytes = renderer.technique().memory().total_bytes();
     for side in [1024u64, 256] {
@@ -261,6 +269,7 @@ fn the_occluder_map_is_its_own_memory_at_the_scene_resolution() {
                 &RenderOptions::default(),
                 &target.view,
             )
+            .wait()
             .unwrap();
         // A 32-bit depth per texel, and one box of two vec4s.
         assert_eq!(
@@ -281,6 +290,7 @@ fn the_occluder_map_is_its_own_memory_at_the_scene_resolution() {
     ] {
         renderer
             .set_technique(&gpu, &config(name, 8, mode))
+            .wait()
             .unwrap();
         renderer
             .render(
@@ -290,6 +300,7 @@ fn the_occluder_map_is_its_own_memory_at_the_scene_resolution() {
                 &RenderOptions::default(),
                 &target.view,
             )
+            .wait()
             .unwrap();
         assert_eq!(renderer.occluder_map_px(), side.map(|s| s as u32), "{name}");
         let map_bytes = side.map_or(4, |s| s * s * 4);

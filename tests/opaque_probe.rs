@@ -8,6 +8,7 @@
 //! a box between the light and the smoke, the frame shows the smoke behind the box's lit face,
 //! which that probe did not.)
 
+use smokeshadow::Wait;
 mod common;
 
 use common::{REDUCED_H as H, REDUCED_W as W, gpu, luminance, reduced_plume};
@@ -42,7 +43,9 @@ fn frame(
     particles: &[Particle],
     config: &TechniqueConfig,
 ) -> (Renderer, smokeshadow::gpu::Rgba16fImage) {
-    let mut renderer = Renderer::new(gpu, W, H, OUTPUT_FORMAT, config).unwrap();
+    let mut renderer = Renderer::new(gpu, W, H, OUTPUT_FORMAT, config)
+        .wait()
+        .unwrap();
     let target = OffscreenTarget::new(gpu, W, H);
     renderer
         .render(
@@ -52,8 +55,11 @@ fn frame(
             &RenderOptions::default(),
             &target.view,
         )
+        .wait()
         .unwrap();
-    let hdr = smokeshadow::gpu::read_texture_rgba16f(gpu, renderer.hdr_texture()).unwrap();
+    let hdr = smokeshadow::gpu::read_texture_rgba16f(gpu, renderer.hdr_texture())
+        .wait()
+        .unwrap();
     (renderer, hdr)
 }
 
@@ -133,6 +139,7 @@ fn the_probe_gives_the_t_the_opaque_pass_used_for_every_technique() {
         let (mut renderer, hdr) = frame(&gpu, &scene, &particles, &config);
         let probed = renderer
             .probe_shaded(&gpu, &scene, &particles, &points, &no_owner)
+            .wait()
             .unwrap();
         let (mut worst, mut at) = (0.0f32, 0);
         for (j, &(x, y)) in pixels.iter().enumerate() {

@@ -4,6 +4,7 @@
 //! is continuous across the seam. They run on lavapipe in CI and fail, never skip, without an
 //! adapter.
 
+use smokeshadow::Wait;
 mod common;
 
 use common::{gpu, probe_all, sphere, technique};
@@ -194,7 +195,9 @@ fn every_technique_renders_the_plume_under_a_point_light() {
     let render = |name: &str| {
         let entry = shadow::find(name).unwrap();
         let config = technique(name, entry.min_channels.max(8), 256, SplatMode::Point);
-        let mut renderer = Renderer::new(&gpu, w, h, OUTPUT_FORMAT, &config).unwrap();
+        let mut renderer = Renderer::new(&gpu, w, h, OUTPUT_FORMAT, &config)
+            .wait()
+            .unwrap();
         renderer
             .render(
                 &gpu,
@@ -203,10 +206,12 @@ fn every_technique_renders_the_plume_under_a_point_light() {
                 &RenderOptions::default(),
                 &target.view,
             )
+            .wait()
             .map(|_| {
                 assert_eq!(renderer.light_faces(), 6);
-                let hdr =
-                    smokeshadow::gpu::read_texture_rgba16f(&gpu, renderer.hdr_texture()).unwrap();
+                let hdr = smokeshadow::gpu::read_texture_rgba16f(&gpu, renderer.hdr_texture())
+                    .wait()
+                    .unwrap();
                 let entries: Vec<u64> = renderer
                     .face_counters()
                     .iter()
@@ -286,7 +291,9 @@ fn has_refuses_a_point_light_inside_the_smoke_in_one_line() {
     let (w, h) = (scene.output.width_px, scene.output.height_px);
     let target = OffscreenTarget::new(&gpu, w, h);
     let config = technique("has", 8, 64, SplatMode::Point);
-    let mut renderer = Renderer::new(&gpu, w, h, OUTPUT_FORMAT, &config).unwrap();
+    let mut renderer = Renderer::new(&gpu, w, h, OUTPUT_FORMAT, &config)
+        .wait()
+        .unwrap();
     let refused = renderer
         .render(
             &gpu,
@@ -295,6 +302,7 @@ fn has_refuses_a_point_light_inside_the_smoke_in_one_line() {
             &RenderOptions::default(),
             &target.view,
         )
+        .wait()
         .expect_err("has sliced smoke on both sides of a point light");
     let line = refused.to_string();
     assert!(
@@ -311,6 +319,7 @@ fn has_refuses_a_point_light_inside_the_smoke_in_one_line() {
             &RenderOptions::default(),
             &target.view,
         )
+        .wait()
         .unwrap();
 }
 
@@ -333,7 +342,9 @@ fn has_under_a_point_light_shades_the_smoke_as_under_a_spot_aimed_at_it() {
     let (w, h) = (spot.output.width_px, spot.output.height_px);
     let target = OffscreenTarget::new(&gpu, w, h);
     let config = technique("has", 8, 512, SplatMode::Point);
-    let mut renderer = Renderer::new(&gpu, w, h, OUTPUT_FORMAT, &config).unwrap();
+    let mut renderer = Renderer::new(&gpu, w, h, OUTPUT_FORMAT, &config)
+        .wait()
+        .unwrap();
     let mut render = |scene: &Scene| {
         renderer
             .render(
@@ -343,8 +354,11 @@ fn has_under_a_point_light_shades_the_smoke_as_under_a_spot_aimed_at_it() {
                 &RenderOptions::default(),
                 &target.view,
             )
+            .wait()
             .unwrap();
-        smokeshadow::gpu::read_texture_rgba16f(&gpu, renderer.hdr_texture()).unwrap()
+        smokeshadow::gpu::read_texture_rgba16f(&gpu, renderer.hdr_texture())
+            .wait()
+            .unwrap()
     };
     let (spot_frame, point_frame) = (render(&spot), render(&point));
     let (mut spot_sum, mut difference, mut pixels) = (0.0f64, 0.0f64, 0);

@@ -5,6 +5,7 @@
 //! particle's four points from its particle's batch; its probe once gave each point the batches
 //! before the point's own half-angle key, and differed by up to 0.2 there.)
 
+use smokeshadow::Wait;
 mod common;
 
 use std::collections::HashMap;
@@ -41,7 +42,9 @@ fn the_probe_gives_the_t_the_particle_lighting_used_for_every_technique() {
             name: entry.name.to_owned(),
             params: scene.shadow.params(8.max(entry.min_channels)),
         };
-        let mut renderer = Renderer::new(&gpu, W, H, OUTPUT_FORMAT, &config).unwrap();
+        let mut renderer = Renderer::new(&gpu, W, H, OUTPUT_FORMAT, &config)
+            .wait()
+            .unwrap();
         renderer
             .render(
                 &gpu,
@@ -50,8 +53,9 @@ fn the_probe_gives_the_t_the_particle_lighting_used_for_every_technique() {
                 &RenderOptions::default(),
                 &target.view,
             )
+            .wait()
             .unwrap();
-        let lit = renderer.lit_particles(&gpu).unwrap();
+        let lit = renderer.lit_particles(&gpu).wait().unwrap();
         assert_eq!(
             lit.len(),
             particles.len(),
@@ -69,6 +73,7 @@ fn the_probe_gives_the_t_the_particle_lighting_used_for_every_technique() {
         let owners = point_owners(particles.len(), points.len());
         let probed = renderer
             .probe_shaded(&gpu, &scene, &particles, &points, &owners)
+            .wait()
             .unwrap();
         let (mut worst, mut at) = (0.0f32, 0);
         for (j, &t) in probed.iter().enumerate() {

@@ -5,6 +5,7 @@
 //! from 1 cm to 1 km across and 5 km from the origin, on tile lists of 16,000 and 100,000 spheres
 //! and on 262,144 particles; a broken reference is refused in one line.
 
+use smokeshadow::Wait;
 mod common;
 
 use std::path::Path;
@@ -25,7 +26,9 @@ const H: u32 = 120;
 /// check).
 fn render_exact(gpu: &smokeshadow::gpu::Gpu, scene: &Scene, particles: &[Particle]) -> Renderer {
     let config = common::technique("exact", 1, 512, SplatMode::Segment);
-    let mut renderer = Renderer::new(gpu, W, H, OUTPUT_FORMAT, &config).unwrap();
+    let mut renderer = Renderer::new(gpu, W, H, OUTPUT_FORMAT, &config)
+        .wait()
+        .unwrap();
     let target = OffscreenTarget::new(gpu, W, H);
     renderer
         .render(
@@ -35,6 +38,7 @@ fn render_exact(gpu: &smokeshadow::gpu::Gpu, scene: &Scene, particles: &[Particl
             &RenderOptions::default(),
             &target.view,
         )
+        .wait()
         .unwrap_or_else(|e| panic!("{}: {e}", scene.name));
     renderer
 }
@@ -47,6 +51,7 @@ fn check(
 ) -> reference_check::ReferenceCheck {
     let mut renderer = render_exact(gpu, scene, particles);
     reference_check::verify(&mut renderer, gpu, scene, particles)
+        .wait()
         .unwrap_or_else(|e| panic!("{}: {e:#}", scene.name))
 }
 
@@ -187,8 +192,11 @@ fn a_broken_reference_is_refused_in_one_line() {
     let scene = small(Scene::thesis_plume());
     let particles = particles::scene_particles(&scene).unwrap();
     let config = common::technique("none", 1, 512, SplatMode::Segment);
-    let mut renderer = Renderer::new(&gpu, W, H, OUTPUT_FORMAT, &config).unwrap();
+    let mut renderer = Renderer::new(&gpu, W, H, OUTPUT_FORMAT, &config)
+        .wait()
+        .unwrap();
     let err = reference_check::verify(&mut renderer, &gpu, &scene, &particles)
+        .wait()
         .expect_err("T = 1 through the plume is not the closed form");
     let message = format!("{err:#}");
     assert!(!message.contains('\n'), "{message}");
@@ -264,7 +272,9 @@ fn a_tile_list_of_sixteen_thousand_spheres_is_walked_whole() {
     let mut renderer = render_exact(&gpu, &scene, &particles);
     let longest = longest_tile_list(&renderer);
     assert!(longest >= 15_001, "longest tile list {longest}");
-    let c = reference_check::verify(&mut renderer, &gpu, &scene, &particles).unwrap();
+    let c = reference_check::verify(&mut renderer, &gpu, &scene, &particles)
+        .wait()
+        .unwrap();
     assert!(c.points >= 100, "only {} points", c.points);
     assert!(c.worst_difference <= 1e-4, "{c}");
 }
@@ -284,7 +294,9 @@ fn a_tile_list_beyond_the_loop_budget_is_walked_whole() {
     let scene = bare(&dir, "beyond", &cluster);
     let particles = particles::scene_particles(&scene).unwrap();
     let config = common::technique("exact", 1, 512, SplatMode::Segment);
-    let mut renderer = Renderer::new(&gpu, W, H, OUTPUT_FORMAT, &config).unwrap();
+    let mut renderer = Renderer::new(&gpu, W, H, OUTPUT_FORMAT, &config)
+        .wait()
+        .unwrap();
     let light = scene.light.position;
     let side = (center - light).cross(Vec3::Y).normalize_or(Vec3::X);
     let points: Vec<Vec3> = (0..=40)
@@ -297,7 +309,10 @@ fn a_tile_list_beyond_the_loop_budget_is_walked_whole() {
             ]
         })
         .collect();
-    let gpu_t = renderer.probe(&gpu, &scene, &particles, &points).unwrap();
+    let gpu_t = renderer
+        .probe(&gpu, &scene, &particles, &points)
+        .wait()
+        .unwrap();
     let longest = longest_tile_list(&renderer);
     assert!(longest > 65_535, "longest tile list {longest}");
     let mut darkest = 1.0f32;
@@ -338,7 +353,9 @@ fn exact_agrees_with_the_closed_form_at_262144_particles() {
         })
         .collect();
     let mut renderer = render_exact(&gpu, &scene, &grown);
-    let c = reference_check::verify(&mut renderer, &gpu, &scene, &grown).unwrap();
+    let c = reference_check::verify(&mut renderer, &gpu, &scene, &grown)
+        .wait()
+        .unwrap();
     assert!(c.points >= 100, "only {} points", c.points);
     assert!(c.worst_difference <= 1e-4, "{c}");
 }

@@ -5,6 +5,7 @@
 //! on both sides of the plume (so the half-angle order is once front to back and once back to
 //! front for the eye); no timing is asserted.
 
+use smokeshadow::Wait;
 mod common;
 
 use common::{REDUCED_H as H, REDUCED_W as W, gpu, reduced_plume, technique};
@@ -53,8 +54,11 @@ fn frames(
             };
             let stats = renderer
                 .render(gpu, scene, particles, &options, &target.view)
+                .wait()
                 .unwrap();
-            let hdr = smokeshadow::gpu::read_texture_rgba16f(gpu, renderer.hdr_texture()).unwrap();
+            let hdr = smokeshadow::gpu::read_texture_rgba16f(gpu, renderer.hdr_texture())
+                .wait()
+                .unwrap();
             (hdr, stats)
         })
         .collect()
@@ -98,7 +102,9 @@ fn has_draws_in_the_frames_half_angle_order_without_a_sort_of_its_own() {
     let gpu = gpu();
     let (scenes, particles) = both_sides();
     let config = technique("has", 16, 256, SplatMode::Point);
-    let mut renderer = Renderer::new(&gpu, W, H, OUTPUT_FORMAT, &config).unwrap();
+    let mut renderer = Renderer::new(&gpu, W, H, OUTPUT_FORMAT, &config)
+        .wait()
+        .unwrap();
     for scene in &scenes {
         let frames = frames(&gpu, &mut renderer, scene, &particles);
         let ((own, own_stats), (shared, shared_stats)) = (&frames[0], &frames[1]);
@@ -124,7 +130,9 @@ fn the_shared_order_changes_only_the_eyes_compositing_not_the_shadows() {
         .collect();
     assert!(entries.len() >= 8);
     let first = technique(entries[0].name, 16, 256, SplatMode::Point);
-    let mut renderer = Renderer::new(&gpu, W, H, OUTPUT_FORMAT, &first).unwrap();
+    let mut renderer = Renderer::new(&gpu, W, H, OUTPUT_FORMAT, &first)
+        .wait()
+        .unwrap();
     for entry in entries {
         let config = technique(
             entry.name,
@@ -132,7 +140,7 @@ fn the_shared_order_changes_only_the_eyes_compositing_not_the_shadows() {
             256,
             SplatMode::Point,
         );
-        renderer.set_technique(&gpu, &config).unwrap();
+        renderer.set_technique(&gpu, &config).wait().unwrap();
         for scene in &scenes {
             let frames = frames(&gpu, &mut renderer, scene, &particles);
             let ((view, view_stats), (shared, shared_stats)) = (&frames[0], &frames[1]);

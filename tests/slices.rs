@@ -3,6 +3,7 @@
 //! depth from enlarged spheres (`dom_start_dilation`). They run on lavapipe and fail, never
 //! skip, without an adapter.
 
+use smokeshadow::Wait;
 mod common;
 
 use common::{REDUCED_H as H, REDUCED_W as W, gpu, probe_all, reduced_plume, sphere, technique};
@@ -304,8 +305,12 @@ fn dom_proxy_start_is_never_behind_the_sharp_start() {
                     &[&format!("dom_start_dilation={d}")],
                 ),
             )
+            .wait()
             .unwrap();
-            let t = renderer.probe(&gpu, &scene, &particles, &points).unwrap();
+            let t = renderer
+                .probe(&gpu, &scene, &particles, &points)
+                .wait()
+                .unwrap();
             assert!(
                 t.iter().all(|v| v.is_finite() && (0.0..=1.0).contains(v)),
                 "dilation {d}: T outside [0, 1]"
@@ -316,7 +321,9 @@ fn dom_proxy_start_is_never_behind_the_sharp_start() {
                 "{}",
                 maps[0].channels[0]
             );
-            smokeshadow::gpu::read_texture_r16f(&gpu, maps[0].view.texture()).unwrap()
+            smokeshadow::gpu::read_texture_r16f(&gpu, maps[0].view.texture())
+                .wait()
+                .unwrap()
         })
         .collect();
     let sharp = &starts[0];

@@ -1,6 +1,7 @@
 //! `smokeshadow sweep` end to end on a tiny sweep: the files it writes, the bytes and error
 //! columns, `--resume` after an interrupted run, and bad input.
 
+use smokeshadow::Wait;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -1079,16 +1080,21 @@ fn a_sweep_with_a_known_answer_gives_it_and_its_errors_match_an_independent_prob
         None,
     );
     let owners = point_owners(particles.len(), points.len());
-    let gpu = smokeshadow::gpu::Gpu::new(&smokeshadow::gpu::AdapterPreference::Cpu).unwrap();
+    let gpu = smokeshadow::gpu::Gpu::new(&smokeshadow::gpu::AdapterPreference::Cpu)
+        .wait()
+        .unwrap();
     let config = |name: &str, channels: u32| TechniqueConfig {
         name: name.to_owned(),
         params: scene.shadow.params(channels),
     };
-    let mut renderer = Renderer::new(&gpu, 160, 120, OUTPUT_FORMAT, &config("exact", 1)).unwrap();
+    let mut renderer = Renderer::new(&gpu, 160, 120, OUTPUT_FORMAT, &config("exact", 1))
+        .wait()
+        .unwrap();
     let mut probe = |c: &TechniqueConfig| {
-        renderer.set_technique(&gpu, c).unwrap();
+        renderer.set_technique(&gpu, c).wait().unwrap();
         renderer
             .probe_shaded(&gpu, &scene, &particles, &points, &owners)
+            .wait()
             .unwrap()
     };
     let exact = probe(&config("exact", 1));

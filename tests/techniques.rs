@@ -2,6 +2,7 @@
 //! (issue: every thesis technique under one channel budget). They run on lavapipe and fail,
 //! never skip, without an adapter.
 
+use smokeshadow::Wait;
 mod common;
 
 use common::{
@@ -343,8 +344,12 @@ fn exact_agrees_with_its_cpu_mirror_on_the_plume() {
             OUTPUT_FORMAT,
             &technique("exact", 1, 512, SplatMode::Segment),
         )
+        .wait()
         .unwrap();
-        let exact = renderer.probe(&gpu, &scene, particles, &points).unwrap();
+        let exact = renderer
+            .probe(&gpu, &scene, particles, &points)
+            .wait()
+            .unwrap();
         let counters = renderer.technique().counters();
         let side = counters
             .iter()
@@ -685,6 +690,7 @@ fn every_technique_at_every_thesis_budget_renders_a_finite_shadowed_plume() {
             let config = technique(name, channels, res, SplatMode::Point);
             let frame =
                 render_offscreen(&gpu, &scene, &particles, &config, &RenderOptions::default())
+                    .wait()
                     .unwrap();
             let pixels = (W * H) as usize;
             let mut smoke = 0;
@@ -732,6 +738,7 @@ fn reported_channels_and_bytes_match_each_techniques_formula() {
         OUTPUT_FORMAT,
         &technique("none", 1, res, SplatMode::Point),
     )
+    .wait()
     .unwrap();
     let target = smokeshadow::render::OffscreenTarget::new(&gpu, 96, 64);
     let budgets = [1u32, 2, 3, 4, 5, 6, 7, 8, 15, 16, 23, 24, 31, 32];
@@ -766,7 +773,7 @@ fn reported_channels_and_bytes_match_each_techniques_formula() {
                 Some("half") => Some(2),
                 _ => None,
             };
-            renderer.set_technique(&gpu, &config).unwrap();
+            renderer.set_technique(&gpu, &config).wait().unwrap();
             renderer
                 .render(
                     &gpu,
@@ -775,6 +782,7 @@ fn reported_channels_and_bytes_match_each_techniques_formula() {
                     &RenderOptions::default(),
                     &target.view,
                 )
+                .wait()
                 .unwrap();
             let t = renderer.technique();
             let bytes = t.memory().total_bytes();
@@ -966,6 +974,7 @@ fn budgets_below_a_techniques_minimum_name_it() {
             OUTPUT_FORMAT,
             &technique(name, min - 1, scene.shadow.resolution_px, SplatMode::Point),
         )
+        .wait()
         .err()
         .unwrap()
         .to_string();
@@ -981,6 +990,7 @@ fn budgets_below_a_techniques_minimum_name_it() {
         OUTPUT_FORMAT,
         &technique("osm", 129, scene.shadow.resolution_px, SplatMode::Point),
     )
+    .wait()
     .err()
     .unwrap()
     .to_string();
@@ -1002,8 +1012,12 @@ fn probe_with_counters(
         OUTPUT_FORMAT,
         config,
     )
+    .wait()
     .unwrap();
-    let t = renderer.probe(gpu, scene, particles, points).unwrap();
+    let t = renderer
+        .probe(gpu, scene, particles, points)
+        .wait()
+        .unwrap();
     (t, renderer.technique().counters())
 }
 

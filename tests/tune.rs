@@ -2,6 +2,7 @@
 //! thesis and gallery scenes; its file is what `--params FILE` reads, the registry's defaults are
 //! its committed output, and bad parameter files get one line.
 
+use smokeshadow::Wait;
 mod common;
 
 use common::{error_lines, scratch, smokeshadow};
@@ -89,7 +90,9 @@ fn tune_scores_every_technique_alike_and_writes_a_file_the_other_commands_read()
 
     // esm's starting score, computed here apart from tune: the mean over the training scenes of
     // the RMS of T - T_exact at the shaded points, its defaults at 24 bytes a texel.
-    let gpu = smokeshadow::gpu::Gpu::new(&smokeshadow::gpu::AdapterPreference::Cpu).unwrap();
+    let gpu = smokeshadow::gpu::Gpu::new(&smokeshadow::gpu::AdapterPreference::Cpu)
+        .wait()
+        .unwrap();
     let mut sum = 0.0;
     for name in TRAINING {
         let mut scene = Scene::embedded(name).unwrap();
@@ -103,8 +106,11 @@ fn tune_scores_every_technique_alike_and_writes_a_file_the_other_commands_read()
                 name: name.to_owned(),
                 params: scene.shadow.params(channels),
             };
-            let mut r = Renderer::new(&gpu, 128, 96, OUTPUT_FORMAT, &config).unwrap();
+            let mut r = Renderer::new(&gpu, 128, 96, OUTPUT_FORMAT, &config)
+                .wait()
+                .unwrap();
             r.probe_shaded(&gpu, &scene, &particles, &points, &owners)
+                .wait()
                 .unwrap()
         };
         // esm keeps 2 bytes a texel at any budget: its smallest configuration.

@@ -4,6 +4,7 @@
 //! it cannot read are refused by name, and the real smoke becomes a medium whose GPU march
 //! agrees with the f64 mirror and converges.
 
+use smokeshadow::Wait;
 mod common;
 #[path = "vdb/reader.rs"]
 mod reader;
@@ -169,9 +170,11 @@ fn the_real_smoke_marched_on_the_gpu_agrees_with_the_mirror_and_converges() {
     let (n, n2) = (1024, 2048);
     let t_n = march
         .transmittance(&gpu, &uploaded, light, &points, n)
+        .wait()
         .unwrap();
     let t_2n = march
         .transmittance(&gpu, &uploaded, light, &points, n2)
+        .wait()
         .unwrap();
     let mut shadowed = 0;
     for (i, p) in points.iter().enumerate() {

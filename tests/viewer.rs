@@ -4,6 +4,7 @@
 //! (updated only with `UPDATE_SNAPSHOTS=1`, never implicitly). The controller alone, without
 //! egui or a GPU, answers the same controls, and the help lists every row of the shortcut table.
 
+use smokeshadow::Wait;
 mod common;
 
 use std::time::{Duration, Instant};
@@ -130,8 +131,9 @@ fn the_viewport_shows_what_render_writes() {
     // The CLI's path, on its own device: the same settings give the same bytes.
     let gpu = common::gpu();
     let particles = smokeshadow::sim::simulate(&scene);
-    let frame =
-        render_offscreen(&gpu, &scene, &particles, &config, &RenderOptions::default()).unwrap();
+    let frame = render_offscreen(&gpu, &scene, &particles, &config, &RenderOptions::default())
+        .wait()
+        .unwrap();
     assert_eq!(
         differing(&frame.image, &shown),
         0,
@@ -448,7 +450,9 @@ fn the_viewer_opens_a_vdb_file_and_shows_what_render_writes_of_it() {
     let config = app.config(&app.state.a);
     let shown = app.read_view_a().unwrap();
     let gpu = common::gpu();
-    let frame = render_offscreen(&gpu, &scene, &[], &config, &RenderOptions::default()).unwrap();
+    let frame = render_offscreen(&gpu, &scene, &[], &config, &RenderOptions::default())
+        .wait()
+        .unwrap();
     assert_eq!(
         differing(&frame.image, &shown),
         0,

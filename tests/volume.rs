@@ -3,6 +3,7 @@
 //! steps, and the dissertation's finding (seeds/000, 4.2) that a march of few samples misses
 //! occluders far from the receiver. They run on lavapipe and fail, never skip, without one.
 
+use smokeshadow::Wait;
 mod common;
 
 use common::{gpu, probe_all, technique};
@@ -342,8 +343,13 @@ fn a_grid_built_in_slabs_equals_the_grid_built_whole() {
     let config = volume(8, 64, Field::Radial);
     let side: u64 = 128; // round(cbrt(512² · 8))
     let run = |gpu: &Gpu| {
-        let mut renderer = Renderer::new(gpu, 64, 48, OUTPUT_FORMAT, &config).unwrap();
-        let t = renderer.probe(gpu, &scene, &particles, &points).unwrap();
+        let mut renderer = Renderer::new(gpu, 64, 48, OUTPUT_FORMAT, &config)
+            .wait()
+            .unwrap();
+        let t = renderer
+            .probe(gpu, &scene, &particles, &points)
+            .wait()
+            .unwrap();
         let technique = renderer.technique();
         let counters = technique.counters();
         let expected = (smokeshadow::shadow::find("volume").unwrap().memory)(

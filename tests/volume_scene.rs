@@ -2,6 +2,7 @@
 //! field, marched by the eye against the closed form of a homogeneous box, shadowed by `exact`
 //! to the box's closed form, and refused in one line by a technique that cannot shadow it.
 
+use smokeshadow::Wait;
 mod common;
 
 use glam::Vec3;
@@ -95,12 +96,17 @@ fn the_eye_sees_the_box_with_its_closed_form_transmittance_and_exact_shadows_to_
     let scene = box_scene();
     let config = common::technique("exact", 1, 256, SplatMode::Segment);
     let (w, h) = (scene.output.width_px, scene.output.height_px);
-    let mut renderer = Renderer::new(&gpu, w, h, OUTPUT_FORMAT, &config).unwrap();
+    let mut renderer = Renderer::new(&gpu, w, h, OUTPUT_FORMAT, &config)
+        .wait()
+        .unwrap();
     let target = OffscreenTarget::new(&gpu, w, h);
     renderer
         .render(&gpu, &scene, &[], &RenderOptions::default(), &target.view)
+        .wait()
         .unwrap();
-    let hdr = smokeshadow::gpu::read_texture_rgba16f(&gpu, renderer.hdr_texture()).unwrap();
+    let hdr = smokeshadow::gpu::read_texture_rgba16f(&gpu, renderer.hdr_texture())
+        .wait()
+        .unwrap();
     // The middle pixel's ray runs along -z through the box's depth: alpha = 1 - exp(-σ d).
     let alpha = hdr.get(w / 2, h / 2)[3];
     let expected = 1.0 - (-SIGMA * BOX.z).exp();
@@ -118,7 +124,7 @@ fn the_eye_sees_the_box_with_its_closed_form_transmittance_and_exact_shadows_to_
         Vec3::new(0.0, 1.0, 0.1),
         Vec3::new(3.0, 0.0, 0.0),
     ];
-    let t = renderer.probe(&gpu, &scene, &[], &points).unwrap();
+    let t = renderer.probe(&gpu, &scene, &[], &points).wait().unwrap();
     let closed = (-SIGMA * BOX.y).exp();
     for (p, t) in points.iter().zip(&t).take(2) {
         assert!(
@@ -144,10 +150,13 @@ fn a_technique_that_cannot_shadow_a_volume_is_refused_in_one_line() {
             64,
             SplatMode::Segment,
         );
-        let mut renderer = Renderer::new(&gpu, w, h, OUTPUT_FORMAT, &config).unwrap();
+        let mut renderer = Renderer::new(&gpu, w, h, OUTPUT_FORMAT, &config)
+            .wait()
+            .unwrap();
         let target = OffscreenTarget::new(&gpu, w, h);
         let err = renderer
             .render(&gpu, &scene, &[], &RenderOptions::default(), &target.view)
+            .wait()
             .unwrap_err()
             .to_string();
         assert!(

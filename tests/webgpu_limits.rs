@@ -4,6 +4,7 @@
 //! tests' adapter), every technique renders the thesis scene with smoke where the smoke is, or
 //! refuses in one line that names the limit it lacks.
 
+use smokeshadow::Wait;
 mod common;
 
 use smokeshadow::gpu::{Gpu, OPTIONAL_FEATURES};
@@ -52,7 +53,8 @@ fn under_webgpus_default_limits_every_technique_renders_or_names_the_limit() {
             name: entry.name.to_owned(),
             params: TechniqueParams::new(24, 256),
         };
-        match render_offscreen(&gpu, &scene, &particles, &config, &RenderOptions::default()) {
+        match render_offscreen(&gpu, &scene, &particles, &config, &RenderOptions::default()).wait()
+        {
             Ok(frame) => {
                 // The smoke's opacity is in the HDR frame's alpha: the plume is there.
                 let opaque = frame.hdr.pixels.iter().filter(|p| p[3] > 0.5).count();

@@ -12,6 +12,7 @@
 //! blending precision) moves pixels far more than another CPU does, so `check` refuses to compare
 //! a hardware adapter's renders with them (see [`require_software_adapter`]).
 
+use crate::Wait;
 pub mod criterion;
 
 use std::path::{Path, PathBuf};
@@ -157,7 +158,8 @@ fn render(gpu: &Gpu, baseline: &Baseline) -> anyhow::Result<Rendered> {
     let scene = baseline.source.clone();
     let particles = crate::particles::scene_particles(&scene)?;
     let config = config(&baseline.technique, &scene);
-    let frame = render_offscreen(gpu, &scene, &particles, &config, &RenderOptions::default())?;
+    let frame =
+        render_offscreen(gpu, &scene, &particles, &config, &RenderOptions::default()).wait()?;
     Ok(Rendered {
         blocks: HdrBlocks::from_hdr(&frame.hdr),
         image: image::DynamicImage::ImageRgba8(frame.image).into_rgb8(),

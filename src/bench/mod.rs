@@ -20,6 +20,7 @@
 //! [`write()`] puts `bench.csv` (a row per count x technique), `bench.json` (everything) and three
 //! log-log SVG charts (time, GPU passes and bytes against the particle count) into a folder.
 
+use crate::Wait;
 pub mod bound;
 pub mod volume;
 pub mod volume_frames;
@@ -254,7 +255,7 @@ pub fn run(gpu: &Gpu, scene: &Scene, options: &BenchOptions) -> anyhow::Result<B
         params: scene.shadow.params(1),
     };
     // One renderer for every cell: pipelines are rebuilt only when the technique changes.
-    let mut renderer = Renderer::new(gpu, w, h, OUTPUT_FORMAT, &baseline)?;
+    let mut renderer = Renderer::new(gpu, w, h, OUTPUT_FORMAT, &baseline).wait()?;
     let target = OffscreenTarget::new(gpu, w, h);
     let mut results = BenchResults {
         scene: scene.name.clone(),
@@ -269,7 +270,7 @@ pub fn run(gpu: &Gpu, scene: &Scene, options: &BenchOptions) -> anyhow::Result<B
         sorts: options.sorts.clone(),
         adapter: gpu.describe(),
         gpu_timestamps: gpu.has_timestamps(),
-        clock_floor_ms: gpu.clock_floor_ms(),
+        clock_floor_ms: gpu.clock_floor_ms().wait(),
         cpu_threads: rayon::current_num_threads(),
         counts: Vec::new(),
     };
@@ -377,14 +378,16 @@ impl CellBench<'_> {
         };
         for _ in 0..self.options.warmup {
             self.renderer
-                .light_pass_frame(self.gpu, self.scene, self.particles, &mut pass)?;
+                .light_pass_frame(self.gpu, self.scene, self.particles, &mut pass)
+                .wait()?;
             self.gpu.wait_idle()?;
         }
         let mut build = Vec::new();
         for _ in 0..self.options.frames {
             self.renderer
-                .light_pass_frame(self.gpu, self.scene, self.particles, &mut pass)?;
-            let times = self.renderer.gpu_times(self.gpu)?;
+                .light_pass_frame(self.gpu, self.scene, self.particles, &mut pass)
+                .wait()?;
+            let times = self.renderer.gpu_times(self.gpu).wait()?;
             if let Some(ms) = times.get(bound::BUILD_PASS) {
                 build.push(ms);
             }
@@ -395,8 +398,9 @@ impl CellBench<'_> {
         let mut work = None;
         if self.renderer.set_count_fragments(self.gpu, true) {
             self.renderer
-                .light_pass_frame(self.gpu, self.scene, self.particles, &mut pass)?;
-            work = BuildWork::of(&self.renderer.fragment_counts(self.gpu)?);
+                .light_pass_frame(self.gpu, self.scene, self.particles, &mut pass)
+                .wait()?;
+            work = BuildWork::of(&self.renderer.fragment_counts(self.gpu).wait()?);
             self.renderer.set_count_fragments(self.gpu, false);
         }
         Ok(CheapestMeasured {
@@ -415,7 +419,7 @@ impl CellBench<'_> {
             return Ok(Vec::new());
         }
         self.render(options)?;
-        let tallies = self.renderer.fragment_counts(self.gpu)?;
+        let tallies = self.renderer.fragment_counts(self.gpu).wait()?;
         self.renderer.set_count_fragments(self.gpu, false);
         Ok(tallies)
     }
@@ -425,18 +429,20 @@ impl CellBench<'_> {
         &mut self,
         options: &RenderOptions,
     ) -> Result<smokeshadow_core::render::FrameStats, shadow::ShadowError> {
-        self.renderer.render(
-            self.gpu,
-            self.scene,
-            self.particles,
-            options,
-            &self.target.view,
-        )
+        self.renderer
+            .render(
+                self.gpu,
+                self.scene,
+                self.particles,
+                options,
+                &self.target.view,
+            )
+            .wait()
     }
 
     /// The tone-mapped frame the target holds, read back.
     fn read_image(&self) -> anyhow::Result<image::RgbImage> {
-        Ok(self.target.read_rgb(self.gpu)?)
+        Ok(self.target.read_rgb(self.gpu).wait()?)
     }
 
     fn measure(
@@ -446,7 +452,7 @@ impl CellBench<'_> {
         cheapest: Option<&CheapestMeasured>,
     ) -> anyhow::Result<Measured> {
         // `shadow::create` (through `set_technique`) checks the budget and the parameters.
-        self.renderer.set_technique(self.gpu, config)?;
+        self.renderer.set_technique(self.gpu, config).wait()?;
         let options = RenderOptions {
             particle_res: self.options.particle_res,
             sort,
@@ -462,7 +468,7 @@ impl CellBench<'_> {
         for _ in 0..self.options.frames {
             let start = Instant::now();
             let stats = self.render(&options)?;
-            let times = self.renderer.gpu_times(self.gpu)?;
+            let times = self.renderer.gpu_times(self.gpu).wait()?;
             wall.push(start.elapsed().as_secs_f64() * 1e3);
             sort_times.push(stats.sort_ms);
             gpu_total.push(times.total_ms());
@@ -481,7 +487,8 @@ impl CellBench<'_> {
             self.gpu,
             self.scene,
             self.particles,
-        )?;
+        )
+        .wait()?;
         let vs_view_sort = match sort {
             SortOrder::View => None,
             _ => {

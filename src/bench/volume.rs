@@ -6,6 +6,7 @@
 //! (medians after warm-up runs: the first runs compile the shaders); these passes write no GPU
 //! timestamps, so no GPU time is claimed for them.
 
+use crate::Wait;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -171,14 +172,11 @@ pub fn run(gpu: &Gpu, options: &VolumeBenchOptions) -> anyhow::Result<VolumeBenc
                     let mut grid = None;
                     let bake_ms = median_ms(options.warmup, options.frames, || {
                         let mut scratch = MemoryLedger::for_device(&gpu.limits);
-                        grid = Some(baker.bake(
-                            gpu,
-                            &mut scratch,
-                            &noise,
-                            &params,
-                            dims,
-                            glam::Vec3::ZERO,
-                        )?);
+                        grid = Some(
+                            baker
+                                .bake(gpu, &mut scratch, &noise, &params, dims, glam::Vec3::ZERO)
+                                .wait()?,
+                        );
                         Ok(())
                     })?;
                     let grid = grid.expect("baked at least once");
@@ -251,7 +249,9 @@ pub fn run(gpu: &Gpu, options: &VolumeBenchOptions) -> anyhow::Result<VolumeBenc
         let mut reference: Option<Vec<f32>> = None;
         for &light_steps in &options.light_steps {
             let light_ms = median_ms(options.warmup, options.frames, || {
-                march.transmittance(gpu, &uploaded, light, &points, light_steps)?;
+                march
+                    .transmittance(gpu, &uploaded, light, &points, light_steps)
+                    .wait()?;
                 Ok(())
             })?;
             rows.push(VolumeBenchRow {
@@ -274,7 +274,8 @@ pub fn run(gpu: &Gpu, options: &VolumeBenchOptions) -> anyhow::Result<VolumeBenc
             let mut radiance = Vec::new();
             let eye_ms = median_ms(options.warmup, options.frames, || {
                 radiance = eye
-                    .march(gpu, &uploaded, &settings, &rays)?
+                    .march(gpu, &uploaded, &settings, &rays)
+                    .wait()?
                     .iter()
                     .map(|r| r.radiance.x)
                     .collect();

@@ -11,6 +11,7 @@
 //! samples along each texel's ray (its 10-300); `srm`, which has neither, is measured per count
 //! of its light samples instead (its 1-50), and the ratios are to the first count given.
 
+use crate::Wait;
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
@@ -118,7 +119,7 @@ pub fn run(gpu: &Gpu, study: &FrameStudy) -> anyhow::Result<Vec<FrameRow>> {
         name: study.techniques[0].clone(),
         params: study.scene.shadow.params(study.channels),
     };
-    let mut renderer = Renderer::new(gpu, w, h, OUTPUT_FORMAT, &first)?;
+    let mut renderer = Renderer::new(gpu, w, h, OUTPUT_FORMAT, &first).wait()?;
     let target = OffscreenTarget::new(gpu, w, h);
     let options = RenderOptions::default();
     let mut rows = Vec::new();
@@ -129,15 +130,19 @@ pub fn run(gpu: &Gpu, study: &FrameStudy) -> anyhow::Result<Vec<FrameRow>> {
         }
         // exact's T at the shaded points, once per coverage (the build's steps do not change
         // it; its check against the f64 mirror runs as every command's does).
-        renderer.set_technique(
-            gpu,
-            &TechniqueConfig {
-                name: smokeshadow_core::shadow::reference().name.to_owned(),
-                params: base.shadow.params(1),
-            },
-        )?;
-        renderer.render(gpu, &base, &[], &options, &target.view)?;
-        smokeshadow_core::render::reference_check::verify(&mut renderer, gpu, &base, &[])?;
+        renderer
+            .set_technique(
+                gpu,
+                &TechniqueConfig {
+                    name: smokeshadow_core::shadow::reference().name.to_owned(),
+                    params: base.shadow.params(1),
+                },
+            )
+            .wait()?;
+        renderer
+            .render(gpu, &base, &[], &options, &target.view)
+            .wait()?;
+        smokeshadow_core::render::reference_check::verify(&mut renderer, gpu, &base, &[]).wait()?;
         let points = smokeshadow_core::render::shaded::shaded_points(
             &base,
             &[],
@@ -145,7 +150,7 @@ pub fn run(gpu: &Gpu, study: &FrameStudy) -> anyhow::Result<Vec<FrameRow>> {
             smokeshadow_core::render::shaded::SHADED_STRIDE_PX,
             renderer.medium().grid().map(|g| &**g),
         );
-        let exact = renderer.probe(gpu, &base, &[], &points)?;
+        let exact = renderer.probe(gpu, &base, &[], &points).wait()?;
         let classes = match renderer.medium().grid() {
             Some(grid) => edge_classes(grid, &points),
             None => vec![None; points.len()],
@@ -184,17 +189,21 @@ pub fn run(gpu: &Gpu, study: &FrameStudy) -> anyhow::Result<Vec<FrameRow>> {
                     &(light as f32).into(),
                 )?;
             }
-            renderer.set_technique(
-                gpu,
-                &TechniqueConfig {
-                    name: name.clone(),
-                    params,
-                },
-            )?;
+            renderer
+                .set_technique(
+                    gpu,
+                    &TechniqueConfig {
+                        name: name.clone(),
+                        params,
+                    },
+                )
+                .wait()?;
             let (mut frame, mut build, mut eye) = (Vec::new(), Vec::new(), Vec::new());
             for i in 0..study.warmup + study.frames {
-                let stats = renderer.render(gpu, &scene, &[], &options, &target.view)?;
-                let times = renderer.gpu_times(gpu)?;
+                let stats = renderer
+                    .render(gpu, &scene, &[], &options, &target.view)
+                    .wait()?;
+                let times = renderer.gpu_times(gpu).wait()?;
                 if i >= study.warmup {
                     frame.push(stats.frame_ms(&times));
                     build.push(times.get("shadow").unwrap_or(0.0));
@@ -205,7 +214,7 @@ pub fn run(gpu: &Gpu, study: &FrameStudy) -> anyhow::Result<Vec<FrameRow>> {
                     );
                 }
             }
-            let t = renderer.probe(gpu, &scene, &[], &points)?;
+            let t = renderer.probe(gpu, &scene, &[], &points).wait()?;
             rows.push(FrameRow {
                 coverage,
                 technique: name.clone(),

@@ -2,6 +2,7 @@
 //! ([`crate::baseline`]). `--check` exits 1 when any baseline fails; `--bless` is the only way
 //! the files change.
 
+use crate::Wait;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -52,7 +53,7 @@ pub fn run(args: &BaselineArgs, adapter: &AdapterPreference) -> anyhow::Result<E
         AdapterPreference::Auto => &AdapterPreference::Cpu,
         other => other,
     };
-    let gpu = Gpu::new(adapter)?;
+    let gpu = Gpu::new(adapter).wait()?;
     baseline::require_software_adapter(&gpu)?;
     if args.bless {
         for path in baseline::bless(&gpu, &baselines)? {

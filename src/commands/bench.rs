@@ -2,6 +2,7 @@
 //! technique's frame, its bytes and counters) against the particle count, on the scaling family
 //! ([`crate::bench`]); a table, and CSV, JSON and log-log SVG charts in a folder.
 
+use crate::Wait;
 use std::path::{Path, PathBuf};
 
 use super::{ParticlesArg, Size};
@@ -131,7 +132,7 @@ pub fn run(args: &BenchArgs, adapter: &AdapterPreference) -> anyhow::Result<()> 
         particle_res: args.particle_res,
         sorts: args.sort.clone(),
     };
-    let gpu = Gpu::new(adapter)?;
+    let gpu = Gpu::new(adapter).wait()?;
     let results = bench::run(&gpu, &scene, &options)?;
     let written = bench::write(&results, &args.output)?;
     print_table(&results);
@@ -353,7 +354,7 @@ fn run_volume(args: &BenchArgs, source: &str, adapter: &AdapterPreference) -> an
         warmup: args.warmup,
         size_px: args.size.map_or((256, 192), |s| (s.width, s.height)),
     };
-    let gpu = Gpu::new(adapter)?;
+    let gpu = Gpu::new(adapter).wait()?;
     let volume::VolumeBench { rows, skipped } = volume::run(&gpu, &options)?;
     println!(
         "bench --volume {source}: eye rays {}x{}, {} eye steps, {} frames after {} warm-up, {}",
@@ -461,7 +462,7 @@ fn run_volume_frames(
         frames: args.frames,
         warmup: args.warmup,
     };
-    let gpu = Gpu::new(adapter)?;
+    let gpu = Gpu::new(adapter).wait()?;
     let rows = volume_frames::run(&gpu, &study)?;
     println!(
         "bench --volume {source}: {}x{} frames of `{}`, {} channels, median of {} after {} warm-up, GPU timestamps, {}",

@@ -1,6 +1,7 @@
 //! `smokeshadow compare [SCENE] -o DIR`: the thesis' accuracy comparison for one scene, as
 //! images, `metrics.csv` and `index.html` ([`crate::compare`]).
 
+use crate::Wait;
 use std::path::PathBuf;
 
 use crate::compare::{self, CompareOptions};
@@ -65,7 +66,7 @@ pub fn run(args: &CompareArgs, adapter: &AdapterPreference) -> anyhow::Result<()
         budgets: args.channels.clone(),
         splat: args.splat.unwrap_or(scene.shadow.splat),
     };
-    let gpu = Gpu::new(adapter)?;
+    let gpu = Gpu::new(adapter).wait()?;
     let report = compare::run(&gpu, &scene, &options, &args.output)?;
     println!(
         "wrote {} files to {} (open index.html)",

@@ -1,6 +1,7 @@
 //! `smokeshadow info`: which adapters exist, which one is used, and whether it has what the tool
 //! needs.
 
+use crate::Wait;
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
@@ -25,7 +26,7 @@ pub fn run(args: &InfoArgs, preference: &AdapterPreference) -> anyhow::Result<()
     for a in &adapters {
         println!("  {}", gpu::describe_adapter(&a.get_info()));
     }
-    let gpu = Gpu::new(preference)?;
+    let gpu = Gpu::new(preference).wait()?;
     let yes_no = |b: bool| if b { "yes" } else { "no" };
     let l = &gpu.limits;
     println!("selected ({preference}): {}", gpu.describe());

@@ -2,6 +2,7 @@
 //! technique and for the `exact` reference, both evaluated by the techniques' own lookup shaders
 //! on the GPU ([`crate::render::Renderer::probe`]).
 
+use crate::Wait;
 use std::path::PathBuf;
 
 use glam::Vec3;
@@ -88,12 +89,12 @@ pub fn run(args: &ProbeArgs, adapter: &AdapterPreference) -> anyhow::Result<()> 
         name: "exact".to_owned(),
         params: technique.params.clone(),
     };
-    let gpu = Gpu::new(adapter)?;
+    let gpu = Gpu::new(adapter).wait()?;
     let particles = crate::particles::scene_particles(&scene)?;
     let (w, h) = (scene.output.width_px, scene.output.height_px);
-    let mut renderer = Renderer::new(&gpu, w, h, OUTPUT_FORMAT, &technique)?;
+    let mut renderer = Renderer::new(&gpu, w, h, OUTPUT_FORMAT, &technique).wait()?;
     // The light's depth range encloses a density volume too.
-    renderer.load_volume(&gpu, &scene)?;
+    renderer.load_volume(&gpu, &scene).wait()?;
     let grid = renderer.medium().grid().cloned();
     let light = LightSpace::faces_with(
         &scene.light,
@@ -110,12 +111,13 @@ pub fn run(args: &ProbeArgs, adapter: &AdapterPreference) -> anyhow::Result<()> 
             scene.light.position + dir * t
         }));
     }
-    let t_technique = renderer.probe(&gpu, &scene, &particles, &points)?;
+    let t_technique = renderer.probe(&gpu, &scene, &particles, &points).wait()?;
     let channels_used = renderer.technique().channels_used();
-    renderer.set_technique(&gpu, &exact)?;
-    let t_exact = renderer.probe(&gpu, &scene, &particles, &points)?;
+    renderer.set_technique(&gpu, &exact).wait()?;
+    let t_exact = renderer.probe(&gpu, &scene, &particles, &points).wait()?;
     let check =
-        smokeshadow_core::render::reference_check::verify(&mut renderer, &gpu, &scene, &particles)?;
+        smokeshadow_core::render::reference_check::verify(&mut renderer, &gpu, &scene, &particles)
+            .wait()?;
 
     let mut samples = points
         .iter()

@@ -1,6 +1,7 @@
 //! `smokeshadow render`: one frame of a scene with a technique, written to PNG; with `--bench N`
 //! also N timed frames after a warm-up, reporting GPU pass times from timestamp queries.
 
+use crate::Wait;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -96,7 +97,7 @@ pub fn run(args: &RenderArgs, adapter: &AdapterPreference) -> anyhow::Result<()>
             trace.display()
         );
     }
-    let gpu = Gpu::new(adapter)?;
+    let gpu = Gpu::new(adapter).wait()?;
     log::info!("adapter: {}", gpu.describe());
     if args.trace.is_some() && !gpu.has_timestamps() {
         anyhow::bail!(
@@ -116,7 +117,7 @@ pub fn run(args: &RenderArgs, adapter: &AdapterPreference) -> anyhow::Result<()>
         ..RenderOptions::default()
     };
     let (w, h) = (scene.output.width_px, scene.output.height_px);
-    let mut renderer = Renderer::new(&gpu, w, h, OUTPUT_FORMAT, &technique)?;
+    let mut renderer = Renderer::new(&gpu, w, h, OUTPUT_FORMAT, &technique).wait()?;
     let target = OffscreenTarget::new(&gpu, w, h);
 
     if let Some(frames) = args.bench {
@@ -148,14 +149,18 @@ pub fn run(args: &RenderArgs, adapter: &AdapterPreference) -> anyhow::Result<()>
             );
         }
     }
-    renderer.render(&gpu, &scene, &particles, &options, &target.view)?;
-    let image = smokeshadow_core::gpu::read_texture_rgba8(&gpu, &target.texture)?;
+    renderer
+        .render(&gpu, &scene, &particles, &options, &target.view)
+        .wait()?;
+    let image = smokeshadow_core::gpu::read_texture_rgba8(&gpu, &target.texture).wait()?;
     // The reference checks itself before its image is written (nothing is left on a failure).
-    let check = reference_check::verify_if_reference(&mut renderer, &gpu, &scene, &particles)?;
+    let check =
+        reference_check::verify_if_reference(&mut renderer, &gpu, &scene, &particles).wait()?;
     crate::output::write_png(&args.output, &image)?;
     if args.exr {
         let path = crate::output::exr_beside(&args.output);
-        let hdr = smokeshadow_core::gpu::read_texture_rgba16f(&gpu, renderer.hdr_texture())?;
+        let hdr =
+            smokeshadow_core::gpu::read_texture_rgba16f(&gpu, renderer.hdr_texture()).wait()?;
         crate::output::write_exr(&path, &hdr)?;
         println!(
             "wrote {} (linear HDR, premultiplied, smoke opacity in alpha)",
@@ -261,9 +266,11 @@ fn bench(
     let mut particle_fragments = None;
     for i in 0..warmup {
         let count = i + 1 == warmup && renderer.set_count_fragments(gpu, true);
-        renderer.render(gpu, scene, particles, options, &target.view)?;
+        renderer
+            .render(gpu, scene, particles, options, &target.view)
+            .wait()?;
         if count {
-            particle_fragments = renderer.particle_fragments(gpu)?;
+            particle_fragments = renderer.particle_fragments(gpu).wait()?;
             renderer.set_count_fragments(gpu, false);
         }
         gpu.wait_idle()?;
@@ -277,8 +284,13 @@ fn bench(
     let mut timed = Vec::new();
     for _ in 0..frames {
         let start = Instant::now();
-        let stats = renderer.render(gpu, scene, particles, options, &target.view)?;
-        let times = renderer.gpu_times(gpu).context("reading GPU timestamps")?;
+        let stats = renderer
+            .render(gpu, scene, particles, options, &target.view)
+            .wait()?;
+        let times = renderer
+            .gpu_times(gpu)
+            .wait()
+            .context("reading GPU timestamps")?;
         wall.push(start.elapsed().as_secs_f64() * 1e3);
         sort.push(stats.sort_ms);
         sorts = stats.sorts;
@@ -337,7 +349,7 @@ fn bench(
             &what,
             frame_median,
             wall_median,
-            gpu.clock_floor_ms(),
+            gpu.clock_floor_ms().wait(),
         ) {
             println!("  {warning}");
         }

@@ -3,6 +3,7 @@
 //! thesis experiment on the embedded scene. `--scenes` sweeps several scenes into a gallery,
 //! `--shard K/N` runs a part of a sweep, `--merge` assembles the parts.
 
+use crate::Wait;
 use std::path::{Path, PathBuf};
 
 use crate::sweep::{self, Shard, SweepOptions, SweepOutcome, SweepResults};
@@ -225,7 +226,7 @@ pub fn run(args: &SweepArgs, adapter: &AdapterPreference) -> anyhow::Result<()> 
             .unwrap_or_else(crate::tune::shipped_shapes),
         animate,
     };
-    let gpu = Gpu::new(adapter)?;
+    let gpu = Gpu::new(adapter).wait()?;
     let outcome = sweep::run(&gpu, &scenes, &options, &args.output)?;
     print_outcome(&outcome, &args.output, &gpu.describe());
     Ok(())

@@ -2,6 +2,7 @@
 //! (`crate::tune`), checks them on held-out scenes, and writes a parameter file that
 //! `--params FILE` reads.
 
+use crate::Wait;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
@@ -152,7 +153,7 @@ pub fn run(args: &TuneArgs, adapter: &AdapterPreference) -> anyhow::Result<()> {
     for (key, value) in args.params.all() {
         shadow::set_param(&mut starting, key, value)?;
     }
-    let gpu = Gpu::new(adapter)?;
+    let gpu = Gpu::new(adapter).wait()?;
     let case = |scene: Scene| -> anyhow::Result<Case> {
         let name = scene.name.clone();
         eprintln!("{name}: exact reference and its self-check");

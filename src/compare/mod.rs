@@ -7,6 +7,7 @@
 //! `metrics.csv` and a self-contained `index.html` whose first table answers "which technique
 //! is most accurate for a given memory".
 
+use crate::Wait;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -142,27 +143,32 @@ pub fn run(
         h,
         OUTPUT_FORMAT,
         &config(smokeshadow_core::shadow::frame_baseline().name, 1),
-    )?;
+    )
+    .wait()?;
     let target = OffscreenTarget::new(gpu, w, h);
     let mut check = None;
     let mut render =
         |config: &TechniqueConfig, file: &str| -> anyhow::Result<(image::RgbImage, u32, u64)> {
-            renderer.set_technique(gpu, config)?;
-            renderer.render(
-                gpu,
-                scene,
-                &particles,
-                &RenderOptions::default(),
-                &target.view,
-            )?;
-            let rgb = target.read_rgb(gpu)?;
+            renderer.set_technique(gpu, config).wait()?;
+            renderer
+                .render(
+                    gpu,
+                    scene,
+                    &particles,
+                    &RenderOptions::default(),
+                    &target.view,
+                )
+                .wait()?;
+            let rgb = target.read_rgb(gpu).wait()?;
             // The reference checks itself before anything is compared with it.
             if let Some(c) = smokeshadow_core::render::reference_check::verify_if_reference(
                 &mut renderer,
                 gpu,
                 scene,
                 &particles,
-            )? {
+            )
+            .wait()?
+            {
                 check = Some(c);
             }
             crate::output::write_png_rgb(&out_dir.join(file), &rgb)?;

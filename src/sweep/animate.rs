@@ -7,6 +7,7 @@
 //! forward step by step (one [`Simulation`] over the whole span), a particle sequence's frame
 //! nearest the time.
 
+use crate::Wait;
 use std::sync::Arc;
 
 use anyhow::Context;
@@ -55,15 +56,19 @@ impl Frame {
             reuse_shadow_maps: true,
             ..*options
         };
-        renderer.render(gpu, &self.scene, &self.particles, &options, &target.view)?;
-        let image = target.read_rgb(gpu)?;
-        let transmittance = renderer.probe_shaded(
-            gpu,
-            &self.scene,
-            &self.particles,
-            &self.points,
-            &self.owners,
-        )?;
+        renderer
+            .render(gpu, &self.scene, &self.particles, &options, &target.view)
+            .wait()?;
+        let image = target.read_rgb(gpu).wait()?;
+        let transmittance = renderer
+            .probe_shaded(
+                gpu,
+                &self.scene,
+                &self.particles,
+                &self.points,
+                &self.owners,
+            )
+            .wait()?;
         let sample = FrameSample {
             luminance: linear_luminance(&image),
             transmittance,
@@ -167,14 +172,16 @@ impl ExactFrames {
         let (mut check_worst, mut check_points) = (0.0f64, usize::MAX);
         for f in &frames {
             let (image, sample) = f.render(gpu, renderer, target, &RenderOptions::default())?;
-            let check = progress.suspend(|| {
-                smokeshadow_core::render::reference_check::verify(
-                    renderer,
-                    gpu,
-                    &f.scene,
-                    &f.particles,
-                )
-            })?;
+            let check = progress
+                .suspend(|| {
+                    smokeshadow_core::render::reference_check::verify(
+                        renderer,
+                        gpu,
+                        &f.scene,
+                        &f.particles,
+                    )
+                })
+                .wait()?;
             check_worst = check_worst.max(check.worst_difference);
             check_points = check_points.min(check.points);
             samples.push(sample);
@@ -259,13 +266,15 @@ impl ExactFrames {
         };
         let mut columns: Vec<Vec<RgbImage>> = vec![self.images.iter().map(half).collect()];
         for (config, options) in cells {
-            renderer.set_technique(gpu, config)?;
+            renderer.set_technique(gpu, config).wait()?;
             renderer.reset_history();
             let mut frames = Vec::with_capacity(self.frames.len());
             for f in &self.frames {
                 renderer.forget_maps();
-                renderer.render(gpu, &f.scene, &f.particles, options, &target.view)?;
-                frames.push(half(&target.read_rgb(gpu)?));
+                renderer
+                    .render(gpu, &f.scene, &f.particles, options, &target.view)
+                    .wait()?;
+                frames.push(half(&target.read_rgb(gpu).wait()?));
             }
             columns.push(frames);
         }

@@ -16,6 +16,7 @@
 //!   each cell what its ratios and errors were measured against, [`MeasuredAgainst`]), and
 //!   `--merge` assembles the shards' cells into the tables and reports without a GPU.
 
+use crate::Wait;
 mod animate;
 pub mod answer;
 mod cells;
@@ -265,7 +266,7 @@ impl Machine {
             backend: format!("{:?}", gpu.info.backend),
             driver: format!("{} {}", gpu.info.driver, gpu.info.driver_info),
             timestamp_queries: gpu.has_timestamps(),
-            clock_floor_ms: gpu.clock_floor_ms(),
+            clock_floor_ms: gpu.clock_floor_ms().wait(),
         }
     }
 }

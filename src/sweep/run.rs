@@ -2,6 +2,7 @@
 //! (pipelines are rebuilt only when the technique changes; the particles are simulated once),
 //! compares it with its own 24-channel image and with `exact`, and persists it.
 
+use crate::Wait;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -586,21 +587,24 @@ impl<'a> Sweeper<'a> {
         )
         .config;
         exact_config.name = shadow::reference().name.to_owned();
-        let mut renderer = Renderer::new(gpu, w, h, OUTPUT_FORMAT, &exact_config)?;
+        let mut renderer = Renderer::new(gpu, w, h, OUTPUT_FORMAT, &exact_config).wait()?;
         let target = OffscreenTarget::new(gpu, w, h);
-        renderer.render(
-            gpu,
-            scene,
-            &particles,
-            &RenderOptions::default(),
-            &target.view,
-        )?;
+        renderer
+            .render(
+                gpu,
+                scene,
+                &particles,
+                &RenderOptions::default(),
+                &target.view,
+            )
+            .wait()?;
         let exact_bytes = renderer.shadow_bytes().0;
         let exact_tiles = counter(&renderer.technique().counters(), "tiles_per_side") as u32;
-        let exact_image = target.read_rgb(gpu)?;
+        let exact_image = target.read_rgb(gpu).wait()?;
         crate::output::write_png_rgb(&dir.join(EXACT_IMAGE), &exact_image)?;
         if options.exr {
-            let hdr = smokeshadow_core::gpu::read_texture_rgba16f(gpu, renderer.hdr_texture())?;
+            let hdr =
+                smokeshadow_core::gpu::read_texture_rgba16f(gpu, renderer.hdr_texture()).wait()?;
             crate::output::write_exr(&dir.join(EXACT_HDR_IMAGE), &hdr)?;
         }
         let points = shaded_points(
@@ -611,11 +615,20 @@ impl<'a> Sweeper<'a> {
             renderer.medium().grid().map(|g| &**g),
         );
         let owners = smokeshadow_core::render::shaded::point_owners(particles.len(), points.len());
-        let exact_t = renderer.probe_shaded(gpu, scene, &particles, &points, &owners)?;
+        let exact_t = renderer
+            .probe_shaded(gpu, scene, &particles, &points, &owners)
+            .wait()?;
         // No error is measured against a reference that disagrees with the closed form.
-        let check = progress.suspend(|| {
-            smokeshadow_core::render::reference_check::verify(&mut renderer, gpu, scene, &particles)
-        })?;
+        let check = progress
+            .suspend(|| {
+                smokeshadow_core::render::reference_check::verify(
+                    &mut renderer,
+                    gpu,
+                    scene,
+                    &particles,
+                )
+            })
+            .wait()?;
         progress.finish(format!(
             "{}: exact reference ({}² light tiles): {} bytes, T at {} shaded points; {check}",
             scene.name,
@@ -723,15 +736,17 @@ impl<'a> Sweeper<'a> {
 
     /// Renders `config` once and returns the frame.
     fn render_image(&mut self, plan: &Plan) -> anyhow::Result<image::RgbImage> {
-        self.renderer.set_technique(self.gpu, &plan.config)?;
-        self.renderer.render(
-            self.gpu,
-            self.scene,
-            &self.particles,
-            &plan.options(),
-            &self.target.view,
-        )?;
-        Ok(self.target.read_rgb(self.gpu)?)
+        self.renderer.set_technique(self.gpu, &plan.config).wait()?;
+        self.renderer
+            .render(
+                self.gpu,
+                self.scene,
+                &self.particles,
+                &plan.options(),
+                &self.target.view,
+            )
+            .wait()?;
+        Ok(self.target.read_rgb(self.gpu).wait()?)
     }
 
     /// The technique's own 24-channel image at the cell's resolution, splat and particle
@@ -800,17 +815,21 @@ impl<'a> Sweeper<'a> {
     /// before the timed frames rather than once per warm-up frame. None of it is timed, so the
     /// previous cell's comparisons may run beside it ([`Sweeper::time`]).
     fn prepare(&mut self, plan: &Plan) -> anyhow::Result<Prepared> {
-        self.renderer.set_technique(self.gpu, &plan.config)?;
+        self.renderer.set_technique(self.gpu, &plan.config).wait()?;
         let probed = if plan.config.name == shadow::frame_baseline().name {
             None
         } else {
-            Some(self.renderer.probe_shaded(
-                self.gpu,
-                self.scene,
-                &self.particles,
-                &self.points,
-                &self.owners,
-            )?)
+            Some(
+                self.renderer
+                    .probe_shaded(
+                        self.gpu,
+                        self.scene,
+                        &self.particles,
+                        &self.points,
+                        &self.owners,
+                    )
+                    .wait()?,
+            )
         };
         let warm = RenderOptions {
             reuse_shadow_maps: true,
@@ -821,15 +840,17 @@ impl<'a> Sweeper<'a> {
         for i in 0..self.options.warmup {
             let count =
                 i + 1 == self.options.warmup && self.renderer.set_count_fragments(self.gpu, true);
-            self.renderer.render(
-                self.gpu,
-                self.scene,
-                &self.particles,
-                &warm,
-                &self.target.view,
-            )?;
+            self.renderer
+                .render(
+                    self.gpu,
+                    self.scene,
+                    &self.particles,
+                    &warm,
+                    &self.target.view,
+                )
+                .wait()?;
             if count {
-                particle_fragments = self.renderer.particle_fragments(self.gpu)?;
+                particle_fragments = self.renderer.particle_fragments(self.gpu).wait()?;
                 self.renderer.set_count_fragments(self.gpu, false);
             }
             self.gpu.wait_idle()?;
@@ -867,14 +888,17 @@ impl<'a> Sweeper<'a> {
             self.options.cell_seconds,
         ) {
             let start = Instant::now();
-            let stats = self.renderer.render(
-                self.gpu,
-                self.scene,
-                &self.particles,
-                &options,
-                &self.target.view,
-            )?;
-            let times = self.renderer.gpu_times(self.gpu)?;
+            let stats = self
+                .renderer
+                .render(
+                    self.gpu,
+                    self.scene,
+                    &self.particles,
+                    &options,
+                    &self.target.view,
+                )
+                .wait()?;
+            let times = self.renderer.gpu_times(self.gpu).wait()?;
             wall_ms.push(start.elapsed().as_secs_f64() * 1e3);
             let shadow = times.get("shadow").unwrap_or(0.0);
             shadow_ms.push(shadow);
@@ -891,12 +915,13 @@ impl<'a> Sweeper<'a> {
         }
         let (resident_bytes, transient_bytes) = self.renderer.shadow_bytes();
         let channels_used = self.renderer.technique().channels_used();
-        let image = self.target.read_rgb(self.gpu)?;
+        let image = self.target.read_rgb(self.gpu).wait()?;
         let image_path = plan.image();
         let hdr = match self.options.exr && record {
             true => Some((
                 format!("images/{}.exr", plan.name),
-                smokeshadow_core::gpu::read_texture_rgba16f(self.gpu, self.renderer.hdr_texture())?,
+                smokeshadow_core::gpu::read_texture_rgba16f(self.gpu, self.renderer.hdr_texture())
+                    .wait()?,
             )),
             false => None,
         };

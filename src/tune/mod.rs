@@ -34,6 +34,7 @@
 //! the chosen values, `[tune]` with the command, the scenes, the budgets and every technique's
 //! training and held-out error. `--params paper` names the papers' values instead ([`PAPER`]).
 
+use crate::Wait;
 use std::collections::BTreeMap;
 use std::path::Path;
 
@@ -365,8 +366,8 @@ impl Case {
             name: shadow::reference().name.to_owned(),
             params: scene.shadow.params(1),
         };
-        let mut renderer = Renderer::new(gpu, w, h, OUTPUT_FORMAT, &exact)?;
-        renderer.load_volume(gpu, &scene)?;
+        let mut renderer = Renderer::new(gpu, w, h, OUTPUT_FORMAT, &exact).wait()?;
+        renderer.load_volume(gpu, &scene).wait()?;
         let points = shaded_points(
             &scene,
             &particles,
@@ -375,8 +376,11 @@ impl Case {
             renderer.medium().grid().map(|g| &**g),
         );
         let owners = point_owners(particles.len(), points.len());
-        let exact_t = renderer.probe_shaded(gpu, &scene, &particles, &points, &owners)?;
-        smokeshadow_core::render::reference_check::verify(&mut renderer, gpu, &scene, &particles)?;
+        let exact_t = renderer
+            .probe_shaded(gpu, &scene, &particles, &points, &owners)
+            .wait()?;
+        smokeshadow_core::render::reference_check::verify(&mut renderer, gpu, &scene, &particles)
+            .wait()?;
         let mut behind = scene.clone();
         behind.camera.position = scene.camera.target * 2.0 - scene.camera.position;
         Ok(Self {
@@ -418,26 +422,31 @@ impl Case {
     /// The RMS change of `config`'s T at the shaded points (probed as free points) when the
     /// particles are drawn in reverse.
     fn order_change(&mut self, gpu: &Gpu, config: &TechniqueConfig) -> anyhow::Result<f64> {
-        self.renderer.set_technique(gpu, config)?;
+        self.renderer.set_technique(gpu, config).wait()?;
         let front = self
             .renderer
-            .probe(gpu, &self.scene, &self.particles, &self.points)?;
+            .probe(gpu, &self.scene, &self.particles, &self.points)
+            .wait()?;
         let back = self
             .renderer
-            .probe(gpu, &self.behind, &self.particles, &self.points)?;
+            .probe(gpu, &self.behind, &self.particles, &self.points)
+            .wait()?;
         Ok(rms_difference(&front, &back))
     }
 
     /// RMS T error of `config` against `exact` at the shaded points.
     fn score(&mut self, gpu: &Gpu, config: &TechniqueConfig) -> anyhow::Result<f64> {
-        self.renderer.set_technique(gpu, config)?;
-        let t = self.renderer.probe_shaded(
-            gpu,
-            &self.scene,
-            &self.particles,
-            &self.points,
-            &self.owners,
-        )?;
+        self.renderer.set_technique(gpu, config).wait()?;
+        let t = self
+            .renderer
+            .probe_shaded(
+                gpu,
+                &self.scene,
+                &self.particles,
+                &self.points,
+                &self.owners,
+            )
+            .wait()?;
         Ok(rms_difference(&t, &self.exact_t))
     }
 }

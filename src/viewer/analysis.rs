@@ -4,6 +4,7 @@
 //! device, so the UI thread never waits on a readback. Requests are superseded: when several of
 //! one kind queue up, only the newest is answered.
 
+use crate::Wait;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::mpsc::{Receiver, Sender, TryRecvError};
@@ -252,14 +253,16 @@ impl Worker {
         let (_, _, renderer, target) = self.renderer(config, size)?;
         // Each frame on its own: the worker's frames are no sequence for a shadow history.
         renderer.reset_history();
-        renderer.render(
-            &gpu,
-            &frame.scene,
-            &frame.particles,
-            &frame.options,
-            &target.view,
-        )?;
-        Ok(target.read_rgb(&gpu)?)
+        renderer
+            .render(
+                &gpu,
+                &frame.scene,
+                &frame.particles,
+                &frame.options,
+                &target.view,
+            )
+            .wait()?;
+        Ok(target.read_rgb(&gpu).wait()?)
     }
 
     /// A renderer for `config` at `size`: reused when one matches, else one of the three kept is
@@ -277,7 +280,8 @@ impl Worker {
             let entry = self.renderers.remove(i);
             self.renderers.push(entry);
         } else {
-            let renderer = Renderer::new(&self.gpu, size.0, size.1, OUTPUT_FORMAT, config)?;
+            let renderer =
+                Renderer::new(&self.gpu, size.0, size.1, OUTPUT_FORMAT, config).wait()?;
             let target = OffscreenTarget::new(&self.gpu, size.0, size.1);
             if self.renderers.len() >= 3 {
                 self.renderers.remove(0);
@@ -359,7 +363,9 @@ impl Worker {
                 for config in &configs {
                     let gpu = self.gpu.clone();
                     let (_, _, renderer, _) = self.renderer(config, size)?;
-                    let t = renderer.probe(&gpu, &frame.scene, &frame.particles, &points)?;
+                    let t = renderer
+                        .probe(&gpu, &frame.scene, &frame.particles, &points)
+                        .wait()?;
                     series.push(ProbeSeries {
                         label: if config.name == smokeshadow_core::shadow::reference().name {
                             config.name.clone()

@@ -4,6 +4,7 @@
 //! through. The view knows nothing of egui: [`super::textures`] registers `display_view` with
 //! egui's renderer, and again whenever `output_generation` says the texture was replaced.
 
+use crate::Wait;
 use smokeshadow_core::gpu::{Gpu, PassTimes};
 use smokeshadow_core::render::{
     FrameStats, OUTPUT_FORMAT, RenderOptions, Renderer, TechniqueConfig,
@@ -73,7 +74,7 @@ pub struct View {
 
 impl View {
     pub fn new(gpu: &Gpu, config: &TechniqueConfig, size: (u32, u32)) -> Result<Self, ShadowError> {
-        let renderer = Renderer::new(gpu, size.0, size.1, OUTPUT_FORMAT, config)?;
+        let renderer = Renderer::new(gpu, size.0, size.1, OUTPUT_FORMAT, config).wait()?;
         let output = Output::new(&gpu.device, size);
         Ok(Self {
             renderer,
@@ -90,7 +91,7 @@ impl View {
     /// error the view keeps what it had.
     pub fn set_config(&mut self, gpu: &Gpu, config: &TechniqueConfig) -> Result<(), ShadowError> {
         if *config != self.config {
-            self.renderer.set_technique(gpu, config)?;
+            self.renderer.set_technique(gpu, config).wait()?;
             self.config = config.clone();
         }
         Ok(())
@@ -118,14 +119,16 @@ impl View {
         if size != self.size {
             self.renderer
                 .resize(gpu, size.0, size.1)
+                .wait()
                 .map_err(|e| ShadowError::Gpu(e.to_string()))?;
             self.output = Output::new(&gpu.device, size);
             self.output_generation += 1;
             self.size = size;
         }
-        let stats =
-            self.renderer
-                .render(gpu, scene, particles, options, &self.output.render_view)?;
+        let stats = self
+            .renderer
+            .render(gpu, scene, particles, options, &self.output.render_view)
+            .wait()?;
         self.stats = Some(stats);
         self.rendered = Some(wanted);
         Ok(true)
@@ -166,9 +169,6 @@ impl View {
 
     /// Reads the shown image back, waiting for the GPU (tests and explicit saves only).
     pub fn read_image(&self, gpu: &Gpu) -> anyhow::Result<image::RgbaImage> {
-        Ok(smokeshadow_core::gpu::read_texture_rgba8(
-            gpu,
-            &self.output.texture,
-        )?)
+        Ok(smokeshadow_core::gpu::read_texture_rgba8(gpu, &self.output.texture).wait()?)
     }
 }

@@ -1,6 +1,7 @@
 //! Shared helpers for GPU tests: a deterministic adapter (lavapipe), and scene shortcuts.
 #![allow(dead_code)]
 
+use smokeshadow::Wait;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -25,7 +26,7 @@ pub fn adapter_preference() -> AdapterPreference {
 /// when there is none: GPU tests never skip.
 pub fn gpu() -> Gpu {
     let preference = adapter_preference();
-    Gpu::new(&preference).unwrap_or_else(|e| {
+    Gpu::new(&preference).wait().unwrap_or_else(|e| {
         panic!(
             "GPU tests need an adapter ({preference}); install lavapipe (mesa-vulkan-drivers): {e}"
         )
@@ -47,12 +48,16 @@ pub fn probe_all(
         OUTPUT_FORMAT,
         &configs[0],
     )
+    .wait()
     .unwrap();
     configs
         .iter()
         .map(|c| {
-            renderer.set_technique(gpu, c).unwrap();
-            renderer.probe(gpu, scene, particles, points).unwrap()
+            renderer.set_technique(gpu, c).wait().unwrap();
+            renderer
+                .probe(gpu, scene, particles, points)
+                .wait()
+                .unwrap()
         })
         .collect()
 }

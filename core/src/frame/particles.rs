@@ -346,13 +346,13 @@ impl LightBuffers {
 
     /// The lighting of the first `count` particles as the last submitted frame left it (waits
     /// for the GPU): per particle, its four points' radiance, with the smoke's T in w.
-    pub fn read(&self, gpu: &Gpu, count: usize) -> Result<Vec<ParticleLight>, GpuError> {
+    pub async fn read(&self, gpu: &Gpu, count: usize) -> Result<Vec<ParticleLight>, GpuError> {
         let count = (count as u64).min(self.capacity);
         if count == 0 {
             return Ok(Vec::new());
         }
         let size = count * std::mem::size_of::<ParticleLight>() as u64;
-        let bytes = crate::gpu::read_buffer(gpu, &self.lighting, 0, size)?;
+        let bytes = crate::gpu::read_buffer(gpu, &self.lighting, 0, size).await?;
         Ok(bytemuck::pod_collect_to_vec(&bytes))
     }
 }

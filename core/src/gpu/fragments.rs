@@ -122,13 +122,13 @@ impl FragmentCounter {
 
     /// The counts of the frame last resolved, per pass name in first-recorded order (blocks
     /// until it finished); empty when it counted nothing.
-    pub(super) fn read(&mut self, gpu: &Gpu) -> Result<Vec<FragmentTally>, GpuError> {
+    pub(super) async fn read(&mut self, gpu: &Gpu) -> Result<Vec<FragmentTally>, GpuError> {
         let resolved = std::mem::take(&mut self.resolved);
         if resolved.is_empty() {
             return Ok(Vec::new());
         }
         // Counting never runs in a timed frame, so the copy to a staging buffer is free to wait.
-        let bytes = super::read_buffer(gpu, &self.resolve, 0, resolved.len() as u64 * 8)?;
+        let bytes = super::read_buffer(gpu, &self.resolve, 0, resolved.len() as u64 * 8).await?;
         let counts: Vec<u64> = bytes
             .chunks_exact(8)
             .map(|c| u64::from_le_bytes(c.try_into().expect("8-byte chunks")))

@@ -145,26 +145,28 @@ pub struct Gpu {
     pub limits: wgpu::Limits,
     /// [`Gpu::clock_floor_ms`], measured once.
     clock_floor: std::sync::OnceLock<f64>,
+    /// See [`Gpu::take_uncaptured_error`].
+    uncaptured: std::sync::Arc<std::sync::Mutex<Option<String>>>,
 }
 
 impl Gpu {
     /// Picks an adapter by `preference` and creates a device with the adapter's own limits (the
     /// defaults allow only 32 bytes per sample, too few for 8 RGBA16F targets).
-    pub fn new(preference: &AdapterPreference) -> Result<Self, GpuError> {
-        let adapter = pollster::block_on(select_adapter(&instance(), preference))?;
-        Self::from_adapter(&adapter)
+    pub async fn new(preference: &AdapterPreference) -> Result<Self, GpuError> {
+        let adapter = select_adapter(&instance(), preference).await?;
+        Self::from_adapter(&adapter).await
     }
 
     /// Creates the device on a given adapter.
-    pub fn from_adapter(adapter: &wgpu::Adapter) -> Result<Self, GpuError> {
+    pub async fn from_adapter(adapter: &wgpu::Adapter) -> Result<Self, GpuError> {
         let info = adapter.get_info();
-        let (device, queue) = pollster::block_on(
-            adapter.request_device(&device_descriptor(adapter)),
-        )
-        .map_err(|cause| GpuError::Device {
-            adapter: info.name.clone(),
-            cause,
-        })?;
+        let (device, queue) = adapter
+            .request_device(&device_descriptor(adapter))
+            .await
+            .map_err(|cause| GpuError::Device {
+                adapter: info.name.clone(),
+                cause,
+            })?;
         Ok(Self::from_device(device, queue, info))
     }
 
@@ -172,22 +174,45 @@ impl Gpu {
     /// [`device_descriptor`]); features and limits are read from the device itself.
     ///
     /// Installs the device's last line of defence: a GPU error that no [`Gpu::scoped`] caught,
-    /// or a lost device, prints one `error:` line and ends the process with status 2 (wgpu's
-    /// default handler panics with a backtrace). Everything that can fail for a reason the
+    /// or a lost device, prints one `error:` line and ends the process with status 2 on the host (wgpu's
+    /// default handler panics with a backtrace), and is kept on the web. Everything that can fail for a reason the
     /// user controls (allocation sizes, budgets) is checked before or scoped, so this fires only
     /// for driver failures.
     pub fn from_device(device: wgpu::Device, queue: wgpu::Queue, info: wgpu::AdapterInfo) -> Self {
-        device.on_uncaptured_error(std::sync::Arc::new(|error: wgpu::Error| {
-            eprintln!("error: GPU error: {}", one_line(&error));
-            std::process::exit(2);
-        }));
-        device.set_device_lost_callback(|reason, message| {
-            // `Destroyed` is the device being dropped on purpose.
-            if reason != wgpu::DeviceLostReason::Destroyed {
-                eprintln!("error: the GPU device was lost: {message}");
+        let uncaptured = std::sync::Arc::new(std::sync::Mutex::new(None::<String>));
+        #[cfg(not(target_arch = "wasm32"))]
+        {
+            device.on_uncaptured_error(std::sync::Arc::new(|error: wgpu::Error| {
+                eprintln!("error: GPU error: {}", one_line(&error));
                 std::process::exit(2);
-            }
-        });
+            }));
+            device.set_device_lost_callback(|reason, message| {
+                // `Destroyed` is the device being dropped on purpose.
+                if reason != wgpu::DeviceLostReason::Destroyed {
+                    eprintln!("error: the GPU device was lost: {message}");
+                    std::process::exit(2);
+                }
+            });
+        }
+        // A page has no process to end: the error is kept for the page to show
+        // ([`Gpu::take_uncaptured_error`]) and the page keeps working.
+        #[cfg(target_arch = "wasm32")]
+        {
+            let kept = uncaptured.clone();
+            device.on_uncaptured_error(std::sync::Arc::new(move |error: wgpu::Error| {
+                if let Ok(mut slot) = kept.lock() {
+                    slot.get_or_insert_with(|| format!("GPU error: {}", one_line(&error)));
+                }
+            }));
+            let kept = uncaptured.clone();
+            device.set_device_lost_callback(move |reason, message| {
+                if reason != wgpu::DeviceLostReason::Destroyed
+                    && let Ok(mut slot) = kept.lock()
+                {
+                    *slot = Some(format!("the GPU device was lost: {message}"));
+                }
+            });
+        }
         Self {
             features: device.features(),
             limits: device.limits(),
@@ -195,7 +220,14 @@ impl Gpu {
             queue,
             info,
             clock_floor: std::sync::OnceLock::new(),
+            uncaptured,
         }
+    }
+
+    /// The first GPU error no [`Gpu::scoped`] caught since the last call, or a lost device
+    /// (on the web, where they are kept; on the host they end the process in one line).
+    pub fn take_uncaptured_error(&self) -> Option<String> {
+        self.uncaptured.lock().ok().and_then(|mut slot| slot.take())
     }
 
     /// The clock's floor under a frame: the median round trip, in ms, of a submission that
@@ -203,8 +235,11 @@ impl Gpu {
     /// GPU work (the submission, the wait, the mapping of the timestamps): 0.04-0.06 ms on an
     /// H200 (docs/gpu/h200-2026-12-04), against a 0.9 ms frame of 2,500 particles there.
     /// Measured once per device (nine trips, after one untimed).
-    pub fn clock_floor_ms(&self) -> f64 {
-        *self.clock_floor.get_or_init(|| {
+    pub async fn clock_floor_ms(&self) -> f64 {
+        if let Some(floor) = self.clock_floor.get() {
+            return *floor;
+        }
+        let floor = {
             let usage = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
             let source = self.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("clock_floor.source"),
@@ -218,26 +253,31 @@ impl Gpu {
                 usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
                 mapped_at_creation: false,
             });
-            let mut trips: Vec<f64> = (0..10)
-                .filter_map(|_| {
-                    let start = web_time::Instant::now();
-                    let mut encoder =
-                        self.device
-                            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                                label: Some("clock_floor.encoder"),
-                            });
-                    encoder.copy_buffer_to_buffer(&source, 0, &readback, 0, 16);
-                    self.queue.submit([encoder.finish()]);
-                    readback.slice(..).map_async(wgpu::MapMode::Read, |_| ());
-                    self.wait_idle().ok()?;
-                    readback.unmap();
-                    Some(start.elapsed().as_secs_f64() * 1e3)
-                })
-                .skip(1)
-                .collect();
+            let mut trips = Vec::with_capacity(10);
+            for _ in 0..10 {
+                let start = web_time::Instant::now();
+                let mut encoder =
+                    self.device
+                        .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                            label: Some("clock_floor.encoder"),
+                        });
+                encoder.copy_buffer_to_buffer(&source, 0, &readback, 0, 16);
+                self.queue.submit([encoder.finish()]);
+                let (tx, rx) = futures_channel::oneshot::channel();
+                readback.slice(..).map_async(wgpu::MapMode::Read, move |r| {
+                    let _ = tx.send(r);
+                });
+                if self.wait_idle().is_err() || !matches!(rx.await, Ok(Ok(()))) {
+                    continue;
+                }
+                readback.unmap();
+                trips.push(start.elapsed().as_secs_f64() * 1e3);
+            }
+            let mut trips = trips.split_off(1.min(trips.len()));
             trips.sort_by(f64::total_cmp);
             trips.get(trips.len() / 2).copied().unwrap_or(0.0)
-        })
+        };
+        *self.clock_floor.get_or_init(|| floor)
     }
 
     /// The loop iterations one shader invocation group may run per dispatch or draw, where the
@@ -270,16 +310,16 @@ impl Gpu {
         describe_adapter(&self.info)
     }
 
-    /// Runs `f` inside out-of-memory and validation error scopes: what the device refuses
-    /// while `f` records or creates becomes a [`Refusal`] (the caller says what it was doing
+    /// Runs `work` inside out-of-memory and validation error scopes: what the device refuses
+    /// while `work` records or creates becomes a [`Refusal`] (the caller says what it was doing
     /// with [`Refusal::during`]), instead of an uncaptured error.
-    pub fn scoped<T>(&self, f: impl FnOnce() -> T) -> Result<T, Refusal> {
+    pub async fn scoped<T>(&self, work: impl Future<Output = T>) -> Result<T, Refusal> {
         let out_of_memory = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
         let validation = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
-        let value = f();
+        let value = work.await;
         // Scopes pop in reverse order of their pushes.
-        let validation = pollster::block_on(validation.pop());
-        let out_of_memory = pollster::block_on(out_of_memory.pop());
+        let validation = validation.pop().await;
+        let out_of_memory = out_of_memory.pop().await;
         match out_of_memory.or(validation) {
             None => Ok(value),
             Some(error) => Err(Refusal {

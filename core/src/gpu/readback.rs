@@ -1,9 +1,13 @@
-//! Copying textures back to the CPU (rows padded to 256 bytes on the GPU side).
+//! Copying buffers and textures back to the CPU (texture rows padded to 256 bytes on the GPU
+//! side). Every read-back is awaited: the copy is submitted, the staging buffer's mapping asked
+//! for, and its callback answers a one-shot. On the host the device is polled until the work is
+//! done first, so the answer is there when awaited; on the web the browser maps the buffer
+//! between tasks and the await yields to it.
 
 use super::{Gpu, GpuError};
 
 /// Copies a 2D texture of `bytes_per_texel` into tightly packed rows.
-fn read_texture(
+async fn read_texture(
     gpu: &Gpu,
     texture: &wgpu::Texture,
     bytes_per_texel: u32,
@@ -47,11 +51,12 @@ fn read_texture(
         }
         out
     })
+    .await
 }
 
 /// Copies `size` bytes of `buffer` from `offset` (both multiples of 4) back to the CPU. The
 /// buffer needs `COPY_SRC`.
-pub fn read_buffer(
+pub async fn read_buffer(
     gpu: &Gpu,
     buffer: &wgpu::Buffer,
     offset: u64,
@@ -70,22 +75,22 @@ pub fn read_buffer(
         });
     encoder.copy_buffer_to_buffer(buffer, offset, &staging, 0, size);
     gpu.queue.submit([encoder.finish()]);
-    map_and_copy(gpu, &staging, |bytes| bytes.to_vec())
+    map_and_copy(gpu, &staging, |bytes| bytes.to_vec()).await
 }
 
 /// Maps all of `buffer` (after the work already submitted) and hands its bytes to `f`.
-fn map_and_copy<T>(
+async fn map_and_copy<T>(
     gpu: &Gpu,
     buffer: &wgpu::Buffer,
     f: impl FnOnce(&[u8]) -> T,
 ) -> Result<T, GpuError> {
     let slice = buffer.slice(..);
-    let (tx, rx) = std::sync::mpsc::channel();
+    let (tx, rx) = futures_channel::oneshot::channel();
     slice.map_async(wgpu::MapMode::Read, move |r| {
         let _ = tx.send(r);
     });
     gpu.wait_idle()?;
-    rx.recv()
+    rx.await
         .map_err(|e| GpuError::Readback(e.to_string()))?
         .map_err(|e| GpuError::Readback(e.to_string()))?;
     let view = slice
@@ -98,11 +103,11 @@ fn map_and_copy<T>(
 }
 
 /// Reads an 8-bit RGBA texture (e.g. the tone-mapped sRGB frame).
-pub fn read_texture_rgba8(
+pub async fn read_texture_rgba8(
     gpu: &Gpu,
     texture: &wgpu::Texture,
 ) -> Result<image::RgbaImage, GpuError> {
-    let bytes = read_texture(gpu, texture, 4)?;
+    let bytes = read_texture(gpu, texture, 4).await?;
     image::RgbaImage::from_raw(texture.width(), texture.height(), bytes)
         .ok_or_else(|| GpuError::Readback("size mismatch".into()))
 }
@@ -122,8 +127,11 @@ impl Rgba16fImage {
 }
 
 /// Reads an RGBA16F texture (the HDR frame: premultiplied radiance and smoke opacity in alpha).
-pub fn read_texture_rgba16f(gpu: &Gpu, texture: &wgpu::Texture) -> Result<Rgba16fImage, GpuError> {
-    let bytes = read_texture(gpu, texture, 8)?;
+pub async fn read_texture_rgba16f(
+    gpu: &Gpu,
+    texture: &wgpu::Texture,
+) -> Result<Rgba16fImage, GpuError> {
+    let bytes = read_texture(gpu, texture, 8).await?;
     let pixels = bytes
         .chunks_exact(8)
         .map(|t| std::array::from_fn(|i| half_to_f32(u16::from_le_bytes([t[2 * i], t[2 * i + 1]]))))
@@ -136,8 +144,8 @@ pub fn read_texture_rgba16f(gpu: &Gpu, texture: &wgpu::Texture) -> Result<Rgba16
 }
 
 /// Reads a single-channel R16F texture (a start-depth map, say) as f32, row by row.
-pub fn read_texture_r16f(gpu: &Gpu, texture: &wgpu::Texture) -> Result<Vec<f32>, GpuError> {
-    let bytes = read_texture(gpu, texture, 2)?;
+pub async fn read_texture_r16f(gpu: &Gpu, texture: &wgpu::Texture) -> Result<Vec<f32>, GpuError> {
+    let bytes = read_texture(gpu, texture, 2).await?;
     Ok(bytes
         .chunks_exact(2)
         .map(|t| half_to_f32(u16::from_le_bytes([t[0], t[1]])))

@@ -141,13 +141,20 @@ struct Readback {
 
 enum ReadbackState {
     Free,
-    /// Holds a resolved frame: its pass names, and a flag set when mapping finished.
+    /// Holds a resolved frame: its pass names, and its mapping once asked for.
     Resolved {
         names: Vec<&'static str>,
-        mapped: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>,
+        mapped: Option<Mapping>,
         /// Order of resolution, to return the newest frame.
         serial: u64,
     },
+}
+
+/// A readback's mapping under way: a flag set when it finished (what [`GpuTimer::poll`] looks
+/// at without waiting) and the one-shot its callback answers ([`GpuTimer::read`] awaits it).
+struct Mapping {
+    done: std::sync::Arc<std::sync::atomic::AtomicBool>,
+    arrived: Option<futures_channel::oneshot::Receiver<()>>,
 }
 
 impl GpuTimer {
@@ -228,9 +235,9 @@ impl GpuTimer {
 
     /// The fragment counts of the last resolved frame, per pass name (blocks until it
     /// finished); empty when counting was off.
-    pub fn read_fragments(&mut self, gpu: &Gpu) -> Result<Vec<FragmentTally>, GpuError> {
+    pub async fn read_fragments(&mut self, gpu: &Gpu) -> Result<Vec<FragmentTally>, GpuError> {
         match &mut self.fragments {
-            Some(counter) => counter.read(gpu),
+            Some(counter) => counter.read(gpu).await,
             None => Ok(Vec::new()),
         }
     }
@@ -394,7 +401,7 @@ impl GpuTimer {
 
     /// Waits for the newest resolved frame and returns its pass times (empty when timing is
     /// off). Older unread frames are discarded.
-    pub fn read(&mut self, gpu: &Gpu) -> Result<PassTimes, GpuError> {
+    pub async fn read(&mut self, gpu: &Gpu) -> Result<PassTimes, GpuError> {
         let Some(newest) = self.newest() else {
             return Ok(PassTimes::default());
         };
@@ -405,6 +412,18 @@ impl GpuTimer {
         }
         self.start_map(newest);
         gpu.wait_idle()?;
+        let arrived = match &mut self.readbacks[newest].state {
+            ReadbackState::Resolved {
+                mapped: Some(mapping),
+                ..
+            } => mapping.arrived.take(),
+            _ => None,
+        };
+        if let Some(arrived) = arrived {
+            arrived
+                .await
+                .map_err(|_| GpuError::Readback("the timestamps were not mapped".into()))?;
+        }
         self.take(newest)
     }
 
@@ -418,8 +437,9 @@ impl GpuTimer {
         let ready: Vec<usize> = (0..self.readbacks.len())
             .filter(|&i| match &self.readbacks[i].state {
                 ReadbackState::Resolved {
-                    mapped: Some(flag), ..
-                } => flag.load(std::sync::atomic::Ordering::Acquire),
+                    mapped: Some(mapping),
+                    ..
+                } => mapping.done.load(std::sync::atomic::Ordering::Acquire),
                 _ => false,
             })
             .collect();
@@ -460,15 +480,20 @@ impl GpuTimer {
         {
             let flag = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
             let done = flag.clone();
+            let (tx, rx) = futures_channel::oneshot::channel();
             r.buffer.slice(..names.len() as u64 * 16).map_async(
                 wgpu::MapMode::Read,
                 move |result| {
                     if result.is_ok() {
                         done.store(true, std::sync::atomic::Ordering::Release);
+                        let _ = tx.send(());
                     }
                 },
             );
-            *mapped = Some(flag);
+            *mapped = Some(Mapping {
+                done: flag,
+                arrived: Some(rx),
+            });
         }
     }
 

@@ -257,7 +257,7 @@ impl CloudNoiseGenerator {
 
     /// The generators' texels for `seed` read back: (shape, detail), 4 floats a texel, x
     /// fastest, as `cloud_noise::shape_texels` and `detail_texels` lay them out.
-    pub fn read_texels(
+    pub async fn read_texels(
         &self,
         gpu: &Gpu,
         seed: u32,
@@ -270,13 +270,13 @@ impl CloudNoiseGenerator {
             });
         let buffers = self.record(gpu, &mut ledger, &mut encoder, seed)?;
         gpu.queue.submit([encoder.finish()]);
-        let read = |buffer: &wgpu::Buffer, size| -> Result<Vec<f32>, GpuError> {
-            let bytes = read_buffer(gpu, buffer, 0, texels_bytes(size))?;
+        let read = async |buffer: &wgpu::Buffer, size| -> Result<Vec<f32>, GpuError> {
+            let bytes = read_buffer(gpu, buffer, 0, texels_bytes(size)).await?;
             Ok(bytemuck::cast_slice(&bytes).to_vec())
         };
         Ok((
-            read(&buffers.shape, SHAPE_SIZE)?,
-            read(&buffers.detail, DETAIL_SIZE)?,
+            read(&buffers.shape, SHAPE_SIZE).await?,
+            read(&buffers.detail, DETAIL_SIZE).await?,
         ))
     }
 }
@@ -328,7 +328,7 @@ impl CloudBaker {
     /// in 1/m: the grid's density scale is 1), read back so that the reference's f64 mirror
     /// and the file-backed media share one type. The voxels' buffer is recorded in `ledger`
     /// as transient; the grid, once uploaded, is counted where it is uploaded.
-    pub fn bake(
+    pub async fn bake(
         &self,
         gpu: &Gpu,
         ledger: &mut MemoryLedger,
@@ -391,7 +391,7 @@ impl CloudBaker {
             pass.dispatch_workgroups(groups.x, groups.y, groups.z);
         }
         gpu.queue.submit([encoder.finish()]);
-        let bytes = read_buffer(gpu, &voxels, 0, size)?;
+        let bytes = read_buffer(gpu, &voxels, 0, size).await?;
         let mut values: Vec<f32> = bytemuck::cast_slice(&bytes).to_vec();
         values.truncate(count as usize);
         Ok(DensityGrid {

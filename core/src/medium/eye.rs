@@ -97,7 +97,7 @@ impl EyeMarchProbe {
 
     /// The march along each of `rays` through `grid`. Refused where one invocation's loops
     /// (eye steps x (light steps + 4), plus 3 of set-up) would pass the adapter's loop budget.
-    pub fn march(
+    pub async fn march(
         &self,
         gpu: &Gpu,
         grid: &GpuGrid,
@@ -130,14 +130,17 @@ impl EyeMarchProbe {
                 dir: r.dir.extend(r.t_far).to_array(),
             })
             .collect();
-        let bytes = self.probe.run(
-            gpu,
-            grid,
-            bytemuck::bytes_of(&params),
-            bytemuck::cast_slice(&data),
-            rays.len(),
-            16,
-        )?;
+        let bytes = self
+            .probe
+            .run(
+                gpu,
+                grid,
+                bytemuck::bytes_of(&params),
+                bytemuck::cast_slice(&data),
+                rays.len(),
+                16,
+            )
+            .await?;
         let values: &[[f32; 4]] = bytemuck::cast_slice(&bytes);
         Ok(values
             .iter()

@@ -104,7 +104,11 @@ impl FrameMedium {
     /// its source changed, and keeps its march and shading settings for
     /// [`FrameMedium::frame_params`]. Returns whether the bindings changed (group 0 must be made
     /// again).
-    pub fn prepare(&mut self, gpu: &Gpu, spec: Option<&VolumeSpec>) -> Result<bool, VolumeError> {
+    pub async fn prepare(
+        &mut self,
+        gpu: &Gpu,
+        spec: Option<&VolumeSpec>,
+    ) -> Result<bool, VolumeError> {
         let source = spec.map(grid_source);
         let changed = source != self.source;
         if changed {
@@ -116,7 +120,7 @@ impl FrameMedium {
             let grid = match (spec, made) {
                 (_, Some(grid)) => Some(grid),
                 (Some(spec), None) => {
-                    let grid = Arc::new(spec.density_grid(gpu, &mut ledger)?);
+                    let grid = Arc::new(spec.density_grid(gpu, &mut ledger).await?);
                     self.remember(source.clone().expect("a spec has a source"), &grid);
                     Some(grid)
                 }

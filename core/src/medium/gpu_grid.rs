@@ -318,7 +318,7 @@ impl GridProbe {
 
     /// Evaluates `count` inputs (`inputs`, laid out as the shader reads them) through `grid`
     /// with the shader's uniform `params`, and reads back `result_bytes` bytes a result.
-    pub(super) fn run(
+    pub(super) async fn run(
         &self,
         gpu: &Gpu,
         grid: &GpuGrid,
@@ -372,7 +372,7 @@ impl GridProbe {
             pass.dispatch_workgroups((count as u32).div_ceil(64), 1, 1);
         }
         gpu.queue.submit([encoder.finish()]);
-        read_buffer(gpu, &results, 0, size)
+        read_buffer(gpu, &results, 0, size).await
     }
 }
 
@@ -395,7 +395,7 @@ impl GridMarch {
 
     /// T from `light` to each of `points` (world metres) through `grid`, marched with `steps`
     /// steps, as `DensityGrid::marched_optical_depth` computes it in f64.
-    pub fn transmittance(
+    pub async fn transmittance(
         &self,
         gpu: &Gpu,
         grid: &GpuGrid,
@@ -415,14 +415,17 @@ impl GridMarch {
             _pad: [0; 2],
         };
         let padded: Vec<[f32; 4]> = points.iter().map(|p| p.extend(1.0).to_array()).collect();
-        let bytes = self.probe.run(
-            gpu,
-            grid,
-            bytemuck::bytes_of(&params),
-            bytemuck::cast_slice(&padded),
-            points.len(),
-            4,
-        )?;
+        let bytes = self
+            .probe
+            .run(
+                gpu,
+                grid,
+                bytemuck::bytes_of(&params),
+                bytemuck::cast_slice(&padded),
+                points.len(),
+                4,
+            )
+            .await?;
         Ok(bytemuck::cast_slice(&bytes).to_vec())
     }
 }
@@ -434,7 +437,7 @@ impl GridMarch {
     /// while both step over a thin feature), the steps double until T at N and at 2N agree
     /// within `search.tolerance` at every point (the volumes' reference, issue 26 §4). Refused in
     /// one line when 2N would pass `search.max_steps` or the adapter's loop budget first.
-    pub fn converged_transmittance(
+    pub async fn converged_transmittance(
         &self,
         gpu: &Gpu,
         grid: &GpuGrid,
@@ -453,9 +456,11 @@ impl GridMarch {
         };
         let diagonal = (grid.dims.as_vec3() + Vec3::ONE).length();
         let mut steps = start_steps.max(super::grid::steps_per_voxel_length(f64::from(diagonal)));
-        let mut coarse = self.transmittance(gpu, grid, light, points, steps)?;
+        let mut coarse = self.transmittance(gpu, grid, light, points, steps).await?;
         loop {
-            let fine = self.transmittance(gpu, grid, light, points, 2 * steps)?;
+            let fine = self
+                .transmittance(gpu, grid, light, points, 2 * steps)
+                .await?;
             let (worst_at, worst_difference) = coarse
                 .iter()
                 .zip(&fine)

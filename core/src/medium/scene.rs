@@ -363,7 +363,7 @@ impl VolumeSpec {
 
     /// The volume as a density grid in the world: read, baked or voxelised, then placed.
     /// The cloud's bake records its transient buffers in `ledger`.
-    pub fn density_grid(
+    pub async fn density_grid(
         &self,
         gpu: &Gpu,
         ledger: &mut MemoryLedger,
@@ -386,6 +386,7 @@ impl VolumeSpec {
                 let drift = self.cloud.drift_m(self.time_s);
                 let mut grid = CloudBaker::new(gpu)
                     .bake(gpu, ledger, &noise, &params, self.dims_for(size), drift)
+                    .await
                     .map_err(|e| VolumeError::Cloud(e.to_string()))?;
                 grid.density_scale_per_m = f64::from(self.density_scale_per_m);
                 grid

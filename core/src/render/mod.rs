@@ -239,7 +239,7 @@ pub struct Renderer {
 
 impl Renderer {
     /// Builds pipelines and targets for `width` x `height` output in `output_format`.
-    pub fn new(
+    pub async fn new(
         gpu: &Gpu,
         width: u32,
         height: u32,
@@ -317,7 +317,8 @@ impl Renderer {
             },
             &technique.name,
             &technique.params,
-        )?;
+        )
+        .await?;
         let pipelines = TechniquePipelines::new(
             device,
             &frame_layout,
@@ -381,7 +382,7 @@ impl Renderer {
     }
 
     /// Switches technique or parameters; builds pipelines only when something changed.
-    pub fn set_technique(
+    pub async fn set_technique(
         &mut self,
         gpu: &Gpu,
         config: &TechniqueConfig,
@@ -390,9 +391,10 @@ impl Renderer {
             return Ok(());
         }
         // Every face its own instance (its own maps), all built before any replaces the old.
-        let techniques = (0..self.faces.len())
-            .map(|_| self.create_technique(gpu, config))
-            .collect::<Result<Vec<_>, _>>()?;
+        let mut techniques = Vec::with_capacity(self.faces.len());
+        for _ in 0..self.faces.len() {
+            techniques.push(self.create_technique(gpu, config).await?);
+        }
         self.pipelines = TechniquePipelines::new(
             &gpu.device,
             &self.frame_layout,
@@ -410,7 +412,7 @@ impl Renderer {
         Ok(())
     }
 
-    fn create_technique(
+    async fn create_technique(
         &self,
         gpu: &Gpu,
         config: &TechniqueConfig,
@@ -425,14 +427,15 @@ impl Renderer {
             &config.name,
             &config.params,
         )
+        .await
     }
 
     /// Resizes the internal targets (the caller's output view must match); the old targets
     /// stay when the device refuses the new ones.
-    pub fn resize(&mut self, gpu: &Gpu, width: u32, height: u32) -> Result<(), GpuError> {
+    pub async fn resize(&mut self, gpu: &Gpu, width: u32, height: u32) -> Result<(), GpuError> {
         if (width, height) != (self.targets.width, self.targets.height) {
             self.targets = gpu
-                .scoped(|| {
+                .scoped(async {
                     Targets::new(
                         &gpu.device,
                         &self.depth_layout,
@@ -441,6 +444,7 @@ impl Renderer {
                         height,
                     )
                 })
+                .await
                 .map_err(|r| r.during(format!("resizing the frame to {width}x{height}")))?;
             self.low_res = None;
             self.eye_targets = None;
@@ -542,8 +546,8 @@ impl Renderer {
     }
 
     /// GPU pass times of the last frame (blocks until it finished); empty without timestamps.
-    pub fn gpu_times(&mut self, gpu: &Gpu) -> Result<PassTimes, GpuError> {
-        self.timer.read(gpu)
+    pub async fn gpu_times(&mut self, gpu: &Gpu) -> Result<PassTimes, GpuError> {
+        self.timer.read(gpu).await
     }
 
     /// Without waiting: the pass times of the newest frame that has finished since the last
@@ -561,8 +565,8 @@ impl Renderer {
 
     /// The fragment counts of the last frame, per pass name (blocks until it finished);
     /// empty when counting was off.
-    pub fn fragment_counts(&mut self, gpu: &Gpu) -> Result<Vec<FragmentTally>, GpuError> {
-        self.timer.read_fragments(gpu)
+    pub async fn fragment_counts(&mut self, gpu: &Gpu) -> Result<Vec<FragmentTally>, GpuError> {
+        self.timer.read_fragments(gpu).await
     }
 
     /// Layout of group 0 (the frame uniforms), for a pass recorded by
@@ -575,27 +579,30 @@ impl Renderer {
     /// recorded where the technique's build would be, and nothing after it: the bench measures
     /// the cheapest possible build over the same light-facing billboards this way
     /// (`crate::bench`). Its times and counts read as a frame's.
-    pub fn light_pass_frame(
+    pub async fn light_pass_frame(
         &mut self,
         gpu: &Gpu,
         scene: &Scene,
         particles: &[Particle],
         pass: LightPass<'_>,
     ) -> Result<FrameStats, ShadowError> {
-        let frame = gpu.scoped(|| -> Result<FrameStats, ShadowError> {
-            let (mut encoder, stats, _) =
-                self.begin_frame(gpu, scene, particles, false, SortOrder::View, Some(pass))?;
+        let frame = gpu.scoped(async {
+            let (mut encoder, stats, _) = self
+                .begin_frame(gpu, scene, particles, false, SortOrder::View, Some(pass))
+                .await?;
             self.timer.resolve(&mut encoder);
             gpu.queue.submit([encoder.finish()]);
-            Ok(stats)
+            Ok::<_, ShadowError>(stats)
         });
-        frame.map_err(|r| ShadowError::Gpu(r.during("recording a light pass").to_string()))?
+        frame
+            .await
+            .map_err(|r| ShadowError::Gpu(r.during("recording a light pass").to_string()))?
     }
 
     /// Renders one frame of `scene` with `particles` into `output` (size = [`Renderer::size`]).
     /// What the device refuses while recording and submitting the frame (a buffer it cannot
     /// grow, a validation error) is a [`ShadowError::Gpu`] line, not a panic.
-    pub fn render(
+    pub async fn render(
         &mut self,
         gpu: &Gpu,
         scene: &Scene,
@@ -603,8 +610,8 @@ impl Renderer {
         options: &RenderOptions,
         output: &wgpu::TextureView,
     ) -> Result<FrameStats, ShadowError> {
-        let frame = gpu.scoped(|| self.render_unscoped(gpu, scene, particles, options, output));
-        frame.map_err(|r| {
+        let frame = gpu.scoped(self.render_unscoped(gpu, scene, particles, options, output));
+        frame.await.map_err(|r| {
             let c = &self.technique_config;
             ShadowError::Gpu(
                 r.during(format!(
@@ -620,7 +627,7 @@ impl Renderer {
     /// uniforms, sort, upload, the technique's build: [`Renderer::begin_frame`]), the
     /// particles' lighting, the opaque pass, the particle pass (the renderer's, or the
     /// technique's own), the tone map, then one submission.
-    fn render_unscoped(
+    async fn render_unscoped(
         &mut self,
         gpu: &Gpu,
         scene: &Scene,
@@ -629,14 +636,16 @@ impl Renderer {
         output: &wgpu::TextureView,
     ) -> Result<FrameStats, ShadowError> {
         self.check_options(options)?;
-        let (mut encoder, mut stats, camera) = self.begin_frame(
-            gpu,
-            scene,
-            particles,
-            options.reuse_shadow_maps,
-            options.sort,
-            None,
-        )?;
+        let (mut encoder, mut stats, camera) = self
+            .begin_frame(
+                gpu,
+                scene,
+                particles,
+                options.reuse_shadow_maps,
+                options.sort,
+                None,
+            )
+            .await?;
         let owns_particle_pass = self.faces[0].technique.particle_pass().is_some();
         if !owns_particle_pass {
             self.record_lighting(gpu, &mut encoder, stats.particle_count);
@@ -684,8 +693,8 @@ impl Renderer {
 
     /// Loads `scene`'s density volume, if it has one and it is not the one loaded, as a frame
     /// of it does first (so that its grid is there before any frame: `Renderer::medium`).
-    pub fn load_volume(&mut self, gpu: &Gpu, scene: &Scene) -> Result<(), ShadowError> {
-        self.prepare_medium(gpu, scene, 0)
+    pub async fn load_volume(&mut self, gpu: &Gpu, scene: &Scene) -> Result<(), ShadowError> {
+        self.prepare_medium(gpu, scene, 0).await
     }
 
     /// The frame's density volume, if the scene has one (its grid and settings).

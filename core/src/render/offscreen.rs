@@ -30,8 +30,8 @@ impl OffscreenTarget {
 
     /// The tone-mapped frame it holds, read back as 8-bit sRGB (alpha dropped). Waits for the
     /// GPU.
-    pub fn read_rgb(&self, gpu: &Gpu) -> Result<image::RgbImage, crate::gpu::GpuError> {
-        let rgba = crate::gpu::read_texture_rgba8(gpu, &self.texture)?;
+    pub async fn read_rgb(&self, gpu: &Gpu) -> Result<image::RgbImage, crate::gpu::GpuError> {
+        let rgba = crate::gpu::read_texture_rgba8(gpu, &self.texture).await?;
         Ok(image::DynamicImage::ImageRgba8(rgba).into_rgb8())
     }
 }
@@ -48,7 +48,7 @@ pub struct OffscreenFrame {
 
 /// Renders one frame offscreen at the scene's output size and reads it back: the path the CLI's
 /// `render` and the GPU tests share.
-pub fn render_offscreen(
+pub async fn render_offscreen(
     gpu: &Gpu,
     scene: &Scene,
     particles: &[Particle],
@@ -56,13 +56,15 @@ pub fn render_offscreen(
     options: &RenderOptions,
 ) -> anyhow::Result<OffscreenFrame> {
     let (w, h) = (scene.output.width_px, scene.output.height_px);
-    let mut renderer = Renderer::new(gpu, w, h, OUTPUT_FORMAT, technique)?;
+    let mut renderer = Renderer::new(gpu, w, h, OUTPUT_FORMAT, technique).await?;
     let target = OffscreenTarget::new(gpu, w, h);
-    let stats = renderer.render(gpu, scene, particles, options, &target.view)?;
-    let times = renderer.gpu_times(gpu)?;
+    let stats = renderer
+        .render(gpu, scene, particles, options, &target.view)
+        .await?;
+    let times = renderer.gpu_times(gpu).await?;
     Ok(OffscreenFrame {
-        image: crate::gpu::read_texture_rgba8(gpu, &target.texture)?,
-        hdr: crate::gpu::read_texture_rgba16f(gpu, renderer.hdr_texture())?,
+        image: crate::gpu::read_texture_rgba8(gpu, &target.texture).await?,
+        hdr: crate::gpu::read_texture_rgba16f(gpu, renderer.hdr_texture()).await?,
         stats,
         times,
     })

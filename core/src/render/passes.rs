@@ -429,7 +429,7 @@ impl Renderer {
     /// Fragment shader invocations of the particle pass in the last frame rendered with
     /// fragment counting on ([`Renderer::set_count_fragments`]; blocks until it finished);
     /// `None` when counting was off, or the technique drew the particles itself (`has`).
-    pub fn particle_fragments(&mut self, gpu: &Gpu) -> Result<Option<u64>, GpuError> {
-        Ok(particle_fragments(&self.fragment_counts(gpu)?))
+    pub async fn particle_fragments(&mut self, gpu: &Gpu) -> Result<Option<u64>, GpuError> {
+        Ok(particle_fragments(&self.fragment_counts(gpu).await?))
     }
 }

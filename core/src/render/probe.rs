@@ -19,7 +19,7 @@ impl Renderer {
     /// [`Renderer::render`] (unless they are already this frame's: see
     /// [`super::RenderOptions::reuse_shadow_maps`]), then a compute shader evaluates the same
     /// `shadow_transmittance` the lighting shaders call.
-    pub fn probe(
+    pub async fn probe(
         &mut self,
         gpu: &Gpu,
         scene: &Scene,
@@ -27,13 +27,14 @@ impl Renderer {
         points: &[Vec3],
     ) -> anyhow::Result<Vec<f32>> {
         self.probe_scoped(gpu, scene, particles, points, None, false)
+            .await
     }
 
     /// As [`Renderer::probe`] at a frame's shaded points, where `owners` names the particle
     /// whose lighting point each point is (`shaded::point_owners`; `shadow::NO_OWNER` for the
     /// opaque points): a technique that lights a particle's points together (`has`) then gives
     /// each the T the frame's lighting used, so the error measured is the error rendered.
-    pub fn probe_shaded(
+    pub async fn probe_shaded(
         &mut self,
         gpu: &Gpu,
         scene: &Scene,
@@ -42,16 +43,17 @@ impl Renderer {
         owners: &[u32],
     ) -> anyhow::Result<Vec<f32>> {
         self.probe_scoped(gpu, scene, particles, points, Some(owners), false)
+            .await
     }
 
     /// Every particle as the last frame's lighting lit it: its sphere and the smoke's T at its
     /// four lighting points, read back from the lighting buffer (the technique's own for one
     /// that draws the particles itself). Waits for the GPU.
-    pub fn lit_particles(&mut self, gpu: &Gpu) -> anyhow::Result<Vec<LitParticle>> {
+    pub async fn lit_particles(&mut self, gpu: &Gpu) -> anyhow::Result<Vec<LitParticle>> {
         if let Some(pass) = self.faces[0].technique.particle_pass() {
-            return Ok(pass.lit_particles(gpu)?);
+            return Ok(pass.lit_particles(gpu).await?);
         }
-        let lights = self.lights.read(gpu, self.instances.len())?;
+        let lights = self.lights.read(gpu, self.instances.len()).await?;
         Ok(LitParticle::of(&self.instances, &lights))
     }
 
@@ -59,7 +61,7 @@ impl Renderer {
     /// computes it: T times the opaque occluders' visibility (their filtered depth map, or for
     /// the reference the exact test). The reference's self-check compares it with the CPU's
     /// closed form (`reference_check`).
-    pub fn probe_with_occluders(
+    pub async fn probe_with_occluders(
         &mut self,
         gpu: &Gpu,
         scene: &Scene,
@@ -67,9 +69,10 @@ impl Renderer {
         points: &[Vec3],
     ) -> anyhow::Result<Vec<f32>> {
         self.probe_scoped(gpu, scene, particles, points, None, true)
+            .await
     }
 
-    fn probe_scoped(
+    async fn probe_scoped(
         &mut self,
         gpu: &Gpu,
         scene: &Scene,
@@ -78,9 +81,9 @@ impl Renderer {
         owners: Option<&[u32]>,
         with_occluders: bool,
     ) -> anyhow::Result<Vec<f32>> {
-        let t = gpu
-            .scoped(|| self.probe_unscoped(gpu, scene, particles, points, owners, with_occluders));
-        t.map_err(|r| {
+        let t =
+            gpu.scoped(self.probe_unscoped(gpu, scene, particles, points, owners, with_occluders));
+        t.await.map_err(|r| {
             r.during(format!(
                 "probing {} at {} points",
                 self.technique_config.name,
@@ -89,7 +92,7 @@ impl Renderer {
         })?
     }
 
-    fn probe_unscoped(
+    async fn probe_unscoped(
         &mut self,
         gpu: &Gpu,
         scene: &Scene,
@@ -100,8 +103,9 @@ impl Renderer {
     ) -> anyhow::Result<Vec<f32>> {
         // Maps built for this very frame (a render with `reuse_shadow_maps`, or an earlier
         // probe) are probed as they are; a probe leaves them reusable for the next such render.
-        let (mut encoder, stats, _) =
-            self.begin_frame(gpu, scene, particles, true, SortOrder::View, None)?;
+        let (mut encoder, stats, _) = self
+            .begin_frame(gpu, scene, particles, true, SortOrder::View, None)
+            .await?;
         self.timer.resolve(&mut encoder);
         let probe = self.probe.get_or_insert_with(|| {
             Probe::new(
@@ -117,21 +121,25 @@ impl Renderer {
             .split_first_mut()
             .expect("a light has at least one face");
         let results = match first.technique.probe_pass() {
-            Some(owner) => owner.probe(
-                gpu,
-                shadow::ProbeInputs {
-                    encoder,
-                    frame_bind_group: &first.frame_bind_group,
-                    particles,
-                    light: &stats.light,
-                    light_axis: stats.light_direction,
-                    camera_forward: CameraMatrices::new(scene, 1, 1).forward,
-                    probe,
-                    points,
-                    owners,
-                    other_faces: other_faces(rest),
-                },
-            )?,
+            Some(owner) => {
+                owner
+                    .probe(
+                        gpu,
+                        shadow::ProbeInputs {
+                            encoder,
+                            frame_bind_group: &first.frame_bind_group,
+                            particles,
+                            light: &stats.light,
+                            light_axis: stats.light_direction,
+                            camera_forward: CameraMatrices::new(scene, 1, 1).forward,
+                            probe,
+                            points,
+                            owners,
+                            other_faces: other_faces(rest),
+                        },
+                    )
+                    .await?
+            }
             None => {
                 let lookups: Vec<(&wgpu::BindGroup, &wgpu::BindGroup)> = self
                     .faces
@@ -140,11 +148,11 @@ impl Renderer {
                     .collect();
                 let pending = probe.record(gpu, &mut encoder, &lookups, points);
                 gpu.queue.submit([encoder.finish()]);
-                pending.read(gpu)?
+                pending.read(gpu).await?
             }
         };
         match owners {
-            Some(owners) if self.history.active() => self.filtered_at(gpu, results, owners),
+            Some(owners) if self.history.active() => self.filtered_at(gpu, results, owners).await,
             _ => Ok(results),
         }
     }
@@ -152,13 +160,13 @@ impl Renderer {
     /// The probe's T at a filtered frame's shaded points ([`Renderer::probe_shaded`]): at a
     /// particle's lighting points the T the frame's lighting used, its history's
     /// ([`history`]), read back from the lighting; elsewhere the lookup's.
-    fn filtered_at(
+    async fn filtered_at(
         &self,
         gpu: &Gpu,
         mut results: Vec<f32>,
         owners: &[u32],
     ) -> anyhow::Result<Vec<f32>> {
-        let lights = self.lights.read(gpu, self.instances.len())?;
+        let lights = self.lights.read(gpu, self.instances.len()).await?;
         let mut instance_of = vec![0u32; self.order.len()];
         for (instance, &particle) in self.order.iter().enumerate() {
             instance_of[particle as usize] = instance as u32;

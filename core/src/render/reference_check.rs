@@ -171,7 +171,7 @@ pub fn check_points(
 /// with `exact` as the technique; any other stands for a broken reference (the tests do so).
 /// Errs, in one line naming the worst point and both values, when they differ by more than
 /// [`TOLERANCE`] anywhere.
-pub fn verify(
+pub async fn verify(
     renderer: &mut Renderer,
     gpu: &Gpu,
     scene: &Scene,
@@ -181,7 +181,9 @@ pub fn verify(
     let grid = renderer.medium().grid().cloned();
     let points = check_points(scene, particles, (width, height), grid.as_deref());
     let positions: Vec<Vec3> = points.iter().map(|(p, _)| *p).collect();
-    let gpu_t = renderer.probe_with_occluders(gpu, scene, particles, &positions)?;
+    let gpu_t = renderer
+        .probe_with_occluders(gpu, scene, particles, &positions)
+        .await?;
     let far_m = LightSpace::faces_with(
         &scene.light,
         particles,
@@ -261,7 +263,7 @@ pub fn mirror_transmittance(
 
 /// [`verify`] when the renderer's technique is the registry's reference, else nothing: the one
 /// call every command makes after rendering a frame it may measure against.
-pub fn verify_if_reference(
+pub async fn verify_if_reference(
     renderer: &mut Renderer,
     gpu: &Gpu,
     scene: &Scene,
@@ -270,7 +272,7 @@ pub fn verify_if_reference(
     if renderer.technique().name() != crate::shadow::reference().name {
         return Ok(None);
     }
-    verify(renderer, gpu, scene, particles).map(Some)
+    verify(renderer, gpu, scene, particles).await.map(Some)
 }
 
 /// The check's numbers from the GPU's values and the closed form's (`None`: a knife edge).

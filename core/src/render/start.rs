@@ -27,7 +27,7 @@ impl Renderer {
     /// technique's build.
     /// `build`, when given, is recorded instead of the technique's build (the bench's light
     /// pass, see [`Renderer::light_pass_frame`]).
-    pub(super) fn begin_frame(
+    pub(super) async fn begin_frame(
         &mut self,
         gpu: &Gpu,
         scene: &Scene,
@@ -38,8 +38,8 @@ impl Renderer {
     ) -> Result<(wgpu::CommandEncoder, FrameStats, CameraMatrices), ShadowError> {
         let (width, height) = self.size();
         self.upload_opaque(gpu, scene);
-        self.match_light(gpu, &scene.light)?;
-        self.prepare_medium(gpu, scene, particles.len())?;
+        self.match_light(gpu, &scene.light).await?;
+        self.prepare_medium(gpu, scene, particles.len()).await?;
 
         let camera = CameraMatrices::new(scene, width, height);
         let lights = LightSpace::faces_with(
@@ -152,19 +152,21 @@ impl Renderer {
                 )?,
                 None => {
                     for (face, light) in self.faces.iter_mut().zip(&lights) {
-                        face.technique.build(
-                            gpu,
-                            shadow::BuildInputs {
-                                encoder: &mut encoder,
-                                timer: &mut self.timer,
-                                frame_bind_group: &face.frame_bind_group,
-                                particles: &self.particles,
-                                particle_count,
-                                instances: &self.instances,
-                                light,
-                                volume,
-                            },
-                        )?;
+                        face.technique
+                            .build(
+                                gpu,
+                                shadow::BuildInputs {
+                                    encoder: &mut encoder,
+                                    timer: &mut self.timer,
+                                    frame_bind_group: &face.frame_bind_group,
+                                    particles: &self.particles,
+                                    particle_count,
+                                    instances: &self.instances,
+                                    light,
+                                    volume,
+                                },
+                            )
+                            .await?;
                     }
                     self.built_from = build_key;
                 }
@@ -227,7 +229,7 @@ impl Renderer {
 
     /// Makes one light face per light space of `light` (a point light's six cube faces, a
     /// spotlight's one), each with its own instance of the technique.
-    pub(super) fn match_light(
+    pub(super) async fn match_light(
         &mut self,
         gpu: &Gpu,
         light: &crate::scene::Spotlight,
@@ -235,7 +237,9 @@ impl Renderer {
         let wanted = light.kind.faces();
         self.faces.truncate(wanted);
         while self.faces.len() < wanted {
-            let technique = self.create_technique(gpu, &self.technique_config.clone())?;
+            let technique = self
+                .create_technique(gpu, &self.technique_config.clone())
+                .await?;
             self.faces.push(LightFace::new(
                 gpu,
                 &self.frame_layout,
@@ -249,7 +253,7 @@ impl Renderer {
 
     /// Makes the frame's volume the scene's (loading it when its source changed; every face's
     /// group 0 is made again then), and refuses a technique that cannot shadow it.
-    pub(super) fn prepare_medium(
+    pub(super) async fn prepare_medium(
         &mut self,
         gpu: &Gpu,
         scene: &Scene,
@@ -267,6 +271,7 @@ impl Renderer {
         let changed = self
             .medium
             .prepare(gpu, volume.as_ref())
+            .await
             .map_err(|e| ShadowError::Volume(e.to_string()))?;
         if changed {
             for face in &mut self.faces {

@@ -852,7 +852,7 @@ impl DeepCapture {
     /// `band_texel` in shaders/shadow/deep_capture_lists.wgsl does, with the bind group it is
     /// given as group 1). The last band goes into `encoder`, the others are submitted.
     #[allow(clippy::too_many_arguments)]
-    pub fn record(
+    pub async fn record(
         &mut self,
         gpu: &Gpu,
         memory: &mut MemoryLedger,
@@ -906,6 +906,7 @@ impl DeepCapture {
         // offsets (the same u32 sums the scan wrote on the GPU).
         let texels = u64::from(self.resolution).pow(2);
         let counts: Vec<u32> = read_buffer(gpu, &self.counts, 0, texels * 4)
+            .await
             .map_err(|err| ShadowError::Gpu(err.to_string()))?
             .chunks_exact(4)
             .map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]))

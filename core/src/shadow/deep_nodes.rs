@@ -17,6 +17,7 @@
 //! texel by place, as `dsm`'s two texels an invocation take them), and does round
 //! `pass_round.index`'s share of its work (group 3).
 
+use super::GpuFuture;
 use bytemuck::{Pod, Zeroable};
 
 use super::deep_capture::{BandPass, DeepCapture, Resolve};
@@ -334,68 +335,77 @@ impl ShadowTechnique for DeepNodes {
         out
     }
 
-    fn build(&mut self, gpu: &Gpu, inputs: BuildInputs<'_>) -> Result<(), ShadowError> {
-        // With statistics to read back, the capture's fill and the compression go in a
-        // submission of their own; otherwise they join the frame.
-        let mut own = None;
-        let encoder = match &self.stats {
-            Some(_) => own.insert(gpu.device.create_command_encoder(
-                &wgpu::CommandEncoderDescriptor {
-                    label: Some(&format!("{}.build.encoder", self.spec.name)),
-                },
-            )),
-            None => &mut *inputs.encoder,
-        };
-        // Zeroed by a queue write, which lands before the capture's first submission (bands
-        // before the last are submitted before `encoder`).
-        if let Some(stats) = &self.stats {
-            gpu.queue
-                .write_buffer(stats, 0, &vec![0; self.spec.stats_bytes() as usize]);
-        }
-        let (spec, pipeline, compress_bind_group, resolution, params) = (
-            self.spec,
-            &self.compress_pipeline,
-            &self.compress_bind_group,
-            self.resolution,
-            &self.params,
-        );
-        let frame_bind_group = inputs.frame_bind_group;
-        // The compression of each band, over the band's rows of the capture, in rounds.
-        let compress = |encoder: &mut wgpu::CommandEncoder,
-                        timer: &mut crate::gpu::GpuTimer,
-                        band: &BandPass<'_>| {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some(&format!("{}.compress", spec.name)),
-                timestamp_writes: timer.compute_pass("shadow"),
-            });
-            pass.set_pipeline(pipeline);
-            pass.set_bind_group(0, frame_bind_group, &[]);
-            pass.set_bind_group(1, band.capture, &[]);
-            pass.set_bind_group(2, compress_bind_group, &[]);
-            let groups = (resolution.div_ceil(8), band.band.rows().div_ceil(8));
-            let rounds = (spec.rounds)(band.max_list, band.loop_budget, params);
-            band.rounds.dispatch(&mut pass, rounds, groups);
-        };
-        self.capture.record(
-            gpu,
-            &mut self.memory,
-            encoder,
-            inputs.timer,
-            frame_bind_group,
-            inputs.particles,
-            inputs.particle_count,
-            inputs.volume.is_some(),
-            compress,
-        )?;
-        if let (Some(encoder), Some(stats)) = (own, &self.stats) {
-            gpu.queue.submit([encoder.finish()]);
-            let bytes = read_buffer(gpu, stats, 0, u64::from(self.spec.stats_words) * 4)
-                .map_err(|err| ShadowError::Gpu(err.to_string()))?;
-            self.last_stats = bytes
-                .chunks_exact(4)
-                .map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]))
-                .collect();
-        }
-        Ok(())
+    fn build<'a>(
+        &'a mut self,
+        gpu: &'a Gpu,
+        inputs: BuildInputs<'a>,
+    ) -> GpuFuture<'a, Result<(), ShadowError>> {
+        Box::pin(async move {
+            // With statistics to read back, the capture's fill and the compression go in a
+            // submission of their own; otherwise they join the frame.
+            let mut own = None;
+            let encoder = match &self.stats {
+                Some(_) => own.insert(gpu.device.create_command_encoder(
+                    &wgpu::CommandEncoderDescriptor {
+                        label: Some(&format!("{}.build.encoder", self.spec.name)),
+                    },
+                )),
+                None => &mut *inputs.encoder,
+            };
+            // Zeroed by a queue write, which lands before the capture's first submission (bands
+            // before the last are submitted before `encoder`).
+            if let Some(stats) = &self.stats {
+                gpu.queue
+                    .write_buffer(stats, 0, &vec![0; self.spec.stats_bytes() as usize]);
+            }
+            let (spec, pipeline, compress_bind_group, resolution, params) = (
+                self.spec,
+                &self.compress_pipeline,
+                &self.compress_bind_group,
+                self.resolution,
+                &self.params,
+            );
+            let frame_bind_group = inputs.frame_bind_group;
+            // The compression of each band, over the band's rows of the capture, in rounds.
+            let compress = |encoder: &mut wgpu::CommandEncoder,
+                            timer: &mut crate::gpu::GpuTimer,
+                            band: &BandPass<'_>| {
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some(&format!("{}.compress", spec.name)),
+                    timestamp_writes: timer.compute_pass("shadow"),
+                });
+                pass.set_pipeline(pipeline);
+                pass.set_bind_group(0, frame_bind_group, &[]);
+                pass.set_bind_group(1, band.capture, &[]);
+                pass.set_bind_group(2, compress_bind_group, &[]);
+                let groups = (resolution.div_ceil(8), band.band.rows().div_ceil(8));
+                let rounds = (spec.rounds)(band.max_list, band.loop_budget, params);
+                band.rounds.dispatch(&mut pass, rounds, groups);
+            };
+            self.capture
+                .record(
+                    gpu,
+                    &mut self.memory,
+                    encoder,
+                    inputs.timer,
+                    frame_bind_group,
+                    inputs.particles,
+                    inputs.particle_count,
+                    inputs.volume.is_some(),
+                    compress,
+                )
+                .await?;
+            if let (Some(encoder), Some(stats)) = (own, &self.stats) {
+                gpu.queue.submit([encoder.finish()]);
+                let bytes = read_buffer(gpu, stats, 0, u64::from(self.spec.stats_words) * 4)
+                    .await
+                    .map_err(|err| ShadowError::Gpu(err.to_string()))?;
+                self.last_stats = bytes
+                    .chunks_exact(4)
+                    .map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]))
+                    .collect();
+            }
+            Ok(())
+        })
     }
 }

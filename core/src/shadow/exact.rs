@@ -65,6 +65,7 @@
 //!
 //! The budget and the shadow resolution do not apply: `channels_used` reports 0.
 
+use super::GpuFuture;
 use bytemuck::{Pod, Zeroable};
 use rayon::prelude::*;
 
@@ -651,7 +652,7 @@ impl Exact {
     /// Counts this frame's entries at the current grid (a submission and a readback of the
     /// per-tile counts): the total, the longest list, and the count's and fill's loop
     /// iterations for the largest footprint, height × (width + 1).
-    fn count_entries(
+    async fn count_entries(
         &self,
         gpu: &Gpu,
         inputs: &mut BuildInputs<'_>,
@@ -666,6 +667,7 @@ impl Exact {
         gpu.queue.submit([encoder.finish()]);
         let tiles = u64::from(self.grid.tiles).pow(2);
         let words: Vec<u32> = read_buffer(gpu, &self.grid.counts, 0, (tiles + 2) * 4)
+            .await
             .map_err(|err| ShadowError::Gpu(err.to_string()))?
             .chunks_exact(4)
             .map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]))
@@ -801,90 +803,97 @@ impl ShadowTechnique for Exact {
         Some(&self.lighting_order)
     }
 
-    fn build(&mut self, gpu: &Gpu, mut inputs: BuildInputs<'_>) -> Result<(), ShadowError> {
-        let device = &gpu.device;
-        // The entries one texture holds: whole rows, as many as the adapter allows.
-        let max_entries = u64::from(ROW_TEXELS)
-            * crate::gpu::max_texture_rows(gpu.limits.max_texture_dimension_2d);
-        let limit = max_entries * ENTRY_BYTES;
-        let fits = |entries: u64| entries <= max_entries;
-        self.upload_spheres(gpu, inputs.light.position, inputs.instances)?;
-        self.lighting_order = lighting_order(inputs.light, inputs.instances);
+    fn build<'a>(
+        &'a mut self,
+        gpu: &'a Gpu,
+        inputs: BuildInputs<'a>,
+    ) -> GpuFuture<'a, Result<(), ShadowError>> {
+        Box::pin(async move {
+            let mut inputs = inputs;
+            let device = &gpu.device;
+            // The entries one texture holds: whole rows, as many as the adapter allows.
+            let max_entries = u64::from(ROW_TEXELS)
+                * crate::gpu::max_texture_rows(gpu.limits.max_texture_dimension_2d);
+            let limit = max_entries * ENTRY_BYTES;
+            let fits = |entries: u64| entries <= max_entries;
+            self.upload_spheres(gpu, inputs.light.position, inputs.instances)?;
+            self.lighting_order = lighting_order(inputs.light, inputs.instances);
 
-        // Count at the grid this frame's particles ask for, halving it while the lists would not
-        // fit one binding or, on llvmpipe, while some particle's footprint covers more tiles
-        // than the count's and fill's loops may visit.
-        let mut tiles = tiles_for(inputs.light);
-        let total = loop {
-            if self.grid.tiles != tiles {
-                self.grid = Grid::new(&mut self.memory, device, tiles)?;
-            }
-            self.write_params(gpu, inputs.light, inputs.particle_count);
-            let bind_group = self.build_bind_group(device);
-            let (total, max_list, footprint_loops) =
-                self.count_entries(gpu, &mut inputs, &bind_group)?;
-            // On llvmpipe a footprint of more tiles than a loop may visit would be binned short.
-            // The walk over one footprint loops its tile rows × (tiles per row + 1) times; a
-            // grid too fine for the budget is halved (8² tiles need at most 72).
-            let loops_fit = self
-                .loop_budget
-                .is_none_or(|budget| footprint_loops <= u64::from(budget));
-            if fits(total) && (loops_fit || tiles == MIN_TILES) {
-                self.max_list = max_list;
-                break total;
-            }
-            if tiles == MIN_TILES && !fits(total) {
-                return Err(ShadowError::TileListsTooLarge {
+            // Count at the grid this frame's particles ask for, halving it while the lists would not
+            // fit one binding or, on llvmpipe, while some particle's footprint covers more tiles
+            // than the count's and fill's loops may visit.
+            let mut tiles = tiles_for(inputs.light);
+            let total = loop {
+                if self.grid.tiles != tiles {
+                    self.grid = Grid::new(&mut self.memory, device, tiles)?;
+                }
+                self.write_params(gpu, inputs.light, inputs.particle_count);
+                let bind_group = self.build_bind_group(device);
+                let (total, max_list, footprint_loops) =
+                    self.count_entries(gpu, &mut inputs, &bind_group).await?;
+                // On llvmpipe a footprint of more tiles than a loop may visit would be binned short.
+                // The walk over one footprint loops its tile rows × (tiles per row + 1) times; a
+                // grid too fine for the budget is halved (8² tiles need at most 72).
+                let loops_fit = self
+                    .loop_budget
+                    .is_none_or(|budget| footprint_loops <= u64::from(budget));
+                if fits(total) && (loops_fit || tiles == MIN_TILES) {
+                    self.max_list = max_list;
+                    break total;
+                }
+                if tiles == MIN_TILES && !fits(total) {
+                    return Err(ShadowError::TileListsTooLarge {
+                        particles: inputs.particle_count,
+                        bytes: total * ENTRY_BYTES,
+                        limit,
+                    });
+                }
+                tiles = (tiles / 2).max(MIN_TILES);
+            };
+            // One lookup per invocation (particle lighting, opaque pass, probe): a list may take
+            // the whole loop budget.
+            if let Some(limit) = self.loop_budget.map(longest_walk)
+                && self.max_list > limit
+            {
+                return Err(ShadowError::TileListTooLong {
                     particles: inputs.particle_count,
-                    bytes: total * ENTRY_BYTES,
+                    tiles: self.grid.tiles,
+                    longest: self.max_list,
                     limit,
                 });
             }
-            tiles = (tiles / 2).max(MIN_TILES);
-        };
-        // One lookup per invocation (particle lighting, opaque pass, probe): a list may take
-        // the whole loop budget.
-        if let Some(limit) = self.loop_budget.map(longest_walk)
-            && self.max_list > limit
-        {
-            return Err(ShadowError::TileListTooLong {
-                particles: inputs.particle_count,
-                tiles: self.grid.tiles,
-                longest: self.max_list,
-                limit,
-            });
-        }
-        if total > u64::from(self.capacity) {
-            // Headroom so that a slowly changing scene does not reallocate every frame; whole
-            // tiles of texture rows (`ROW_TILE`), as the texture holds them.
-            let whole_rows =
-                |n: u64| n.next_multiple_of(u64::from(ROW_TEXELS) * crate::gpu::ROW_TILE);
-            let mut capacity = whole_rows((total + total / 4).max(1 << 16));
-            if !fits(capacity) {
-                capacity = whole_rows(total);
+            if total > u64::from(self.capacity) {
+                // Headroom so that a slowly changing scene does not reallocate every frame; whole
+                // tiles of texture rows (`ROW_TILE`), as the texture holds them.
+                let whole_rows =
+                    |n: u64| n.next_multiple_of(u64::from(ROW_TEXELS) * crate::gpu::ROW_TILE);
+                let mut capacity = whole_rows((total + total / 4).max(1 << 16));
+                if !fits(capacity) {
+                    capacity = whole_rows(total);
+                }
+                self.capacity = capacity as u32;
+                self.entries = entry_texture(&mut self.memory, device, self.capacity)?;
             }
-            self.capacity = capacity as u32;
-            self.entries = entry_texture(&mut self.memory, device, self.capacity)?;
-        }
-        self.last_entries = total as u32;
-        self.write_params(gpu, inputs.light, inputs.particle_count);
-        let bind_group = self.build_bind_group(device);
-        self.lookup_bind_group = lookup_bind_group(
-            device,
-            &self.lookup_layout,
-            [&self.params_buffer, &self.grid.offsets, &self.slice_near],
-            [&self.entries, &self.spheres],
-        );
+            self.last_entries = total as u32;
+            self.write_params(gpu, inputs.light, inputs.particle_count);
+            let bind_group = self.build_bind_group(device);
+            self.lookup_bind_group = lookup_bind_group(
+                device,
+                &self.lookup_layout,
+                [&self.params_buffer, &self.grid.offsets, &self.slice_near],
+                [&self.entries, &self.spheres],
+            );
 
-        // The counts, cleared, become the fill's cursors.
-        let mut encoder = std::mem::replace(
-            inputs.encoder,
-            device.create_command_encoder(&wgpu::CommandEncoderDescriptor::default()),
-        );
-        encoder.clear_buffer(&self.grid.counts, 0, None);
-        self.record_fill(&mut encoder, &mut inputs, &bind_group);
-        *inputs.encoder = encoder;
-        Ok(())
+            // The counts, cleared, become the fill's cursors.
+            let mut encoder = std::mem::replace(
+                inputs.encoder,
+                device.create_command_encoder(&wgpu::CommandEncoderDescriptor::default()),
+            );
+            encoder.clear_buffer(&self.grid.counts, 0, None);
+            self.record_fill(&mut encoder, &mut inputs, &bind_group);
+            *inputs.encoder = encoder;
+            Ok(())
+        })
     }
 }
 

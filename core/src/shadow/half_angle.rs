@@ -25,6 +25,7 @@
 //! Memory: the light buffer (one R16F channel at the shadow resolution), the eye buffer (RGBA16F
 //! at the frame size) and the particles re-sorted along the half-angle, all in the ledger.
 
+use super::GpuFuture;
 use std::ops::Range;
 use web_time::Instant;
 
@@ -463,34 +464,40 @@ impl ShadowTechnique for HalfAngle {
     }
 
     /// Every particle into the light buffer, for the opaque pass.
-    fn build(&mut self, _gpu: &Gpu, inputs: BuildInputs<'_>) -> Result<(), ShadowError> {
-        let mut pass = inputs
-            .encoder
-            .begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("has.light.all"),
-                color_attachments: &[cleared_attachment(
-                    &self.light_view,
-                    wgpu::Color::TRANSPARENT,
-                )],
-                depth_stencil_attachment: None,
-                timestamp_writes: inputs.timer.pass("shadow"),
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
-        if inputs.particle_count > 0 {
-            inputs.timer.count_fragments(
-                &mut pass,
-                "shadow",
-                TargetWrites::of(&[LIGHT_FORMAT]),
-                |pass| {
-                    pass.set_pipeline(&self.light_pipeline);
-                    pass.set_bind_group(0, inputs.frame_bind_group, &[]);
-                    pass.set_vertex_buffer(0, inputs.particles.slice(..));
-                    pass.draw(0..BILLBOARD_VERTICES, 0..inputs.particle_count);
-                },
-            );
-        }
-        Ok(())
+    fn build<'a>(
+        &'a mut self,
+        _gpu: &'a Gpu,
+        inputs: BuildInputs<'a>,
+    ) -> GpuFuture<'a, Result<(), ShadowError>> {
+        Box::pin(async move {
+            let mut pass = inputs
+                .encoder
+                .begin_render_pass(&wgpu::RenderPassDescriptor {
+                    label: Some("has.light.all"),
+                    color_attachments: &[cleared_attachment(
+                        &self.light_view,
+                        wgpu::Color::TRANSPARENT,
+                    )],
+                    depth_stencil_attachment: None,
+                    timestamp_writes: inputs.timer.pass("shadow"),
+                    occlusion_query_set: None,
+                    multiview_mask: None,
+                });
+            if inputs.particle_count > 0 {
+                inputs.timer.count_fragments(
+                    &mut pass,
+                    "shadow",
+                    TargetWrites::of(&[LIGHT_FORMAT]),
+                    |pass| {
+                        pass.set_pipeline(&self.light_pipeline);
+                        pass.set_bind_group(0, inputs.frame_bind_group, &[]);
+                        pass.set_vertex_buffer(0, inputs.particles.slice(..));
+                        pass.draw(0..BILLBOARD_VERTICES, 0..inputs.particle_count);
+                    },
+                );
+            }
+            Ok(())
+        })
     }
 
     fn particle_pass(&mut self) -> Option<&mut dyn ParticlePass> {
@@ -556,9 +563,14 @@ impl ParticlePass for HalfAngle {
         }
     }
 
-    fn lit_particles(&self, gpu: &Gpu) -> Result<Vec<LitParticle>, crate::gpu::GpuError> {
-        let lights = self.lights.read(gpu, self.lit_instances.len())?;
-        Ok(LitParticle::of(&self.lit_instances, &lights))
+    fn lit_particles<'a>(
+        &'a self,
+        gpu: &'a Gpu,
+    ) -> GpuFuture<'a, Result<Vec<LitParticle>, crate::gpu::GpuError>> {
+        Box::pin(async move {
+            let lights = self.lights.read(gpu, self.lit_instances.len()).await?;
+            Ok(LitParticle::of(&self.lit_instances, &lights))
+        })
     }
 
     fn record(
@@ -761,92 +773,98 @@ impl ProbePass for HalfAngle {
     /// shadowed by the smoke behind it, as it is in the frame: the light buffer holds optical
     /// depth, not where along the ray it lies. Without owners, a point in the smoke as a
     /// particle there would be lit: through the batches wholly before it along the half-angle.
-    fn probe(&mut self, gpu: &Gpu, inputs: ProbeInputs<'_>) -> anyhow::Result<Vec<f32>> {
-        Self::check_point_light(
-            inputs.particles,
-            inputs.light,
-            inputs.light_axis,
-            inputs.other_faces.len(),
-        )?;
-        let mut encoder = inputs.encoder;
-        let slicing = Slicing::new(inputs.camera_forward, inputs.light_axis);
-        let order = slicing.order(inputs.particles);
-        let instances: Vec<ParticleInstance> = order
-            .iter()
-            .map(|&i| ParticleInstance::from_particle(&inputs.particles[i as usize]))
-            .collect();
-        let batches = self.upload_sorted(gpu, &instances)?;
-        let last_keys: Vec<f32> = batches
-            .iter()
-            .map(|b| {
-                inputs.particles[order[b.end as usize - 1] as usize]
-                    .position
-                    .dot(slicing.axis)
-            })
-            .collect();
-        // Group the points by how many batches lie before them: a lighting point's particle's
-        // batch, every batch for an opaque point, those wholly before a free point along the
-        // axis. (Only a probe with owners needs each particle's batch.)
-        let mut batch_of_particle = vec![0usize; inputs.owners.map_or(0, |_| order.len())];
-        if !batch_of_particle.is_empty() {
-            for (k, batch) in batches.iter().enumerate() {
-                for &i in &order[batch.start as usize..batch.end as usize] {
-                    batch_of_particle[i as usize] = k;
+    fn probe<'a>(
+        &'a mut self,
+        gpu: &'a Gpu,
+        inputs: ProbeInputs<'a>,
+    ) -> GpuFuture<'a, anyhow::Result<Vec<f32>>> {
+        Box::pin(async move {
+            Self::check_point_light(
+                inputs.particles,
+                inputs.light,
+                inputs.light_axis,
+                inputs.other_faces.len(),
+            )?;
+            let mut encoder = inputs.encoder;
+            let slicing = Slicing::new(inputs.camera_forward, inputs.light_axis);
+            let order = slicing.order(inputs.particles);
+            let instances: Vec<ParticleInstance> = order
+                .iter()
+                .map(|&i| ParticleInstance::from_particle(&inputs.particles[i as usize]))
+                .collect();
+            let batches = self.upload_sorted(gpu, &instances)?;
+            let last_keys: Vec<f32> = batches
+                .iter()
+                .map(|b| {
+                    inputs.particles[order[b.end as usize - 1] as usize]
+                        .position
+                        .dot(slicing.axis)
+                })
+                .collect();
+            // Group the points by how many batches lie before them: a lighting point's particle's
+            // batch, every batch for an opaque point, those wholly before a free point along the
+            // axis. (Only a probe with owners needs each particle's batch.)
+            let mut batch_of_particle = vec![0usize; inputs.owners.map_or(0, |_| order.len())];
+            if !batch_of_particle.is_empty() {
+                for (k, batch) in batches.iter().enumerate() {
+                    for &i in &order[batch.start as usize..batch.end as usize] {
+                        batch_of_particle[i as usize] = k;
+                    }
                 }
             }
-        }
-        let mut groups: Vec<Vec<usize>> = vec![Vec::new(); batches.len() + 1];
-        for (i, p) in inputs.points.iter().enumerate() {
-            let group = match inputs.owners.map(|o| o[i]) {
-                Some(NO_OWNER) => batches.len(),
-                Some(owner) => batch_of_particle[owner as usize],
-                None => last_keys.partition_point(|&k| k < p.dot(slicing.axis)),
-            };
-            groups[group].push(i);
-        }
-        let mut timer = crate::gpu::GpuTimer::disabled();
-        let mut others = inputs.other_faces;
-        self.light_pass_all(
-            &mut encoder,
-            &mut timer,
-            inputs.frame_bind_group,
-            &mut others,
-            None,
-            true,
-        );
-        let mut pending: Vec<(usize, PendingProbe)> = Vec::new();
-        for (k, group) in groups.iter().enumerate() {
-            if !group.is_empty() {
-                let points: Vec<Vec3> = group.iter().map(|&i| inputs.points[i]).collect();
-                let lookups: Vec<(&wgpu::BindGroup, &wgpu::BindGroup)> =
-                    std::iter::once((inputs.frame_bind_group, &self.lookup_bind_group))
-                        .chain(
-                            others
-                                .iter()
-                                .map(|o| (o.frame_bind_group, o.technique.bind_group())),
-                        )
-                        .collect();
-                pending.push((k, inputs.probe.record(gpu, &mut encoder, &lookups, &points)));
+            let mut groups: Vec<Vec<usize>> = vec![Vec::new(); batches.len() + 1];
+            for (i, p) in inputs.points.iter().enumerate() {
+                let group = match inputs.owners.map(|o| o[i]) {
+                    Some(NO_OWNER) => batches.len(),
+                    Some(owner) => batch_of_particle[owner as usize],
+                    None => last_keys.partition_point(|&k| k < p.dot(slicing.axis)),
+                };
+                groups[group].push(i);
             }
-            if let Some(batch) = batches.get(k) {
-                self.light_pass_all(
-                    &mut encoder,
-                    &mut timer,
-                    inputs.frame_bind_group,
-                    &mut others,
-                    Some(batch.clone()),
-                    false,
-                );
+            let mut timer = crate::gpu::GpuTimer::disabled();
+            let mut others = inputs.other_faces;
+            self.light_pass_all(
+                &mut encoder,
+                &mut timer,
+                inputs.frame_bind_group,
+                &mut others,
+                None,
+                true,
+            );
+            let mut pending: Vec<(usize, PendingProbe)> = Vec::new();
+            for (k, group) in groups.iter().enumerate() {
+                if !group.is_empty() {
+                    let points: Vec<Vec3> = group.iter().map(|&i| inputs.points[i]).collect();
+                    let lookups: Vec<(&wgpu::BindGroup, &wgpu::BindGroup)> =
+                        std::iter::once((inputs.frame_bind_group, &self.lookup_bind_group))
+                            .chain(
+                                others
+                                    .iter()
+                                    .map(|o| (o.frame_bind_group, o.technique.bind_group())),
+                            )
+                            .collect();
+                    pending.push((k, inputs.probe.record(gpu, &mut encoder, &lookups, &points)));
+                }
+                if let Some(batch) = batches.get(k) {
+                    self.light_pass_all(
+                        &mut encoder,
+                        &mut timer,
+                        inputs.frame_bind_group,
+                        &mut others,
+                        Some(batch.clone()),
+                        false,
+                    );
+                }
             }
-        }
-        gpu.queue.submit([encoder.finish()]);
-        let mut out = vec![1.0; inputs.points.len()];
-        for (k, probe) in pending {
-            for (&i, t) in groups[k].iter().zip(probe.read(gpu)?) {
-                out[i] = t;
+            gpu.queue.submit([encoder.finish()]);
+            let mut out = vec![1.0; inputs.points.len()];
+            for (k, probe) in pending {
+                for (&i, t) in groups[k].iter().zip(probe.read(gpu).await?) {
+                    out[i] = t;
+                }
             }
-        }
-        Ok(out)
+            Ok(out)
+        })
     }
 }
 

@@ -16,6 +16,7 @@
 //! ([`Precision`]). A spec with a depth channel (`dom`) gets a first pass that min-blends the
 //! depth where the smoke starts into one more R16F channel.
 
+use super::GpuFuture;
 use std::ops::Range;
 
 use bytemuck::{Pod, Zeroable};
@@ -1230,79 +1231,87 @@ impl ShadowTechnique for Layered {
         out
     }
 
-    fn build(&mut self, gpu: &Gpu, inputs: BuildInputs<'_>) -> Result<(), ShadowError> {
-        gpu.queue.write_buffer(
-            &self.params_buffer,
-            0,
-            bytemuck::bytes_of(&self.shader_params()),
-        );
-        let particles = inputs.particles.slice(..);
-        if let Some(depth) = &mut self.depth {
-            // The depth where the smoke starts: MIN blending, cleared beyond the far bound.
-            let mut pass = inputs
-                .encoder
-                .begin_render_pass(&wgpu::RenderPassDescriptor {
-                    label: Some("dom.build.depth"),
-                    color_attachments: &[cleared_attachment(&depth.view, wgpu::Color::WHITE)],
-                    depth_stencil_attachment: None,
-                    timestamp_writes: inputs.timer.pass("shadow"),
-                    occlusion_query_set: None,
-                    multiview_mask: None,
-                });
-            let writes = TargetWrites::of(&[DEPTH_FORMAT]);
-            inputs
-                .timer
-                .count_fragments(&mut pass, "shadow", writes, |pass| {
-                    draw_particles(
-                        pass,
-                        &depth.pipeline,
-                        inputs.frame_bind_group,
-                        &depth.bind_group,
-                        particles,
-                        inputs.particle_count,
-                    );
-                    if inputs.volume.is_some() {
-                        depth
-                            .volume
-                            .draw(pass, inputs.frame_bind_group, &depth.bind_group);
-                    }
-                });
-        }
-        for build in &self.build {
-            let attachments: Vec<_> = self.targets
-                [build.targets.start as usize..build.targets.end as usize]
-                .iter()
-                .map(|view| cleared_attachment(view, wgpu::Color::TRANSPARENT))
-                .collect();
-            let mut pass = inputs
-                .encoder
-                .begin_render_pass(&wgpu::RenderPassDescriptor {
-                    label: Some("layered.build"),
-                    color_attachments: &attachments,
-                    depth_stencil_attachment: None,
-                    timestamp_writes: inputs.timer.pass("shadow"),
-                    occlusion_query_set: None,
-                    multiview_mask: None,
-                });
-            inputs
-                .timer
-                .count_fragments(&mut pass, "shadow", build.writes, |pass| {
-                    draw_particles(
-                        pass,
-                        &build.pipeline,
-                        inputs.frame_bind_group,
-                        &self.build_bind_group,
-                        particles,
-                        inputs.particle_count,
-                    );
-                    if inputs.volume.is_some() {
-                        build
-                            .volume
-                            .draw(pass, inputs.frame_bind_group, &self.build_bind_group);
-                    }
-                });
-        }
-        Ok(())
+    fn build<'a>(
+        &'a mut self,
+        gpu: &'a Gpu,
+        inputs: BuildInputs<'a>,
+    ) -> GpuFuture<'a, Result<(), ShadowError>> {
+        Box::pin(async move {
+            gpu.queue.write_buffer(
+                &self.params_buffer,
+                0,
+                bytemuck::bytes_of(&self.shader_params()),
+            );
+            let particles = inputs.particles.slice(..);
+            if let Some(depth) = &mut self.depth {
+                // The depth where the smoke starts: MIN blending, cleared beyond the far bound.
+                let mut pass = inputs
+                    .encoder
+                    .begin_render_pass(&wgpu::RenderPassDescriptor {
+                        label: Some("dom.build.depth"),
+                        color_attachments: &[cleared_attachment(&depth.view, wgpu::Color::WHITE)],
+                        depth_stencil_attachment: None,
+                        timestamp_writes: inputs.timer.pass("shadow"),
+                        occlusion_query_set: None,
+                        multiview_mask: None,
+                    });
+                let writes = TargetWrites::of(&[DEPTH_FORMAT]);
+                inputs
+                    .timer
+                    .count_fragments(&mut pass, "shadow", writes, |pass| {
+                        draw_particles(
+                            pass,
+                            &depth.pipeline,
+                            inputs.frame_bind_group,
+                            &depth.bind_group,
+                            particles,
+                            inputs.particle_count,
+                        );
+                        if inputs.volume.is_some() {
+                            depth
+                                .volume
+                                .draw(pass, inputs.frame_bind_group, &depth.bind_group);
+                        }
+                    });
+            }
+            for build in &self.build {
+                let attachments: Vec<_> = self.targets
+                    [build.targets.start as usize..build.targets.end as usize]
+                    .iter()
+                    .map(|view| cleared_attachment(view, wgpu::Color::TRANSPARENT))
+                    .collect();
+                let mut pass = inputs
+                    .encoder
+                    .begin_render_pass(&wgpu::RenderPassDescriptor {
+                        label: Some("layered.build"),
+                        color_attachments: &attachments,
+                        depth_stencil_attachment: None,
+                        timestamp_writes: inputs.timer.pass("shadow"),
+                        occlusion_query_set: None,
+                        multiview_mask: None,
+                    });
+                inputs
+                    .timer
+                    .count_fragments(&mut pass, "shadow", build.writes, |pass| {
+                        draw_particles(
+                            pass,
+                            &build.pipeline,
+                            inputs.frame_bind_group,
+                            &self.build_bind_group,
+                            particles,
+                            inputs.particle_count,
+                        );
+                        if inputs.volume.is_some() {
+                            build.volume.draw(
+                                pass,
+                                inputs.frame_bind_group,
+                                &self.build_bind_group,
+                            );
+                        }
+                    });
+            }
+            Ok(())
+        })
     }
 }
 

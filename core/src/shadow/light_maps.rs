@@ -10,6 +10,7 @@
 //! and defines `shadow_transmittance`. The spec names each map's format, blend and clear value
 //! and the technique parameters the lookup reads (`light_maps.values`).
 
+use super::GpuFuture;
 use bytemuck::{Pod, Zeroable};
 
 use super::layered::{
@@ -235,41 +236,47 @@ impl ShadowTechnique for LightMaps {
     fn bind_group(&self) -> &wgpu::BindGroup {
         &self.lookup_bind_group
     }
-    fn build(&mut self, _gpu: &Gpu, inputs: BuildInputs<'_>) -> Result<(), ShadowError> {
-        let attachments: Vec<_> = self
-            .maps
-            .iter()
-            .map(|m| cleared_attachment(&m.view, m.clear))
-            .collect();
-        let label = format!("{}.build", self.spec.name);
-        let mut pass = inputs
-            .encoder
-            .begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some(&label),
-                color_attachments: &attachments,
-                depth_stencil_attachment: None,
-                timestamp_writes: inputs.timer.pass("shadow"),
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
-        let formats: Vec<_> = self.spec.maps.iter().map(|m| m.format).collect();
-        inputs
-            .timer
-            .count_fragments(&mut pass, "shadow", TargetWrites::of(&formats), |pass| {
-                draw_particles(
-                    pass,
-                    &self.build_pipeline,
-                    inputs.frame_bind_group,
-                    &self.build_bind_group,
-                    inputs.particles.slice(..),
-                    inputs.particle_count,
-                );
-                if inputs.volume.is_some() {
-                    self.volume
-                        .draw(pass, inputs.frame_bind_group, &self.build_bind_group);
-                }
-            });
-        Ok(())
+    fn build<'a>(
+        &'a mut self,
+        _gpu: &'a Gpu,
+        inputs: BuildInputs<'a>,
+    ) -> GpuFuture<'a, Result<(), ShadowError>> {
+        Box::pin(async move {
+            let attachments: Vec<_> = self
+                .maps
+                .iter()
+                .map(|m| cleared_attachment(&m.view, m.clear))
+                .collect();
+            let label = format!("{}.build", self.spec.name);
+            let mut pass = inputs
+                .encoder
+                .begin_render_pass(&wgpu::RenderPassDescriptor {
+                    label: Some(&label),
+                    color_attachments: &attachments,
+                    depth_stencil_attachment: None,
+                    timestamp_writes: inputs.timer.pass("shadow"),
+                    occlusion_query_set: None,
+                    multiview_mask: None,
+                });
+            let formats: Vec<_> = self.spec.maps.iter().map(|m| m.format).collect();
+            inputs
+                .timer
+                .count_fragments(&mut pass, "shadow", TargetWrites::of(&formats), |pass| {
+                    draw_particles(
+                        pass,
+                        &self.build_pipeline,
+                        inputs.frame_bind_group,
+                        &self.build_bind_group,
+                        inputs.particles.slice(..),
+                        inputs.particle_count,
+                    );
+                    if inputs.volume.is_some() {
+                        self.volume
+                            .draw(pass, inputs.frame_bind_group, &self.build_bind_group);
+                    }
+                });
+            Ok(())
+        })
     }
     fn debug_maps(&self) -> Vec<DebugMap<'_>> {
         self.maps

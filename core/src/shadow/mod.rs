@@ -333,7 +333,11 @@ pub const NO_OWNER: u32 = u32::MAX;
 /// A technique whose transmittance depends on more than its maps after the build pass.
 pub trait ProbePass {
     /// Submits `inputs.encoder` and whatever else it needs; returns T per point.
-    fn probe(&mut self, gpu: &Gpu, inputs: ProbeInputs<'_>) -> anyhow::Result<Vec<f32>>;
+    fn probe<'a>(
+        &'a mut self,
+        gpu: &'a Gpu,
+        inputs: ProbeInputs<'a>,
+    ) -> GpuFuture<'a, anyhow::Result<Vec<f32>>>;
 }
 
 /// How the values in a map channel read.
@@ -380,11 +384,15 @@ pub trait ParticlePass {
     );
     /// Every particle as the last frame's lighting lit it (its lighting buffer read back, in
     /// its own order), so that tests and the sweep see the T the frame rendered.
-    fn lit_particles(
-        &self,
-        gpu: &Gpu,
-    ) -> Result<Vec<crate::frame::particles::LitParticle>, crate::gpu::GpuError>;
+    fn lit_particles<'a>(
+        &'a self,
+        gpu: &'a Gpu,
+    ) -> GpuFuture<'a, Result<Vec<crate::frame::particles::LitParticle>, crate::gpu::GpuError>>;
 }
+
+/// What an awaited trait method returns: boxed, so that the techniques stay trait objects; not
+/// `Send`, since a frame is awaited on the thread that records it.
+pub type GpuFuture<'a, T> = std::pin::Pin<Box<dyn std::future::Future<Output = T> + 'a>>;
 
 /// The interface every shadow technique implements.
 pub trait ShadowTechnique: Send {
@@ -400,7 +408,12 @@ pub trait ShadowTechnique: Send {
     fn bind_group(&self) -> &wgpu::BindGroup;
     /// Records this frame's shadow passes. Fails only when this frame's maps cannot be held
     /// (`exact`'s lists beyond the adapter's buffer limits).
-    fn build(&mut self, gpu: &Gpu, inputs: BuildInputs<'_>) -> Result<(), ShadowError>;
+    /// Awaited: a technique may read counts back mid-build to size its lists.
+    fn build<'a>(
+        &'a mut self,
+        gpu: &'a Gpu,
+        inputs: BuildInputs<'a>,
+    ) -> GpuFuture<'a, Result<(), ShadowError>>;
     /// `Some` when the technique draws the particles to the eye itself (half-angle slicing
     /// interleaves eye and light passes). `None`, the default: the renderer draws the sorted
     /// particles, lit through `shadow_transmittance`.
@@ -925,7 +938,7 @@ pub fn check_channels(entry: &TechniqueEntry, channels: u32) -> Result<(), Shado
 }
 
 /// Looks up, checks and builds a technique.
-pub fn create(
+pub async fn create(
     ctx: &TechniqueContext<'_>,
     name: &str,
     params: &TechniqueParams,
@@ -934,7 +947,8 @@ pub fn create(
     check_channels(entry, params.channels)?;
     check_params(params)?;
     ctx.gpu
-        .scoped(|| (entry.create)(ctx, params))
+        .scoped(async { (entry.create)(ctx, params) })
+        .await
         .map_err(|r| {
             let what = format!(
                 "creating {name} at {} channels and {}x{}",

@@ -1,6 +1,7 @@
 //! `none`: no self-shadowing (T = 1). It allocates nothing and records no pass; frame times with
 //! `none` are the baseline for a technique's overhead ratio.
 
+use super::GpuFuture;
 use super::{
     BuildInputs, MemoryUse, Role, ShadowError, ShadowTechnique, TechniqueContext, TechniqueEntry,
     TechniqueParams,
@@ -80,7 +81,11 @@ impl ShadowTechnique for NoShadow {
     fn bind_group(&self) -> &wgpu::BindGroup {
         &self.bind_group
     }
-    fn build(&mut self, _gpu: &Gpu, _inputs: BuildInputs<'_>) -> Result<(), ShadowError> {
-        Ok(())
+    fn build<'a>(
+        &'a mut self,
+        _gpu: &'a Gpu,
+        _inputs: BuildInputs<'a>,
+    ) -> GpuFuture<'a, Result<(), ShadowError>> {
+        Box::pin(async move { Ok(()) })
     }
 }

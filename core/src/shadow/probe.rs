@@ -145,11 +145,11 @@ impl Probe {
 
 impl PendingProbe {
     /// Waits for the submitted dispatch and returns T per point.
-    pub fn read(self, gpu: &Gpu) -> Result<Vec<f32>, GpuError> {
+    pub async fn read(self, gpu: &Gpu) -> Result<Vec<f32>, GpuError> {
         if self.count == 0 {
             return Ok(Vec::new());
         }
-        let bytes = read_buffer(gpu, &self.results, 0, (self.count * 4) as u64)?;
+        let bytes = read_buffer(gpu, &self.results, 0, (self.count * 4) as u64).await?;
         Ok(bytemuck::cast_slice(&bytes).to_vec())
     }
 }

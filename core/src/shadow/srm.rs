@@ -8,6 +8,7 @@
 //! It marches the density volume only: a particle has no density to sample, so a scene with
 //! particles is refused in one line (`shadows_particles`). Shaders: `shaders/shadow/srm.wgsl`.
 
+use super::GpuFuture;
 use bytemuck::{Pod, Zeroable};
 
 use super::{
@@ -156,7 +157,11 @@ impl ShadowTechnique for Srm {
         vec![("srm_light_steps", u64::from(self.steps))]
     }
     /// Nothing to build: every lookup marches the volume itself.
-    fn build(&mut self, _gpu: &Gpu, _inputs: BuildInputs<'_>) -> Result<(), ShadowError> {
-        Ok(())
+    fn build<'a>(
+        &'a mut self,
+        _gpu: &'a Gpu,
+        _inputs: BuildInputs<'a>,
+    ) -> GpuFuture<'a, Result<(), ShadowError>> {
+        Box::pin(async move { Ok(()) })
     }
 }

@@ -95,6 +95,7 @@
 //! own begin timestamp; the timer charges it to the pass all the same (gpu/timing.rs), so the
 //! `shadow` time holds it.
 
+use super::GpuFuture;
 use bytemuck::{Pod, Zeroable};
 
 use super::layered::sampler_entry;
@@ -980,176 +981,183 @@ impl ShadowTechnique for Volume {
         ]
     }
 
-    fn build(&mut self, gpu: &Gpu, inputs: BuildInputs<'_>) -> Result<(), ShadowError> {
-        let device = &gpu.device;
-        let Some(plan) = plan(inputs.instances, self.side, inputs.volume) else {
-            // No smoke: the lookup lets all light through and the grid is not read.
-            (self.last_jobs, self.last_rows) = (0, 0);
+    fn build<'a>(
+        &'a mut self,
+        gpu: &'a Gpu,
+        inputs: BuildInputs<'a>,
+    ) -> GpuFuture<'a, Result<(), ShadowError>> {
+        Box::pin(async move {
+            let device = &gpu.device;
+            let Some(plan) = plan(inputs.instances, self.side, inputs.volume) else {
+                // No smoke: the lookup lets all light through and the grid is not read.
+                (self.last_jobs, self.last_rows) = (0, 0);
+                gpu.queue.write_buffer(
+                    &self.lookup_params,
+                    0,
+                    bytemuck::bytes_of(&VolumeParams {
+                        steps: self.steps,
+                        ..VolumeParams::default()
+                    }),
+                );
+                return Ok(());
+            };
+            // Rows are numbered in u32 (the jobs' row starts, the slabs' ranges).
+            u32::try_from(plan.rows).map_err(|_| ShadowError::VoxelRowsTooMany {
+                particles: inputs.particle_count,
+                side: self.side,
+                rows: plan.rows,
+                limit: u64::from(u32::MAX),
+            })?;
+            let count = plan.jobs.len() as u32;
+            // Room for one z-slice's scratch is kept beside the jobs and the row blocks.
+            let limits = (self.binding_limit, slab_scratch_bytes(self.side, 1));
+            self.jobs.reserve(&mut self.memory, device, limits, count)?;
+            // The row-block table serves the scatter by row alone: where growing it would leave no
+            // room for one z-slice's scratch under the memory limit, every slab scatters by job
+            // (the same sums), and the table stays as it is.
+            let blocks = plan.row_blocks.len() as u32;
+            let room = self.memory.remaining_bytes() + self.row_blocks.bytes() + self.slab_bytes();
+            self.by_row = blocks <= self.row_blocks.capacity
+                || u64::from(blocks) * 4 + slab_scratch_bytes(self.side, 1) <= room;
+            if self.by_row {
+                self.row_blocks
+                    .reserve(&mut self.memory, device, limits, blocks)?;
+                gpu.queue.write_buffer(
+                    &self.row_blocks.buffer,
+                    0,
+                    bytemuck::cast_slice(&plan.row_blocks),
+                );
+            }
+            (self.last_jobs, self.last_rows) = (count, plan.rows);
+            gpu.queue
+                .write_buffer(&self.jobs.buffer, 0, bytemuck::cast_slice(&plan.jobs));
             gpu.queue.write_buffer(
                 &self.lookup_params,
                 0,
                 bytemuck::bytes_of(&VolumeParams {
-                    steps: self.steps,
-                    ..VolumeParams::default()
-                }),
-            );
-            return Ok(());
-        };
-        // Rows are numbered in u32 (the jobs' row starts, the slabs' ranges).
-        u32::try_from(plan.rows).map_err(|_| ShadowError::VoxelRowsTooMany {
-            particles: inputs.particle_count,
-            side: self.side,
-            rows: plan.rows,
-            limit: u64::from(u32::MAX),
-        })?;
-        let count = plan.jobs.len() as u32;
-        // Room for one z-slice's scratch is kept beside the jobs and the row blocks.
-        let limits = (self.binding_limit, slab_scratch_bytes(self.side, 1));
-        self.jobs.reserve(&mut self.memory, device, limits, count)?;
-        // The row-block table serves the scatter by row alone: where growing it would leave no
-        // room for one z-slice's scratch under the memory limit, every slab scatters by job
-        // (the same sums), and the table stays as it is.
-        let blocks = plan.row_blocks.len() as u32;
-        let room = self.memory.remaining_bytes() + self.row_blocks.bytes() + self.slab_bytes();
-        self.by_row = blocks <= self.row_blocks.capacity
-            || u64::from(blocks) * 4 + slab_scratch_bytes(self.side, 1) <= room;
-        if self.by_row {
-            self.row_blocks
-                .reserve(&mut self.memory, device, limits, blocks)?;
-            gpu.queue.write_buffer(
-                &self.row_blocks.buffer,
-                0,
-                bytemuck::cast_slice(&plan.row_blocks),
-            );
-        }
-        (self.last_jobs, self.last_rows) = (count, plan.rows);
-        gpu.queue
-            .write_buffer(&self.jobs.buffer, 0, bytemuck::cast_slice(&plan.jobs));
-        gpu.queue.write_buffer(
-            &self.lookup_params,
-            0,
-            bytemuck::bytes_of(&VolumeParams {
-                origin: plan.origin.to_array(),
-                steps: self.steps,
-                extent: plan.extent.to_array(),
-                occupied: 1,
-            }),
-        );
-
-        let side = self.side;
-        self.fit_slabs(device)?;
-        let slabs = self.slabs.as_ref().expect("fit_slabs leaves slabs");
-        let pitch = staging_pitch(side);
-        let work = plan.slabs(side, slabs.depth);
-        // One timed span over every slab's passes (and the copies between them).
-        let span = inputs.timer.compute_span("shadow");
-        let passes = 2 * slabs.params.len();
-        let mut pass_index = 0;
-        for (i, (slab, work)) in slabs.params.iter().zip(&work).enumerate() {
-            let z0 = i as u32 * slabs.depth;
-            let depth = slabs.depth.min(side - z0);
-            gpu.queue.write_buffer(
-                slab,
-                0,
-                bytemuck::bytes_of(&VolumeBuild {
                     origin: plan.origin.to_array(),
-                    side,
-                    voxel_size: (plan.extent / side as f32).to_array(),
-                    row_end: work.rows.1,
-                    slab_z0: z0,
-                    slab_depth: depth,
-                    words_per_row: (pitch / 4) as u32,
-                    row_first: work.rows.0,
-                    light_pos: inputs.light.position.to_array(),
-                    units_per_extinction: plan.units_per_extinction,
-                    job_first: work.jobs.0,
-                    job_end: work.jobs.1,
-                    _pad1: [0; 2],
+                    steps: self.steps,
+                    extent: plan.extent.to_array(),
+                    occupied: 1,
                 }),
             );
-            let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("volume.build.bind_group"),
-                layout: &self.build_layout,
-                entries: &[
-                    bind_entry(0, slab),
-                    bind_entry(1, &self.jobs.buffer),
-                    bind_entry(2, &slabs.scratch),
-                    bind_entry(3, &slabs.staging),
-                    bind_entry(4, &self.row_blocks.buffer),
-                ],
-            });
-            inputs.encoder.clear_buffer(&slabs.scratch, 0, None);
-            // Each step in a pass of its own, so that each sees the previous one's writes
-            // whatever the backend's barriers within a pass. A slab no particle reaches still
-            // converts its zeros (and the density volume's share).
-            // By row, or by job where that runs fewer invocations (thin slabs).
-            let (scatter, scatter_dispatch) = match work.by_job() || !self.by_row {
-                false => {
-                    let (x, y) = scatter_groups(work.rows.1 - work.rows.0);
-                    (&self.scatter, [x, y, 1])
+
+            let side = self.side;
+            self.fit_slabs(device)?;
+            let slabs = self.slabs.as_ref().expect("fit_slabs leaves slabs");
+            let pitch = staging_pitch(side);
+            let work = plan.slabs(side, slabs.depth);
+            // One timed span over every slab's passes (and the copies between them).
+            let span = inputs.timer.compute_span("shadow");
+            let passes = 2 * slabs.params.len();
+            let mut pass_index = 0;
+            for (i, (slab, work)) in slabs.params.iter().zip(&work).enumerate() {
+                let z0 = i as u32 * slabs.depth;
+                let depth = slabs.depth.min(side - z0);
+                gpu.queue.write_buffer(
+                    slab,
+                    0,
+                    bytemuck::bytes_of(&VolumeBuild {
+                        origin: plan.origin.to_array(),
+                        side,
+                        voxel_size: (plan.extent / side as f32).to_array(),
+                        row_end: work.rows.1,
+                        slab_z0: z0,
+                        slab_depth: depth,
+                        words_per_row: (pitch / 4) as u32,
+                        row_first: work.rows.0,
+                        light_pos: inputs.light.position.to_array(),
+                        units_per_extinction: plan.units_per_extinction,
+                        job_first: work.jobs.0,
+                        job_end: work.jobs.1,
+                        _pad1: [0; 2],
+                    }),
+                );
+                let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("volume.build.bind_group"),
+                    layout: &self.build_layout,
+                    entries: &[
+                        bind_entry(0, slab),
+                        bind_entry(1, &self.jobs.buffer),
+                        bind_entry(2, &slabs.scratch),
+                        bind_entry(3, &slabs.staging),
+                        bind_entry(4, &self.row_blocks.buffer),
+                    ],
+                });
+                inputs.encoder.clear_buffer(&slabs.scratch, 0, None);
+                // Each step in a pass of its own, so that each sees the previous one's writes
+                // whatever the backend's barriers within a pass. A slab no particle reaches still
+                // converts its zeros (and the density volume's share).
+                // By row, or by job where that runs fewer invocations (thin slabs).
+                let (scatter, scatter_dispatch) = match work.by_job() || !self.by_row {
+                    false => {
+                        let (x, y) = scatter_groups(work.rows.1 - work.rows.0);
+                        (&self.scatter, [x, y, 1])
+                    }
+                    true => {
+                        let jobs = work.jobs.1 - work.jobs.0;
+                        (
+                            &self.scatter_jobs,
+                            [
+                                work.job_rows.div_ceil(64),
+                                jobs.min(65_535),
+                                jobs.div_ceil(65_535),
+                            ],
+                        )
+                    }
+                };
+                let words = side.div_ceil(2);
+                let convert = match inputs.volume {
+                    Some(_) => &self.convert_with_medium,
+                    None => &self.convert,
+                };
+                for (pipeline, groups) in [
+                    (scatter, scatter_dispatch),
+                    (convert, [words.div_ceil(8), side.div_ceil(8), depth]),
+                ] {
+                    let timestamp_writes =
+                        inputs
+                            .timer
+                            .span_writes(span, pass_index == 0, pass_index + 1 == passes);
+                    pass_index += 1;
+                    let mut pass =
+                        inputs
+                            .encoder
+                            .begin_compute_pass(&wgpu::ComputePassDescriptor {
+                                label: Some("volume.build"),
+                                timestamp_writes,
+                            });
+                    pass.set_pipeline(pipeline);
+                    pass.set_bind_group(0, inputs.frame_bind_group, &[]);
+                    pass.set_bind_group(1, &bind_group, &[]);
+                    if groups.iter().all(|&g| g > 0) {
+                        pass.dispatch_workgroups(groups[0], groups[1], groups[2]);
+                    }
                 }
-                true => {
-                    let jobs = work.jobs.1 - work.jobs.0;
-                    (
-                        &self.scatter_jobs,
-                        [
-                            work.job_rows.div_ceil(64),
-                            jobs.min(65_535),
-                            jobs.div_ceil(65_535),
-                        ],
-                    )
-                }
-            };
-            let words = side.div_ceil(2);
-            let convert = match inputs.volume {
-                Some(_) => &self.convert_with_medium,
-                None => &self.convert,
-            };
-            for (pipeline, groups) in [
-                (scatter, scatter_dispatch),
-                (convert, [words.div_ceil(8), side.div_ceil(8), depth]),
-            ] {
-                let timestamp_writes =
-                    inputs
-                        .timer
-                        .span_writes(span, pass_index == 0, pass_index + 1 == passes);
-                pass_index += 1;
-                let mut pass = inputs
-                    .encoder
-                    .begin_compute_pass(&wgpu::ComputePassDescriptor {
-                        label: Some("volume.build"),
-                        timestamp_writes,
-                    });
-                pass.set_pipeline(pipeline);
-                pass.set_bind_group(0, inputs.frame_bind_group, &[]);
-                pass.set_bind_group(1, &bind_group, &[]);
-                if groups.iter().all(|&g| g > 0) {
-                    pass.dispatch_workgroups(groups[0], groups[1], groups[2]);
-                }
-            }
-            inputs.encoder.copy_buffer_to_texture(
-                wgpu::TexelCopyBufferInfo {
-                    buffer: &slabs.staging,
-                    layout: wgpu::TexelCopyBufferLayout {
-                        offset: 0,
-                        bytes_per_row: Some(pitch as u32),
-                        rows_per_image: Some(side),
+                inputs.encoder.copy_buffer_to_texture(
+                    wgpu::TexelCopyBufferInfo {
+                        buffer: &slabs.staging,
+                        layout: wgpu::TexelCopyBufferLayout {
+                            offset: 0,
+                            bytes_per_row: Some(pitch as u32),
+                            rows_per_image: Some(side),
+                        },
                     },
-                },
-                wgpu::TexelCopyTextureInfo {
-                    texture: &self.grid,
-                    mip_level: 0,
-                    origin: wgpu::Origin3d { x: 0, y: 0, z: z0 },
-                    aspect: wgpu::TextureAspect::All,
-                },
-                wgpu::Extent3d {
-                    width: side,
-                    height: side,
-                    depth_or_array_layers: depth,
-                },
-            );
-        }
-        Ok(())
+                    wgpu::TexelCopyTextureInfo {
+                        texture: &self.grid,
+                        mip_level: 0,
+                        origin: wgpu::Origin3d { x: 0, y: 0, z: z0 },
+                        aspect: wgpu::TextureAspect::All,
+                    },
+                    wgpu::Extent3d {
+                        width: side,
+                        height: side,
+                        depth_or_array_layers: depth,
+                    },
+                );
+            }
+            Ok(())
+        })
     }
 }
 
