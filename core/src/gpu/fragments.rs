@@ -120,7 +120,7 @@ impl FragmentCounter {
         self.resolved = std::mem::take(&mut self.recorded);
     }
 
-    /// The counts of the frame last resolved, per pass name in first-recorded order (blocks
+    /// The counts of the frame last resolved, per pass name in first-recorded order (awaited
     /// until it finished); empty when it counted nothing.
     pub(super) async fn read(&mut self, gpu: &Gpu) -> Result<Vec<FragmentTally>, GpuError> {
         let resolved = std::mem::take(&mut self.resolved);

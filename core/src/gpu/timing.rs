@@ -233,7 +233,7 @@ impl GpuTimer {
         }
     }
 
-    /// The fragment counts of the last resolved frame, per pass name (blocks until it
+    /// The fragment counts of the last resolved frame, per pass name (awaited until it
     /// finished); empty when counting was off.
     pub async fn read_fragments(&mut self, gpu: &Gpu) -> Result<Vec<FragmentTally>, GpuError> {
         match &mut self.fragments {
@@ -399,7 +399,7 @@ impl GpuTimer {
         };
     }
 
-    /// Waits for the newest resolved frame and returns its pass times (empty when timing is
+    /// Awaits the newest resolved frame and returns its pass times (empty when timing is
     /// off). Older unread frames are discarded.
     pub async fn read(&mut self, gpu: &Gpu) -> Result<PassTimes, GpuError> {
         let Some(newest) = self.newest() else {

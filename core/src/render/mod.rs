@@ -545,7 +545,7 @@ impl Renderer {
         (self.targets.width, self.targets.height)
     }
 
-    /// GPU pass times of the last frame (blocks until it finished); empty without timestamps.
+    /// GPU pass times of the last frame (awaited until it finished); empty without timestamps.
     pub async fn gpu_times(&mut self, gpu: &Gpu) -> Result<PassTimes, GpuError> {
         self.timer.read(gpu).await
     }
@@ -563,7 +563,7 @@ impl Renderer {
         self.timer.set_count_fragments(gpu, on)
     }
 
-    /// The fragment counts of the last frame, per pass name (blocks until it finished);
+    /// The fragment counts of the last frame, per pass name (awaited until it finished);
     /// empty when counting was off.
     pub async fn fragment_counts(&mut self, gpu: &Gpu) -> Result<Vec<FragmentTally>, GpuError> {
         self.timer.read_fragments(gpu).await

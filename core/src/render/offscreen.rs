@@ -28,7 +28,7 @@ impl OffscreenTarget {
         Self { texture, view }
     }
 
-    /// The tone-mapped frame it holds, read back as 8-bit sRGB (alpha dropped). Waits for the
+    /// The tone-mapped frame it holds, read back as 8-bit sRGB (alpha dropped). Awaits the
     /// GPU.
     pub async fn read_rgb(&self, gpu: &Gpu) -> Result<image::RgbImage, crate::gpu::GpuError> {
         let rgba = crate::gpu::read_texture_rgba8(gpu, &self.texture).await?;

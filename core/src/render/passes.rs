@@ -427,7 +427,7 @@ pub fn particle_fragments(tallies: &[FragmentTally]) -> Option<u64> {
 
 impl Renderer {
     /// Fragment shader invocations of the particle pass in the last frame rendered with
-    /// fragment counting on ([`Renderer::set_count_fragments`]; blocks until it finished);
+    /// fragment counting on ([`Renderer::set_count_fragments`]; awaited until it finished);
     /// `None` when counting was off, or the technique drew the particles itself (`has`).
     pub async fn particle_fragments(&mut self, gpu: &Gpu) -> Result<Option<u64>, GpuError> {
         Ok(particle_fragments(&self.fragment_counts(gpu).await?))

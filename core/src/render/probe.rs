@@ -48,7 +48,7 @@ impl Renderer {
 
     /// Every particle as the last frame's lighting lit it: its sphere and the smoke's T at its
     /// four lighting points, read back from the lighting buffer (the technique's own for one
-    /// that draws the particles itself). Waits for the GPU.
+    /// that draws the particles itself). Awaits the GPU.
     pub async fn lit_particles(&mut self, gpu: &Gpu) -> anyhow::Result<Vec<LitParticle>> {
         if let Some(pass) = self.faces[0].technique.particle_pass() {
             return Ok(pass.lit_particles(gpu).await?);
