@@ -601,8 +601,10 @@ fn next_node(acc: ptr<function, Nodes>, event: vec2<f32>) -> vec2<f32> {
 const RUN_BITS: u32 = 4u;
 // A run's segments: two events each.
 const RUN_SEGMENTS: u32 = 8u;
-// The depth of the keys that pad a short run: after every event's.
-const PAD_DEPTH: f32 = 3.4028235e38;
+// The depth of the keys that pad a short run: after every event's. f32::MAX, written as a
+// decimal that rounds to it: Tint (the browser's WGSL compiler) refuses 3.4028235e38 as out of
+// range.
+const PAD_DEPTH: f32 = 3.4028234e38;
 
 // The key at `i` on one side of the key textures.
 fn key_from(second: bool, i: u32) -> vec2<f32> {
@@ -706,7 +708,9 @@ fn merge_pass(list: TexelList, step: u32, last: bool) {
     var end: array<u32, WAYS>;
     var depth: array<f32, WAYS>;
     var slope: array<f32, WAYS>;
-    let exhausted = vec2<f32>(bitcast<f32>(0x7f800000u), 0.0);
+    // (Made of a value known only at run time: Tint, the browser's WGSL compiler, refuses an
+    // infinity its constant evaluation computes.)
+    let exhausted = vec2<f32>(bitcast<f32>(0x7f800000u | (list.count & 0u)), 0.0);
     for (var group = 0u; group < n; group += ways * width) {
         let group_end = min(group + ways * width, n);
         var begin = group;

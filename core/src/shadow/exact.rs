@@ -613,7 +613,10 @@ impl Exact {
             pass.set_bind_group(0, inputs.frame_bind_group, &[]);
             pass.set_bind_group(1, bind_group, &[0]);
             pass.set_pipeline(pipeline);
-            pass.dispatch_workgroups(groups, 1, 1);
+            // No smoke, no groups: the pass stays (its timestamps), its dispatch does not.
+            if groups > 0 {
+                pass.dispatch_workgroups(groups, 1, 1);
+            }
         }
     }
 
