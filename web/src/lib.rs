@@ -58,6 +58,9 @@ struct State {
     /// The images of the last comparison, RGBA: technique, exact, FLIP map.
     images: BTreeMap<&'static str, Vec<u8>>,
     busy: bool,
+    /// Why the device is gone, once it is: nothing more can run on it (wgpu's WebGPU backend
+    /// cannot even create a buffer), so every comparison after says so until a reload.
+    lost: Option<String>,
 }
 
 /// A scene with its particles.
@@ -147,6 +150,7 @@ impl Page {
                 dropped: BTreeMap::new(),
                 images: BTreeMap::new(),
                 busy: false,
+                lost: None,
             })),
         })
     }
@@ -300,6 +304,11 @@ impl Page {
         wasm_bindgen_futures::future_to_promise(async move {
             let (gpu, loaded, cached) = {
                 let mut s = state.borrow_mut();
+                if let Some(lost) = &s.lost {
+                    return Err(to_js(anyhow::anyhow!(
+                        "{lost}; reload the page for a new device"
+                    )));
+                }
                 if s.busy {
                     return Err(to_js(anyhow::anyhow!(
                         "a comparison is already running; wait for it"
@@ -323,6 +332,9 @@ impl Page {
             // A GPU error nothing caught (on the host it would end the process) is the page's
             // one line too.
             if let Some(error) = gpu.take_uncaptured_error() {
+                if error.starts_with(smokeshadow_core::gpu::DEVICE_LOST) {
+                    s.lost = Some(error.clone());
+                }
                 return Err(to_js(anyhow::anyhow!(error)));
             }
             let (summary, exact, images) = result.map_err(to_js)?;

@@ -136,6 +136,9 @@ pub const OPTIONAL_FEATURES: wgpu::Features = wgpu::Features::TIMESTAMP_QUERY
 /// budgets ([`Gpu::loop_budget`]).
 pub const LLVMPIPE_LOOP_BUDGET: u32 = 60_000;
 
+/// How a lost device's message starts ([`Gpu::take_uncaptured_error`]).
+pub const DEVICE_LOST: &str = "the GPU device was lost";
+
 /// The device, queue and what we learnt about the adapter.
 pub struct Gpu {
     pub device: wgpu::Device,
@@ -209,7 +212,7 @@ impl Gpu {
                 if reason != wgpu::DeviceLostReason::Destroyed
                     && let Ok(mut slot) = kept.lock()
                 {
-                    *slot = Some(format!("the GPU device was lost: {message}"));
+                    *slot = Some(format!("{DEVICE_LOST}: {message}"));
                 }
             });
         }
