@@ -10,11 +10,12 @@ mod common;
 use std::time::{Duration, Instant};
 
 use egui_kittest::Harness;
-use egui_kittest::kittest::Queryable;
+use egui_kittest::kittest::{NodeT, Queryable};
 use smokeshadow::files::{Files, Folder};
 use smokeshadow::gpu::AdapterPreference;
 use smokeshadow::render::{RenderOptions, render_offscreen};
 use smokeshadow::scene::Scene;
+use smokeshadow::shadow;
 use smokeshadow::viewer::{CompareMode, Controller, Source, ViewerApp};
 
 /// The thesis scene at a size that keeps the tests quick.
@@ -536,40 +537,213 @@ fn the_viewer_shows_a_volume_at_the_time_on_the_time_bar() {
     assert_eq!(c.frame_scene().sim.duration_s, 3.0);
 }
 
+/// The technique parameters the controller offers, group by group: (technique, sides, keys).
+fn param_groups(c: &Controller) -> Vec<(&'static str, Vec<&'static str>, Vec<&'static str>)> {
+    c.shown_params()
+        .into_iter()
+        .map(|g| {
+            (
+                g.technique,
+                g.sides,
+                g.params.iter().map(|p| p.key).collect(),
+            )
+        })
+        .collect()
+}
+
+/// A registered technique's own parameter keys.
+fn keys_of(technique: &str) -> Vec<&'static str> {
+    shadow::find(technique)
+        .unwrap()
+        .params
+        .iter()
+        .map(|p| p.key)
+        .collect()
+}
+
 #[test]
 fn the_panels_offer_a_and_bs_parameters_and_say_what_a_volume_scene_holds() {
     let mut c = Controller::new(small_scene(), None, None);
     c.state.a.source = Source::Technique;
     c.state.a.technique = "osm".to_owned();
     c.state.b.source = Source::Exact;
-    let keys: Vec<&str> = c.shown_params().iter().map(|p| p.key).collect();
-    assert!(
-        !keys.is_empty() && keys.iter().all(|k| k.starts_with("osm_")),
-        "{keys:?}"
-    );
+    assert!(!keys_of("osm").is_empty());
+    assert_eq!(param_groups(&c), [("osm", vec!["A"], keys_of("osm"))]);
+    // A's group, then B's, each its own technique's parameters only.
     c.state.b.source = Source::Technique;
     c.state.b.technique = "dom".to_owned();
-    let keys: Vec<&str> = c.shown_params().iter().map(|p| p.key).collect();
-    assert!(keys.iter().any(|k| k.starts_with("dom_")), "{keys:?}");
-    assert!(
-        keys.iter()
-            .all(|k| k.starts_with("osm_") || k.starts_with("dom_")),
-        "{keys:?}"
+    assert_eq!(
+        param_groups(&c),
+        [
+            ("osm", vec!["A"], keys_of("osm")),
+            ("dom", vec!["B"], keys_of("dom"))
+        ]
+    );
+    // One group when both sides show the same technique (B's 24-channel baseline of it too).
+    c.state.b.source = Source::Baseline24;
+    c.state.b.technique = "osm".to_owned();
+    assert_eq!(param_groups(&c), [("osm", vec!["A", "B"], keys_of("osm"))]);
+    assert_eq!(c.shown_params()[0].heading(), "osm (A and B)");
+    // A technique without parameters still has its (empty) group.
+    c.state.b.source = Source::Technique;
+    c.state.b.technique = "bsm".to_owned();
+    assert_eq!(
+        param_groups(&c),
+        [
+            ("osm", vec!["A"], keys_of("osm")),
+            ("bsm", vec!["B"], vec![])
+        ]
     );
     c.state.a.source = Source::Exact;
     c.state.b.source = Source::Exact;
     assert!(c.shown_params().is_empty());
 
-    // The emitter's plume: its particles; the cloud: its volume, and no infinite bounds.
-    assert!(
-        c.scene_summary().contains("particles simulated"),
-        "{}",
-        c.scene_summary()
-    );
+    // The emitter's plume: its particles, finite bounds, no volume.
+    let said = c.scene_summary();
+    assert!(said.contains("particles simulated"), "{said}");
+    assert!(!said.contains("inf") && !said.contains("volume"), "{said}");
+    // The cloud (no GPU, so no grid made yet): its volume as its settings say, no particles
+    // and no infinite bounds.
     let cloud = Controller::new(Scene::embedded("cloud").unwrap(), None, None);
+    assert!(cloud.state.scene.emitters.is_empty() && cloud.particle_summary.count == 0);
     let said = cloud.scene_summary();
     assert!(
-        said.contains("procedural cloud") && !said.contains("inf"),
+        said.starts_with("a density volume: procedural cloud, 6000x6000 m at 1500 m"),
         "{said}"
     );
+    assert!(
+        !said.contains("inf") && !said.contains("particles"),
+        "{said}"
+    );
+    // Particles and a volume: both.
+    let mut both = small_scene();
+    both.volume = Some(smokeshadow::scene::VolumeSpec::default());
+    let said = Controller::new(both, None, None).scene_summary();
+    assert!(
+        said.contains("particles simulated")
+            && said.contains("a density volume: homogeneous sphere")
+            && !said.contains("inf"),
+        "{said}"
+    );
+}
+
+/// What a node of the window reads: a label's text (AccessKit keeps it as the value), another
+/// widget's label.
+fn node_text(node: &egui_kittest::kittest::AccessKitNode<'_>) -> String {
+    let text = match node.role() {
+        eframe::egui::Role::Label => node.value(),
+        _ => node.label(),
+    };
+    text.unwrap_or_default()
+}
+
+/// Whether the window shows an editor of the technique parameter `key`: its label (a choice),
+/// its slider ("key (unit)") or its checkbox ("fixed key").
+fn shows_param(harness: &Harness<'_, ViewerApp>, key: &str) -> bool {
+    let slider = format!("{key} (");
+    let fixed = format!("fixed {key}");
+    harness
+        .query_all_by(|node| {
+            let text = node_text(node);
+            text == key || text.starts_with(&slider) || text == fixed
+        })
+        .next()
+        .is_some()
+}
+
+#[test]
+fn the_parameter_panel_shows_a_and_bs_techniques_parameters_and_no_others() {
+    let mut harness = harness(small_scene());
+    {
+        let state = &mut harness.state_mut().state;
+        state.a.source = Source::Technique;
+        state.a.technique = "osm".to_owned();
+        state.b.source = Source::Exact;
+    }
+    harness.run_steps(3);
+    // A = osm, B = exact: one group, osm's, and every parameter of it.
+    harness.get_by_label("osm (A)");
+    assert!(harness.query_by_label_contains("(B)").is_none());
+    for key in keys_of("osm") {
+        assert!(shows_param(&harness, key), "osm's {key} is not shown");
+    }
+    // No other technique's: not the default A's (fom), nor msm's.
+    for other in shadow::REGISTRY.iter().filter(|e| e.name != "osm") {
+        for spec in other.params {
+            assert!(
+                !shows_param(&harness, spec.key),
+                "{}'s {} is shown with A = osm, B = exact",
+                other.name,
+                spec.key
+            );
+        }
+    }
+    assert!(!shows_param(&harness, "fom_precision") && !shows_param(&harness, "msm_bias"));
+
+    // B = msm: its group joins A's, and still nothing of the other techniques.
+    {
+        let state = &mut harness.state_mut().state;
+        state.b.source = Source::Technique;
+        state.b.technique = "msm".to_owned();
+    }
+    harness.run_steps(3);
+    harness.get_by_label("osm (A)");
+    harness.get_by_label("msm (B)");
+    for key in keys_of("osm").into_iter().chain(keys_of("msm")) {
+        assert!(shows_param(&harness, key), "{key} is not shown");
+    }
+    for other in shadow::REGISTRY
+        .iter()
+        .filter(|e| e.name != "osm" && e.name != "msm")
+    {
+        for spec in other.params {
+            assert!(
+                !shows_param(&harness, spec.key),
+                "{}'s {} is shown with A = osm, B = msm",
+                other.name,
+                spec.key
+            );
+        }
+    }
+}
+
+#[test]
+fn the_scene_panel_says_the_cloud_holds_a_density_volume_and_no_infinite_bounds() {
+    let mut scene = Scene::embedded("cloud").unwrap();
+    scene.output.width_px = 160;
+    scene.output.height_px = 90;
+    scene.shadow.resolution_px = 128;
+    if let Some(v) = scene.volume.as_mut() {
+        // 32 voxels along the 6 km sides: 32 x 8 x 32 over the 1.5 km thick layer.
+        v.voxels = 32;
+        v.eye_steps = 16;
+        v.build_steps = 16;
+    }
+    let mut harness = harness(scene);
+    settle(&mut harness);
+    harness.step();
+    let summary = harness.get_by_label_contains("a density volume");
+    let said = node_text(&summary.accesskit_node());
+    // Once rendered, the grid the view made: its voxels and its world box (the cloud layer).
+    assert!(
+        said.starts_with(
+            "a density volume: 32x8x32 voxels, \
+             [-3000.00, 1500.00, -3000.00] .. [3000.00, 3000.00, 3000.00] m"
+        ),
+        "{said}"
+    );
+    assert!(said.contains("procedural cloud"), "{said}");
+    assert!(
+        !said.contains("inf") && !said.contains("particles"),
+        "{said}"
+    );
+    // Nowhere in the window an infinite bound or an empty particle count.
+    let bad = harness
+        .query_all_by(|node| {
+            let text = node_text(node);
+            text.contains("inf,") || text.contains("[inf") || text.contains("0 particles")
+        })
+        .map(|node| node_text(&node.accesskit_node()))
+        .collect::<Vec<_>>();
+    assert!(bad.is_empty(), "{bad:?}");
 }

@@ -14,7 +14,7 @@ use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use glam::{Vec2, Vec3};
+use glam::{DVec3, Vec2, Vec3};
 
 use super::analysis::{Analysis, Frame, ProbeSeries, Reply, Request};
 use super::camera::Orbit;
@@ -25,7 +25,7 @@ use smokeshadow_core::gpu::Gpu;
 use smokeshadow_core::render::{
     CameraMatrices, ParticleRes, RenderOptions, SortOrder, TechniqueConfig,
 };
-use smokeshadow_core::scene::Scene;
+use smokeshadow_core::scene::{Scene, VolumeSpec};
 use smokeshadow_core::shadow::{self, MapKind};
 use smokeshadow_core::sim::{Particle, Simulation};
 
@@ -551,22 +551,33 @@ impl Controller {
         scene
     }
 
-    /// The technique parameters the panel offers: those of A's and B's techniques (none for a
-    /// side that shows `exact`), in the registry's order.
-    pub fn shown_params(&self) -> Vec<&'static shadow::ParamSpec> {
-        let names: Vec<&str> = [&self.state.a, &self.state.b]
-            .into_iter()
-            .filter(|side| side.source != Source::Exact)
-            .map(|side| side.technique.as_str())
-            .collect();
-        shadow::all_params()
-            .filter(|(entry, _)| names.contains(&entry.name))
-            .map(|(_, spec)| spec)
-            .collect()
+    /// The technique parameters the panel offers, one group a technique: A's, then B's unless
+    /// B shows the same technique (then A's group is both sides'); none for a side that shows
+    /// `exact`.
+    pub fn shown_params(&self) -> Vec<ParamGroup> {
+        let mut groups: Vec<ParamGroup> = Vec::new();
+        for (label, side) in [("A", &self.state.a), ("B", &self.state.b)] {
+            if side.source == Source::Exact {
+                continue;
+            }
+            let Ok(entry) = shadow::find(&side.technique) else {
+                continue;
+            };
+            match groups.iter_mut().find(|g| g.technique == entry.name) {
+                Some(group) => group.sides.push(label),
+                None => groups.push(ParamGroup {
+                    technique: entry.name,
+                    sides: vec![label],
+                    params: entry.params,
+                }),
+            }
+        }
+        groups
     }
 
     /// What the scene on screen holds, for the scene panel: its particles (count, bounds,
-    /// extinction) and its density volume, or that it holds no smoke.
+    /// extinction), its density volume (its grid's voxels and world box once a view has made
+    /// it), both, or that it holds no smoke. Never a range of nothing (infinite bounds).
     pub fn scene_summary(&self) -> String {
         let scene = &self.state.scene;
         let mut lines = Vec::new();
@@ -577,14 +588,9 @@ impl Controller {
                 None => "simulated".to_owned(),
             };
             lines.push(format!(
-                "{} particles {source}\nbounds [{:.2}, {:.2}, {:.2}] .. [{:.2}, {:.2}, {:.2}] m\nextinction {:.3} .. {:.3} /m",
+                "{} particles {source}\nbounds {} m\nextinction {:.3} .. {:.3} /m",
                 s.count,
-                s.min.x,
-                s.min.y,
-                s.min.z,
-                s.max.x,
-                s.max.y,
-                s.max.z,
+                world_box(s.min.as_dvec3(), s.max.as_dvec3()),
                 s.min_density_per_m,
                 s.max_density_per_m
             ));
@@ -592,12 +598,37 @@ impl Controller {
             lines.push("no particles at this time".to_owned());
         }
         if let Some(volume) = &scene.volume {
-            lines.push(volume.summary());
+            lines.push(self.volume_summary(volume));
         }
         if lines.is_empty() {
             lines.push("no smoke: no emitter, particle file or volume".to_owned());
         }
         lines.join("\n")
+    }
+
+    /// The scene's volume: what its settings say (a file's grid, the procedural cloud, a
+    /// shape), and once a view has made its grid, the grid's voxels and world box.
+    fn volume_summary(&self, spec: &VolumeSpec) -> String {
+        let said = spec.summary();
+        let what = said.strip_prefix("volume: ").unwrap_or(&said);
+        // The grid a view's renderer made of this volume (its source, not a previous scene's).
+        let wanted = spec.at_time(self.state.time_s);
+        let made = self.views.iter().flatten().find_map(|view| {
+            let medium = view.renderer().medium();
+            let same = medium.spec().is_some_and(|m| same_grid_source(m, &wanted));
+            let grid = medium.grid().filter(|_| same)?;
+            Some((grid.dims, grid.world_bounds()?))
+        });
+        match made {
+            Some((dims, (lo, hi))) => format!(
+                "a density volume: {}x{}x{} voxels, {} m\n({what})",
+                dims.x,
+                dims.y,
+                dims.z,
+                world_box(lo, hi)
+            ),
+            None => format!("a density volume: {what}"),
+        }
     }
 
     // ---- What the controls do -------------------------------------------------------------
@@ -1213,6 +1244,44 @@ impl Controller {
         gpu.queue.submit([encoder.finish()]);
         inspector.drawn = Some(key);
     }
+}
+
+/// One group of the parameter panel: a technique A or B shows, the sides that show it ("A",
+/// "B", or both) and the parameters it declares (none for some).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ParamGroup {
+    pub technique: &'static str,
+    pub sides: Vec<&'static str>,
+    pub params: &'static [shadow::ParamSpec],
+}
+
+impl ParamGroup {
+    /// The group's heading: the technique and its sides, "osm (A)", "fom (A and B)".
+    pub fn heading(&self) -> String {
+        format!("{} ({})", self.technique, self.sides.join(" and "))
+    }
+}
+
+/// A world box for the scene panel, "[x, y, z] .. [x, y, z]" (metres, two decimals).
+fn world_box(lo: DVec3, hi: DVec3) -> String {
+    format!(
+        "[{:.2}, {:.2}, {:.2}] .. [{:.2}, {:.2}, {:.2}]",
+        lo.x, lo.y, lo.z, hi.x, hi.y, hi.z
+    )
+}
+
+/// Whether two volume settings make the same grid: they differ at most in the march's steps
+/// and the shading, which the grid does not hold.
+fn same_grid_source(a: &VolumeSpec, b: &VolumeSpec) -> bool {
+    let a_with_bs_shading = VolumeSpec {
+        albedo: b.albedo,
+        eye_steps: b.eye_steps,
+        build_steps: b.build_steps,
+        jitter: b.jitter,
+        powder: b.powder,
+        ..a.clone()
+    };
+    a_with_bs_shading == *b
 }
 
 /// Whether a configuration is rendered on the analysis worker instead of the UI thread.

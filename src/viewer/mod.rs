@@ -40,7 +40,7 @@ use eframe::egui_wgpu;
 use smokeshadow_core::gpu::{self, AdapterPreference};
 
 pub use app::ViewerApp;
-pub use controller::{CompareMode, Controller, Side, Source, ViewState};
+pub use controller::{CompareMode, Controller, ParamGroup, Side, Source, ViewState};
 
 /// How eframe (or a test harness) should create the wgpu device: the adapter matching
 /// `preference` in the tool's usual order, the adapter's own limits, and the optional features

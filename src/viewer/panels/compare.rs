@@ -1,14 +1,15 @@
 //! The comparison panel: the mode, configurations A and B (source, technique, budget), and the
 //! settings they share: shadow-map resolution and splatting, the parameters of A's and B's
-//! techniques (a slider over its range, or buttons for its choices), billboards, render size
-//! and exposure.
+//! techniques (one group a technique, headed by its name; each a slider over its range, or
+//! buttons for its choices), billboards, render size and exposure.
 
 use eframe::egui::{self, Color32};
 
 use crate::viewer::controller::{
     CompareMode, Controller, Side, Source, budget_meaning, clamp_channels, comparable_techniques,
 };
-use smokeshadow_core::shadow::{self, OccluderMode, ParamValue, SplatMode};
+use smokeshadow_core::scene::ShadowSettings;
+use smokeshadow_core::shadow::{self, OccluderMode, ParamSpec, ParamValue, SplatMode};
 
 /// Left panel, top: the comparison (mode, A, B) and the shared technique settings.
 pub fn show(controller: &mut Controller, ui: &mut egui::Ui) {
@@ -71,76 +72,25 @@ pub fn show(controller: &mut Controller, ui: &mut egui::Ui) {
         );
         ui.radio_value(&mut shadow.occluders, OccluderMode::Map, "depth map (PCF)");
     });
-    // Every parameter A's and B's techniques declare: a choice of buttons for one with named
-    // choices, a slider over its range otherwise, and for one whose default is derived per
-    // frame, a checkbox that fixes it. Unset and default are the same setting: the scene keeps
-    // only what differs from the default, so it stays canonical.
-    let shown = controller.shown_params();
-    if shown.is_empty() {
+    // The parameters of A's and B's techniques, one group a technique headed by its name and
+    // sides (one group when A and B show the same technique).
+    let groups = controller.shown_params();
+    if groups.is_empty() {
         ui.label("(no technique parameters: A and B show exact)");
     }
     let shadow = &mut controller.state.scene.shadow;
-    for spec in shown {
-        let range = spec.min..=spec.max;
-        let text = format!("{} ({})", spec.key, spec.unit);
-        let logarithmic = spec.max / spec.min.max(1e-6) > 100.0;
-        let set = shadow
-            .params
-            .get(spec.key)
-            .and_then(|v| spec.resolve(v).ok());
-        match spec.default {
-            Some(default) if !spec.choices.is_empty() => {
-                let mut index = set.unwrap_or(default) as usize;
-                ui.horizontal_wrapped(|ui| {
-                    ui.label(spec.key).on_hover_text(spec.doc);
-                    for (i, name) in spec.choices.iter().enumerate() {
-                        ui.radio_value(&mut index, i, *name).on_hover_text(spec.doc);
-                    }
-                });
-                if index as f32 == default {
-                    shadow.params.remove(spec.key);
-                } else {
-                    let name = spec.choices[index].to_owned();
-                    shadow
-                        .params
-                        .insert(spec.key.to_owned(), ParamValue::Choice(name));
+    for group in groups {
+        egui::CollapsingHeader::new(group.heading())
+            .id_salt(("technique_params", group.technique))
+            .default_open(true)
+            .show(ui, |ui| {
+                if group.params.is_empty() {
+                    ui.label(format!("{} has no parameters", group.technique));
                 }
-            }
-            Some(default) => {
-                let mut value = set.unwrap_or(default);
-                ui.add(
-                    egui::Slider::new(&mut value, range)
-                        .logarithmic(logarithmic)
-                        .text(text),
-                )
-                .on_hover_text(spec.doc);
-                if value == default {
-                    shadow.params.remove(spec.key);
-                } else {
-                    shadow
-                        .params
-                        .insert(spec.key.to_owned(), ParamValue::Number(value));
+                for spec in group.params {
+                    param_editor(ui, shadow, spec);
                 }
-            }
-            None => {
-                let mut fixed = shadow.params.contains_key(spec.key);
-                ui.checkbox(&mut fixed, format!("fixed {}", spec.key))
-                    .on_hover_text(spec.doc);
-                if fixed {
-                    let mut value = set.unwrap_or(spec.min.max(1.0).min(spec.max));
-                    ui.add(
-                        egui::Slider::new(&mut value, range)
-                            .logarithmic(logarithmic)
-                            .text(text),
-                    );
-                    shadow
-                        .params
-                        .insert(spec.key.to_owned(), ParamValue::Number(value));
-                } else {
-                    shadow.params.remove(spec.key);
-                }
-            }
-        }
+            });
     }
     ui.checkbox(&mut controller.state.spherical, "Spherical billboards");
     let res = &mut controller.state.particle_res;
@@ -170,6 +120,73 @@ pub fn show(controller: &mut Controller, ui: &mut egui::Ui) {
             .logarithmic(true)
             .text("Exposure"),
     );
+}
+
+/// One technique parameter's editor: a choice of buttons for one with named choices, a slider
+/// over its range otherwise, and for one whose default is derived per frame, a checkbox that
+/// fixes it. Unset and default are the same setting: the scene keeps only what differs from
+/// the default, so it stays canonical.
+fn param_editor(ui: &mut egui::Ui, shadow: &mut ShadowSettings, spec: &ParamSpec) {
+    let range = spec.min..=spec.max;
+    let text = format!("{} ({})", spec.key, spec.unit);
+    let logarithmic = spec.max / spec.min.max(1e-6) > 100.0;
+    let set = shadow
+        .params
+        .get(spec.key)
+        .and_then(|v| spec.resolve(v).ok());
+    match spec.default {
+        Some(default) if !spec.choices.is_empty() => {
+            let mut index = set.unwrap_or(default) as usize;
+            ui.horizontal_wrapped(|ui| {
+                ui.label(spec.key).on_hover_text(spec.doc);
+                for (i, name) in spec.choices.iter().enumerate() {
+                    ui.radio_value(&mut index, i, *name).on_hover_text(spec.doc);
+                }
+            });
+            if index as f32 == default {
+                shadow.params.remove(spec.key);
+            } else {
+                let name = spec.choices[index].to_owned();
+                shadow
+                    .params
+                    .insert(spec.key.to_owned(), ParamValue::Choice(name));
+            }
+        }
+        Some(default) => {
+            let mut value = set.unwrap_or(default);
+            ui.add(
+                egui::Slider::new(&mut value, range)
+                    .logarithmic(logarithmic)
+                    .text(text),
+            )
+            .on_hover_text(spec.doc);
+            if value == default {
+                shadow.params.remove(spec.key);
+            } else {
+                shadow
+                    .params
+                    .insert(spec.key.to_owned(), ParamValue::Number(value));
+            }
+        }
+        None => {
+            let mut fixed = shadow.params.contains_key(spec.key);
+            ui.checkbox(&mut fixed, format!("fixed {}", spec.key))
+                .on_hover_text(spec.doc);
+            if fixed {
+                let mut value = set.unwrap_or(spec.min.max(1.0).min(spec.max));
+                ui.add(
+                    egui::Slider::new(&mut value, range)
+                        .logarithmic(logarithmic)
+                        .text(text),
+                );
+                shadow
+                    .params
+                    .insert(spec.key.to_owned(), ParamValue::Number(value));
+            } else {
+                shadow.params.remove(spec.key);
+            }
+        }
+    }
 }
 
 /// A side's pickers: source, technique, budget.
