@@ -21,7 +21,7 @@ use wasm_bindgen::prelude::*;
 
 use smokeshadow_core::diff;
 use smokeshadow_core::files::Files;
-use smokeshadow_core::gpu::{Gpu, PassTimes};
+use smokeshadow_core::gpu::{Gpu, PassTimes, clock_warning};
 use smokeshadow_core::particles;
 use smokeshadow_core::render::shaded::{
     SHADED_STRIDE_PX, point_owners, rms_difference, shaded_points,
@@ -94,6 +94,9 @@ struct FrameSummary {
     frame_ms: Option<f64>,
     /// Wall time of the timed frame, submission to read-back.
     wall_ms: f64,
+    /// Where the timestamps and the clock disagree (`gpu::clock_warning`, as the command line
+    /// checks them): what the page shows instead of trusting the GPU time.
+    clock_warning: Option<String>,
     /// `exact`'s check against the closed form.
     reference_check: Option<String>,
 }
@@ -531,6 +534,11 @@ async fn measure(
     };
     let (shadow_bytes, transient_bytes) = renderer.shadow_bytes();
     let timed = gpu.has_timestamps() && !times.passes.is_empty();
+    let frame_ms = stats.frame_ms(&times);
+    let clock_warning = match timed {
+        true => clock_warning(&config.name, frame_ms, wall_ms, gpu.clock_floor_ms().await),
+        false => None,
+    };
     let t = renderer.technique();
     Ok(Measured {
         image,
@@ -548,8 +556,9 @@ async fn measure(
                     .map(|(n, ms)| ((*n).to_owned(), *ms))
                     .collect()
             }),
-            frame_ms: timed.then(|| stats.frame_ms(&times)),
+            frame_ms: timed.then_some(frame_ms),
             wall_ms,
+            clock_warning,
             reference_check,
         },
     })

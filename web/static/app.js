@@ -214,6 +214,8 @@ function draw() {
 
 const mib = (b) => `${(b / 1048576).toFixed(2)} MiB`;
 const ms = (v) => (v === null || v === undefined) ? 'no timestamps' : `${v.toFixed(2)} ms`;
+// A GPU time that disagrees with the clock is not shown as a measurement (the warning says why).
+const gpuMs = (f) => f.clock_warning ? `${ms(f.frame_ms)}: disagrees with the clock, read the wall time` : ms(f.frame_ms);
 
 function showNumbers(r) {
   const t = r.technique;
@@ -224,7 +226,7 @@ function showNumbers(r) {
     ['', t.technique, 'exact'],
     ['shadow memory (resident, scratch included)', mib(t.shadow_bytes), mib(e.shadow_bytes)],
     ['of it transient', mib(t.transient_bytes), mib(e.transient_bytes)],
-    ['frame, GPU (timestamp queries)', ms(t.frame_ms), ms(e.frame_ms)],
+    ['frame, GPU (timestamp queries)', gpuMs(t), gpuMs(e)],
     ['passes, ms', passes(t.passes), passes(e.passes)],
     ['frame, wall clock', ms(t.wall_ms), ms(e.wall_ms)],
     ['FLIP vs exact (mean)', r.flip_mean.toFixed(4)],
@@ -232,6 +234,7 @@ function showNumbers(r) {
     ['RMSE (sRGB) / PSNR', `${r.rmse_srgb.toFixed(4)} / ${r.psnr_db === null ? '∞' : r.psnr_db.toFixed(1) + ' dB'}`],
     ['RMS T error at the shaded points', `${r.rms_transmittance_error.toFixed(4)} (${r.shaded_points} points)`],
     ['reference', e.reference_check || ''],
+    ...[t, e].filter((f) => f.clock_warning).map((f) => [`${f.technique}'s timestamps`, f.clock_warning]),
   ]);
   // Browsers may round timestamps (Chrome: to 100 µs unless started with
   // --enable-unsafe-webgpu or with "WebGPU Developer Features" on); say so when they were.
