@@ -27,6 +27,7 @@ fi
 cargo build -p smokeshadow-web --target wasm32-unknown-unknown --release
 mkdir -p "$(dirname "$out")"
 staging=$(mktemp -d "$(dirname "$out")/.site.XXXXXX")
+chmod 755 "$staging" # (mktemp makes it private; a web server must read it)
 trap 'rm -rf "$staging"' EXIT
 wasm-bindgen --target web --no-typescript --out-dir "$staging/pkg" \
     target/wasm32-unknown-unknown/release/smokeshadow_web.wasm
