@@ -172,16 +172,15 @@ impl ExactFrames {
         let (mut check_worst, mut check_points) = (0.0f64, usize::MAX);
         for f in &frames {
             let (image, sample) = f.render(gpu, renderer, target, &RenderOptions::default())?;
-            let check = progress
-                .suspend(|| {
-                    smokeshadow_core::render::reference_check::verify(
-                        renderer,
-                        gpu,
-                        &f.scene,
-                        &f.particles,
-                    )
-                })
-                .wait()?;
+            let check = progress.suspend(|| {
+                smokeshadow_core::render::reference_check::verify(
+                    renderer,
+                    gpu,
+                    &f.scene,
+                    &f.particles,
+                )
+                .wait()
+            })?;
             check_worst = check_worst.max(check.worst_difference);
             check_points = check_points.min(check.points);
             samples.push(sample);

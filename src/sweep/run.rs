@@ -619,16 +619,10 @@ impl<'a> Sweeper<'a> {
             .probe_shaded(gpu, scene, &particles, &points, &owners)
             .wait()?;
         // No error is measured against a reference that disagrees with the closed form.
-        let check = progress
-            .suspend(|| {
-                smokeshadow_core::render::reference_check::verify(
-                    &mut renderer,
-                    gpu,
-                    scene,
-                    &particles,
-                )
-            })
-            .wait()?;
+        let check = progress.suspend(|| {
+            smokeshadow_core::render::reference_check::verify(&mut renderer, gpu, scene, &particles)
+                .wait()
+        })?;
         progress.finish(format!(
             "{}: exact reference ({}² light tiles): {} bytes, T at {} shaded points; {check}",
             scene.name,
