@@ -15,7 +15,7 @@ use super::{CellResult, ImageError, Machine, MeasuredAgainst, SkippedCell, Sweep
 use crate::diff;
 use crate::progress::Progress;
 use smokeshadow_core::gpu::Gpu;
-use smokeshadow_core::render::shaded::{SHADED_STRIDE_PX, rms_difference, shaded_points};
+use smokeshadow_core::render::shaded::{frame_points, rms_difference};
 use smokeshadow_core::render::{
     OUTPUT_FORMAT, OffscreenTarget, ParticleRes, RenderOptions, Renderer, TechniqueConfig,
 };
@@ -607,14 +607,7 @@ impl<'a> Sweeper<'a> {
                 smokeshadow_core::gpu::read_texture_rgba16f(gpu, renderer.hdr_texture()).wait()?;
             crate::output::write_exr(&dir.join(EXACT_HDR_IMAGE), &hdr)?;
         }
-        let points = shaded_points(
-            scene,
-            &particles,
-            (w, h),
-            SHADED_STRIDE_PX,
-            renderer.medium().grid().map(|g| &**g),
-        );
-        let owners = smokeshadow_core::render::shaded::point_owners(particles.len(), points.len());
+        let (points, owners) = frame_points(&renderer, scene, &particles);
         let exact_t = renderer
             .probe_shaded(gpu, scene, &particles, &points, &owners)
             .wait()?;

@@ -43,7 +43,7 @@ use rand::{Rng, SeedableRng};
 use serde::{Deserialize, Serialize};
 
 use smokeshadow_core::gpu::Gpu;
-use smokeshadow_core::render::shaded::{point_owners, rms_difference, shaded_points};
+use smokeshadow_core::render::shaded::{frame_points, rms_difference};
 use smokeshadow_core::render::{OUTPUT_FORMAT, Renderer, TechniqueConfig};
 use smokeshadow_core::scene::Scene;
 use smokeshadow_core::shadow::{self, ParamSpec, ParamValue, TechniqueEntry, TechniqueParams};
@@ -368,14 +368,7 @@ impl Case {
         };
         let mut renderer = Renderer::new(gpu, w, h, OUTPUT_FORMAT, &exact).wait()?;
         renderer.load_volume(gpu, &scene).wait()?;
-        let points = shaded_points(
-            &scene,
-            &particles,
-            (w, h),
-            smokeshadow_core::render::shaded::SHADED_STRIDE_PX,
-            renderer.medium().grid().map(|g| &**g),
-        );
-        let owners = point_owners(particles.len(), points.len());
+        let (points, owners) = frame_points(&renderer, &scene, &particles);
         let exact_t = renderer
             .probe_shaded(gpu, &scene, &particles, &points, &owners)
             .wait()?;

@@ -23,9 +23,7 @@ use smokeshadow_core::diff;
 use smokeshadow_core::files::Files;
 use smokeshadow_core::gpu::{Gpu, PassTimes, clock_warning};
 use smokeshadow_core::particles;
-use smokeshadow_core::render::shaded::{
-    SHADED_STRIDE_PX, point_owners, rms_difference, shaded_points,
-};
+use smokeshadow_core::render::shaded::{frame_points, rms_difference};
 use smokeshadow_core::render::{
     OUTPUT_FORMAT, OffscreenTarget, RenderOptions, Renderer, TechniqueConfig, reference_check,
 };
@@ -513,14 +511,7 @@ async fn measure(
     let times: PassTimes = renderer.gpu_times(gpu).await?;
     let wall_ms = start.elapsed().as_secs_f64() * 1e3;
     let image = target.read_rgb(gpu).await?;
-    let points = shaded_points(
-        scene,
-        particles,
-        (w, h),
-        SHADED_STRIDE_PX,
-        renderer.medium().grid().map(|g| &**g),
-    );
-    let owners = point_owners(particles.len(), points.len());
+    let (points, owners) = frame_points(&renderer, scene, particles);
     let shaded_t = renderer
         .probe_shaded(gpu, scene, particles, &points, &owners)
         .await?;

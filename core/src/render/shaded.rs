@@ -114,6 +114,26 @@ fn pixel_rays(
     })
 }
 
+/// The shaded points of `renderer`'s frame of `scene` ([`shaded_points`] at the renderer's
+/// size, every [`SHADED_STRIDE_PX`], through the grid of the volume it loaded) with their owners
+/// ([`point_owners`]): where the sweep, `tune` and the web page measure T
+/// (`Renderer::probe_shaded`).
+pub fn frame_points(
+    renderer: &super::Renderer,
+    scene: &Scene,
+    particles: &[Particle],
+) -> (Vec<Vec3>, Vec<u32>) {
+    let points = shaded_points(
+        scene,
+        particles,
+        renderer.size(),
+        SHADED_STRIDE_PX,
+        renderer.medium().grid().map(|g| &**g),
+    );
+    let owners = point_owners(particles.len(), points.len());
+    (points, owners)
+}
+
 /// The owners of [`shaded_points`]' points for [`super::Renderer::probe_shaded`]: particle
 /// `i`'s four lighting points come first, in particle order, then `total - 4 · particles`
 /// opaque points that are no particle's (`shadow::NO_OWNER`).
