@@ -177,10 +177,10 @@ impl Gpu {
     /// [`device_descriptor`]); features and limits are read from the device itself.
     ///
     /// Installs the device's last line of defence: a GPU error that no [`Gpu::scoped`] caught,
-    /// or a lost device, prints one `error:` line and ends the process with status 2 on the host (wgpu's
-    /// default handler panics with a backtrace), and is kept on the web. Everything that can fail for a reason the
-    /// user controls (allocation sizes, budgets) is checked before or scoped, so this fires only
-    /// for driver failures.
+    /// or a lost device, prints one `error:` line and ends the process with status 2 on the host
+    /// (wgpu's default handler panics with a backtrace), and is kept on the web. Everything that
+    /// can fail for a reason the user controls (allocation sizes, budgets) is checked before or
+    /// scoped, so this fires only for driver failures.
     pub fn from_device(device: wgpu::Device, queue: wgpu::Queue, info: wgpu::AdapterInfo) -> Self {
         let uncaptured = std::sync::Arc::new(std::sync::Mutex::new(None::<String>));
         #[cfg(not(target_arch = "wasm32"))]
@@ -192,7 +192,7 @@ impl Gpu {
             device.set_device_lost_callback(|reason, message| {
                 // `Destroyed` is the device being dropped on purpose.
                 if reason != wgpu::DeviceLostReason::Destroyed {
-                    eprintln!("error: the GPU device was lost: {message}");
+                    eprintln!("error: {DEVICE_LOST}: {message}");
                     std::process::exit(2);
                 }
             });
@@ -266,14 +266,12 @@ impl Gpu {
                         });
                 encoder.copy_buffer_to_buffer(&source, 0, &readback, 0, 16);
                 self.queue.submit([encoder.finish()]);
-                let (tx, rx) = futures_channel::oneshot::channel();
-                readback.slice(..).map_async(wgpu::MapMode::Read, move |r| {
-                    let _ = tx.send(r);
-                });
-                if self.wait_idle().is_err() || !matches!(rx.await, Ok(Ok(()))) {
+                if crate::gpu::readback::map_and_copy(self, &readback, |_| ())
+                    .await
+                    .is_err()
+                {
                     continue;
                 }
-                readback.unmap();
                 trips.push(start.elapsed().as_secs_f64() * 1e3);
             }
             let mut trips = trips.split_off(1.min(trips.len()));

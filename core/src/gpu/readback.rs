@@ -78,8 +78,9 @@ pub async fn read_buffer(
     map_and_copy(gpu, &staging, |bytes| bytes.to_vec()).await
 }
 
-/// Maps all of `buffer` (after the work already submitted) and hands its bytes to `f`.
-async fn map_and_copy<T>(
+/// Maps all of `buffer` (after the work already submitted), hands its bytes to `f` and unmaps
+/// it.
+pub(super) async fn map_and_copy<T>(
     gpu: &Gpu,
     buffer: &wgpu::Buffer,
     f: impl FnOnce(&[u8]) -> T,

@@ -141,20 +141,15 @@ struct Readback {
 
 enum ReadbackState {
     Free,
-    /// Holds a resolved frame: its pass names, and its mapping once asked for.
+    /// Holds a resolved frame: its pass names, and once its mapping is asked for, the one-shot
+    /// the mapping's callback answers (which [`GpuTimer::poll`] looks at without waiting and
+    /// [`GpuTimer::read`] awaits).
     Resolved {
         names: Vec<&'static str>,
-        mapped: Option<Mapping>,
+        mapped: Option<futures_channel::oneshot::Receiver<()>>,
         /// Order of resolution, to return the newest frame.
         serial: u64,
     },
-}
-
-/// A readback's mapping under way: a flag set when it finished (what [`GpuTimer::poll`] looks
-/// at without waiting) and the one-shot its callback answers ([`GpuTimer::read`] awaits it).
-struct Mapping {
-    done: std::sync::Arc<std::sync::atomic::AtomicBool>,
-    arrived: Option<futures_channel::oneshot::Receiver<()>>,
 }
 
 impl GpuTimer {
@@ -412,14 +407,11 @@ impl GpuTimer {
         }
         self.start_map(newest);
         gpu.wait_idle()?;
-        let arrived = match &mut self.readbacks[newest].state {
-            ReadbackState::Resolved {
-                mapped: Some(mapping),
-                ..
-            } => mapping.arrived.take(),
-            _ => None,
-        };
-        if let Some(arrived) = arrived {
+        if let ReadbackState::Resolved {
+            mapped: Some(arrived),
+            ..
+        } = &mut self.readbacks[newest].state
+        {
             arrived
                 .await
                 .map_err(|_| GpuError::Readback("the timestamps were not mapped".into()))?;
@@ -435,11 +427,11 @@ impl GpuTimer {
         }
         let _ = gpu.device.poll(wgpu::PollType::Poll);
         let ready: Vec<usize> = (0..self.readbacks.len())
-            .filter(|&i| match &self.readbacks[i].state {
+            .filter(|&i| match &mut self.readbacks[i].state {
                 ReadbackState::Resolved {
-                    mapped: Some(mapping),
+                    mapped: Some(arrived),
                     ..
-                } => mapping.done.load(std::sync::atomic::Ordering::Acquire),
+                } => matches!(arrived.try_recv(), Ok(Some(()))),
                 _ => false,
             })
             .collect();
@@ -478,22 +470,16 @@ impl GpuTimer {
         if let ReadbackState::Resolved { names, mapped, .. } = &mut r.state
             && mapped.is_none()
         {
-            let flag = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
-            let done = flag.clone();
             let (tx, rx) = futures_channel::oneshot::channel();
             r.buffer.slice(..names.len() as u64 * 16).map_async(
                 wgpu::MapMode::Read,
                 move |result| {
                     if result.is_ok() {
-                        done.store(true, std::sync::atomic::Ordering::Release);
                         let _ = tx.send(());
                     }
                 },
             );
-            *mapped = Some(Mapping {
-                done: flag,
-                arrived: Some(rx),
-            });
+            *mapped = Some(rx);
         }
     }
 
