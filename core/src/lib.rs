@@ -19,3 +19,4 @@ pub mod scene;
 pub mod shaders;
 pub mod shadow;
 pub mod sim;
+pub mod sweep;

@@ -542,7 +542,7 @@ pub fn write(dir: &Path, scenes: &[SweepResults]) -> anyhow::Result<Gallery> {
     for r in scenes {
         for c in &r.cells {
             let mut row = vec![r.metadata.scene.clone()];
-            let mut cells = super::cells::csv_row(c);
+            let mut cells = smokeshadow_core::sweep::table::csv_row(c);
             // Paths relative to the gallery folder.
             if let Some(image) = cells.last_mut() {
                 *image = format!("{}/{image}", r.metadata.scene);

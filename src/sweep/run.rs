@@ -9,19 +9,23 @@ use std::time::Instant;
 
 use anyhow::Context;
 
-use super::cells::{EXACT_HDR_IMAGE, EXACT_IMAGE, assemble, read_cell, with_ratios, write_results};
+use super::cells::{EXACT_HDR_IMAGE, EXACT_IMAGE, assemble, read_cell, write_results};
 use super::shard::{self, PlannedCell, PlannedScene, Shard, ShardManifest};
-use super::{CellResult, ImageError, Machine, MeasuredAgainst, SkippedCell, SweepResults, Timing};
+use super::{CellResult, ImageError, Machine, MeasuredAgainst, SkippedCell, SweepResults};
 use crate::diff;
 use crate::progress::Progress;
 use smokeshadow_core::gpu::Gpu;
-use smokeshadow_core::render::shaded::{frame_points, rms_difference};
+use smokeshadow_core::render::shaded::frame_points;
 use smokeshadow_core::render::{
     OUTPUT_FORMAT, OffscreenTarget, ParticleRes, RenderOptions, Renderer, TechniqueConfig,
 };
 use smokeshadow_core::scene::Scene;
 use smokeshadow_core::shadow::{self, SplatMode};
 use smokeshadow_core::sim::Particle;
+use smokeshadow_core::sweep::cell::{Bench, Prepared};
+use smokeshadow_core::sweep::plan::{
+    self, BASELINE_CHANNELS, CellTiming, DEFAULT_BYTES_PER_TEXEL, Grid, Plan, settings_key,
+};
 
 /// What to sweep. [`SweepOptions::default`] is the thesis experiment (chapter 4.2.1).
 #[derive(Clone, Debug)]
@@ -68,6 +72,31 @@ pub struct SweepOptions {
     pub animate: Option<smokeshadow_core::motion::Span>,
 }
 
+impl SweepOptions {
+    /// The axes the cells are laid out over.
+    pub fn grid(&self) -> Grid {
+        Grid {
+            techniques: self.techniques.clone(),
+            channels: self.channels.clone(),
+            bytes_per_texel: self.bytes_per_texel.clone(),
+            memory: self.memory.clone(),
+            shadow_res: self.shadow_res.clone(),
+            splats: self.splats.clone(),
+            particle_res: self.particle_res.clone(),
+        }
+    }
+
+    /// How each cell is timed.
+    pub fn timing(&self) -> CellTiming {
+        CellTiming {
+            frames: self.frames,
+            warmup: self.warmup,
+            cell_seconds: self.cell_seconds,
+            animate: self.animate,
+        }
+    }
+}
+
 impl Default for SweepOptions {
     fn default() -> Self {
         Self {
@@ -91,296 +120,15 @@ impl Default for SweepOptions {
     }
 }
 
-/// The default byte budgets per texel: what `osm`'s half-float slices take at 6, 12 and 24
-/// channels, the thesis' range.
-pub const DEFAULT_BYTES_PER_TEXEL: [u32; 3] = [48, 24, 12];
-
-/// Timed frames a cell takes at least, whatever `cell_seconds` says (fewer only when
-/// `frames` asks for fewer, or [`MIN_SLOW_FRAMES`] when each frame outlasts `cell_seconds`).
-pub const MIN_TIMED_FRAMES: u32 = 3;
-/// Timed frames a cell takes at least when every frame took longer than `cell_seconds` on its
-/// own: a deep capture's frames of seconds on lavapipe vary by a few percent, and a third one
-/// would cost `dsm` 2.3 s a cell.
-pub const MIN_SLOW_FRAMES: u32 = 2;
-
-/// Whether a cell has timed enough frames (`frame_s`, wall seconds each) after `elapsed_s` of
-/// timing: `frames` of them; or at least [`MIN_TIMED_FRAMES`], once one more frame, as long as
-/// the frames so far took on average, would take the timing past `cell_seconds`; or
-/// [`MIN_SLOW_FRAMES`] when each of them alone took longer than `cell_seconds`.
-pub fn timed_enough(frame_s: &[f64], elapsed_s: f64, frames: u32, cell_seconds: f64) -> bool {
-    let n = frame_s.len() as u32;
-    if n >= frames {
-        return true;
-    }
-    if n >= MIN_TIMED_FRAMES {
-        return elapsed_s + elapsed_s / f64::from(n) > cell_seconds;
-    }
-    n >= MIN_SLOW_FRAMES && frame_s.iter().all(|&s| s > cell_seconds)
-}
-
-/// The budget every cell's "own baseline" uses (the thesis' baselines).
-const BASELINE_CHANNELS: u32 = 24;
-
-/// One planned cell.
-#[derive(Clone, Debug)]
-struct Plan {
-    name: String,
-    config: TechniqueConfig,
-    particle_res: ParticleRes,
-    /// The byte budgets per texel this cell is the technique's configuration for.
-    byte_budgets: Vec<u32>,
-    /// The memory budgets (total bytes) it is the configuration for at its resolution.
-    memory_budgets: Vec<u64>,
-    /// Whether a channel budget asked for it (else only byte budgets did).
-    channel_axis: bool,
-}
-
-impl Plan {
-    fn new(scene: &Scene, technique: &str, channels: u32, res: u32, splat: SplatMode) -> Self {
-        let mut params = scene.shadow.params(channels);
-        params.resolution_px = res;
-        params.splat = splat;
-        let name = if technique == shadow::frame_baseline().name {
-            technique.to_owned()
-        } else {
-            format!("{technique}_{channels}_{res}_{}", splat.name())
-        };
-        Self {
-            name,
-            config: TechniqueConfig {
-                name: technique.to_owned(),
-                params,
-            },
-            particle_res: ParticleRes::Full,
-            byte_budgets: Vec::new(),
-            memory_budgets: Vec::new(),
-            channel_axis: true,
-        }
-    }
-
-    /// The same cell with the particle pass at `res`: its name gains `_p2` or `_p4` (a
-    /// full-resolution cell keeps the name it always had).
-    fn at(mut self, res: ParticleRes) -> Self {
-        if res != ParticleRes::Full {
-            self.name = format!("{}_p{}", self.name, res.divisor());
-        }
-        self.particle_res = res;
-        self
-    }
-
-    /// Its frame's file, relative to the scene's folder.
-    fn image(&self) -> String {
-        format!("images/{}.png", self.name)
-    }
-
-    fn options(&self) -> RenderOptions {
-        RenderOptions {
-            particle_res: self.particle_res,
-            ..RenderOptions::default()
-        }
-    }
-}
-
-/// Checks the options and lays out the cells: the `none` baseline, then per resolution, splat
-/// mode and technique its budgets. Budgets below a technique's minimum are skipped with a note;
-/// techniques that ignore the splat mode run once per resolution.
+/// Checks the options and lays out the cells ([`plan::plan`] over the options' grid).
 fn plan(scene: &Scene, options: &SweepOptions) -> anyhow::Result<(Vec<Plan>, Vec<SkippedCell>)> {
-    let non_empty = |what: &str, empty: bool| {
-        if empty {
-            anyhow::bail!("--{what} is empty: give at least one value");
-        }
-        Ok(())
-    };
-    non_empty("techniques", options.techniques.is_empty())?;
-    non_empty("channels", options.channels.is_empty())?;
-    // The largest channel budget any technique takes (`has`'s slices, above the maps' 32).
-    let most_channels = shadow::REGISTRY
-        .iter()
-        .map(|e| e.max_channels)
-        .max()
-        .unwrap_or(shadow::MAX_CHANNELS);
-    non_empty("shadow-res", options.shadow_res.is_empty())?;
-    non_empty("splat", options.splats.is_empty())?;
-    non_empty("particle-res", options.particle_res.is_empty())?;
     if options.frames == 0 {
         anyhow::bail!("--frames 0: time at least one frame");
-    }
-    for &res in &options.shadow_res {
-        if !(1..=8192).contains(&res) {
-            anyhow::bail!("--shadow-res {res} is out of range: allowed 1..=8192");
-        }
     }
     if let Some(span) = options.animate {
         check_sequence_frames(scene, &span)?;
     }
-    let mut cells = vec![
-        Plan::new(
-            scene,
-            shadow::frame_baseline().name,
-            1,
-            options.shadow_res[0],
-            options.splats[0],
-        )
-        .at(options.particle_res[0]),
-    ];
-    let mut skipped = Vec::new();
-    // What the scene's smoke holds, for the techniques that cannot shadow it (`srm` particles,
-    // `has` a density volume): noted, not measured.
-    let smoke = (
-        scene.volume.is_some(),
-        crate::particles::count(scene) as usize,
-    );
-    // Why a technique cannot run on this scene at all: its smoke, or its shadow history.
-    let refused = |entry: &shadow::TechniqueEntry| {
-        entry
-            .refusal(smoke.0, smoke.1)
-            .or_else(|| entry.history_refusal(scene.shadow.history))
-    };
-    for name in &options.techniques {
-        let entry = shadow::find(name)?;
-        if entry.role != shadow::Role::Contender {
-            anyhow::bail!(
-                "--techniques {name}: `{}` and `{}` are the sweep's baseline and reference, always measured; list the techniques to compare",
-                shadow::frame_baseline().name,
-                shadow::reference().name
-            );
-        }
-        if let Some(refusal) = refused(entry) {
-            skipped.push(SkippedCell {
-                technique: entry.name.to_owned(),
-                channels: first_budget(entry, &options.channels).unwrap_or(options.channels[0]),
-                bytes_per_texel: None,
-                memory: None,
-                reason: refusal.to_string(),
-            });
-            continue;
-        }
-        for &b in &options.channels {
-            if !(1..=most_channels).contains(&b) {
-                let beyond: Vec<String> = shadow::REGISTRY
-                    .iter()
-                    .filter(|e| e.max_channels > shadow::MAX_CHANNELS)
-                    .map(|e| format!("{} to {}", e.name, e.max_channels))
-                    .collect();
-                anyhow::bail!(
-                    "--channels {b} is out of range: allowed 1..={most_channels} (above {}: {})",
-                    shadow::MAX_CHANNELS,
-                    beyond.join(", ")
-                );
-            }
-            if let Err(err) = shadow::check_channels(entry, b) {
-                skipped.push(SkippedCell {
-                    technique: entry.name.to_owned(),
-                    channels: b,
-                    bytes_per_texel: None,
-                    memory: None,
-                    reason: err.to_string(),
-                });
-            } else if !entry.uses_budget && Some(b) != first_budget(entry, &options.channels) {
-                skipped.push(SkippedCell {
-                    technique: entry.name.to_owned(),
-                    channels: b,
-                    bytes_per_texel: None,
-                    memory: None,
-                    reason: format!(
-                        "{} gives the same result at any budget ({}): measured once, at {} channels",
-                        entry.name,
-                        (entry.budget_caption)(b),
-                        first_budget(entry, &options.channels).unwrap_or(b)
-                    ),
-                });
-            }
-        }
-    }
-    for &particle_res in &options.particle_res {
-        if particle_res == ParticleRes::Full {
-            continue;
-        }
-        for name in &options.techniques {
-            let entry = shadow::find(name)?;
-            if entry.owns_particle_pass
-                && let Some(b) = first_budget(entry, &options.channels)
-            {
-                skipped.push(SkippedCell {
-                    technique: entry.name.to_owned(),
-                    channels: b,
-                    bytes_per_texel: None,
-                    memory: None,
-                    reason: shadow::ShadowError::ParticleResUnsupported {
-                        technique: entry.name,
-                        res: particle_res.name(),
-                    }
-                    .to_string(),
-                });
-            }
-        }
-    }
-    for &res in &options.shadow_res {
-        for &particle_res in &options.particle_res {
-            for (s, &splat) in options.splats.iter().enumerate() {
-                for name in &options.techniques {
-                    let entry = shadow::find(name)?;
-                    if s > 0 && !entry.uses_splat
-                        || particle_res != ParticleRes::Full && entry.owns_particle_pass
-                        || refused(entry).is_some()
-                    {
-                        continue;
-                    }
-                    for &b in &options.channels {
-                        let once =
-                            entry.uses_budget || Some(b) == first_budget(entry, &options.channels);
-                        if shadow::check_channels(entry, b).is_ok() && once {
-                            cells
-                                .push(Plan::new(scene, entry.name, b, res, splat).at(particle_res));
-                        }
-                    }
-                    let first_axes = s == 0 && particle_res == options.particle_res[0];
-                    for &total in &options.memory {
-                        let planned = shadow::memory_per_texel(total, res).and_then(|bytes| {
-                            plan_byte_budget(
-                                scene,
-                                entry,
-                                Budget::Memory(bytes, total),
-                                (res, splat, particle_res),
-                                &mut cells,
-                            )
-                        });
-                        if let Err(reason) = planned
-                            && first_axes
-                        {
-                            skipped.push(SkippedCell {
-                                technique: entry.name.to_owned(),
-                                channels: 0,
-                                bytes_per_texel: None,
-                                memory: Some((total, res)),
-                                reason,
-                            });
-                        }
-                    }
-                    for &bytes in &options.bytes_per_texel {
-                        if let Err(reason) = plan_byte_budget(
-                            scene,
-                            entry,
-                            Budget::PerTexel(bytes),
-                            (res, splat, particle_res),
-                            &mut cells,
-                        ) && first_axes
-                            && res == options.shadow_res[0]
-                        {
-                            skipped.push(SkippedCell {
-                                technique: entry.name.to_owned(),
-                                channels: 0,
-                                bytes_per_texel: Some(bytes),
-                                memory: None,
-                                reason,
-                            });
-                        }
-                    }
-                }
-            }
-        }
-    }
-    Ok((cells, skipped))
+    plan::plan(scene, &options.grid())
 }
 
 /// Every frame of `span` of the scene's file sequences (its particles', its volume's) is there
@@ -422,117 +170,28 @@ fn check_sequence_frames(
     Ok(())
 }
 
-/// Adds `bytes` per texel to the cell of `entry`'s configuration that fits it (the
-/// [`shadow::fit_bytes_per_texel`] at the scene's particles and frame): a cell already planned
-/// with the same channels used (a channel budget's, or another byte budget's) answers it too;
-/// else a new cell, off the channel axis. A technique whose result does not depend on the
-/// budget answers every byte budget it fits with its one cell. The cell's technique is held to
-/// the smallest budget's bytes ([`shadow::TechniqueParams::memory_limit_bytes`]). `Err`: why
-/// it fits none.
-fn plan_byte_budget(
-    scene: &Scene,
-    entry: &'static shadow::TechniqueEntry,
-    budget: Budget,
-    (res, splat, particle_res): (u32, SplatMode, ParticleRes),
-    cells: &mut Vec<Plan>,
-) -> Result<(), String> {
-    let bytes = match budget {
-        Budget::PerTexel(b) | Budget::Memory(b, _) => b,
-    };
-    let record = |p: &mut Plan| match budget {
-        Budget::PerTexel(b) => p.byte_budgets.push(b),
-        Budget::Memory(_, total) => p.memory_budgets.push(total),
-    };
-    let base = Plan::new(scene, entry.name, entry.min_channels, res, splat).at(particle_res);
-    let particles = crate::particles::count(scene);
-    let pixels = u64::from(scene.output.width_px) * u64::from(scene.output.height_px);
-    let fit = shadow::fit_bytes_per_texel(entry, &base.config.params, bytes, particles, pixels)?;
-    let used = |p: &Plan| shadow::planned_use(entry, &p.config.params, particles, pixels);
-    let same = cells.iter_mut().find(|p| {
-        p.config.name == entry.name
-            && p.config.params.resolution_px == res
-            && p.config.params.splat == splat
-            && p.particle_res == particle_res
-            && (!entry.uses_budget || used(p) == (fit.channels_used, fit.bytes_per_texel))
-    });
-    // The cell holds itself to the smallest byte budget it answers: its build sheds scratch
-    // to fit (more slabs or bands: time for bytes), so its resident bytes are within each.
-    let limit = u64::from(bytes) * u64::from(res).pow(2);
-    let hold = |p: &mut Plan| {
-        let params = &mut p.config.params;
-        params.memory_limit_bytes = Some(params.memory_limit_bytes.map_or(limit, |l| l.min(limit)));
-    };
-    match same {
-        Some(p) => {
-            record(p);
-            hold(p);
-        }
-        None => {
-            let mut p = Plan::new(scene, entry.name, fit.channels, res, splat).at(particle_res);
-            record(&mut p);
-            p.channel_axis = false;
-            hold(&mut p);
-            cells.push(p);
-        }
-    }
-    Ok(())
-}
-
-/// A byte budget: per texel (`--bytes-per-texel`), or a total (`--memory`) with the bytes a
-/// texel it is at the cell's resolution.
-#[derive(Clone, Copy, Debug)]
-enum Budget {
-    PerTexel(u32),
-    Memory(u32, u64),
-}
-
-/// The first of `budgets` that `entry` accepts: where a technique whose result does not depend
-/// on the budget is measured.
-fn first_budget(entry: &shadow::TechniqueEntry, budgets: &[u32]) -> Option<u32> {
-    budgets
-        .iter()
-        .copied()
-        .find(|&b| shadow::check_channels(entry, b).is_ok())
-}
-
-/// What a cell's measurement depends on, as a string (`--resume` reuses a cell only when equal).
-/// `scene_sha256` is the scene's [`Scene::content_hash`], computed once per scene (for a particle
-/// file it reads and hashes the file).
-fn settings_key(scene: &Scene, scene_sha256: &str, options: &SweepOptions, plan: &Plan) -> String {
-    // A full-resolution cell's key is the one it had before the particle resolution was an
-    // axis, so earlier sweeps' cells stay reusable.
-    let particle_res = match plan.particle_res {
-        ParticleRes::Full => String::new(),
-        res => format!(" particle_res={res}"),
-    };
-    // Likewise a still cell's: the span (all of it, as its record writes it) is added only to
-    // an animated sweep's.
-    let animate = options.animate.map_or(String::new(), |s| {
-        format!(
-            " animate={}",
-            serde_json::to_string(&s).expect("a span serialises")
-        )
-    });
-    format!(
-        "tool={} scene={} size={}x{} frames={} warmup={} cell_seconds={} exact=closed-form technique={} params={}{particle_res}{animate}",
-        env!("CARGO_PKG_VERSION"),
-        scene_sha256,
-        scene.output.width_px,
-        scene.output.height_px,
-        options.frames,
-        options.warmup,
-        options.cell_seconds,
-        plan.config.name,
-        serde_json::to_string(&plan.config.params).expect("params serialise"),
-    )
-}
-
 /// A technique's counter by name (0 when absent).
 fn counter(counters: &[(&'static str, u64)], name: &str) -> u64 {
     counters
         .iter()
         .find(|(n, _)| *n == name)
         .map_or(0, |(_, v)| *v)
+}
+
+/// What every cell of a sweeper is measured on and against ([`Bench`]), borrowing its fields
+/// one by one so that its renderer stays free to lend mutably.
+macro_rules! bench {
+    ($sweeper:expr) => {
+        Bench {
+            gpu: $sweeper.gpu,
+            scene: $sweeper.scene,
+            particles: &$sweeper.particles,
+            target: &$sweeper.target,
+            points: &$sweeper.points,
+            owners: &$sweeper.owners,
+            exact_t: &$sweeper.exact_t,
+        }
+    };
 }
 
 /// The long-lived state of one scene's sweep in this process: the particles, one renderer, the
@@ -650,10 +309,10 @@ impl<'a> Sweeper<'a> {
             none_frame_ms: f64::NAN,
             exact_bytes,
             exact_tiles,
-            exact_image_sha256: sha256_hex(exact_image.as_raw()),
+            exact_image_sha256: smokeshadow_core::sweep::image_sha256(&exact_image),
             exact_check_points: check.points,
             exact_check_worst: Some(check.worst_difference),
-            machine: Machine::of(gpu),
+            machine: Machine::of(gpu).wait(),
             shard: options.shard,
             motion: motion.as_ref().map(|m| super::MotionReference {
                 change: m.change,
@@ -794,58 +453,12 @@ impl<'a> Sweeper<'a> {
         self.time(plan, prepared, key, record)?.finish()
     }
 
-    /// Everything a cell does before its timed frames: the technique, the transmittance probe
-    /// and the warm-up frames.
-    ///
-    /// The probe comes first: it builds the maps once (compiling the build's shaders), and the
-    /// warm-up frames reuse them, so that a technique whose build takes seconds pays for it once
-    /// before the timed frames rather than once per warm-up frame. None of it is timed, so the
-    /// previous cell's comparisons may run beside it ([`Sweeper::time`]).
+    /// Everything a cell does before its timed frames ([`Bench::prepare`]). None of it is
+    /// timed, so the previous cell's comparisons may run beside it ([`Sweeper::time`]).
     fn prepare(&mut self, plan: &Plan) -> anyhow::Result<Prepared> {
-        self.renderer.set_technique(self.gpu, &plan.config).wait()?;
-        let probed = if plan.config.name == shadow::frame_baseline().name {
-            None
-        } else {
-            Some(
-                self.renderer
-                    .probe_shaded(
-                        self.gpu,
-                        self.scene,
-                        &self.particles,
-                        &self.points,
-                        &self.owners,
-                    )
-                    .wait()?,
-            )
-        };
-        let warm = RenderOptions {
-            reuse_shadow_maps: true,
-            ..plan.options()
-        };
-        // The last warm-up frame counts the particle pass's fragments (never a timed frame).
-        let mut particle_fragments = None;
-        for i in 0..self.options.warmup {
-            let count =
-                i + 1 == self.options.warmup && self.renderer.set_count_fragments(self.gpu, true);
-            self.renderer
-                .render(
-                    self.gpu,
-                    self.scene,
-                    &self.particles,
-                    &warm,
-                    &self.target.view,
-                )
-                .wait()?;
-            if count {
-                particle_fragments = self.renderer.particle_fragments(self.gpu).wait()?;
-                self.renderer.set_count_fragments(self.gpu, false);
-            }
-            self.gpu.wait_idle()?;
-        }
-        Ok(Prepared {
-            probed,
-            particle_fragments,
-        })
+        bench!(self)
+            .prepare(&mut self.renderer, plan, self.options.warmup)
+            .wait()
     }
 
     /// Times the cell `prepare` readied (which must be the last one it readied), reads its
@@ -863,109 +476,36 @@ impl<'a> Sweeper<'a> {
         record: bool,
     ) -> anyhow::Result<PendingCell> {
         let is_frame_baseline = plan.config.name == shadow::frame_baseline().name;
-        let options = plan.options();
-        let (mut shadow_ms, mut render_ms, mut sort_ms, mut frame_ms, mut wall_ms) =
-            (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
-        let (mut particles_ms, mut upsample_ms) = (Vec::new(), Vec::new());
-        let cell_start = Instant::now();
-        while !timed_enough(
-            &wall_ms.iter().map(|ms| ms / 1e3).collect::<Vec<f64>>(),
-            cell_start.elapsed().as_secs_f64(),
-            self.options.frames,
-            self.options.cell_seconds,
-        ) {
-            let start = Instant::now();
-            let stats = self
-                .renderer
-                .render(
-                    self.gpu,
-                    self.scene,
-                    &self.particles,
-                    &options,
-                    &self.target.view,
-                )
-                .wait()?;
-            let times = self.renderer.gpu_times(self.gpu).wait()?;
-            wall_ms.push(start.elapsed().as_secs_f64() * 1e3);
-            let shadow = times.get("shadow").unwrap_or(0.0);
-            shadow_ms.push(shadow);
-            particles_ms.push(times.get("particles").unwrap_or(0.0));
-            upsample_ms.push(
-                times.get("downsample").unwrap_or(0.0) + times.get("upsample").unwrap_or(0.0),
-            );
-            render_ms.push(times.total_ms() - shadow);
-            sort_ms.push(stats.sort_ms);
-            frame_ms.push(stats.frame_ms(&times));
-        }
-        if is_frame_baseline {
-            self.against.none_frame_ms = Timing::of(&frame_ms).median;
-        }
-        let (resident_bytes, transient_bytes) = self.renderer.shadow_bytes();
-        let channels_used = self.renderer.technique().channels_used();
-        let image = self.target.read_rgb(self.gpu).wait()?;
-        let image_path = plan.image();
-        let hdr = match self.options.exr && record {
-            true => Some((
-                format!("images/{}.exr", plan.name),
+        let (mut cell, image) = bench!(self)
+            .time(
+                &mut self.renderer,
+                plan,
+                prepared,
+                &self.options.timing(),
+                key,
+                &mut self.against,
+            )
+            .wait()?;
+        let image_path = cell.image.clone();
+        let mut hdr = None;
+        if self.options.exr && record {
+            let path = format!("images/{}.exr", plan.name);
+            let frame =
                 smokeshadow_core::gpu::read_texture_rgba16f(self.gpu, self.renderer.hdr_texture())
-                    .wait()?,
-            )),
-            false => None,
-        };
+                    .wait()?;
+            cell.hdr_image = Some(path.clone());
+            hdr = Some((path, frame));
+        }
         // The cell over the span (not `none`, which is compared with nothing).
         let animated = match (&self.motion, is_frame_baseline) {
             (Some(exact), false) => {
                 let exact = std::sync::Arc::clone(exact);
                 let (recorder, frames) =
-                    exact.record(self.gpu, &mut self.renderer, &self.target, &options)?;
+                    exact.record(self.gpu, &mut self.renderer, &self.target, &plan.options())?;
                 Some((recorder, frames, std::sync::Arc::clone(&exact.images)))
             }
             _ => None,
         };
-
-        let mut cell = CellResult {
-            technique: plan.config.name.clone(),
-            channels: plan.config.params.channels,
-            byte_budgets: plan.byte_budgets.clone(),
-            memory_budgets: plan.memory_budgets.clone(),
-            channel_axis: plan.channel_axis,
-            channels_used,
-            shadow_res: plan.config.params.resolution_px,
-            splat: plan.config.params.splat,
-            particle_res: plan.particle_res,
-            resident_bytes,
-            transient_bytes,
-            smoke_texels: self.renderer.texels_covering_smoke(
-                self.scene,
-                &self.particles,
-                plan.config.params.resolution_px,
-            ),
-            gpu_shadow_ms: Timing::of(&shadow_ms),
-            gpu_render_ms: Timing::of(&render_ms),
-            cpu_sort_ms: Timing::of(&sort_ms),
-            frame_ms: Timing::of(&frame_ms),
-            wall_ms: Timing::of(&wall_ms),
-            particles_ms: Timing::of(&particles_ms),
-            upsample_ms: Timing::of(&upsample_ms),
-            particle_fragments: prepared.particle_fragments,
-            frames_timed: frame_ms.len() as u32,
-            overhead_ratio: None,
-            shadow_ratio: None,
-            vs_own_24: None,
-            vs_exact: None,
-            vs_full_res: None,
-            rms_transmittance_error: prepared.probed.map(|t| rms_difference(&t, &self.exact_t)),
-            image: image_path.clone(),
-            diff_own_24: None,
-            flip_own_24: None,
-            diff_exact: None,
-            flip_exact: None,
-            hdr_image: hdr.as_ref().map(|(path, _)| path.clone()),
-            settings_key: key,
-            measured_against: Some(self.against.clone()),
-            motion: None,
-        };
-        with_ratios(&mut cell, None);
         // The 24-channel cell is its own baseline: zero error by definition, no difference
         // images to look at. The others need it, from this process, disk or rendered now (the
         // last GPU work). Likewise a full-resolution cell is its own full-resolution image.
@@ -1059,13 +599,6 @@ impl<'a> Sweeper<'a> {
             comparisons,
         })
     }
-}
-
-/// What [`Sweeper::prepare`] measured before a cell's timed frames.
-struct Prepared {
-    /// T at the shaded points (not for `none`).
-    probed: Option<Vec<f32>>,
-    particle_fragments: Option<u64>,
 }
 
 /// A timed cell whose image writes and comparisons run on their own thread.
@@ -1194,7 +727,7 @@ fn plan_scenes<'a>(
             .map(|p| {
                 (
                     p.name.clone(),
-                    settings_key(scene, &scene_sha256, options, p),
+                    settings_key(scene, &scene_sha256, &options.timing(), p),
                 )
             })
             .collect();
@@ -1281,7 +814,7 @@ pub fn run(
     }
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let shards_dir = dir.join(shard::SHARDS_DIR);
-    let machine = Machine::of(gpu);
+    let machine = Machine::of(gpu).wait();
     let manifest = |finished: bool, measured: usize, reused: usize| {
         options.shard.map(|shard| ShardManifest {
             shard,
@@ -1550,14 +1083,6 @@ pub fn run(
 }
 
 /// SHA-256 of `bytes`, hex-encoded.
-fn sha256_hex(bytes: &[u8]) -> String {
-    use sha2::Digest;
-    sha2::Sha256::digest(bytes)
-        .iter()
-        .map(|b| format!("{b:02x}"))
-        .collect()
-}
-
 /// One line about a finished cell.
 fn summary(cell: &CellResult) -> String {
     let mut line = format!(
@@ -1590,30 +1115,4 @@ fn summary(cell: &CellResult) -> String {
         ));
     }
     line
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn cells_time_three_frames_or_two_slow_ones_within_their_seconds() {
-        // Timing goes on while one more frame of the average so far fits in the seconds, up to
-        // `frames`.
-        assert!(!timed_enough(&[0.1; 4], 0.4, 20, 0.5));
-        assert!(timed_enough(&[0.1; 5], 0.5, 20, 0.5));
-        assert!(!timed_enough(&[0.02; 19], 0.38, 20, 0.5));
-        assert!(timed_enough(&[0.02; 20], 0.4, 20, 0.5));
-        // Four frames of 0.12 s: a fifth would end at 0.6 s.
-        assert!(timed_enough(&[0.12; 4], 0.48, 20, 0.5));
-        // At least three frames, whatever the seconds ...
-        assert!(!timed_enough(&[0.3, 0.3], 0.6, 20, 0.5));
-        assert!(timed_enough(&[0.3, 0.3, 0.3], 0.9, 20, 0.5));
-        // ... or two when each of them took longer than the seconds on its own.
-        assert!(!timed_enough(&[2.3], 2.3, 20, 0.5));
-        assert!(timed_enough(&[2.3, 2.2], 4.5, 20, 0.5));
-        assert!(!timed_enough(&[2.3, 0.4], 2.7, 20, 0.5));
-        // `frames` below the minimum wins.
-        assert!(timed_enough(&[2.3], 2.3, 1, 0.5));
-    }
 }

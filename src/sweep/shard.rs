@@ -15,64 +15,11 @@ use std::path::Path;
 use anyhow::Context;
 use serde::{Deserialize, Serialize};
 
+pub use super::Shard;
 use super::{Machine, SkippedCell};
 
 /// Folder of the shard manifests inside the sweep folder.
 pub const SHARDS_DIR: &str = "shards";
-
-/// `--shard K/N`: this process runs the cells whose stable index is K mod N.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-pub struct Shard {
-    pub k: u32,
-    pub n: u32,
-}
-
-impl Shard {
-    /// Whether the cell with stable index `index` is this shard's.
-    pub fn owns(&self, index: usize) -> bool {
-        index % self.n as usize == self.k as usize
-    }
-
-    /// The shard a cell with stable index `index` belongs to in a split of `n`.
-    pub fn of(index: usize, n: u32) -> Self {
-        Self {
-            k: (index % n as usize) as u32,
-            n,
-        }
-    }
-
-    /// The manifest's file name, `K-of-N.json`.
-    pub fn manifest_name(&self) -> String {
-        format!("{}-of-{}.json", self.k, self.n)
-    }
-}
-
-impl std::fmt::Display for Shard {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "{}/{}", self.k, self.n)
-    }
-}
-
-impl std::str::FromStr for Shard {
-    type Err = String;
-    /// `K/N` with 0 <= K < N.
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        let bad = || format!("\"{s}\" is not K/N (shard K of N, 0 <= K < N, e.g. 0/4)");
-        let (k, n) = s.split_once('/').ok_or_else(bad)?;
-        let k: u32 = k.trim().parse().map_err(|_| bad())?;
-        let n: u32 = n.trim().parse().map_err(|_| bad())?;
-        if n == 0 {
-            return Err(format!("\"{s}\": N must be at least 1"));
-        }
-        if k >= n {
-            return Err(format!(
-                "\"{s}\": K must be below N (shards of {n} are 0..={})",
-                n - 1
-            ));
-        }
-        Ok(Self { k, n })
-    }
-}
 
 /// One planned cell: its stable index, name and settings key.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

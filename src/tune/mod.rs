@@ -131,10 +131,7 @@ pub struct Shape {
     pub training: f64,
 }
 
-/// The resolutions `tune` chose: technique -> memory budget (total bytes) -> map resolution.
-/// A sweep's answer at equal total memory takes each technique at its chosen resolution (where
-/// it swept it), so that shapes, like parameters, are chosen on scenes apart from the answer's.
-pub type Shapes = BTreeMap<String, BTreeMap<u64, u32>>;
+pub use smokeshadow_core::sweep::Shapes;
 
 impl ParamsFile {
     /// Its shapes, by memory budget in bytes (a key that is not a whole number is skipped).

@@ -3,7 +3,7 @@
 //! shows. The report, the charts and the gallery all read the answer from here.
 
 use super::{CellResult, SweepResults};
-use smokeshadow_core::render::ParticleRes;
+use crate::render::ParticleRes;
 
 /// The cells answering byte budget `bytes` (full particle resolution: the budgets compare
 /// shadow techniques), most accurate first (FLIP vs `exact`, then fewer resident bytes, registry
@@ -66,7 +66,7 @@ fn most_accurate_per_technique<'a>(
 
 /// Each technique's cell that answers the memory budget `total` (one per swept resolution),
 /// most accurate first: the answer at equal total memory, every technique at the map resolution
-/// `tune` chose for it on the training scenes ([`crate::tune::Shapes`], the results' metadata)
+/// `tune` chose for it on the training scenes ([`super::Shapes`], the results' metadata)
 /// where that resolution was swept, else at its most accurate of those swept, on this scene
 /// ([`shape_tuned`] says which); of several cells there (splats), the most accurate.
 pub fn at_memory_budget(results: &SweepResults, total: u64) -> Vec<&CellResult> {
@@ -117,8 +117,8 @@ pub fn at_time_budget(results: &SweepResults, ratio: f64) -> Vec<&CellResult> {
         c.particle_res == ParticleRes::Full
             && flip_exact(c).is_finite()
             && c.overhead_ratio.is_some_and(|r| r <= ratio)
-            && smokeshadow_core::shadow::find(&c.technique)
-                .is_ok_and(|t| t.role == smokeshadow_core::shadow::Role::Contender)
+            && crate::shadow::find(&c.technique)
+                .is_ok_and(|t| t.role == crate::shadow::Role::Contender)
     }));
     best.sort_by(|a, b| {
         flip_exact(a)
@@ -226,14 +226,14 @@ pub fn time_pareto(results: &SweepResults) -> Vec<&CellResult> {
 }
 
 /// FLIP mean against `exact`, NaN when absent (never on the front, never the best).
-pub(super) fn flip_exact(c: &CellResult) -> f64 {
+pub fn flip_exact(c: &CellResult) -> f64 {
     c.vs_exact.map_or(f64::NAN, |x| x.flip_mean)
 }
 
 /// For each cell, whether it is on the Pareto front of bytes against FLIP vs `exact`: it has a
 /// finite error and no other cell has both fewer-or-equal bytes and a lower error. Cells
 /// without an error against `exact` (`none`) are never on it.
-pub(super) fn pareto_front(cells: &[CellResult]) -> Vec<bool> {
+pub fn pareto_front(cells: &[CellResult]) -> Vec<bool> {
     cells
         .iter()
         .map(|c| {
