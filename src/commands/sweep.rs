@@ -6,7 +6,7 @@
 use crate::Wait;
 use std::path::{Path, PathBuf};
 
-use crate::sweep::{self, Shard, SweepOptions, SweepOutcome, SweepResults};
+use crate::sweep::{self, CellTiming, Grid, Shard, SweepOptions, SweepOutcome, SweepResults};
 use smokeshadow_core::gpu::{AdapterPreference, Gpu};
 use smokeshadow_core::scene::Scene;
 use smokeshadow_core::shadow::SplatMode;
@@ -76,17 +76,17 @@ pub struct SweepArgs {
     #[command(flatten)]
     pub params: super::ParamArgs,
     /// Timed frames per cell (medians over these).
-    #[arg(long, default_value_t = SweepOptions::default().frames, value_parser = clap::value_parser!(u32).range(1..=100_000))]
+    #[arg(long, default_value_t = SweepOptions::default().timing.frames, value_parser = clap::value_parser!(u32).range(1..=100_000))]
     pub frames: u32,
     /// Untimed warm-up frames before them, after the cell's transmittance probe has built the
     /// maps once (they reuse its maps; the first frame compiles the lighting's shaders).
-    #[arg(long, default_value_t = SweepOptions::default().warmup)]
+    #[arg(long, default_value_t = SweepOptions::default().timing.warmup)]
     pub warmup: u32,
     /// Time a cell's frames for at most this many seconds: no frame starts that, as long as the
     /// cell's average, would end past them (but at least 3 frames, or 2 when each took longer
     /// than this), so slow techniques do not hold the sweep; `frames_timed` says how many it
     /// took.
-    #[arg(long, default_value_t = SweepOptions::default().cell_seconds, value_parser = positive_seconds)]
+    #[arg(long, default_value_t = SweepOptions::default().timing.cell_seconds, value_parser = positive_seconds)]
     pub cell_seconds: f64,
     /// Output size as WIDTHxHEIGHT (default: the scene's).
     #[arg(long)]
@@ -197,20 +197,25 @@ pub fn run(args: &SweepArgs, adapter: &AdapterPreference) -> anyhow::Result<()> 
         .transpose()
         .map_err(anyhow::Error::msg)?;
     let options = SweepOptions {
-        techniques: smokeshadow_core::shadow::expand_all(&args.techniques),
-        channels: args.channels.clone(),
-        bytes_per_texel: match (&args.bytes_per_texel, args.memory.is_empty()) {
-            (Some(b), _) => b.0.clone(),
-            (None, true) => sweep::DEFAULT_BYTES_PER_TEXEL.to_vec(),
-            (None, false) => Vec::new(),
+        grid: Grid {
+            techniques: smokeshadow_core::shadow::expand_all(&args.techniques),
+            channels: args.channels.clone(),
+            bytes_per_texel: match (&args.bytes_per_texel, args.memory.is_empty()) {
+                (Some(b), _) => b.0.clone(),
+                (None, true) => sweep::DEFAULT_BYTES_PER_TEXEL.to_vec(),
+                (None, false) => Vec::new(),
+            },
+            memory: args.memory.clone(),
+            shadow_res: args.shadow_res.clone(),
+            splats: args.splat.clone(),
+            particle_res: args.particle_res.clone(),
         },
-        memory: args.memory.clone(),
-        shadow_res: args.shadow_res.clone(),
-        splats: args.splat.clone(),
-        particle_res: args.particle_res.clone(),
-        frames: args.frames,
-        warmup: args.warmup,
-        cell_seconds: args.cell_seconds,
+        timing: CellTiming {
+            frames: args.frames,
+            warmup: args.warmup,
+            cell_seconds: args.cell_seconds,
+            animate,
+        },
         resume: args.resume,
         exr: args.exr,
         gallery: args.scenes.is_some(),
@@ -224,7 +229,6 @@ pub fn run(args: &SweepArgs, adapter: &AdapterPreference) -> anyhow::Result<()> 
             .map(|s| s.1.clone())
             .filter(|s| !s.is_empty())
             .unwrap_or_else(crate::tune::shipped_shapes),
-        animate,
     };
     let gpu = Gpu::new(adapter).wait()?;
     let outcome = sweep::run(&gpu, &scenes, &options, &args.output)?;

@@ -5,8 +5,8 @@
 use std::path::Path;
 
 use super::shard::PlannedScene;
-use super::{CellResult, Machine, MeasuredAgainst, SweepMetadata, SweepResults};
-use smokeshadow_core::shadow;
+use super::{CellResult, Machine, SweepResults};
+use smokeshadow_core::sweep::RunRecord;
 use smokeshadow_core::sweep::table;
 
 /// Path of the `exact` reference image inside a scene's folder.
@@ -22,10 +22,10 @@ pub(super) fn read_cell(path: &Path) -> Option<CellResult> {
         .and_then(|text| serde_json::from_str(&text).ok())
 }
 
-/// A scene's results from its planned cells and the cells finished so far (in plan order),
-/// with their overhead ratios ([`with_ratios`]). The machine and the `exact` figures come
-/// from the cells' records, `fallback` and `exact` stand in for cells written before those
-/// existed.
+/// A scene's results from its planned cells and the cells finished so far (in plan order)
+/// ([`SweepResults::assemble`]); `fallback` and `exact` stand in for cells written before their
+/// records held the machine and the `exact` figures. `exact`'s HDR frame is named where the
+/// scene's folder has it.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn assemble(
     planned: &PlannedScene,
@@ -40,93 +40,22 @@ pub(super) fn assemble(
     shards: Vec<String>,
     scene_dir: &Path,
 ) -> SweepResults {
-    let against: Vec<&MeasuredAgainst> = cells
-        .iter()
-        .filter_map(|c| c.measured_against.as_ref())
-        .collect();
-    let distinct = |field: &dyn Fn(&Machine) -> String, fallback: Option<String>| {
-        let mut values: Vec<String> = Vec::new();
-        for a in &against {
-            let v = field(&a.machine);
-            if !values.contains(&v) {
-                values.push(v);
-            }
-        }
-        if values.is_empty() {
-            values.extend(fallback);
-        }
-        values.join("; ")
-    };
-    let exact = against
-        .first()
-        .map(|a| (a.exact_bytes, a.exact_tiles))
-        .or(exact)
-        .unwrap_or((0, 0));
-    let metadata = SweepMetadata {
-        tool_version: tool_version.to_owned(),
-        scene: planned.name.clone(),
-        description: planned.description.clone(),
-        scene_sha256: planned.scene_sha256.clone(),
-        seed: planned.seed,
-        particles: planned.particles,
-        width_px: planned.width_px,
-        height_px: planned.height_px,
-        framing: planned.framing,
-        shapes: planned.shapes.clone(),
-        adapter: distinct(&|m| m.adapter.clone(), fallback.map(|m| m.adapter.clone())),
-        backend: distinct(&|m| m.backend.clone(), fallback.map(|m| m.backend.clone())),
-        driver: distinct(&|m| m.driver.clone(), fallback.map(|m| m.driver.clone())),
-        timestamp_queries: match against.is_empty() {
-            true => fallback.is_some_and(|m| m.timestamp_queries),
-            false => against.iter().all(|a| a.machine.timestamp_queries),
-        },
-        clock_floor_ms: against
-            .iter()
-            .map(|a| a.machine.clock_floor_ms)
-            .chain(fallback.map(|m| m.clock_floor_ms))
-            .fold(0.0, f64::max),
+    let run = RunRecord {
+        tool_version,
         frames,
         warmup,
-        exact_tiles: exact.1,
-        exact_bytes: exact.0,
-        exact_check_points: against
-            .iter()
-            .map(|a| a.exact_check_points)
-            .min()
-            .unwrap_or(0),
-        exact_check_worst: against
-            .iter()
-            .map(|a| a.exact_check_worst)
-            .reduce(|a, b| Some(a?.max(b?)))
-            .flatten(),
+        fallback,
+        exact,
         started,
         wall_s,
         shards,
-        motion: against.iter().find_map(|a| a.motion.clone()),
-    };
-    let baseline = cells
-        .iter()
-        .find(|c| c.technique == shadow::frame_baseline().name)
-        .map(|c| c.frame_ms.median);
-    let cells = cells
-        .iter()
-        .cloned()
-        .map(|mut c| {
-            c.set_ratios(baseline);
-            c
-        })
-        .collect();
-    SweepResults {
-        metadata,
-        cells,
-        skipped: planned.skipped.clone(),
         exact_image: EXACT_IMAGE.to_owned(),
         exact_hdr_image: scene_dir
             .join(EXACT_HDR_IMAGE)
             .is_file()
             .then(|| EXACT_HDR_IMAGE.to_owned()),
-        animation: None,
-    }
+    };
+    SweepResults::assemble(&planned.header, run, cells, planned.skipped.clone())
 }
 
 /// Writes `results.csv` (a row per cell) and `results.json` (everything) atomically.

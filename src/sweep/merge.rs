@@ -89,7 +89,12 @@ fn plan_difference(a: &ShardManifest, b: &ShardManifest) -> Option<String> {
             a.tool_version, b.tool_version
         ));
     }
-    let names = |m: &ShardManifest| m.scenes.iter().map(|s| s.name.clone()).collect::<Vec<_>>();
+    let names = |m: &ShardManifest| {
+        m.scenes
+            .iter()
+            .map(|s| s.header.name.clone())
+            .collect::<Vec<_>>()
+    };
     if names(a) != names(b) {
         return Some(format!(
             "scenes {} against {}",
@@ -98,12 +103,12 @@ fn plan_difference(a: &ShardManifest, b: &ShardManifest) -> Option<String> {
         ));
     }
     for (sa, sb) in a.scenes.iter().zip(&b.scenes) {
-        if sa.scene_sha256 != sb.scene_sha256 {
+        if sa.header.scene_sha256 != sb.header.scene_sha256 {
             return Some(format!(
                 "scene {} has hash {} against {}: another scene file, --particles, --size or --param",
-                sa.name,
-                &sa.scene_sha256[..12.min(sa.scene_sha256.len())],
-                &sb.scene_sha256[..12.min(sb.scene_sha256.len())]
+                sa.header.name,
+                &sa.header.scene_sha256[..12.min(sa.header.scene_sha256.len())],
+                &sb.header.scene_sha256[..12.min(sb.header.scene_sha256.len())]
             ));
         }
         let cell_names =
@@ -111,7 +116,7 @@ fn plan_difference(a: &ShardManifest, b: &ShardManifest) -> Option<String> {
         if cell_names(sa) != cell_names(sb) {
             return Some(format!(
                 "scene {}: {} planned cells against {} (other --techniques, --channels, --shadow-res or --splat)",
-                sa.name,
+                sa.header.name,
                 sa.cells.len(),
                 sb.cells.len()
             ));
@@ -120,7 +125,7 @@ fn plan_difference(a: &ShardManifest, b: &ShardManifest) -> Option<String> {
             if ca.settings_key != cb.settings_key {
                 return Some(format!(
                     "scene {}, cell {}: {}",
-                    sa.name,
+                    sa.header.name,
                     ca.name,
                     key_difference(&ca.settings_key, &cb.settings_key)
                 ));
@@ -191,7 +196,7 @@ pub fn merge(dirs: &[PathBuf], out: &Path) -> anyhow::Result<SweepOutcome> {
                     anyhow::bail!(
                         "--merge refused: cell {} of scene {} in {} was measured with other settings than the shards' plan ({}); re-run shard {owner} there",
                         planned.name,
-                        scene.name,
+                        scene.header.name,
                         dir.display(),
                         key_difference(&cell.settings_key, &planned.settings_key)
                     );
@@ -208,7 +213,7 @@ pub fn merge(dirs: &[PathBuf], out: &Path) -> anyhow::Result<SweepOutcome> {
             }
             match hit {
                 Some(f) => cells.push(f),
-                None => missing.push((owner, format!("{}/{}", scene.name, planned.name))),
+                None => missing.push((owner, format!("{}/{}", scene.header.name, planned.name))),
             }
         }
         found.push(cells);
@@ -282,7 +287,9 @@ pub fn merge(dirs: &[PathBuf], out: &Path) -> anyhow::Result<SweepOutcome> {
             .iter()
             .map(|f| &f.from)
             .find(|d| d.join(EXACT_IMAGE).is_file())
-            .with_context(|| format!("--merge: no {EXACT_IMAGE} for scene {}", scene.name))?;
+            .with_context(|| {
+                format!("--merge: no {EXACT_IMAGE} for scene {}", scene.header.name)
+            })?;
         for rel in [EXACT_IMAGE, EXACT_HDR_IMAGE] {
             copy_into(exact_from, &scene_out, rel)?;
         }

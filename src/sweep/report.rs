@@ -771,10 +771,7 @@ fn skipped(body: &mut String, results: &SweepResults) {
             body,
             "<tr><td>{}</td><td>{}</td><td style=\"text-align: left; white-space: normal\">{}</td></tr>",
             e(&s.technique),
-            match s.bytes_per_texel {
-                Some(b) => format!("{b} bytes a texel"),
-                None => format!("{} channels", s.channels),
-            },
+            s.budget(),
             e(&s.reason)
         );
     }

@@ -15,14 +15,14 @@ use super::{CellResult, ImageError, Machine, MeasuredAgainst, SkippedCell, Sweep
 use crate::diff;
 use crate::progress::Progress;
 use smokeshadow_core::gpu::Gpu;
-use smokeshadow_core::render::shaded::frame_points;
 use smokeshadow_core::render::{
-    OUTPUT_FORMAT, OffscreenTarget, ParticleRes, RenderOptions, Renderer, TechniqueConfig,
+    OffscreenTarget, ParticleRes, RenderOptions, Renderer, TechniqueConfig,
 };
 use smokeshadow_core::scene::Scene;
 use smokeshadow_core::shadow::{self, SplatMode};
 use smokeshadow_core::sim::Particle;
-use smokeshadow_core::sweep::cell::{Bench, Prepared};
+use smokeshadow_core::sweep::SceneHeader;
+use smokeshadow_core::sweep::cell::{Bench, Prepared, Reference};
 use smokeshadow_core::sweep::plan::{
     self, BASELINE_CHANNELS, CellTiming, DEFAULT_BYTES_PER_TEXEL, Grid, Plan, settings_key,
 };
@@ -30,29 +30,10 @@ use smokeshadow_core::sweep::plan::{
 /// What to sweep. [`SweepOptions::default`] is the thesis experiment (chapter 4.2.1).
 #[derive(Clone, Debug)]
 pub struct SweepOptions {
-    pub techniques: Vec<String>,
-    pub channels: Vec<u32>,
-    /// Byte budgets per shadow-map texel (`--bytes-per-texel`): each technique at the largest
-    /// configuration whose resident bytes fit each ([`shadow::fit_bytes_per_texel`]); may be
-    /// empty.
-    pub bytes_per_texel: Vec<u32>,
-    /// Memory budgets in total bytes (`--memory`): at each map resolution, each technique at
-    /// the largest configuration whose resident bytes fit (a whole number of bytes a texel at
-    /// that resolution), and the answer at each names every technique at its tuned resolution
-    /// ([`Self::shapes`]) or its most accurate of the swept; may be empty.
-    pub memory: Vec<u64>,
-    pub shadow_res: Vec<u32>,
-    pub splats: Vec<SplatMode>,
-    /// Resolutions of the particle pass (`--particle-res`; each its own cell).
-    pub particle_res: Vec<ParticleRes>,
-    /// Timed frames per cell (medians over these) and untimed warm-up frames before them.
-    pub frames: u32,
-    pub warmup: u32,
-    /// Seconds of timed frames a cell keeps within (`timed_enough`: after at least
-    /// `MIN_TIMED_FRAMES`, or `MIN_SLOW_FRAMES` of frames each longer than this), so a slow
-    /// technique does not hold the sweep: its medians are over fewer frames, and the cell says
-    /// how many (`frames_timed`).
-    pub cell_seconds: f64,
+    /// The axes the cells are laid out over.
+    pub grid: Grid,
+    /// How each cell is timed.
+    pub timing: CellTiming,
     /// Reuse cells already finished with identical settings.
     pub resume: bool,
     /// Also write every cell's linear HDR frame as OpenEXR beside its PNG.
@@ -67,68 +48,42 @@ pub struct SweepOptions {
     /// (the shipped `docs/tuned_params.toml`'s, or a `--params FILE`'s): the answer at equal
     /// total memory takes each technique at it where it was swept.
     pub shapes: crate::tune::Shapes,
-    /// `--animate`: every cell also rendered over these consecutive frames beside `exact` at
-    /// each, its temporal measures in the cell ([`crate::motion`]).
-    pub animate: Option<smokeshadow_core::motion::Span>,
-}
-
-impl SweepOptions {
-    /// The axes the cells are laid out over.
-    pub fn grid(&self) -> Grid {
-        Grid {
-            techniques: self.techniques.clone(),
-            channels: self.channels.clone(),
-            bytes_per_texel: self.bytes_per_texel.clone(),
-            memory: self.memory.clone(),
-            shadow_res: self.shadow_res.clone(),
-            splats: self.splats.clone(),
-            particle_res: self.particle_res.clone(),
-        }
-    }
-
-    /// How each cell is timed.
-    pub fn timing(&self) -> CellTiming {
-        CellTiming {
-            frames: self.frames,
-            warmup: self.warmup,
-            cell_seconds: self.cell_seconds,
-            animate: self.animate,
-        }
-    }
 }
 
 impl Default for SweepOptions {
     fn default() -> Self {
         Self {
-            techniques: shadow::default_sweep(),
-            channels: vec![24, 16, 8, 6],
-            bytes_per_texel: DEFAULT_BYTES_PER_TEXEL.to_vec(),
-            memory: Vec::new(),
-            shadow_res: vec![512],
-            splats: vec![SplatMode::Segment],
-            particle_res: vec![ParticleRes::Full],
-            frames: 20,
-            warmup: 1,
-            cell_seconds: 0.5,
+            grid: Grid {
+                techniques: shadow::default_sweep(),
+                channels: vec![24, 16, 8, 6],
+                bytes_per_texel: DEFAULT_BYTES_PER_TEXEL.to_vec(),
+                memory: Vec::new(),
+                shadow_res: vec![512],
+                splats: vec![SplatMode::Segment],
+                particle_res: vec![ParticleRes::Full],
+            },
+            timing: CellTiming {
+                frames: 20,
+                warmup: 1,
+                cell_seconds: 0.5,
+                animate: None,
+            },
             resume: false,
             exr: false,
             gallery: false,
             shard: None,
             shapes: crate::tune::shipped_shapes(),
-            animate: None,
         }
     }
 }
 
 /// Checks the options and lays out the cells ([`plan::plan`] over the options' grid).
 fn plan(scene: &Scene, options: &SweepOptions) -> anyhow::Result<(Vec<Plan>, Vec<SkippedCell>)> {
-    if options.frames == 0 {
-        anyhow::bail!("--frames 0: time at least one frame");
-    }
-    if let Some(span) = options.animate {
+    options.timing.check()?;
+    if let Some(span) = options.timing.animate {
         check_sequence_frames(scene, &span)?;
     }
-    plan::plan(scene, &options.grid())
+    plan::plan(scene, &options.grid)
 }
 
 /// Every frame of `span` of the scene's file sequences (its particles', its volume's) is there
@@ -168,14 +123,6 @@ fn check_sequence_frames(
         }
     }
     Ok(())
-}
-
-/// A technique's counter by name (0 when absent).
-fn counter(counters: &[(&'static str, u64)], name: &str) -> u64 {
-    counters
-        .iter()
-        .find(|(n, _)| *n == name)
-        .map_or(0, |(_, v)| *v)
 }
 
 /// What every cell of a sweeper is measured on and against ([`Bench`]), borrowing its fields
@@ -236,60 +183,46 @@ impl<'a> Sweeper<'a> {
     ) -> anyhow::Result<Self> {
         progress.start(&format!("{}: exact reference", scene.name));
         let particles = progress.suspend(|| crate::particles::scene_particles(scene))?;
-        let (w, h) = (scene.output.width_px, scene.output.height_px);
-        let mut exact_config = Plan::new(
+        let mut reference = Reference::render(
+            gpu,
             scene,
-            shadow::reference().name,
-            1,
-            options.shadow_res[0],
-            options.splats[0],
+            &particles,
+            options.grid.shadow_res[0],
+            options.grid.splats[0],
         )
-        .config;
-        exact_config.name = shadow::reference().name.to_owned();
-        let mut renderer = Renderer::new(gpu, w, h, OUTPUT_FORMAT, &exact_config).wait()?;
-        let target = OffscreenTarget::new(gpu, w, h);
-        renderer
-            .render(
+        .wait()?;
+        crate::output::write_png_rgb(&dir.join(EXACT_IMAGE), &reference.image)?;
+        if options.exr {
+            let hdr =
+                smokeshadow_core::gpu::read_texture_rgba16f(gpu, reference.renderer.hdr_texture())
+                    .wait()?;
+            crate::output::write_exr(&dir.join(EXACT_HDR_IMAGE), &hdr)?;
+        }
+        // No error is measured against a reference that disagrees with the closed form.
+        let check = progress.suspend(|| {
+            smokeshadow_core::render::reference_check::verify(
+                &mut reference.renderer,
                 gpu,
                 scene,
                 &particles,
-                &RenderOptions::default(),
-                &target.view,
             )
-            .wait()?;
-        let exact_bytes = renderer.shadow_bytes().0;
-        let exact_tiles = counter(&renderer.technique().counters(), "tiles_per_side") as u32;
-        let exact_image = target.read_rgb(gpu).wait()?;
-        crate::output::write_png_rgb(&dir.join(EXACT_IMAGE), &exact_image)?;
-        if options.exr {
-            let hdr =
-                smokeshadow_core::gpu::read_texture_rgba16f(gpu, renderer.hdr_texture()).wait()?;
-            crate::output::write_exr(&dir.join(EXACT_HDR_IMAGE), &hdr)?;
-        }
-        let (points, owners) = frame_points(&renderer, scene, &particles);
-        let exact_t = renderer
-            .probe_shaded(gpu, scene, &particles, &points, &owners)
-            .wait()?;
-        // No error is measured against a reference that disagrees with the closed form.
-        let check = progress.suspend(|| {
-            smokeshadow_core::render::reference_check::verify(&mut renderer, gpu, scene, &particles)
-                .wait()
+            .wait()
         })?;
         progress.finish(format!(
             "{}: exact reference ({}² light tiles): {} bytes, T at {} shaded points; {check}",
             scene.name,
-            exact_tiles,
-            exact_bytes,
-            points.len()
+            reference.tiles,
+            reference.bytes,
+            reference.points.len()
         ));
-        let motion = match options.animate {
+        let motion = match options.timing.animate {
             None => None,
             Some(span) => {
                 progress.start(&format!("{}: exact over {}", scene.name, span.describe()));
                 let frames = super::animate::ExactFrames::render(
                     gpu,
-                    &mut renderer,
-                    &target,
+                    &mut reference.renderer,
+                    &reference.target,
                     scene,
                     span,
                     progress,
@@ -306,19 +239,13 @@ impl<'a> Sweeper<'a> {
             }
         };
         let against = MeasuredAgainst {
-            none_frame_ms: f64::NAN,
-            exact_bytes,
-            exact_tiles,
-            exact_image_sha256: smokeshadow_core::sweep::image_sha256(&exact_image),
-            exact_check_points: check.points,
-            exact_check_worst: Some(check.worst_difference),
-            machine: Machine::of(gpu).wait(),
             shard: options.shard,
             motion: motion.as_ref().map(|m| super::MotionReference {
                 change: m.change,
                 check_points: m.check_points,
                 check_worst: m.check_worst,
             }),
+            ..reference.measured_against(&check, Machine::of(gpu).wait())
         };
         Ok(Self {
             gpu,
@@ -326,12 +253,12 @@ impl<'a> Sweeper<'a> {
             options,
             dir,
             particles,
-            renderer,
-            target,
-            points,
-            owners,
-            exact_t,
-            exact_image: std::sync::Arc::new(exact_image),
+            renderer: reference.renderer,
+            target: reference.target,
+            points: reference.points,
+            owners: reference.owners,
+            exact_t: reference.t,
+            exact_image: std::sync::Arc::new(reference.image),
             against,
             keys,
             own_images: BTreeMap::new(),
@@ -380,34 +307,10 @@ impl<'a> Sweeper<'a> {
         }))
     }
 
-    /// Renders `config` once and returns the frame.
-    fn render_image(&mut self, plan: &Plan) -> anyhow::Result<image::RgbImage> {
-        self.renderer.set_technique(self.gpu, &plan.config).wait()?;
-        self.renderer
-            .render(
-                self.gpu,
-                self.scene,
-                &self.particles,
-                &plan.options(),
-                &self.target.view,
-            )
-            .wait()?;
-        Ok(self.target.read_rgb(self.gpu).wait()?)
-    }
-
     /// The technique's own 24-channel image at the cell's resolution, splat and particle
     /// resolution ([`Sweeper::reference`]).
     fn own_baseline(&mut self, plan: &Plan) -> anyhow::Result<image::RgbImage> {
-        let p = &plan.config.params;
-        let baseline = Plan::new(
-            self.scene,
-            &plan.config.name,
-            BASELINE_CHANNELS,
-            p.resolution_px,
-            p.splat,
-        )
-        .at(plan.particle_res);
-        self.reference(baseline)
+        self.reference(plan.own_baseline(self.scene))
     }
 
     /// The same cell with its particles at full resolution ([`Sweeper::reference`]): what a
@@ -439,7 +342,9 @@ impl<'a> Sweeper<'a> {
         });
         let image = match vouched {
             Some(path) => diff::load_png(&path)?,
-            None => self.render_image(&baseline)?,
+            None => bench!(self)
+                .render_image(&mut self.renderer, &baseline)
+                .wait()?,
         };
         self.own_images.insert(baseline.name, image.clone());
         Ok(image)
@@ -457,7 +362,7 @@ impl<'a> Sweeper<'a> {
     /// timed, so the previous cell's comparisons may run beside it ([`Sweeper::time`]).
     fn prepare(&mut self, plan: &Plan) -> anyhow::Result<Prepared> {
         bench!(self)
-            .prepare(&mut self.renderer, plan, self.options.warmup)
+            .prepare(&mut self.renderer, plan, self.options.timing.warmup)
             .wait()
     }
 
@@ -481,7 +386,7 @@ impl<'a> Sweeper<'a> {
                 &mut self.renderer,
                 plan,
                 prepared,
-                &self.options.timing(),
+                &self.options.timing,
                 key,
                 &mut self.against,
             )
@@ -671,16 +576,13 @@ impl ScenePlan<'_> {
     fn planned(&self) -> PlannedScene {
         let s = self.scene;
         PlannedScene {
-            name: s.name.clone(),
-            description: s.summary(),
+            header: SceneHeader::of(
+                s,
+                crate::particles::count(s) as u32,
+                self.scene_sha256.clone(),
+                self.shapes.clone(),
+            ),
             folder: self.folder.clone(),
-            scene_sha256: self.scene_sha256.clone(),
-            seed: s.emitters.first().map_or(0, |e| e.seed),
-            particles: crate::particles::count(s) as u32,
-            width_px: s.output.width_px,
-            height_px: s.output.height_px,
-            framing: s.shadow.framing,
-            shapes: self.shapes.clone(),
             cells: self
                 .plans
                 .iter()
@@ -727,7 +629,7 @@ fn plan_scenes<'a>(
             .map(|p| {
                 (
                     p.name.clone(),
-                    settings_key(scene, &scene_sha256, &options.timing(), p),
+                    settings_key(scene, &scene_sha256, &options.timing, p),
                 )
             })
             .collect();
@@ -819,8 +721,8 @@ pub fn run(
         options.shard.map(|shard| ShardManifest {
             shard,
             tool_version: env!("CARGO_PKG_VERSION").to_owned(),
-            frames: options.frames,
-            warmup: options.warmup,
+            frames: options.timing.frames,
+            warmup: options.timing.warmup,
             gallery: options.gallery,
             scenes: scene_plans.iter().map(ScenePlan::planned).collect(),
             machine: machine.clone(),
@@ -923,7 +825,7 @@ pub fn run(
                     // `exact`, its frames over the span, this process's `none` (and with
                     // `--animate`, unsharded, the side-by-side over the span).
                     true => {
-                        1 + usize::from(options.animate.is_some())
+                        1 + usize::from(options.timing.animate.is_some())
                             * (1 + usize::from(options.shard.is_none()))
                             + usize::from(!records_none(own))
                     }
@@ -975,8 +877,8 @@ pub fn run(
             assemble(
                 &planned,
                 env!("CARGO_PKG_VERSION"),
-                options.frames,
-                options.warmup,
+                options.timing.frames,
+                options.timing.warmup,
                 cells,
                 Some(&machine),
                 exact_info,

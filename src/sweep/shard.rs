@@ -17,6 +17,7 @@ use serde::{Deserialize, Serialize};
 
 pub use super::Shard;
 use super::{Machine, SkippedCell};
+use smokeshadow_core::sweep::SceneHeader;
 
 /// Folder of the shard manifests inside the sweep folder.
 pub const SHARDS_DIR: &str = "shards";
@@ -32,22 +33,11 @@ pub struct PlannedCell {
 /// One scene of the plan, with what its results' metadata needs.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct PlannedScene {
-    pub name: String,
-    #[serde(default)]
-    pub description: String,
+    /// The scene (nested, not flattened: serde's flatten reads the shapes' integer keys as
+    /// strings).
+    pub header: SceneHeader,
     /// The scene's folder relative to the sweep folder ("" without `--scenes`).
     pub folder: String,
-    pub scene_sha256: String,
-    pub seed: u64,
-    pub particles: u32,
-    pub width_px: u32,
-    pub height_px: u32,
-    /// The scene's `shadow.framing` (plans written before it existed framed the cone).
-    #[serde(default = "super::cone_framing")]
-    pub framing: smokeshadow_core::scene::Framing,
-    /// The map resolutions `tune` chose, per technique and memory budget.
-    #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
-    pub shapes: crate::tune::Shapes,
     pub cells: Vec<PlannedCell>,
     pub skipped: Vec<SkippedCell>,
 }

@@ -6,10 +6,11 @@
 //! CLI writes the difference images, the page keeps them in memory).
 
 use super::plan::{CellTiming, Plan, timed_enough};
-use super::{CellResult, MeasuredAgainst, Timing};
+use super::{CellResult, Machine, MeasuredAgainst, Timing};
 use crate::gpu::Gpu;
-use crate::render::shaded::rms_difference;
-use crate::render::{OffscreenTarget, RenderOptions, Renderer};
+use crate::render::reference_check::ReferenceCheck;
+use crate::render::shaded::{frame_points, rms_difference};
+use crate::render::{OUTPUT_FORMAT, OffscreenTarget, RenderOptions, Renderer};
 use crate::scene::Scene;
 use crate::shadow;
 use crate::sim::Particle;
@@ -36,6 +37,26 @@ pub struct Prepared {
 }
 
 impl Bench<'_> {
+    /// The frame of `plan`'s cell, untimed: how a cell's baselines are rendered when nothing
+    /// has them yet.
+    pub async fn render_image(
+        &self,
+        renderer: &mut Renderer,
+        plan: &Plan,
+    ) -> anyhow::Result<image::RgbImage> {
+        renderer.set_technique(self.gpu, &plan.config).await?;
+        renderer
+            .render(
+                self.gpu,
+                self.scene,
+                self.particles,
+                &plan.options(),
+                &self.target.view,
+            )
+            .await?;
+        Ok(self.target.read_rgb(self.gpu).await?)
+    }
+
     /// Everything a cell does before its timed frames: the technique, the transmittance probe
     /// and the warm-up frames.
     ///
@@ -189,5 +210,85 @@ impl Bench<'_> {
         };
         cell.set_ratios(None);
         Ok((cell, image))
+    }
+}
+
+/// `exact` as a sweep starts a scene: rendered once into the target every cell is then drawn
+/// into, with its image, the shaded points and its T at them, and its bytes and light tiles.
+pub struct Reference {
+    /// Left on `exact`; each cell sets its own technique.
+    pub renderer: Renderer,
+    pub target: OffscreenTarget,
+    pub image: image::RgbImage,
+    pub points: Vec<glam::Vec3>,
+    pub owners: Vec<u32>,
+    pub t: Vec<f32>,
+    pub bytes: u64,
+    pub tiles: u32,
+}
+
+impl Reference {
+    /// Renders `exact` over `particles` at the scene's output size, its grid's first map
+    /// resolution and splat, and probes its T at the frame's shaded points.
+    pub async fn render(
+        gpu: &Gpu,
+        scene: &Scene,
+        particles: &[Particle],
+        resolution_px: u32,
+        splat: shadow::SplatMode,
+    ) -> anyhow::Result<Self> {
+        let (w, h) = (scene.output.width_px, scene.output.height_px);
+        let reference = shadow::reference().name;
+        let mut config = Plan::new(scene, reference, 1, resolution_px, splat).config;
+        config.name = reference.to_owned();
+        let mut renderer = Renderer::new(gpu, w, h, OUTPUT_FORMAT, &config).await?;
+        let target = OffscreenTarget::new(gpu, w, h);
+        renderer
+            .render(
+                gpu,
+                scene,
+                particles,
+                &RenderOptions::default(),
+                &target.view,
+            )
+            .await?;
+        let bytes = renderer.shadow_bytes().0;
+        let tiles = renderer
+            .technique()
+            .counters()
+            .iter()
+            .find(|(n, _)| *n == "tiles_per_side")
+            .map_or(0, |(_, v)| *v as u32);
+        let image = target.read_rgb(gpu).await?;
+        let (points, owners) = frame_points(&renderer, scene, particles);
+        let t = renderer
+            .probe_shaded(gpu, scene, particles, &points, &owners)
+            .await?;
+        Ok(Self {
+            renderer,
+            target,
+            image,
+            points,
+            owners,
+            t,
+            bytes,
+            tiles,
+        })
+    }
+
+    /// What every cell measured against it records: its figures, its self-check (`check`) and
+    /// the machine; no shard, no motion, `none`'s frame time not yet known.
+    pub fn measured_against(&self, check: &ReferenceCheck, machine: Machine) -> MeasuredAgainst {
+        MeasuredAgainst {
+            none_frame_ms: f64::NAN,
+            exact_bytes: self.bytes,
+            exact_tiles: self.tiles,
+            exact_image_sha256: super::image_sha256(&self.image),
+            exact_check_points: check.points,
+            exact_check_worst: Some(check.worst_difference),
+            machine,
+            shard: None,
+            motion: None,
+        }
     }
 }

@@ -268,7 +268,9 @@ impl Machine {
         Self {
             adapter: gpu.info.name.clone(),
             backend: format!("{:?}", gpu.info.backend),
-            driver: format!("{} {}", gpu.info.driver, gpu.info.driver_info),
+            driver: format!("{} {}", gpu.info.driver, gpu.info.driver_info)
+                .trim()
+                .to_owned(),
             timestamp_queries: gpu.has_timestamps(),
             clock_floor_ms: gpu.clock_floor_ms().await,
         }
@@ -341,6 +343,17 @@ pub struct SkippedCell {
     pub reason: String,
 }
 
+impl SkippedCell {
+    /// The budget it was skipped at, as the report and the page name it: "24 bytes a texel" or
+    /// "8 channels".
+    pub fn budget(&self) -> String {
+        match self.bytes_per_texel {
+            Some(b) => format!("{b} bytes a texel"),
+            None => format!("{} channels", self.channels),
+        }
+    }
+}
+
 /// What a sweep ran on and with.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct SweepMetadata {
@@ -399,6 +412,68 @@ pub struct SweepMetadata {
     pub motion: Option<MotionReference>,
 }
 
+/// The scene a sweep's results are of, as its plan records it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SceneHeader {
+    pub name: String,
+    #[serde(default)]
+    pub description: String,
+    pub scene_sha256: String,
+    pub seed: u64,
+    pub particles: u32,
+    pub width_px: u32,
+    pub height_px: u32,
+    /// The scene's `shadow.framing` (plans written before it existed framed the cone).
+    #[serde(default = "cone_framing")]
+    pub framing: crate::scene::Framing,
+    /// The map resolutions `tune` chose, per technique and memory budget.
+    #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
+    pub shapes: Shapes,
+}
+
+impl SceneHeader {
+    /// The header of `scene` holding `particles` particles, whose
+    /// [`crate::scene::Scene::content_hash`] is `scene_sha256`.
+    pub fn of(
+        scene: &crate::scene::Scene,
+        particles: u32,
+        scene_sha256: String,
+        shapes: Shapes,
+    ) -> Self {
+        Self {
+            name: scene.name.clone(),
+            description: scene.summary(),
+            scene_sha256,
+            seed: scene.emitters.first().map_or(0, |e| e.seed),
+            particles,
+            width_px: scene.output.width_px,
+            height_px: scene.output.height_px,
+            framing: scene.shadow.framing,
+            shapes,
+        }
+    }
+}
+
+/// What a scene's results are assembled from besides its header and cells
+/// ([`SweepResults::assemble`]).
+#[derive(Clone, Debug)]
+pub struct RunRecord<'a> {
+    pub tool_version: &'a str,
+    pub frames: u32,
+    pub warmup: u32,
+    /// The machine, for a scene none of whose cells record one yet.
+    pub fallback: Option<&'a Machine>,
+    /// `exact`'s bytes and tiles, for cells written before they recorded them.
+    pub exact: Option<(u64, u32)>,
+    /// RFC 3339 (UTC) start, wall seconds, and the shards the cells came from (`K/N` each).
+    pub started: String,
+    pub wall_s: f64,
+    pub shards: Vec<String>,
+    /// Relative paths of `exact`'s image and of its HDR frame (if written).
+    pub exact_image: String,
+    pub exact_hdr_image: Option<String>,
+}
+
 /// Everything a sweep produced: written as `results.json` (and, a row per cell, `results.csv`).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct SweepResults {
@@ -415,6 +490,114 @@ pub struct SweepResults {
     /// an animated PNG ([`Animation`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub animation: Option<Animation>,
+}
+
+impl SweepResults {
+    /// A scene's results from its header, its cells finished so far (in plan order) and the
+    /// cells it skipped, with the overhead ratios against its `none` cell
+    /// ([`CellResult::set_ratios`]). The machine and the `exact` figures come from the cells'
+    /// records ([`CellResult::measured_against`]); `run`'s fallbacks stand in for cells
+    /// written before those existed.
+    pub fn assemble(
+        header: &SceneHeader,
+        run: RunRecord<'_>,
+        cells: &[CellResult],
+        skipped: Vec<SkippedCell>,
+    ) -> Self {
+        let against: Vec<&MeasuredAgainst> = cells
+            .iter()
+            .filter_map(|c| c.measured_against.as_ref())
+            .collect();
+        let distinct = |field: &dyn Fn(&Machine) -> String, fallback: Option<String>| {
+            let mut values: Vec<String> = Vec::new();
+            for a in &against {
+                let v = field(&a.machine);
+                if !values.contains(&v) {
+                    values.push(v);
+                }
+            }
+            if values.is_empty() {
+                values.extend(fallback);
+            }
+            values.join("; ")
+        };
+        let exact = against
+            .first()
+            .map(|a| (a.exact_bytes, a.exact_tiles))
+            .or(run.exact)
+            .unwrap_or((0, 0));
+        let metadata = SweepMetadata {
+            tool_version: run.tool_version.to_owned(),
+            scene: header.name.clone(),
+            description: header.description.clone(),
+            scene_sha256: header.scene_sha256.clone(),
+            seed: header.seed,
+            particles: header.particles,
+            width_px: header.width_px,
+            height_px: header.height_px,
+            framing: header.framing,
+            shapes: header.shapes.clone(),
+            adapter: distinct(
+                &|m| m.adapter.clone(),
+                run.fallback.map(|m| m.adapter.clone()),
+            ),
+            backend: distinct(
+                &|m| m.backend.clone(),
+                run.fallback.map(|m| m.backend.clone()),
+            ),
+            driver: distinct(
+                &|m| m.driver.clone(),
+                run.fallback.map(|m| m.driver.clone()),
+            ),
+            timestamp_queries: match against.is_empty() {
+                true => run.fallback.is_some_and(|m| m.timestamp_queries),
+                false => against.iter().all(|a| a.machine.timestamp_queries),
+            },
+            clock_floor_ms: against
+                .iter()
+                .map(|a| a.machine.clock_floor_ms)
+                .chain(run.fallback.map(|m| m.clock_floor_ms))
+                .fold(0.0, f64::max),
+            frames: run.frames,
+            warmup: run.warmup,
+            exact_tiles: exact.1,
+            exact_bytes: exact.0,
+            exact_check_points: against
+                .iter()
+                .map(|a| a.exact_check_points)
+                .min()
+                .unwrap_or(0),
+            exact_check_worst: against
+                .iter()
+                .map(|a| a.exact_check_worst)
+                .reduce(|a, b| Some(a?.max(b?)))
+                .flatten(),
+            started: run.started,
+            wall_s: run.wall_s,
+            shards: run.shards,
+            motion: against.iter().find_map(|a| a.motion.clone()),
+        };
+        let baseline = cells
+            .iter()
+            .find(|c| c.technique == crate::shadow::frame_baseline().name)
+            .map(|c| c.frame_ms.median);
+        let cells = cells
+            .iter()
+            .cloned()
+            .map(|mut c| {
+                c.set_ratios(baseline);
+                c
+            })
+            .collect();
+        SweepResults {
+            metadata,
+            cells,
+            skipped,
+            exact_image: run.exact_image,
+            exact_hdr_image: run.exact_hdr_image,
+            animation: None,
+        }
+    }
 }
 
 /// An animated sweep's side-by-side: `exact` and the cells [`answer::animated_cells`] chose,

@@ -39,6 +39,16 @@ pub struct CellTiming {
     pub animate: Option<crate::motion::Span>,
 }
 
+impl CellTiming {
+    /// Refuses, in one line, timing that measures nothing.
+    pub fn check(&self) -> anyhow::Result<()> {
+        if self.frames == 0 {
+            anyhow::bail!("--frames 0: time at least one frame");
+        }
+        Ok(())
+    }
+}
+
 /// The default byte budgets per texel: what `osm`'s half-float slices take at 6, 12 and 24
 /// channels, the thesis' range.
 pub const DEFAULT_BYTES_PER_TEXEL: [u32; 3] = [48, 24, 12];
@@ -114,6 +124,21 @@ impl Plan {
         }
         self.particle_res = res;
         self
+    }
+
+    /// The cell its errors are measured against besides `exact`: the technique's own
+    /// 24-channel cell ([`BASELINE_CHANNELS`]) at its map resolution, splat and particle
+    /// resolution.
+    pub fn own_baseline(&self, scene: &Scene) -> Self {
+        let p = &self.config.params;
+        Self::new(
+            scene,
+            &self.config.name,
+            BASELINE_CHANNELS,
+            p.resolution_px,
+            p.splat,
+        )
+        .at(self.particle_res)
     }
 
     /// Its frame's file, relative to the scene's folder.
