@@ -29,6 +29,7 @@ use crate::files::{Files, Folder};
 use crate::scene::{ParticleSource, Scene};
 use crate::sim::Particle;
 pub use volume_file::{BARE_FILE_OPTICAL_DEPTH, is_volume_file, scene_for_volume_file};
+use volume_file::{scene_for_volume_sequence, show_volume_frame};
 
 /// A particle file's format.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -521,21 +522,154 @@ pub fn scene_for_file(path: &Path, files: &Files) -> Result<Scene, ParticleFileE
         folder: Folder::new("", files.clone()),
         ..ParticleSource::default()
     };
+    let particles = source.particles_at(Scene::thesis_plume().sim.duration_s)?;
+    let description = format!("particles of {}", path.display());
+    bare_scene(path, source, &Summary::of(&particles), description)
+}
+
+/// The thesis scene framed on `bounds` (its `source`'s particles, [`frame_bounds`]), with them
+/// in place of its emitters, named after `path`.
+fn bare_scene(
+    path: &Path,
+    source: ParticleSource,
+    bounds: &Summary,
+    description: String,
+) -> Result<Scene, ParticleFileError> {
     let mut scene = Scene::thesis_plume();
-    let particles = source.particles_at(scene.sim.duration_s)?;
-    let bounds = Summary::of(&particles);
-    framing_extent(&bounds)
+    framing_extent(bounds)
         .and_then(|_| frame_bounds(&mut scene, bounds.min, bounds.max))
         .map_err(|m| ParticleFileError::invalid(path, m))?;
     scene.particles = Some(source);
     scene.name = path
         .file_stem()
         .map_or("particles".into(), |s| s.to_string_lossy().into_owned());
-    scene.description = format!("particles of {}", path.display());
+    scene.description = description;
     scene
         .validate()
         .map_err(|message| ParticleFileError::invalid(path, message))?;
     Ok(scene)
+}
+
+/// The numbered sequence of particle or volume files `names` make (`smoke.0001.ply`,
+/// `smoke.0002.ply`, ...): its pattern (`smoke.%04d.ply`, or `%d` where the numbers are not
+/// zero-padded) and its frames, ascending. `None` unless there are two or more names, of one
+/// format, that differ only in the last number of the name.
+pub fn sequence_of(names: &[String]) -> Option<(String, Vec<i64>)> {
+    let known = |n: &String| {
+        let path = Path::new(n);
+        Format::of_path(path).is_some() || is_volume_file(path)
+    };
+    if names.len() < 2 || !names.iter().all(known) {
+        return None;
+    }
+    // (before the number, its digits, after it)
+    let split = |name: &str| -> Option<(String, String, String)> {
+        let bytes = name.as_bytes();
+        let end = bytes.iter().rposition(u8::is_ascii_digit)? + 1;
+        let start = bytes[..end]
+            .iter()
+            .rposition(|b| !b.is_ascii_digit())
+            .map_or(0, |i| i + 1);
+        Some((
+            name[..start].to_owned(),
+            name[start..end].to_owned(),
+            name[end..].to_owned(),
+        ))
+    };
+    let parts: Vec<_> = names.iter().map(|n| split(n)).collect::<Option<_>>()?;
+    let (prefix, first_digits, suffix) = &parts[0];
+    if suffix.contains(|c: char| c.is_ascii_digit()) || prefix.contains('%') {
+        return None;
+    }
+    let same_width = parts.iter().all(|p| p.1.len() == first_digits.len());
+    let padded = parts.iter().any(|p| p.1.len() > 1 && p.1.starts_with('0'));
+    let number = match (same_width, padded) {
+        (true, _) => format!("%0{}d", first_digits.len()),
+        (false, false) => "%d".to_owned(),
+        (false, true) => return None,
+    };
+    let mut frames = Vec::with_capacity(parts.len());
+    for (p, digits, s) in &parts {
+        if p != prefix || s != suffix {
+            return None;
+        }
+        frames.push(digits.parse::<i64>().ok()?);
+    }
+    frames.sort_unstable();
+    frames.dedup();
+    (frames.len() == names.len()).then(|| (format!("{prefix}{number}{suffix}"), frames))
+}
+
+/// The scene of a bare sequence of particle or volume files (`pattern`, its `frames` in
+/// `files`, [`sequence_of`]) at `frame`: framed (and a volume's density scaled) as one bare
+/// file is ([`scene_for_file`], [`scene_for_volume_file`]), over every frame's smoke together,
+/// so that the camera and light hold still from frame to frame ([`show_sequence_frame`]).
+pub fn scene_for_sequence(
+    pattern: &str,
+    frames: &[i64],
+    frame: i64,
+    files: &Files,
+) -> anyhow::Result<Scene> {
+    match is_volume_file(Path::new(pattern)) {
+        true => scene_for_volume_sequence(pattern, frames, frame, files),
+        false => Ok(scene_for_particle_sequence(pattern, frames, frame, files)?),
+    }
+}
+
+/// [`scene_for_sequence`] of particle files.
+fn scene_for_particle_sequence(
+    pattern: &str,
+    frames: &[i64],
+    frame: i64,
+    files: &Files,
+) -> Result<Scene, ParticleFileError> {
+    let duration = Scene::thesis_plume().sim.duration_s;
+    let mut source = ParticleSource {
+        file: pattern.to_owned(),
+        folder: Folder::new("", files.clone()),
+        ..ParticleSource::default()
+    };
+    let mut all = Summary {
+        count: 0,
+        min: Vec3::splat(f32::INFINITY),
+        max: Vec3::splat(f32::NEG_INFINITY),
+        min_density_per_m: 0.0,
+        max_density_per_m: 0.0,
+    };
+    for &f in frames {
+        source.frame_at_zero = frame_at_zero_for(&source, duration, f);
+        let one = Summary::of(&source.particles_at(duration)?);
+        if one.count > 0 {
+            all.count += one.count;
+            all.min = all.min.min(one.min);
+            all.max = all.max.max(one.max);
+        }
+    }
+    source.frame_at_zero = frame_at_zero_for(&source, duration, frame);
+    let description = sequence_description(pattern, frame);
+    bare_scene(Path::new(pattern), source, &all, description)
+}
+
+/// What a sequence's scene at `frame` says it holds.
+fn sequence_description(pattern: &str, frame: i64) -> String {
+    format!("particles of {}, frame {frame}", frame_name(pattern, frame))
+}
+
+/// Moves a sequence's scene ([`scene_for_sequence`]) to `frame`: the frame its time shows.
+pub fn show_sequence_frame(scene: &mut Scene, frame: i64) {
+    if scene.volume.as_ref().is_some_and(|v| v.is_sequence()) {
+        return show_volume_frame(scene, frame);
+    }
+    let duration = scene.sim.duration_s;
+    if let Some(source) = &mut scene.particles {
+        source.frame_at_zero = frame_at_zero_for(source, duration, frame);
+        scene.description = sequence_description(&source.file, frame);
+    }
+}
+
+/// The `frame_at_zero` at which time `time_s` shows `frame` of `source`.
+fn frame_at_zero_for(source: &ParticleSource, time_s: f32, frame: i64) -> i64 {
+    frame - sequence_frame(0, source.frame_rate_hz, time_s)
 }
 
 #[cfg(test)]
@@ -548,6 +682,34 @@ mod tests {
         assert_eq!(frame_name("s_%d.csv", 12), "s_12.csv");
         assert_eq!(frame_name("one.ply", 3), "one.ply");
         assert!(is_sequence("a/%03d.ply") && !is_sequence("100%.ply"));
+    }
+
+    #[test]
+    fn a_numbered_sequence_is_found_among_dropped_names() {
+        let names = |list: &[&str]| list.iter().map(|s| (*s).to_owned()).collect::<Vec<_>>();
+        assert_eq!(
+            sequence_of(&names(&[
+                "smoke.0002.ply",
+                "smoke.0000.ply",
+                "smoke.0001.ply"
+            ])),
+            Some(("smoke.%04d.ply".to_owned(), vec![0, 1, 2]))
+        );
+        assert_eq!(
+            sequence_of(&names(&["s_9.csv", "s_10.csv"])),
+            Some(("s_%d.csv".to_owned(), vec![9, 10]))
+        );
+        // One file, two patterns, other formats, a number padded in one and not the other.
+        assert_eq!(sequence_of(&names(&["smoke.0001.ply"])), None);
+        assert_eq!(sequence_of(&names(&["a.0001.ply", "b.0002.ply"])), None);
+        assert_eq!(
+            sequence_of(&names(&["a.0001.vdb", "a.0002.vdb"])),
+            Some(("a.%04d.vdb".to_owned(), vec![1, 2]))
+        );
+        assert_eq!(sequence_of(&names(&["a.0001.vdb", "a.0002.ply"])), None);
+        assert_eq!(sequence_of(&names(&["a.0001.toml", "a.0002.toml"])), None);
+        assert_eq!(sequence_of(&names(&["a.ply", "b.ply"])), None);
+        assert_eq!(sequence_of(&names(&["a_01.ply", "a_100.ply"])), None);
     }
 
     #[test]
