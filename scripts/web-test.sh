@@ -3,7 +3,11 @@
 # localhost, and drives headless Chromium with WebGPU through it (scripts/web-test/drive.mjs,
 # Playwright's driver from npm, Debian's chromium): the thesis scene with osm at 24 channels
 # beside exact, FLIP vs exact within 0.002 of the native CLI's figure at the same size, a
-# dropped PLY of ours, a broken file's one line. Prints flip_vs_exact=VALUE last.
+# dropped PLY of ours, a broken file's one line, and a sweep from the page's controls whose
+# downloaded results.csv/results.json have the CLI's columns, cells and bytes and its errors
+# within 0.002, a dropped numbered PLY sequence stepped from its first frame to its last, and a
+# dropped OpenVDB sequence.
+# Prints flip_vs_exact=VALUE last.
 #
 # Needs: chromium (apt-get install -y chromium), node and npm, python3 (the server), and what
 # web-build.sh installs. Without a GPU Chromium's WebGPU adapter is SwiftShader (software).
@@ -28,9 +32,19 @@ cli=target/debug/smokeshadow
 "$cli" render --technique exact --size "$size" -o "$work/exact.png" > /dev/null
 native=$("$cli" diff --json "$work/exact.png" "$work/osm.png" | python3 -c 'import json, sys; print(json.load(sys.stdin)["metrics"]["flip_mean"])')
 
+# The CLI's sweep the page's is held to (drive.mjs runs the same one from the page's controls).
+"$cli" sweep --techniques osm,fom --channels 24,8 --bytes-per-texel 24 --frames 3 --size 160x120 \
+    -o "$work/sweep" > /dev/null
+
 # A particle file of ours to drop, and a broken one.
 "$cli" particles column -o "$work/column.ply" > /dev/null
 count=$(awk '/^element vertex/ { print $3; exit }' "$work/column.ply")
+# A numbered sequence of three frames of the thesis plume, each with more particles.
+mkdir "$work/sequence"
+"$cli" particles --frames 4..6 --fps 4 -o "$work/sequence/smoke.%04d.ply" > /dev/null
+# Two frames of an OpenVDB sequence (OpenUSD's smoke, twice).
+mkdir "$work/volumes"
+for frame in 1 2; do cp tests/data/volumes/openusd_smoke_000003.vdb "$work/volumes/smoke.000$frame.vdb"; done
 printf 'ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nend_header\n1 2\n' > "$work/broken.ply"
 
 (cd scripts/web-test && npm ci --no-audit --no-fund --silent)
@@ -46,4 +60,5 @@ for _ in range(100):
     except OSError:
         time.sleep(0.1)
 PY
-node scripts/web-test/drive.mjs "http://127.0.0.1:$port/" "$native" "$size" "$work/column.ply" "$count" "$work/broken.ply"
+node scripts/web-test/drive.mjs "http://127.0.0.1:$port/" "$native" "$size" "$work/column.ply" "$count" "$work/broken.ply" "$work/sweep" "$work/sequence" \
+    "$work/volumes"

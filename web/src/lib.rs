@@ -30,6 +30,11 @@ use smokeshadow_core::render::{
 use smokeshadow_core::scene::{EMBEDDED, Scene, TechniqueParams};
 use smokeshadow_core::shadow;
 use smokeshadow_core::sim::{self, Particle};
+use smokeshadow_core::sweep::cell::{Bench, Reference};
+use smokeshadow_core::sweep::plan::{self, CellTiming, Grid};
+use smokeshadow_core::sweep::{
+    CellResult, ImageError, Machine, RunRecord, SceneHeader, SweepResults, answer, charts, table,
+};
 
 /// Panics reach the browser's console with their message (a bug, never a user's input: those
 /// are one-line errors).
@@ -61,12 +66,48 @@ struct State {
     lost: Option<String>,
 }
 
+impl State {
+    /// Starts a job on the GPU (a comparison, a sweep): refused in one line while the device is
+    /// lost or another job runs.
+    fn begin(&mut self) -> Result<(), JsValue> {
+        if let Some(lost) = &self.lost {
+            return Err(to_js(anyhow::anyhow!(
+                "{lost}; reload the page for a new device"
+            )));
+        }
+        if self.busy {
+            return Err(to_js(anyhow::anyhow!(
+                "a comparison or sweep is already running; wait for it"
+            )));
+        }
+        self.busy = true;
+        Ok(())
+    }
+
+    /// Ends the job: a GPU error nothing caught (on the host it would end the process) is its
+    /// one line, and a lost device is remembered.
+    fn end(&mut self, gpu: &Gpu) -> Result<(), JsValue> {
+        self.busy = false;
+        match gpu.take_uncaptured_error() {
+            Some(error) => {
+                if error.starts_with(smokeshadow_core::gpu::DEVICE_LOST) {
+                    self.lost = Some(error.clone());
+                }
+                Err(to_js(anyhow::anyhow!(error)))
+            }
+            None => Ok(()),
+        }
+    }
+}
+
 /// A scene with its particles.
 struct Loaded {
     scene: Scene,
     particles: Vec<Particle>,
     /// How the page names it ("the embedded thesis scene", a file's name).
     origin: String,
+    /// A dropped sequence's frames (empty for anything else).
+    frames: Vec<i64>,
 }
 
 /// One technique's frame of a scene and what was measured of it.
@@ -220,6 +261,7 @@ impl Page {
         let state = self.state.borrow();
         let loaded = &state.scene;
         let volume = loaded.scene.volume.is_some();
+        let default_sweep = shadow::default_sweep();
         let list: Vec<_> = shadow::REGISTRY
             .iter()
             .map(|e| {
@@ -229,6 +271,7 @@ impl Page {
                     "min_channels": e.min_channels,
                     "max_channels": e.max_channels,
                     "in_default_compare": e.in_default_compare,
+                    "in_default_sweep": default_sweep.iter().any(|n| n == e.name),
                     "caption_24": (e.budget_caption)(24.clamp(e.min_channels, e.max_channels)),
                     "refusal": e.refusal(volume, loaded.particles.len()).map(|r| r.to_string()),
                 })
@@ -284,10 +327,44 @@ impl Page {
             .cloned()
             .ok_or_else(|| line("no file was dropped"))?;
         let files = Files::memory(dropped);
+        // Numbered particle or volume files without a scene file: the sequence, at its first
+        // frame.
+        let texts: Vec<String> = names.iter().map(|n| n.display().to_string()).collect();
+        if let Some((pattern, frames)) = particles::sequence_of(&texts) {
+            let scene = particles::scene_for_sequence(&pattern, &frames, frames[0], &files)
+                .map_err(|e| line(format!("{e:#}")))?;
+            let loaded = load_sequence(scene, &pattern, &frames, frames[0]).map_err(line)?;
+            return self.replace(loaded);
+        }
         let scene = particles::open_scene(Some(Path::new(&first)), &files)
             .map_err(|e| line(format!("{e:#}")))?;
         let origin = first.display().to_string();
         self.replace(load(scene, &origin).map_err(line)?)
+    }
+
+    /// A dropped sequence's frames, as JSON (`[]` for any other scene).
+    pub fn frames(&self) -> String {
+        serde_json::to_string(&self.state.borrow().scene.frames).expect("frames serialise")
+    }
+
+    /// Shows `frame` of the dropped sequence, framed and lit as its other frames.
+    pub fn show_frame(&self, frame: f64) -> Result<String, JsError> {
+        let loaded = self.state.borrow().scene.clone();
+        let frame = frame as i64;
+        if !loaded.frames.contains(&frame) {
+            return Err(line(format!(
+                "frame {frame} is not one of the dropped sequence's ({:?})",
+                loaded.frames
+            )));
+        }
+        let mut scene = loaded.scene.clone();
+        particles::show_sequence_frame(&mut scene, frame);
+        let pattern = match (&scene.particles, &scene.volume) {
+            (Some(p), _) => p.file.clone(),
+            (None, Some(v)) => v.file.clone(),
+            (None, None) => String::new(),
+        };
+        self.replace(load_sequence(scene, &pattern, &loaded.frames, frame).map_err(line)?)
     }
 
     /// Renders the scene at `width` x `height` (0: the scene's size) with `technique` at
@@ -305,17 +382,7 @@ impl Page {
         wasm_bindgen_futures::future_to_promise(async move {
             let (gpu, loaded, cached) = {
                 let mut s = state.borrow_mut();
-                if let Some(lost) = &s.lost {
-                    return Err(to_js(anyhow::anyhow!(
-                        "{lost}; reload the page for a new device"
-                    )));
-                }
-                if s.busy {
-                    return Err(to_js(anyhow::anyhow!(
-                        "a comparison is already running; wait for it"
-                    )));
-                }
-                s.busy = true;
+                s.begin()?;
                 (s.gpu.clone(), s.scene.clone(), s.exact.clone())
             };
             let result = compare(
@@ -329,15 +396,7 @@ impl Page {
             )
             .await;
             let mut s = state.borrow_mut();
-            s.busy = false;
-            // A GPU error nothing caught (on the host it would end the process) is the page's
-            // one line too.
-            if let Some(error) = gpu.take_uncaptured_error() {
-                if error.starts_with(smokeshadow_core::gpu::DEVICE_LOST) {
-                    s.lost = Some(error.clone());
-                }
-                return Err(to_js(anyhow::anyhow!(error)));
-            }
+            s.end(&gpu)?;
             let (summary, exact, images) = result.map_err(to_js)?;
             if Rc::ptr_eq(&s.scene, &loaded) {
                 s.exact = Some(exact);
@@ -346,6 +405,67 @@ impl Page {
             Ok(JsValue::from(
                 serde_json::to_string(&summary).expect("the summary serialises"),
             ))
+        })
+    }
+
+    /// Sweeps the scene as the command line's `sweep` plans and measures it: `none`, then each
+    /// of the request's techniques at each channel count and byte budget per shadow-map texel,
+    /// each cell after `exact` (the request is JSON: `techniques`, `channels`,
+    /// `bytes_per_texel`, `resolution_px`, `width`, `height`, `frames` and `adapter`).
+    /// `progress(done, total, label)` is called before each cell. Resolves to JSON:
+    /// `results.json`'s and `results.csv`'s text, the answer at each byte budget and frame-time
+    /// budget, and the charts' SVG.
+    pub fn sweep(&self, request: &str, progress: js_sys::Function) -> js_sys::Promise {
+        let state = self.state.clone();
+        let request: Result<SweepRequest, _> = serde_json::from_str(request);
+        wasm_bindgen_futures::future_to_promise(async move {
+            let SweepRequest {
+                techniques,
+                channels,
+                bytes_per_texel,
+                resolution_px,
+                width,
+                height,
+                frames,
+                adapter,
+            } = request.map_err(|e| to_js(anyhow::anyhow!("the sweep's request: {e}")))?;
+            let (gpu, loaded) = {
+                let mut s = state.borrow_mut();
+                s.begin()?;
+                (s.gpu.clone(), s.scene.clone())
+            };
+            let report = |done: usize, total: usize, label: &str| {
+                let _ = progress.call3(
+                    &JsValue::NULL,
+                    &JsValue::from(done as u32),
+                    &JsValue::from(total as u32),
+                    &JsValue::from(label),
+                );
+            };
+            let grid = Grid {
+                techniques,
+                channels,
+                bytes_per_texel,
+                memory: Vec::new(),
+                shadow_res: vec![match resolution_px {
+                    0 => loaded.scene.shadow.resolution_px,
+                    r => r,
+                }],
+                splats: vec![shadow::SplatMode::Segment],
+                particle_res: vec![smokeshadow_core::render::ParticleRes::Full],
+            };
+            let timing = CellTiming {
+                frames,
+                warmup: 1,
+                cell_seconds: 0.5,
+                animate: None,
+            };
+            let size = (width, height);
+            let result = sweep(&gpu, &loaded, &grid, &timing, size, &adapter, &report).await;
+            let mut s = state.borrow_mut();
+            s.end(&gpu)?;
+            let out = result.map_err(to_js)?;
+            Ok(JsValue::from(out.to_string()))
         })
     }
 
@@ -366,7 +486,7 @@ impl Page {
         let mut s = self.state.borrow_mut();
         if s.busy {
             return Err(line(
-                "a comparison is running; pick the scene when it is done",
+                "a comparison or sweep is running; pick the scene when it is done",
             ));
         }
         let description = describe(&loaded);
@@ -383,6 +503,25 @@ fn load(scene: Scene, origin: &str) -> anyhow::Result<Loaded> {
         scene,
         particles,
         origin: origin.to_owned(),
+        frames: Vec::new(),
+    })
+}
+
+/// A dropped sequence's scene at `frame` of `frames`, named by its pattern.
+fn load_sequence(
+    scene: Scene,
+    pattern: &str,
+    frames: &[i64],
+    frame: i64,
+) -> anyhow::Result<Loaded> {
+    let (first, last) = (frames[0], frames[frames.len() - 1]);
+    let origin = format!(
+        "{pattern}, frame {frame} of the {} dropped, {first}..{last}",
+        frames.len()
+    );
+    Ok(Loaded {
+        frames: frames.to_vec(),
+        ..load(scene, &origin)?
     })
 }
 
@@ -553,4 +692,214 @@ async fn measure(
             reference_check,
         },
     })
+}
+
+/// What [`Page::sweep`] is asked to sweep.
+#[derive(serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SweepRequest {
+    techniques: Vec<String>,
+    channels: Vec<u32>,
+    /// Byte budgets per shadow-map texel (may be empty).
+    bytes_per_texel: Vec<u32>,
+    /// The map's resolution (0: the scene's) and the frame's size (0 x 0: the scene's).
+    resolution_px: u32,
+    width: u32,
+    height: u32,
+    /// Timed frames a cell, at most (the command line's `--frames`).
+    frames: u32,
+    /// The adapter's name as the browser gives it.
+    #[serde(default)]
+    adapter: String,
+}
+
+/// A `results.json`-sized view of a sweep for the page: the results, the CSV, the answer at each
+/// byte budget (ranked as the CLI ranks it) and the charts' SVG.
+async fn sweep(
+    gpu: &Gpu,
+    loaded: &Loaded,
+    grid: &Grid,
+    timing: &CellTiming,
+    size: (u32, u32),
+    adapter: &str,
+    progress: &dyn Fn(usize, usize, &str),
+) -> anyhow::Result<serde_json::Value> {
+    // RFC 3339 to the second, as the command line writes it ("2026-12-07T23:30:58Z").
+    let started = js_sys::Date::new_0()
+        .to_iso_string()
+        .as_string()
+        .map(|iso| format!("{}Z", iso.split('.').next().unwrap_or(&iso)))
+        .unwrap_or_default();
+    let clock = web_time::Instant::now();
+    timing.check()?;
+    let mut scene = loaded.scene.clone();
+    if size.0 > 0 && size.1 > 0 {
+        scene.output.width_px = size.0;
+        scene.output.height_px = size.1;
+    }
+    let (plans, skipped) = plan::plan(&scene, grid)?;
+    let total = plans.len() + 1;
+    let particles = &loaded.particles;
+    progress(0, total, "exact");
+    // `exact`, its T at the shaded points and its check against the closed form, as the
+    // command line's sweep starts a scene.
+    let mut reference =
+        Reference::render(gpu, &scene, particles, grid.shadow_res[0], grid.splats[0]).await?;
+    let check = reference_check::verify(&mut reference.renderer, gpu, &scene, particles).await?;
+    // wgpu leaves a browser adapter's name empty: the page's, from the browser, stands in.
+    let mut machine = Machine::of(gpu).await;
+    if machine.adapter.is_empty() {
+        machine.adapter = adapter.to_owned();
+    }
+    let mut against = reference.measured_against(&check, machine);
+    let Reference {
+        mut renderer,
+        target,
+        image: exact_image,
+        points,
+        owners,
+        t: exact_t,
+        bytes: exact_bytes,
+        tiles: exact_tiles,
+    } = reference;
+    let bench = Bench {
+        gpu,
+        scene: &scene,
+        particles,
+        target: &target,
+        points: &points,
+        owners: &owners,
+        exact_t: &exact_t,
+    };
+    let scene_sha256 = scene.content_hash();
+    // The technique's own 24-channel images, by cell name, as the command line keeps them.
+    let mut own_images: BTreeMap<String, image::RgbImage> = BTreeMap::new();
+    let error =
+        |reference: &image::RgbImage, test: &image::RgbImage| -> anyhow::Result<ImageError> {
+            let m = diff::compare(reference, test)?.metrics;
+            Ok(ImageError {
+                flip_mean: m.flip_mean,
+                rmse: m.rmse_srgb,
+            })
+        };
+    let mut cells: Vec<CellResult> = Vec::with_capacity(plans.len());
+    for (i, p) in plans.iter().enumerate() {
+        progress(i + 1, total, &p.name);
+        let key = plan::settings_key(&scene, &scene_sha256, timing, p);
+        let prepared = bench.prepare(&mut renderer, p, timing.warmup).await?;
+        let (mut cell, image) = bench
+            .time(&mut renderer, p, prepared, timing, key, &mut against)
+            .await?;
+        if p.config.name != shadow::frame_baseline().name {
+            cell.vs_exact = Some(error(&exact_image, &image)?);
+            cell.vs_full_res = Some(ImageError {
+                flip_mean: 0.0,
+                rmse: 0.0,
+            });
+            let own = match p.config.params.channels == plan::BASELINE_CHANNELS {
+                true => {
+                    own_images.insert(p.name.clone(), image.clone());
+                    None
+                }
+                false => {
+                    let baseline = p.own_baseline(&scene);
+                    let own = match own_images.get(&baseline.name) {
+                        Some(own) => own.clone(),
+                        None => {
+                            let own = bench.render_image(&mut renderer, &baseline).await?;
+                            own_images.insert(baseline.name, own.clone());
+                            own
+                        }
+                    };
+                    Some(own)
+                }
+            };
+            cell.vs_own_24 = Some(match own {
+                Some(own) => error(&own, &image)?,
+                None => ImageError {
+                    flip_mean: 0.0,
+                    rmse: 0.0,
+                },
+            });
+        }
+        cells.push(cell);
+    }
+    progress(total, total, "done");
+    let header = SceneHeader::of(
+        &scene,
+        particles.len() as u32,
+        scene_sha256,
+        Default::default(),
+    );
+    let run = RunRecord {
+        tool_version: env!("CARGO_PKG_VERSION"),
+        frames: timing.frames,
+        warmup: timing.warmup,
+        fallback: Some(&against.machine),
+        exact: Some((exact_bytes, exact_tiles)),
+        started,
+        wall_s: clock.elapsed().as_secs_f64(),
+        shards: Vec::new(),
+        exact_image: "images/exact.png".to_owned(),
+        exact_hdr_image: None,
+    };
+    let results = SweepResults::assemble(&header, run, &cells, skipped);
+    let csv = String::from_utf8(table::results_csv(&results)?)?;
+    let json = table::results_json(&results)?;
+    let row = |c: &CellResult| {
+        serde_json::json!({
+            "technique": c.technique,
+            "channels": c.channels,
+            "channels_used": c.channels_used,
+            "flip_vs_exact": answer::flip_exact(c),
+            "rms_transmittance_error": c.rms_transmittance_error,
+            "resident_bytes": c.resident_bytes,
+            "frame_ms": c.frame_ms.median,
+            "overhead_ratio": c.overhead_ratio,
+        })
+    };
+    let answers: Vec<serde_json::Value> = answer::byte_budgets(&results)
+        .into_iter()
+        .map(|b| {
+            let ranked: Vec<_> = answer::at_byte_budget(&results, b)
+                .into_iter()
+                .map(row)
+                .collect();
+            serde_json::json!({"bytes_per_texel": b, "ranked": ranked})
+        })
+        .collect();
+    let time_answers: Vec<serde_json::Value> = answer::TIME_BUDGETS
+        .iter()
+        .map(|&ratio| {
+            let ranked: Vec<_> = answer::at_time_budget(&results, ratio)
+                .into_iter()
+                .map(row)
+                .collect();
+            serde_json::json!({"ratio": ratio, "ranked": ranked})
+        })
+        .collect();
+    let charts: Vec<serde_json::Value> = charts::draw_charts(&results)?
+        .into_iter()
+        .map(|(chart, svg)| {
+            serde_json::json!({"title": chart.title, "caption": chart.caption, "svg": svg})
+        })
+        .collect();
+    // Each cell not measured and why, one line each.
+    let skipped: Vec<String> = results
+        .skipped
+        .iter()
+        .map(|s| format!("{} at {}: {}", s.technique, s.budget(), s.reason))
+        .collect();
+    Ok(serde_json::json!({
+        "csv": csv,
+        "json": json,
+        "cells": results.cells.len(),
+        "skipped": skipped,
+        "answers": answers,
+        "time_answers": time_answers,
+        "charts": charts,
+        "adapter": results.metadata.adapter,
+        "wall_s": results.metadata.wall_s,
+        "exact_check": check.to_string(),
+    }))
 }

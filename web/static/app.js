@@ -10,7 +10,7 @@ let last = null; // the last comparison's summary
 let showExact = false; // flip mode: which image is shown
 
 // What tests and users can reach from the console: the page's state and its actions.
-window.smokeshadow = { ready: false, last: null, error: null, firstImageMs: null, compare, openFiles, pickScene };
+window.smokeshadow = { ready: false, last: null, lastSweep: null, error: null, firstImageMs: null, compare, sweep, openFiles, pickScene, showFrame };
 
 function status(text) { $('status').textContent = text; }
 function showError(message) {
@@ -43,13 +43,16 @@ async function main() {
   showAdapter(JSON.parse(page.adapter()), info);
   for (const name of Page.scenes()) $('scene').add(new Option(name, name, name === 'thesis_plume', name === 'thesis_plume'));
   fillTechniques('osm');
+  fillSweepTechniques();
   $('scene-line').textContent = page.scene();
   $('render').onclick = () => compare();
+  $('sweep-run').onclick = () => sweep();
   $('scene').onchange = () => pickScene($('scene').value);
   $('mode').onchange = draw;
   $('split').oninput = draw;
   $('view-single').onclick = () => { showExact = !showExact; draw(); };
   $('files').onchange = () => openFiles([...$('files').files]);
+  $('frame').onchange = () => showFrame(Number($('frame').value));
   const drop = $('drop');
   document.addEventListener('dragover', (e) => { e.preventDefault(); drop.classList.add('over'); });
   document.addEventListener('dragleave', () => drop.classList.remove('over'));
@@ -123,6 +126,8 @@ async function pickScene(name) {
     return;
   }
   fillTechniques();
+  fillSweepTechniques();
+  fillFrames();
   await compare();
 }
 
@@ -138,6 +143,29 @@ async function openFiles(files) {
     return false;
   }
   fillTechniques();
+  fillSweepTechniques();
+  fillFrames();
+  return await compare();
+}
+
+// A dropped sequence's frames, to step through (hidden for anything else).
+function fillFrames() {
+  const frames = JSON.parse(page.frames());
+  const select = $('frame');
+  select.innerHTML = '';
+  for (const f of frames) select.add(new Option(`${f}`, `${f}`));
+  $('frame-control').hidden = frames.length === 0;
+}
+
+async function showFrame(frame) {
+  clearError();
+  try {
+    $('scene-line').textContent = page.show_frame(frame);
+  } catch (e) {
+    showError(message(e));
+    return false;
+  }
+  $('frame').value = `${frame}`;
   return await compare();
 }
 
@@ -244,6 +272,149 @@ function showNumbers(r) {
     (rounded
       ? 'This browser rounds timestamps to 0.1 ms (Chrome does unless "WebGPU Developer Features" is on in chrome://flags): passes shorter than that read as 0 or 0.1 ms.'
       : 'This browser did not round them to 0.1 ms.');
+}
+
+// The sweep's techniques: the command line's default set at first, then what the user chose,
+// less what the scene refuses (its reason on hover).
+function fillSweepTechniques() {
+  const select = $('sweep-techniques');
+  const first = select.options.length === 0;
+  const chosen = new Set([...select.selectedOptions].map((o) => o.value));
+  select.innerHTML = '';
+  for (const t of JSON.parse(page.techniques())) {
+    if (t.name === 'exact' || t.name === 'none') continue;
+    const option = new Option(t.name, t.name, false, !t.refusal && (first ? t.in_default_sweep : chosen.has(t.name)));
+    option.title = t.refusal || t.description;
+    option.disabled = Boolean(t.refusal);
+    select.add(option);
+  }
+}
+
+// A comma-separated list of whole numbers, or one line naming what is not one.
+function wholeNumbers(what, text) {
+  const items = text.split(/[\s,]+/).filter(Boolean);
+  const bad = items.find((x) => !/^\d+$/.test(x));
+  if (bad !== undefined) throw new Error(`${what}: "${bad}" is not a whole number`);
+  return items.map(Number);
+}
+
+let downloads = [];
+async function sweep(options = {}) {
+  clearError();
+  let request;
+  try {
+    const [width, height] = (options.size || $('size').value).split('x').map(Number);
+    request = {
+      techniques: options.techniques || [...$('sweep-techniques').selectedOptions].map((o) => o.value),
+      channels: options.channels || wholeNumbers('channels', $('sweep-channels').value),
+      bytes_per_texel: options.bytes_per_texel || wholeNumbers('bytes per texel', $('sweep-bytes').value),
+      resolution_px: options.resolution ?? Number($('resolution').value),
+      width, height,
+      frames: options.frames ?? wholeNumbers('timed frames', $('sweep-frames').value)[0] ?? 0,
+      adapter: window.smokeshadow.adapter || '',
+    };
+    if (!request.techniques.length) throw new Error('the sweep has no techniques: choose at least one');
+  } catch (e) {
+    showError(message(e));
+    return false;
+  }
+  const bar = $('sweep-progress');
+  bar.hidden = false;
+  bar.value = 0;
+  $('sweep-run').disabled = $('render').disabled = true;
+  const started = performance.now();
+  const progress = (done, total, label) => {
+    bar.max = total;
+    bar.value = done;
+    $('sweep-status').textContent = done < total ? `Step ${done + 1} of ${total}: ${label}…` : 'Assembling the tables…';
+  };
+  let r;
+  try {
+    r = JSON.parse(await page.sweep(JSON.stringify(request), progress));
+  } catch (e) {
+    showError(message(e));
+    $('sweep-status').textContent = '';
+    return false;
+  } finally {
+    $('sweep-run').disabled = $('render').disabled = false;
+    bar.hidden = true;
+  }
+  window.smokeshadow.lastSweep = r;
+  showSweep(r, (performance.now() - started) / 1000);
+  return r;
+}
+
+const fixed = (v, digits) => (v === null || v === undefined || !Number.isFinite(v)) ? '—' : v.toFixed(digits);
+
+function rankTable(title, ranked) {
+  const table = document.createElement('table');
+  table.createCaption().textContent = title;
+  const head = table.createTHead().insertRow();
+  for (const h of ['', 'technique', 'channels', 'FLIP vs exact', 'RMS T error', 'resident', 'frame (GPU)', '× none']) {
+    const th = document.createElement('th');
+    th.textContent = h;
+    head.append(th);
+  }
+  const body = table.createTBody();
+  ranked.forEach((c, i) => {
+    const tr = body.insertRow();
+    const cells = [`${i + 1}`, c.technique, `${c.channels_used}`, fixed(c.flip_vs_exact, 4), fixed(c.rms_transmittance_error, 4),
+      mib(c.resident_bytes), `${fixed(c.frame_ms, 2)} ms`, fixed(c.overhead_ratio, 2)];
+    cells.forEach((text, k) => {
+      const td = tr.insertCell();
+      td.textContent = text;
+      if (k !== 1) td.className = 'n';
+    });
+  });
+  return table;
+}
+
+function showSweep(r, seconds) {
+  const answer = $('sweep-answer');
+  answer.innerHTML = '';
+  for (const a of r.answers) answer.append(rankTable(`At ${a.bytes_per_texel} bytes a texel: most accurate first`, a.ranked));
+  const slow = [];
+  for (const a of r.time_answers) {
+    if (a.ranked.length) answer.append(rankTable(`Within ${a.ratio}× the frame without self-shadowing`, a.ranked));
+    else slow.push(`${a.ratio}×`);
+  }
+  if (slow.length) {
+    const p = document.createElement('p');
+    p.className = 'note';
+    p.textContent = `No technique's frame took within ${slow.join(', ')} the frame without self-shadowing on this adapter.`;
+    answer.append(p);
+  }
+  if (r.skipped.length) {
+    const p = document.createElement('p');
+    p.className = 'note';
+    p.textContent = `Not measured: ${r.skipped.join('; ')}.`;
+    answer.append(p);
+  }
+  for (const url of downloads) URL.revokeObjectURL(url);
+  downloads = [];
+  const blob = (text, type) => {
+    const url = URL.createObjectURL(new Blob([text], { type }));
+    downloads.push(url);
+    return url;
+  };
+  const charts = $('sweep-charts');
+  charts.innerHTML = '';
+  for (const c of r.charts) {
+    const figure = document.createElement('figure');
+    // An image, not inline markup: the SVG names the scene, which may be a dropped file's.
+    const img = document.createElement('img');
+    img.src = blob(c.svg, 'image/svg+xml');
+    img.alt = c.title;
+    figure.append(img);
+    const caption = document.createElement('figcaption');
+    caption.textContent = `${c.title}: ${c.caption}`;
+    figure.append(caption);
+    charts.append(figure);
+  }
+  $('dl-csv').href = blob(r.csv, 'text/csv');
+  $('dl-json').href = blob(r.json, 'application/json');
+  $('sweep-downloads').hidden = false;
+  $('sweep-status').textContent = `${r.cells} cells in ${seconds.toFixed(1)} s on ${r.adapter}; ${r.exact_check}.`;
 }
 
 main().catch((e) => { showError(message(e)); status(''); });
