@@ -3,10 +3,10 @@
 # localhost, and drives headless Chromium with WebGPU through it (scripts/web-test/drive.mjs,
 # Playwright's driver from npm, Debian's chromium): the thesis scene with osm at 24 channels
 # beside exact, FLIP vs exact within 0.002 of the native CLI's figure at the same size, a
-# dropped PLY of ours, a broken file's one line, and a sweep from the page's controls whose
-# downloaded results.csv/results.json have the CLI's columns, cells and bytes and its errors
-# within 0.002, a dropped numbered PLY sequence stepped from its first frame to its last, and a
-# dropped OpenVDB sequence.
+# dropped PLY of ours, a broken file's one line, a sweep from the page's controls (byte and memory
+# budgets, two map resolutions) whose downloaded results.csv/results.json have the CLI's
+# columns, cells, bytes and tuned shapes and its errors within 0.002, a dropped numbered PLY
+# sequence stepped from its first frame to its last, and a dropped OpenVDB sequence.
 # Prints flip_vs_exact=VALUE last.
 #
 # Needs: chromium (apt-get install -y chromium), node and npm, python3 (the server), and what
@@ -33,8 +33,8 @@ cli=target/debug/smokeshadow
 native=$("$cli" diff --json "$work/exact.png" "$work/osm.png" | python3 -c 'import json, sys; print(json.load(sys.stdin)["metrics"]["flip_mean"])')
 
 # The CLI's sweep the page's is held to (drive.mjs runs the same one from the page's controls).
-"$cli" sweep --techniques osm,fom --channels 24,8 --bytes-per-texel 24 --frames 3 --size 160x120 \
-    -o "$work/sweep" > /dev/null
+"$cli" sweep --techniques osm,fom --channels 24,8 --bytes-per-texel 24 --memory 3MiB \
+    --shadow-res 256,512 --frames 3 --size 160x120 -o "$work/sweep" > /dev/null
 
 # A particle file of ours to drop, and a broken one.
 "$cli" particles column -o "$work/column.ply" > /dev/null

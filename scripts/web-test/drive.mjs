@@ -80,7 +80,8 @@ try {
   console.log(`every_technique=${rendered.join(' ')} (avsm skipped: it loses SwiftShader's device)`);
 
   // The sweep, from the page's controls, as scripts/web-test.sh ran the CLI's: osm and fom at
-  // 24 and 8 channels and 24 bytes a texel, 3 timed frames, 160x120.
+  // 24 and 8 channels, 24 bytes a texel and 3 MiB in all, at 256² and 512² maps, 3 timed
+  // frames, 160x120.
   await page.evaluate(() => document.getElementById('size').add(new Option('160x120')));
   await page.selectOption('#size', '160x120');
   await page.selectOption('#sweep-techniques', ['osm', 'fom']);
@@ -89,6 +90,13 @@ try {
   const badList = await page.evaluate(() => window.smokeshadow.error);
   if (badList !== 'channels: "x" is not a whole number') fail(`a bad channel list did not give its one line: ${JSON.stringify(badList)}`);
   await page.fill('#sweep-channels', '24,8');
+  await page.fill('#sweep-memory', '3 MiB, lots');
+  await page.click('#sweep-run');
+  await page.waitForFunction(() => window.smokeshadow.error, null, wait);
+  const badSize = await page.evaluate(() => window.smokeshadow.error);
+  if (!String(badSize).startsWith('memory budget "lots" is not a memory size')) fail(`a bad memory budget did not give its one line: ${JSON.stringify(badSize)}`);
+  await page.fill('#sweep-memory', '3 MiB');
+  await page.fill('#sweep-resolutions', '256, 512');
   await page.fill('#sweep-bytes', '24');
   await page.fill('#sweep-frames', '3');
   const sweepStarted = Date.now();
@@ -119,7 +127,7 @@ try {
   const pc = rows(pageCsv);
   const cc = rows(cliCsv);
   if (pc.header !== cc.header) fail(`the page's results.csv columns differ from the CLI's:\n${pc.header}\n${cc.header}`);
-  const id = (r) => `${r.technique} ${r.channels} ${r.byte_budgets}`;
+  const id = (r) => `${r.technique} ${r.channels} ${r.byte_budgets} ${r.memory_budgets} ${r.shadow_res}`;
   const cliRows = new Map(cc.rows.map((r) => [id(r), r]));
   if (pc.rows.length !== cc.rows.length || !pc.rows.every((r) => cliRows.has(id(r)))) fail(`the page swept ${pc.rows.map(id).join(', ')}; the CLI ${cc.rows.map(id).join(', ')}`);
   let worst = 0;
@@ -135,13 +143,20 @@ try {
     }
   }
   const keys = (o) => Object.keys(o).sort().join(',');
-  // `shapes` (tune's map resolutions, for the answer at memory budgets) is written only where
-  // there are some; the page sweeps byte budgets and has none.
-  const { shapes, ...cliMetadata } = cliJson.metadata;
-  if (keys(pageJson) !== keys(cliJson) || keys(pageJson.metadata) !== keys(cliMetadata) || keys(pageJson.cells[1]) !== keys(cliJson.cells[1])) fail('the page\'s results.json has other fields than the CLI\'s');
+  if (keys(pageJson) !== keys(cliJson) || keys(pageJson.metadata) !== keys(cliJson.metadata) || keys(pageJson.cells[1]) !== keys(cliJson.cells[1])) fail('the page\'s results.json has other fields than the CLI\'s');
+  // The answer at 3 MiB in all takes each technique at the map resolution tune chose for it (the
+  // shipped shapes, the CLI's), and says so.
+  if (JSON.stringify(pageJson.metadata.shapes) !== JSON.stringify(cliJson.metadata.shapes)) fail('the page\'s tuned shapes are not the CLI\'s');
+  const atMemory = swept.r.memory_answers;
+  if (atMemory.length !== 1 || atMemory[0].bytes !== 3 * 1048576 || atMemory[0].ranked.length !== 2) fail(`the page's answer at 3 MiB: ${JSON.stringify(atMemory)}`);
+  for (const c of atMemory[0].ranked) {
+    const chosen = cliJson.metadata.shapes[c.technique]?.[String(3 * 1048576)];
+    if (c.shape_tuned !== (chosen === c.shadow_res) || (chosen && [256, 512].includes(chosen) && !c.shape_tuned)) fail(`the page answers 3 MiB with ${c.technique} at ${c.shadow_res}², tune chose ${chosen}`);
+  }
   if (pageJson.cells.length !== pc.rows.length || !(pageJson.metadata.exact_check_worst < 1e-3)) fail('the page\'s results.json disagrees with its results.csv or exact did not check itself');
   if (swept.answers < 1 || swept.charts < 1) fail(`the page shows ${swept.answers} answer tables and ${swept.charts} charts`);
   console.log(`sweep_s=${sweepSeconds.toFixed(1)} (${pc.rows.length} cells and exact at 160x120, 3 frames a cell) answer_tables=${swept.answers} charts=${swept.charts}`);
+  console.log(`sweep_at_3MiB: ${atMemory[0].ranked.map((c) => `${c.technique} ${c.channels_used} at ${c.shadow_res}²${c.shape_tuned ? ' (tuned)' : ' (best here)'} FLIP ${c.flip_vs_exact.toFixed(4)}`).join(', ')}`);
   console.log(`sweep_vs_cli: same columns, cells and bytes; worst |error difference| ${worst.toFixed(5)}; ${swept.status}`);
 
   // A dropped file of ours renders, framed as the CLI frames it.

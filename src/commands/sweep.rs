@@ -59,7 +59,7 @@ pub struct SweepArgs {
     /// on the training scenes (the shipped `docs/tuned_params.toml`'s `[shapes]`, or a
     /// `--params FILE`'s), or, where tune chose none of the swept, at its most accurate of them
     /// here, marked "best here". Replaces the default `--bytes-per-texel`.
-    #[arg(long, value_name = "SIZE,...", value_delimiter = ',', value_parser = parse_memory)]
+    #[arg(long, value_name = "SIZE,...", value_delimiter = ',', value_parser = sweep::parse_memory)]
     pub memory: Vec<u64>,
     /// Shadow-map resolutions, comma-separated.
     #[arg(long, value_delimiter = ',', default_value = "512")]
@@ -420,19 +420,7 @@ fn print_table(results: &SweepResults, folder: &Path) {
         }
     }
     for s in &results.skipped {
-        match (s.bytes_per_texel, s.memory) {
-            (Some(b), _) => println!("skipped {} at {b} bytes a texel: {}", s.technique, s.reason),
-            (None, Some((total, res))) => println!(
-                "skipped {} at {} at {res}²: {}",
-                s.technique,
-                crate::report::bytes(total),
-                s.reason
-            ),
-            (None, None) => println!(
-                "skipped {} at {} channels: {}",
-                s.technique, s.channels, s.reason
-            ),
-        }
+        println!("skipped {} at {}: {}", s.technique, s.budget(), s.reason);
     }
     // The answers at equal bytes, equal memory and equal time (on this adapter), as the report
     // gives them: each cell as `technique channels[ at res²] (FLIP[, ratio])`, or `none` when no
@@ -565,37 +553,6 @@ fn parse_byte_budgets(s: &str) -> Result<ByteBudgets, String> {
         }
     }
     Ok(ByteBudgets(out))
-}
-
-/// Parses one `--memory` size: a number and a unit (B, KiB, MiB, GiB, KB, MB, GB), whole bytes.
-pub(crate) fn parse_memory(s: &str) -> Result<u64, String> {
-    let t = s.trim();
-    let split = t
-        .find(|c: char| !(c.is_ascii_digit() || c == '.'))
-        .unwrap_or(t.len());
-    let (number, unit) = t.split_at(split);
-    let scale: u64 = match unit.trim() {
-        "B" => 1,
-        "KiB" => 1 << 10,
-        "MiB" => 1 << 20,
-        "GiB" => 1 << 30,
-        "KB" => 1_000,
-        "MB" => 1_000_000,
-        "GB" => 1_000_000_000,
-        _ => {
-            return Err(format!(
-                "\"{t}\" is not a memory size: give a number and a unit, B, KiB, MiB, GiB, KB, MB \
-                 or GB (e.g. 12MiB)"
-            ));
-        }
-    };
-    let bytes = number.parse::<f64>().ok().map(|n| n * scale as f64);
-    match bytes {
-        Some(b) if b >= 1.0 && b.fract() == 0.0 && b <= 1e12 => Ok(b as u64),
-        _ => Err(format!(
-            "\"{t}\" is not a memory size: give whole bytes, 1 B to 1 TB (e.g. 12MiB)"
-        )),
-    }
 }
 
 /// Parses `--cell-seconds`: a positive, finite number of seconds.

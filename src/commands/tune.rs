@@ -135,7 +135,10 @@ pub fn run(args: &TuneArgs, adapter: &AdapterPreference) -> anyhow::Result<()> {
         [n] if n == "none" => Vec::new(),
         list => list
             .iter()
-            .map(|s| super::sweep::parse_memory(s).map_err(|e| anyhow::anyhow!("--memory {e}")))
+            .map(|s| {
+                smokeshadow_core::sweep::plan::parse_memory(s)
+                    .map_err(|e| anyhow::anyhow!("--memory {e}"))
+            })
             .collect::<anyhow::Result<_>>()?,
     };
     if args.shape_res.is_empty() && !memory.is_empty() {

@@ -29,7 +29,7 @@ pub use cells::write_results;
 pub use merge::merge;
 pub use run::{SweepOptions, SweepOutcome, run};
 pub use shard::ShardManifest;
-pub use smokeshadow_core::sweep::plan::{CellTiming, DEFAULT_BYTES_PER_TEXEL, Grid};
+pub use smokeshadow_core::sweep::plan::{CellTiming, DEFAULT_BYTES_PER_TEXEL, Grid, parse_memory};
 pub use smokeshadow_core::sweep::table::CSV_COLUMNS;
 pub use smokeshadow_core::sweep::{
     Animation, Budget, CellResult, ImageError, Machine, MeasuredAgainst, MotionReference,

@@ -122,38 +122,13 @@ pub struct ParamsFile {
     pub shapes: BTreeMap<String, BTreeMap<String, Shape>>,
 }
 
-/// A technique's shape at one memory budget: the map resolution whose largest fitting
-/// configuration had the lowest mean RMS T error over the training scenes, and that error.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Shape {
-    pub resolution: u32,
-    pub training: f64,
-}
-
-pub use smokeshadow_core::sweep::Shapes;
+pub use smokeshadow_core::sweep::{Shape, Shapes, shipped_shapes};
 
 impl ParamsFile {
     /// Its shapes, by memory budget in bytes (a key that is not a whole number is skipped).
     pub fn shapes(&self) -> Shapes {
-        self.shapes
-            .iter()
-            .map(|(technique, by_memory)| {
-                let by_memory = by_memory
-                    .iter()
-                    .filter_map(|(total, s)| Some((total.parse().ok()?, s.resolution)))
-                    .collect();
-                (technique.clone(), by_memory)
-            })
-            .collect()
+        smokeshadow_core::sweep::shapes_of(&self.shapes)
     }
-}
-
-/// The shapes the shipped defaults come with (`docs/tuned_params.toml`, built in).
-pub fn shipped_shapes() -> Shapes {
-    toml::from_str::<ParamsFile>(include_str!("../../docs/tuned_params.toml"))
-        .map(|f| f.shapes())
-        .unwrap_or_default()
 }
 
 /// What `tune` records beside its values.

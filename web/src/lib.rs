@@ -408,13 +408,13 @@ impl Page {
         })
     }
 
-    /// Sweeps the scene as the command line's `sweep` plans and measures it: `none`, then each
-    /// of the request's techniques at each channel count and byte budget per shadow-map texel,
-    /// each cell after `exact` (the request is JSON: `techniques`, `channels`,
-    /// `bytes_per_texel`, `resolution_px`, `width`, `height`, `frames` and `adapter`).
-    /// `progress(done, total, label)` is called before each cell. Resolves to JSON:
-    /// `results.json`'s and `results.csv`'s text, the answer at each byte budget and frame-time
-    /// budget, and the charts' SVG.
+    /// Sweeps the scene as the command line's `sweep` plans and measures it: `none`, then at
+    /// each map resolution each of the request's techniques at each channel count, byte budget
+    /// per shadow-map texel and memory budget in all, each cell after `exact` (the request is
+    /// JSON: `techniques`, `channels`, `bytes_per_texel`, `memory` (sizes such as "12MiB"),
+    /// `resolutions`, `width`, `height`, `frames` and `adapter`). `progress(done, total, label)`
+    /// is called before each cell. Resolves to JSON: `results.json`'s and `results.csv`'s text,
+    /// the answer at each byte, memory and frame-time budget, and the charts' SVG.
     pub fn sweep(&self, request: &str, progress: js_sys::Function) -> js_sys::Promise {
         let state = self.state.clone();
         let request: Result<SweepRequest, _> = serde_json::from_str(request);
@@ -423,12 +423,19 @@ impl Page {
                 techniques,
                 channels,
                 bytes_per_texel,
-                resolution_px,
+                memory,
+                resolutions,
                 width,
                 height,
                 frames,
                 adapter,
             } = request.map_err(|e| to_js(anyhow::anyhow!("the sweep's request: {e}")))?;
+            // (before the job starts: a bad size leaves nothing running)
+            let memory = memory
+                .iter()
+                .map(|m| plan::parse_memory(m).map_err(|e| anyhow::anyhow!("memory budget {e}")))
+                .collect::<anyhow::Result<Vec<u64>>>()
+                .map_err(to_js)?;
             let (gpu, loaded) = {
                 let mut s = state.borrow_mut();
                 s.begin()?;
@@ -442,15 +449,26 @@ impl Page {
                     &JsValue::from(label),
                 );
             };
+            // 0, or none given: the scene's map resolution.
+            let mut shadow_res: Vec<u32> = Vec::new();
+            for r in resolutions {
+                let r = match r {
+                    0 => loaded.scene.shadow.resolution_px,
+                    r => r,
+                };
+                if !shadow_res.contains(&r) {
+                    shadow_res.push(r);
+                }
+            }
+            if shadow_res.is_empty() {
+                shadow_res.push(loaded.scene.shadow.resolution_px);
+            }
             let grid = Grid {
                 techniques,
                 channels,
                 bytes_per_texel,
-                memory: Vec::new(),
-                shadow_res: vec![match resolution_px {
-                    0 => loaded.scene.shadow.resolution_px,
-                    r => r,
-                }],
+                memory,
+                shadow_res,
                 splats: vec![shadow::SplatMode::Segment],
                 particle_res: vec![smokeshadow_core::render::ParticleRes::Full],
             };
@@ -702,8 +720,12 @@ struct SweepRequest {
     channels: Vec<u32>,
     /// Byte budgets per shadow-map texel (may be empty).
     bytes_per_texel: Vec<u32>,
-    /// The map's resolution (0: the scene's) and the frame's size (0 x 0: the scene's).
-    resolution_px: u32,
+    /// Memory budgets in all, as the command line's `--memory` writes them ("12MiB"; may be
+    /// empty).
+    #[serde(default)]
+    memory: Vec<String>,
+    /// The map resolutions (0, or none: the scene's) and the frame's size (0 x 0: the scene's).
+    resolutions: Vec<u32>,
     width: u32,
     height: u32,
     /// Timed frames a cell, at most (the command line's `--frames`).
@@ -714,7 +736,7 @@ struct SweepRequest {
 }
 
 /// A `results.json`-sized view of a sweep for the page: the results, the CSV, the answer at each
-/// byte budget (ranked as the CLI ranks it) and the charts' SVG.
+/// byte, memory and frame-time budget (ranked as the CLI ranks them) and the charts' SVG.
 async fn sweep(
     gpu: &Gpu,
     loaded: &Loaded,
@@ -829,7 +851,7 @@ async fn sweep(
         &scene,
         particles.len() as u32,
         scene_sha256,
-        Default::default(),
+        smokeshadow_core::sweep::shipped_shapes(),
     );
     let run = RunRecord {
         tool_version: env!("CARGO_PKG_VERSION"),
@@ -851,6 +873,7 @@ async fn sweep(
             "technique": c.technique,
             "channels": c.channels,
             "channels_used": c.channels_used,
+            "shadow_res": c.shadow_res,
             "flip_vs_exact": answer::flip_exact(c),
             "rms_transmittance_error": c.rms_transmittance_error,
             "resident_bytes": c.resident_bytes,
@@ -866,6 +889,22 @@ async fn sweep(
                 .map(row)
                 .collect();
             serde_json::json!({"bytes_per_texel": b, "ranked": ranked})
+        })
+        .collect();
+    // At equal memory in all, each technique at the map resolution `tune` chose for it on the
+    // training scenes where that was swept (`shape_tuned`), as the command line answers.
+    let memory_answers: Vec<serde_json::Value> = answer::memory_budgets(&results)
+        .into_iter()
+        .map(|total| {
+            let ranked: Vec<_> = answer::at_memory_budget(&results, total)
+                .into_iter()
+                .map(|c| {
+                    let mut r = row(c);
+                    r["shape_tuned"] = answer::shape_tuned(&results, total, c).into();
+                    r
+                })
+                .collect();
+            serde_json::json!({"bytes": total, "ranked": ranked})
         })
         .collect();
     let time_answers: Vec<serde_json::Value> = answer::TIME_BUDGETS
@@ -896,6 +935,7 @@ async fn sweep(
         "cells": results.cells.len(),
         "skipped": skipped,
         "answers": answers,
+        "memory_answers": memory_answers,
         "time_answers": time_answers,
         "charts": charts,
         "adapter": results.metadata.adapter,

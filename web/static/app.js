@@ -308,7 +308,11 @@ async function sweep(options = {}) {
       techniques: options.techniques || [...$('sweep-techniques').selectedOptions].map((o) => o.value),
       channels: options.channels || wholeNumbers('channels', $('sweep-channels').value),
       bytes_per_texel: options.bytes_per_texel || wholeNumbers('bytes per texel', $('sweep-bytes').value),
-      resolution_px: options.resolution ?? Number($('resolution').value),
+      // (split at commas only: "3 MiB" is one size)
+      memory: options.memory || $('sweep-memory').value.split(',').map((m) => m.trim()).filter(Boolean),
+      resolutions: options.resolutions || ($('sweep-resolutions').value.trim()
+        ? wholeNumbers('map resolutions', $('sweep-resolutions').value)
+        : [Number($('resolution').value)]),
       width, height,
       frames: options.frames ?? wholeNumbers('timed frames', $('sweep-frames').value)[0] ?? 0,
       adapter: window.smokeshadow.adapter || '',
@@ -350,7 +354,7 @@ function rankTable(title, ranked) {
   const table = document.createElement('table');
   table.createCaption().textContent = title;
   const head = table.createTHead().insertRow();
-  for (const h of ['', 'technique', 'channels', 'FLIP vs exact', 'RMS T error', 'resident', 'frame (GPU)', '× none']) {
+  for (const h of ['', 'technique', 'channels', 'map', 'FLIP vs exact', 'RMS T error', 'resident', 'frame (GPU)', '× none']) {
     const th = document.createElement('th');
     th.textContent = h;
     head.append(th);
@@ -358,7 +362,8 @@ function rankTable(title, ranked) {
   const body = table.createTBody();
   ranked.forEach((c, i) => {
     const tr = body.insertRow();
-    const cells = [`${i + 1}`, c.technique, `${c.channels_used}`, fixed(c.flip_vs_exact, 4), fixed(c.rms_transmittance_error, 4),
+    const map = c.shape_tuned === false ? `${c.shadow_res}² (best here)` : `${c.shadow_res}²`;
+    const cells = [`${i + 1}`, c.technique, `${c.channels_used}`, map, fixed(c.flip_vs_exact, 4), fixed(c.rms_transmittance_error, 4),
       mib(c.resident_bytes), `${fixed(c.frame_ms, 2)} ms`, fixed(c.overhead_ratio, 2)];
     cells.forEach((text, k) => {
       const td = tr.insertCell();
@@ -373,6 +378,9 @@ function showSweep(r, seconds) {
   const answer = $('sweep-answer');
   answer.innerHTML = '';
   for (const a of r.answers) answer.append(rankTable(`At ${a.bytes_per_texel} bytes a texel: most accurate first`, a.ranked));
+  for (const a of r.memory_answers) {
+    answer.append(rankTable(`At ${mib(a.bytes)} in all: most accurate first, each at the map resolution tune chose on the training scenes (or, marked "best here", its most accurate here where tune chose none of those swept)`, a.ranked));
+  }
   const slow = [];
   for (const a of r.time_answers) {
     if (a.ranked.length) answer.append(rankTable(`Within ${a.ratio}× the frame without self-shadowing`, a.ranked));

@@ -28,6 +28,45 @@ pub use crate::render::shaded::SHADED_STRIDE_PX;
 /// it swept it), so that shapes, like parameters, are chosen on scenes apart from the answer's.
 pub type Shapes = BTreeMap<String, BTreeMap<u64, u32>>;
 
+/// A technique's shape at one memory budget, as a parameter file's `[shapes]` records it: the
+/// map resolution whose largest fitting configuration had the lowest mean RMS T error over the
+/// training scenes, and that error.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Shape {
+    pub resolution: u32,
+    pub training: f64,
+}
+
+/// A parameter file's `[shapes]` table (technique -> memory budget in bytes, as a string key ->
+/// shape) as [`Shapes`]; a key that is not a whole number is skipped.
+pub fn shapes_of(table: &BTreeMap<String, BTreeMap<String, Shape>>) -> Shapes {
+    table
+        .iter()
+        .map(|(technique, by_memory)| {
+            let by_memory = by_memory
+                .iter()
+                .filter_map(|(total, s)| Some((total.parse().ok()?, s.resolution)))
+                .collect();
+            (technique.clone(), by_memory)
+        })
+        .collect()
+}
+
+/// The shapes the shipped defaults come with (`docs/tuned_params.toml`'s `[shapes]`, built in):
+/// what the CLI's sweep and the page's answer at equal total memory take each technique at.
+pub fn shipped_shapes() -> Shapes {
+    /// The file's `[shapes]`, its other tables left to the CLI's reader.
+    #[derive(Deserialize)]
+    struct ShapesOnly {
+        #[serde(default)]
+        shapes: BTreeMap<String, BTreeMap<String, Shape>>,
+    }
+    toml::from_str::<ShapesOnly>(include_str!("../../../docs/tuned_params.toml"))
+        .map(|f| shapes_of(&f.shapes))
+        .unwrap_or_default()
+}
+
 /// Median, minimum and maximum of a measurement over the timed frames, milliseconds.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Timing {
@@ -344,12 +383,13 @@ pub struct SkippedCell {
 }
 
 impl SkippedCell {
-    /// The budget it was skipped at, as the report and the page name it: "24 bytes a texel" or
-    /// "8 channels".
+    /// The budget it was skipped at, as the CLI, the report and the page name it: "24 bytes a
+    /// texel", "12.0 MiB at 512²" (a memory budget in all, at a map resolution) or "8 channels".
     pub fn budget(&self) -> String {
-        match self.bytes_per_texel {
-            Some(b) => format!("{b} bytes a texel"),
-            None => format!("{} channels", self.channels),
+        match (self.bytes_per_texel, self.memory) {
+            (Some(b), _) => format!("{b} bytes a texel"),
+            (None, Some((total, res))) => format!("{} at {res}²", crate::gpu::memory::bytes(total)),
+            (None, None) => format!("{} channels", self.channels),
         }
     }
 }

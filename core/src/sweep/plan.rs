@@ -49,6 +49,38 @@ impl CellTiming {
     }
 }
 
+/// Parses one memory size (`--memory`, the page's memory budgets): a number and a unit (B, KiB,
+/// MiB, GiB, KB, MB, GB), whole bytes.
+pub fn parse_memory(s: &str) -> Result<u64, String> {
+    let t = s.trim();
+    let split = t
+        .find(|c: char| !(c.is_ascii_digit() || c == '.'))
+        .unwrap_or(t.len());
+    let (number, unit) = t.split_at(split);
+    let scale: u64 = match unit.trim() {
+        "B" => 1,
+        "KiB" => 1 << 10,
+        "MiB" => 1 << 20,
+        "GiB" => 1 << 30,
+        "KB" => 1_000,
+        "MB" => 1_000_000,
+        "GB" => 1_000_000_000,
+        _ => {
+            return Err(format!(
+                "\"{t}\" is not a memory size: give a number and a unit, B, KiB, MiB, GiB, KB, MB \
+                 or GB (e.g. 12MiB)"
+            ));
+        }
+    };
+    let bytes = number.parse::<f64>().ok().map(|n| n * scale as f64);
+    match bytes {
+        Some(b) if b >= 1.0 && b.fract() == 0.0 && b <= 1e12 => Ok(b as u64),
+        _ => Err(format!(
+            "\"{t}\" is not a memory size: give whole bytes, 1 B to 1 TB (e.g. 12MiB)"
+        )),
+    }
+}
+
 /// The default byte budgets per texel: what `osm`'s half-float slices take at 6, 12 and 24
 /// channels, the thesis' range.
 pub const DEFAULT_BYTES_PER_TEXEL: [u32; 3] = [48, 24, 12];
