@@ -500,10 +500,7 @@ impl CellBench<'_> {
                 })?;
                 let view = self.read_image()?;
                 let metrics = crate::diff::compare(&view, &shared)?.metrics;
-                Some(crate::sweep::ImageError {
-                    flip_mean: metrics.flip_mean,
-                    rmse: metrics.rmse_srgb,
-                })
+                Some(crate::sweep::ImageError::of(&metrics))
             }
         };
         let build_work = BuildWork::of(&tallies);

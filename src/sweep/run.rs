@@ -474,10 +474,7 @@ impl<'a> Sweeper<'a> {
             }
             cell.vs_full_res = Some(match vs_full_res.transpose()? {
                 Some((error, _, _)) => error,
-                None => ImageError {
-                    flip_mean: 0.0,
-                    rmse: 0.0,
-                },
+                None => ImageError::NONE,
             });
             written?;
             let (vs_exact, x4, flip) = vs_exact?;
@@ -485,12 +482,7 @@ impl<'a> Sweeper<'a> {
             cell.diff_exact = Some(x4);
             cell.flip_exact = Some(flip);
             match vs_own.transpose()? {
-                None => {
-                    cell.vs_own_24 = Some(ImageError {
-                        flip_mean: 0.0,
-                        rmse: 0.0,
-                    })
-                }
+                None => cell.vs_own_24 = Some(ImageError::NONE),
                 Some((vs_own, x4, flip)) => {
                     cell.vs_own_24 = Some(vs_own);
                     cell.diff_own_24 = Some(x4);
@@ -533,10 +525,7 @@ fn compare(
     // The sweep reports FLIP and RMSE only.
     let pair = crate::compare::write_pair(dir, reference, test, stem, crate::diff::Ssim::Skip)?;
     Ok((
-        ImageError {
-            flip_mean: pair.metrics.flip_mean,
-            rmse: pair.metrics.rmse_srgb,
-        },
+        ImageError::of(&pair.metrics),
         pair.difference,
         pair.flip_map,
     ))

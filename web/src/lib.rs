@@ -796,13 +796,12 @@ async fn sweep(
     let scene_sha256 = scene.content_hash();
     // The technique's own 24-channel images, by cell name, as the command line keeps them.
     let mut own_images: BTreeMap<String, image::RgbImage> = BTreeMap::new();
+    // FLIP and RMSE only, as the command line's sweep compares (no SSIM).
     let error =
         |reference: &image::RgbImage, test: &image::RgbImage| -> anyhow::Result<ImageError> {
-            let m = diff::compare(reference, test)?.metrics;
-            Ok(ImageError {
-                flip_mean: m.flip_mean,
-                rmse: m.rmse_srgb,
-            })
+            Ok(ImageError::of(
+                &diff::compare_with(reference, test, diff::Ssim::Skip)?.metrics,
+            ))
         };
     let mut cells: Vec<CellResult> = Vec::with_capacity(plans.len());
     for (i, p) in plans.iter().enumerate() {
@@ -814,34 +813,22 @@ async fn sweep(
             .await?;
         if p.config.name != shadow::frame_baseline().name {
             cell.vs_exact = Some(error(&exact_image, &image)?);
-            cell.vs_full_res = Some(ImageError {
-                flip_mean: 0.0,
-                rmse: 0.0,
-            });
-            let own = match p.config.params.channels == plan::BASELINE_CHANNELS {
+            cell.vs_full_res = Some(ImageError::NONE);
+            // The 24-channel cell is its own baseline; the others are compared with it, kept
+            // from its cell or rendered now.
+            cell.vs_own_24 = Some(match p.config.params.channels == plan::BASELINE_CHANNELS {
                 true => {
                     own_images.insert(p.name.clone(), image.clone());
-                    None
+                    ImageError::NONE
                 }
                 false => {
                     let baseline = p.own_baseline(&scene);
-                    let own = match own_images.get(&baseline.name) {
-                        Some(own) => own.clone(),
-                        None => {
-                            let own = bench.render_image(&mut renderer, &baseline).await?;
-                            own_images.insert(baseline.name, own.clone());
-                            own
-                        }
-                    };
-                    Some(own)
+                    if !own_images.contains_key(&baseline.name) {
+                        let own = bench.render_image(&mut renderer, &baseline).await?;
+                        own_images.insert(baseline.name.clone(), own);
+                    }
+                    error(&own_images[&baseline.name], &image)?
                 }
-            };
-            cell.vs_own_24 = Some(match own {
-                Some(own) => error(&own, &image)?,
-                None => ImageError {
-                    flip_mean: 0.0,
-                    rmse: 0.0,
-                },
             });
         }
         cells.push(cell);

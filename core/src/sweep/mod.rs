@@ -106,6 +106,22 @@ pub struct ImageError {
     pub rmse: f64,
 }
 
+impl ImageError {
+    /// An image against itself (a cell that is its own baseline).
+    pub const NONE: Self = Self {
+        flip_mean: 0.0,
+        rmse: 0.0,
+    };
+
+    /// The error a comparison's `metrics` give.
+    pub fn of(metrics: &crate::diff::Metrics) -> Self {
+        Self {
+            flip_mean: metrics.flip_mean,
+            rmse: metrics.rmse_srgb,
+        }
+    }
+}
+
 /// One finished cell of the sweep.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct CellResult {
