@@ -402,6 +402,17 @@ impl Summary {
         }
         s
     }
+
+    /// The summary of two sets of particles together (an empty one changes nothing).
+    pub fn union(&self, other: &Self) -> Self {
+        Self {
+            count: self.count + other.count,
+            min: self.min.min(other.min),
+            max: self.max.max(other.max),
+            min_density_per_m: self.min_density_per_m.min(other.min_density_per_m),
+            max_density_per_m: self.max_density_per_m.max(other.max_density_per_m),
+        }
+    }
 }
 
 impl std::fmt::Display for Summary {
@@ -629,21 +640,10 @@ fn scene_for_particle_sequence(
         folder: Folder::new("", files.clone()),
         ..ParticleSource::default()
     };
-    let mut all = Summary {
-        count: 0,
-        min: Vec3::splat(f32::INFINITY),
-        max: Vec3::splat(f32::NEG_INFINITY),
-        min_density_per_m: 0.0,
-        max_density_per_m: 0.0,
-    };
+    let mut all = Summary::of(&[]);
     for &f in frames {
         source.frame_at_zero = frame_at_zero_for(&source, duration, f);
-        let one = Summary::of(&source.particles_at(duration)?);
-        if one.count > 0 {
-            all.count += one.count;
-            all.min = all.min.min(one.min);
-            all.max = all.max.max(one.max);
-        }
+        all = all.union(&Summary::of(&source.particles_at(duration)?));
     }
     source.frame_at_zero = frame_at_zero_for(&source, duration, frame);
     let description = sequence_description(pattern, frame);

@@ -103,17 +103,16 @@ impl Smoke {
                 spec.grid
             );
         };
-        let non_zero: Vec<f64> = grid
+        let (density_sum, non_zero) = grid
             .values
             .iter()
             .filter(|v| **v > 0.0)
-            .map(|v| f64::from(*v))
-            .collect();
+            .fold((0.0, 0), |(sum, n), v| (sum + f64::from(*v), n + 1));
         let smoke = Self {
             lo,
             hi,
-            density_sum: non_zero.iter().sum(),
-            non_zero: non_zero.len(),
+            density_sum,
+            non_zero,
         };
         if !(smoke.density_sum > 0.0 && smoke.size() > 0.0) {
             anyhow::bail!(
