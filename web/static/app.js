@@ -117,56 +117,45 @@ function fillTable(table, rows) {
   }
 }
 
-async function pickScene(name) {
+// The scene shown changes (`change` asks the page and returns its line): the controls it allows
+// and its comparison, or its one line.
+async function changeScene(change, frame) {
   clearError();
   try {
-    $('scene-line').textContent = page.pick_scene(name);
+    $('scene-line').textContent = change();
   } catch (e) {
     showError(message(e));
-    return;
+    return false;
   }
   fillTechniques();
   fillSweepTechniques();
-  fillFrames();
-  await compare();
+  fillFrames(frame);
+  return await compare();
+}
+
+async function pickScene(name) {
+  return changeScene(() => page.pick_scene(name));
 }
 
 async function openFiles(files) {
   if (!files.length) return;
-  clearError();
   page.clear_files();
   for (const f of files) page.add_file(f.name, new Uint8Array(await f.arrayBuffer()));
-  try {
-    $('scene-line').textContent = page.open_dropped();
-  } catch (e) {
-    showError(message(e));
-    return false;
-  }
-  fillTechniques();
-  fillSweepTechniques();
-  fillFrames();
-  return await compare();
+  return changeScene(() => page.open_dropped());
 }
 
-// A dropped sequence's frames, to step through (hidden for anything else).
-function fillFrames() {
+// A dropped sequence's frames, to step through (hidden for anything else), `frame` shown.
+function fillFrames(frame) {
   const frames = JSON.parse(page.frames());
   const select = $('frame');
   select.innerHTML = '';
   for (const f of frames) select.add(new Option(`${f}`, `${f}`));
+  if (frame !== undefined) select.value = `${frame}`;
   $('frame-control').hidden = frames.length === 0;
 }
 
 async function showFrame(frame) {
-  clearError();
-  try {
-    $('scene-line').textContent = page.show_frame(frame);
-  } catch (e) {
-    showError(message(e));
-    return false;
-  }
-  $('frame').value = `${frame}`;
-  return await compare();
+  return changeScene(() => page.show_frame(frame), frame);
 }
 
 async function compare(options = {}) {
